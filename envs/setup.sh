@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# One-command set-up and run for anigs.
+#   bash envs/setup.sh demo [snakemake args...]   install, then run the workflow on the embedded demo
+#   bash envs/setup.sh test [pytest args...]      install, then run the test suite
+#   bash envs/setup.sh install                    install only
+# Creates ./.venv (override with ANIGS_VENV), installs torch from the pin in
+# envs/constraints.txt first, then anigs and its dependencies, then builds the CPU
+# rasterizer kernel. Re-running skips the install when nothing changed.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+MODE="${1:-install}"; shift || true
+PY="${PYTHON:-python3}"
+VENV="${ANIGS_VENV:-.venv}"
+CONSTRAINTS="${ANIGS_CONSTRAINTS:-envs/constraints.txt}"
+EXTRAS="${ANIGS_EXTRAS:-}"   # e.g. ANIGS_EXTRAS=ltx,gsplat
+
+if [ ! -x "$VENV/bin/python" ]; then
+  echo "[anigs] creating virtual environment $VENV"
+  "$PY" -m venv "$VENV"
+fi
+STAMP="$VENV/.anigs-install-stamp"
+WANT="$(cat pyproject.toml "$CONSTRAINTS" | sha256sum | cut -c1-16)-${EXTRAS}"
+if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
+  echo "[anigs] installing dependencies (torch pinned by $CONSTRAINTS)"
+  "$VENV/bin/python" -m pip install -q --upgrade pip setuptools wheel -c "$CONSTRAINTS"
+  TORCH_PIN="$(grep -E '^torch[=<>~!]' "$CONSTRAINTS" | head -1 || true)"
+  "$VENV/bin/python" -m pip install -q "${TORCH_PIN:-torch}" -c "$CONSTRAINTS"
+  SPEC="."
+  if [ -n "$EXTRAS" ]; then SPEC=".[${EXTRAS}]"; fi
+  "$VENV/bin/python" -m pip install -q -e "$SPEC" -c "$CONSTRAINTS"
+  echo "$WANT" > "$STAMP"
+fi
+"$VENV/bin/anigs" build-kernel --quiet
+export PATH="$(cd "$VENV/bin" && pwd):$PATH"
+
+case "$MODE" in
+  demo) exec snakemake --cores all "$@" ;;
+  test) exec python -m pytest "$@" ;;
+  install) echo "[anigs] installed into $VENV" ;;
+  *) echo "usage: bash envs/setup.sh {demo|test|install} [args...]" >&2; exit 2 ;;
+esac
