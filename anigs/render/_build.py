@@ -18,7 +18,7 @@ import tempfile
 from pathlib import Path
 
 SRC = Path(__file__).with_name("csrc") / "raster.cpp"
-ABI_VERSION = 2
+ABI_VERSION = 3
 _FLAGS = ["-O3", "-std=c++17", "-shared", "-fPIC", "-ffp-contract=off", "-fno-math-errno"]
 _LIB: ctypes.CDLL | None = None
 
@@ -41,7 +41,8 @@ def _compiler() -> str:
 
 
 def library_path() -> Path:
-    key = hashlib.sha256(SRC.read_bytes() + " ".join(_FLAGS).encode() + platform.machine().encode()).hexdigest()[:16]
+    srcs = b"".join(p.read_bytes() for p in sorted(SRC.parent.glob("*.cpp")))
+    key = hashlib.sha256(srcs + " ".join(_FLAGS).encode() + platform.machine().encode()).hexdigest()[:16]
     return cache_dir() / f"anigs_raster_{key}.so"
 
 
@@ -85,7 +86,10 @@ def load() -> ctypes.CDLL:
     lib.anigs_forward.argtypes = [I, I, I, I, P, P, P, P, P, P, P, P, P, P, I]
     lib.anigs_backward.argtypes = [I, I, I, I, P, P, P, P, P, P, P, P, P, P, P, P, I]
     lib.anigs_reduce.argtypes = [I, I, P, P, P, P, P, I]
-    for f in (lib.anigs_tile_counts, lib.anigs_bin, lib.anigs_forward, lib.anigs_backward, lib.anigs_reduce):
+    lib.anigs_project_forward.argtypes = [I, P, I, I, P, P, P, P, P, P, P, P, P, P, I]
+    lib.anigs_project_backward.argtypes = [I, P, I, I, P, P, P, P, P, P, P, P, P, P, I]
+    for f in (lib.anigs_tile_counts, lib.anigs_bin, lib.anigs_forward, lib.anigs_backward, lib.anigs_reduce,
+              lib.anigs_project_forward, lib.anigs_project_backward):
         f.restype = None
     _LIB = lib
     return lib

@@ -101,17 +101,24 @@ def rasterize(
         meta["backend"] = "gsplat"
         return rgb, alpha, meta
 
-    proj = project_gaussians(means, quats, scales, opacities, viewmat, K, width, height, near, far)
-    idx = torch.nonzero(proj.valid, as_tuple=False).squeeze(1)
+    if backend == "cpu":
+        from anigs.render.cpu_backend import project_cpu
+
+        means2d, conics, depths, rects, radii, valid = project_cpu(
+            means, quats, scales, opacities, viewmat, K, width, height, near, far)
+    else:
+        p = project_gaussians(means, quats, scales, opacities, viewmat, K, width, height, near, far)
+        means2d, conics, depths, rects, radii, valid = p.means2d, p.conics, p.depths, p.rects, p.radii, p.valid
+    idx = torch.nonzero(valid, as_tuple=False).squeeze(1)
     # front-to-back order (stable, so equal depths keep input order)
-    idx = idx[torch.argsort(proj.depths.detach()[idx], stable=True)]
+    idx = idx[torch.argsort(depths.detach()[idx], stable=True)]
     if sh_degree is None:
         col = colors[idx]
     else:
         cam_center = -viewmat[:3, :3].T @ viewmat[:3, 3]
         col = sh_colors(sh_degree, colors[idx], means[idx], cam_center)
-    feats = torch.cat([col, proj.depths[idx, None]], dim=1)
-    args = (proj.means2d[idx], proj.conics[idx], feats, opacities[idx], proj.rects[idx], width, height)
+    feats = torch.cat([col, depths[idx, None]], dim=1)
+    args = (means2d[idx], conics[idx], feats, opacities[idx], rects[idx], width, height)
     if backend == "cpu":
         from anigs.render.cpu_backend import composite_cpu
 
@@ -123,7 +130,7 @@ def rasterize(
     alpha = 1 - T
     rgb = acc[..., :3] + T[..., None] * bg
     depth = torch.where(alpha > 0, acc[..., 3] / alpha.clamp_min(1e-10), torch.zeros_like(alpha))
-    meta = {"depth": depth, "radii": proj.radii, "means2d": proj.means2d, "visible": proj.valid,
+    meta = {"depth": depth, "radii": radii, "means2d": means2d, "visible": valid,
             "backend": backend, "num_visible": int(idx.numel())}
     return rgb, alpha, meta
 

@@ -31,7 +31,9 @@ def composite_torch(
     n = w * h
     total = int(n.sum())
     if M == 0 or total == 0:
-        return feats.new_zeros(height, width, C) + 0 * feats.sum(), torch.ones(height, width, dtype=dtype, device=dev)
+        # keep every input in the graph so callers get (zero) gradients, as from the cpu kernel
+        link = 0 * (means2d.sum() + conics.sum() + feats.sum() + opacities.sum())
+        return feats.new_zeros(height, width, C) + link, torch.ones(height, width, dtype=dtype, device=dev) + link
 
     # (pixel, gaussian) pairs for every pixel inside each Gaussian's box.
     g = torch.repeat_interleave(torch.arange(M, device=dev), n)

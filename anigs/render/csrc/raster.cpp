@@ -44,11 +44,26 @@ inline bool splat_alpha(const float* m, const float* q, float o, int x, int y,
   alpha = std::min(ALPHA_MAX, o * G);
   return alpha >= ALPHA_MIN;
 }
+// Pixels of row y (within [bx0, bx1)) where the splat can reach alpha >= 1/255:
+// A dx^2 + 2 B dy dx + C dy^2 <= 2 ln(255 o), with a small safety margin (the per-pixel
+// alpha test still decides, so this only skips work).
+inline bool row_span(const float* m, const float* q, float lv2, int y, int bx0, int bx1, int& xs, int& xe) {
+  const float dy = (float(y) + 0.5f) - m[1];
+  const float bdy = q[1] * dy;
+  const float disc = bdy * bdy - q[0] * (q[2] * dy * dy - lv2);
+  if (disc < 0.f) return false;
+  const float r = std::sqrt(disc);
+  const float lo = m[0] - 0.5f + (-bdy - r) / q[0] - 0.05f;
+  const float hi = m[0] - 0.5f + (-bdy + r) / q[0] + 0.05f;
+  xs = std::max(bx0, int(std::ceil(std::max(lo, -1e7f))));
+  xe = std::min(bx1, int(std::floor(std::min(hi, 1e7f))) + 1);
+  return xs < xe;
+}
 }  // namespace
 
 extern "C" {
 
-int anigs_abi_version() { return 2; }
+int anigs_abi_version() { return 3; }
 
 int anigs_max_channels() { return MAXC; }
 
@@ -123,8 +138,11 @@ void anigs_forward(int M, int C, int W, int H, const float* means2d, const float
       const float o = opac[g];
       const float* f = feats + (size_t)C * g;
       const int jl = j - tile_offsets[t];
+      const float lv2 = 2.f * std::log(std::max(o * 255.f, 1.f));
       for (int y = b.y0; y < b.y1; ++y) {
-        for (int x = b.x0; x < b.x1; ++x) {
+        int xs, xe;
+        if (!row_span(m, q, lv2, y, b.x0, b.x1, xs, xe)) continue;
+        for (int x = xs; x < xe; ++x) {
           const int p = (y - py0) * TILE + (x - px0);
           if (done[p]) continue;
           float dx, dy, G, alpha;
@@ -194,8 +212,11 @@ void anigs_backward(int M, int C, int W, int H, const float* means2d, const floa
       const float o = opac[g];
       const float* f = feats + (size_t)C * g;
       for (int d = 0; d < D; ++d) sum[d] = 0.f;
+      const float lv2 = 2.f * std::log(std::max(o * 255.f, 1.f));
       for (int y = b.y0; y < b.y1; ++y) {
-        for (int x = b.x0; x < b.x1; ++x) {
+        int xs, xe;
+        if (!row_span(m, q, lv2, y, b.x0, b.x1, xs, xe)) continue;
+        for (int x = xs; x < xe; ++x) {
           const int p = (y - py0) * TILE + (x - px0);
           if (jl >= last[p]) continue;
           float dx, dy, G, alpha;
@@ -245,3 +266,4 @@ void anigs_reduce(int M, int D, const int* gstart, const int* gcount, const int*
 }
 
 }  // extern "C"
+#include "project.cpp"
