@@ -51,6 +51,8 @@ def parse_params(value: str | None) -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="anigs", description=__doc__.splitlines()[0])
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    parser.add_argument("--threads", type=int, default=None,
+                        help="CPU threads for torch and the rasterizer (Snakemake passes {threads})")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     modules = {}
     argv = sys.argv[1:] if argv is None else argv
@@ -71,6 +73,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
+    if args.threads:
+        import torch
+
+        torch.set_num_threads(max(1, args.threads))
     try:
         return int(modules[args.command].run(args) or 0)
     except (ValueError, FileNotFoundError, RuntimeError, KeyError) as exc:

@@ -77,6 +77,9 @@ def load() -> ctypes.CDLL:
     global _LIB
     if _LIB is not None:
         return _LIB
+    # Our OpenMP runtime is separate from torch's: idle threads must sleep, not spin, or the
+    # two pools (and parallel Snakemake jobs) starve each other on small machines.
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     lib = ctypes.CDLL(str(build()))
     if lib.anigs_abi_version() != ABI_VERSION:
         raise KernelBuildError(f"stale kernel library {library_path()}: delete it and retry")
