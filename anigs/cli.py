@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     modules = {}
     argv = sys.argv[1:] if argv is None else argv
-    wanted = next((a for a in argv if not a.startswith("-")), None)
+    wanted = next((a for a in argv if a in COMMANDS), None)
     for name, (mod, help_) in COMMANDS.items():
         p = sub.add_parser(name, help=help_)
         if name == wanted:  # import lazily: only the chosen stage's dependencies load
