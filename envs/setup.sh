@@ -12,14 +12,17 @@ MODE="${1:-install}"; shift || true
 PY="${PYTHON:-python3}"
 VENV="${ANIGS_VENV:-.venv}"
 CONSTRAINTS="${ANIGS_CONSTRAINTS:-envs/constraints.txt}"
-EXTRAS="${ANIGS_EXTRAS:-}"   # e.g. ANIGS_EXTRAS=ltx,gsplat
+# Optional extras (e.g. ANIGS_EXTRAS=ltx,gsplat). The test suite runs the real LTX code path
+# with tiny random weights and uses gsplat's pure-torch functions as an oracle, so 'test'
+# installs both by default (neither downloads weights; gsplat's CUDA kernels stay unused).
+if [ "$MODE" = "test" ]; then EXTRAS="${ANIGS_EXTRAS-ltx,gsplat}"; else EXTRAS="${ANIGS_EXTRAS:-}"; fi
 
 if [ ! -x "$VENV/bin/python" ]; then
   echo "[anigs] creating virtual environment $VENV"
   "$PY" -m venv "$VENV"
 fi
-STAMP="$VENV/.anigs-install-stamp"
-WANT="$(cat pyproject.toml "$CONSTRAINTS" | sha256sum | cut -c1-16)-${EXTRAS}"
+STAMP="$VENV/.anigs-install-stamp-${EXTRAS:-core}"
+WANT="$(cat pyproject.toml "$CONSTRAINTS" | sha256sum | cut -c1-16)"
 if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   echo "[anigs] installing dependencies (torch pinned by $CONSTRAINTS)"
   "$VENV/bin/python" -m pip install -q --upgrade pip setuptools wheel -c "$CONSTRAINTS"
