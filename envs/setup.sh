@@ -15,7 +15,7 @@ CONSTRAINTS="${ANIGS_CONSTRAINTS:-envs/constraints.txt}"
 # Optional extras (e.g. ANIGS_EXTRAS=ltx,gsplat). The test suite runs the real LTX code path
 # with tiny random weights and uses gsplat's pure-torch functions as an oracle, so 'test'
 # installs both by default (neither downloads weights; gsplat's CUDA kernels stay unused).
-if [ "$MODE" = "test" ]; then EXTRAS="${ANIGS_EXTRAS-ltx,gsplat}"; else EXTRAS="${ANIGS_EXTRAS:-}"; fi
+if [ "$MODE" = "test" ]; then EXTRAS="${ANIGS_EXTRAS-ltx,gsplat,slurm}"; else EXTRAS="${ANIGS_EXTRAS:-}"; fi
 
 if [ ! -x "$VENV/bin/python" ]; then
   echo "[anigs] creating virtual environment $VENV"
