@@ -1,0 +1,197 @@
+"""Similarity transforms of reconstructions: Umeyama fit, z-up normalisation, pose errors.
+
+A similarity maps old world points to new ones as ``x_new = s * R @ x_old + t``
+(``s`` > 0 scalar, ``R`` [3,3] rotation, ``t`` [3]). Cameras follow the project convention
+(:class:`anigs.cameras.Camera`, OpenCV, world-to-camera ``viewmat``).
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from anigs.cameras import Camera
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Similarity:
+    """``x_new = scale * R @ x_old + t``."""
+
+    scale: float
+    R: np.ndarray  # [3,3]
+    t: np.ndarray  # [3]
+
+    @staticmethod
+    def identity() -> "Similarity":
+        return Similarity(1.0, np.eye(3), np.zeros(3))
+
+    def matrix(self) -> np.ndarray:
+        """The transform as a [3,4] matrix ``[s R | t]``."""
+        return np.c_[self.scale * self.R, self.t]
+
+    def apply(self, points: np.ndarray) -> np.ndarray:
+        """Transform points [N,3] -> [N,3]."""
+        return self.scale * np.asarray(points, dtype=np.float64) @ self.R.T + self.t
+
+    def compose(self, first: "Similarity") -> "Similarity":
+        """The similarity that applies ``first`` and then ``self``."""
+        return Similarity(self.scale * first.scale, self.R @ first.R, self.scale * self.R @ first.t + self.t)
+
+    def apply_viewmat(self, viewmat: np.ndarray) -> np.ndarray:
+        """World-to-camera [4,4] in the old world -> the same camera in the new world.
+
+        The camera frame is scaled with the world, so the result stays rigid:
+        ``R' = Rc R^T`` and ``t' = s tc - R' t``.
+        """
+        V = np.asarray(viewmat, dtype=np.float64)
+        Rn = V[:3, :3] @ self.R.T
+        out = np.eye(4)
+        out[:3, :3] = Rn
+        out[:3, 3] = self.scale * V[:3, 3] - Rn @ self.t
+        return out
+
+    def apply_camera(self, cam: Camera) -> Camera:
+        return Camera(cam.K.copy(), self.apply_viewmat(cam.viewmat), cam.width, cam.height, cam.name)
+
+
+def umeyama(src: np.ndarray, dst: np.ndarray, with_scale: bool = True) -> Similarity:
+    """Least-squares similarity with ``dst ≈ s R src + t`` (Umeyama 1991).
+
+    Args:
+        src, dst: corresponding points [N,3], N >= 3 and not all collinear.
+    """
+    src = np.asarray(src, dtype=np.float64)
+    dst = np.asarray(dst, dtype=np.float64)
+    if src.shape != dst.shape or src.ndim != 2 or src.shape[1] != 3:
+        raise ValueError(f"umeyama: need two [N,3] arrays of equal shape, got {src.shape} and {dst.shape}")
+    if src.shape[0] < 3:
+        raise ValueError(f"umeyama: need at least 3 correspondences, got {src.shape[0]}")
+    mu_s, mu_d = src.mean(0), dst.mean(0)
+    xs, xd = src - mu_s, dst - mu_d
+    var_s = (xs ** 2).sum() / len(src)
+    if var_s < 1e-20:
+        raise ValueError("umeyama: source points coincide")
+    cov = xd.T @ xs / len(src)
+    U, D, Vt = np.linalg.svd(cov)
+    if D[1] < 1e-12 * max(D[0], 1e-300):
+        raise ValueError("umeyama: points are collinear; the rotation is undetermined")
+    S = np.eye(3)
+    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
+        S[2, 2] = -1
+    R = U @ S @ Vt
+    scale = float(np.trace(np.diag(D) @ S) / var_s) if with_scale else 1.0
+    t = mu_d - scale * R @ mu_s
+    return Similarity(scale, R, t)
+
+
+def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Smallest rotation [3,3] taking direction ``a`` [3] onto direction ``b`` [3]."""
+    a = np.asarray(a, dtype=np.float64) / np.linalg.norm(a)
+    b = np.asarray(b, dtype=np.float64) / np.linalg.norm(b)
+    v = np.cross(a, b)
+    c = float(a @ b)
+    if c < -1 + 1e-12:  # opposite: rotate 180 degrees about any axis perpendicular to a
+        axis = np.cross(a, [1.0, 0, 0] if abs(a[0]) < 0.9 else [0, 1.0, 0])
+        axis /= np.linalg.norm(axis)
+        return 2 * np.outer(axis, axis) - np.eye(3)
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx / (1 + c)
+
+
+def rotation_angle_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
+    """Angle in degrees of the relative rotation ``Ra Rb^T``."""
+    cos = (np.trace(np.asarray(Ra) @ np.asarray(Rb).T) - 1) / 2
+    return math.degrees(math.acos(float(np.clip(cos, -1.0, 1.0))))
+
+
+def pose_errors(est: Sequence[Camera], gt: Sequence[Camera]) -> dict:
+    """Rotation and centre errors of cameras already in the ground-truth frame.
+
+    Cameras are matched by ``name``. ``rotation_error_deg_after_best_rotation`` is the
+    orientation error left after the single rotation that best aligns the orientations (it
+    does not depend on how well the centres determine the alignment). The centre error is
+    given in world units and as a percentage of the scene extent, defined here as the largest
+    distance between two ground-truth camera centres (the capture's diameter).
+    """
+    by_name = {c.name: c for c in gt}
+    missing = [c.name for c in est if c.name not in by_name]
+    if missing:
+        raise KeyError(f"pose_errors: no ground-truth camera named {missing[:5]} ({len(missing)} missing)")
+    pairs = [(c, by_name[c.name]) for c in est]
+    rot = np.array([rotation_angle_deg(e.R, g.R) for e, g in pairs])
+    cen = np.array([np.linalg.norm(e.center - g.center) for e, g in pairs])
+    gc = np.stack([g.center for g in gt])
+    extent = float(np.max(np.linalg.norm(gc[:, None] - gc[None], axis=-1)))
+    focal = np.array([abs(e.K[0, 0] * g.width / e.width - g.K[0, 0]) / g.K[0, 0] for e, g in pairs])
+    pct = 100.0 * cen / max(extent, 1e-12)
+    # orientation residual once the best global rotation is applied (independent of how
+    # well the centres pin the alignment down: small-baseline captures)
+    U, _, Vt = np.linalg.svd(sum(g.R.T @ e.R for e, g in pairs))
+    Rbest = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    rot_best = np.array([rotation_angle_deg(e.R @ Rbest.T, g.R) for e, g in pairs])
+    return {
+        "num_cameras": len(pairs),
+        "rotation_error_deg": {"mean": float(rot.mean()), "max": float(rot.max())},
+        "rotation_error_deg_after_best_rotation": {"mean": float(rot_best.mean()), "max": float(rot_best.max())},
+        "center_error": {"mean": float(cen.mean()), "max": float(cen.max())},
+        "center_error_pct_extent": {"mean": float(pct.mean()), "max": float(pct.max())},
+        "focal_error_pct": {"mean": float(100 * focal.mean()), "max": float(100 * focal.max())},
+        "extent": extent,
+        "extent_definition": "max distance between two ground-truth camera centres",
+    }
+
+
+# ---- z-up frame for reconstructions without ground truth ------------------------------------
+
+def estimate_up(cams: list[Camera], prior_weight: float = 1e-3) -> np.ndarray:
+    """World up direction [3] from upright cameras (no roll).
+
+    The cameras' x axes are horizontal when the cameras are held upright, whatever their
+    pitch, so up is the unit vector most orthogonal to all x axes: the smallest eigenvector
+    of ``mean(x x^T)``. When the x axes are nearly parallel (every camera facing the same
+    way) that is undetermined within the plane orthogonal to x; a weak prior towards the
+    mean -y axis (``prior_weight * (I - y y^T)``) settles it there, which leaves the cameras'
+    common pitch in the estimate. The sign follows the mean -y axis.
+    """
+    xs = np.stack([c.R[0] for c in cams])
+    ybar = -np.stack([c.R[1] for c in cams]).mean(0)
+    if np.linalg.norm(ybar) < 1e-6:
+        raise ValueError("cannot estimate the up direction: the cameras' up axes cancel out")
+    yhat = ybar / np.linalg.norm(ybar)
+    M = xs.T @ xs / len(xs) + prior_weight * (np.eye(3) - np.outer(yhat, yhat))
+    up = np.linalg.eigh(M)[1][:, 0]
+    return up if up @ yhat >= 0 else -up
+
+
+def upright_similarity(cams: list[Camera], xyz: np.ndarray, ground_percentile: float,
+                       camera_height: float | None = None) -> tuple[Similarity, dict]:
+    """Rotation putting the estimated up on +z, camera centroid at x=y=0, ground at z=0.
+
+    With ``camera_height`` the world is also scaled so the cameras' mean height above that
+    ground equals it (e.g. 1.6 for photos taken at eye height in metres); otherwise, or when
+    the cameras are not above the estimated ground, COLMAP's scale is kept.
+    """
+    up = estimate_up(cams)
+    tilt = np.degrees(np.arccos(np.clip(np.stack([-c.R[1] for c in cams]) @ up, -1, 1)))
+    R = rotation_between(up, np.array([0.0, 0.0, 1.0]))
+    centers = np.stack([c.center for c in cams]) @ R.T
+    heights = (xyz.astype(np.float64) @ R.T)[:, 2] if len(xyz) else centers[:, 2]
+    t = np.array([-centers[:, 0].mean(), -centers[:, 1].mean(), -np.percentile(heights, ground_percentile)])
+    mean_height = float((centers[:, 2] + t[2]).mean())
+    extent = float(np.ptp(centers, axis=0).max()) if len(cams) > 1 else 0.0
+    scale = 1.0
+    if camera_height is not None:
+        if mean_height > 1e-3 * max(extent, 1e-12):
+            scale = camera_height / mean_height
+        else:
+            log.warning("cameras are not above the estimated ground (mean height %.3g): keeping COLMAP's scale",
+                        mean_height)
+    return Similarity(scale, R, scale * t), {"mode": "upright", "up_in_colmap_frame": up,
+                                   "mean_camera_height_before_scaling": mean_height,
+                                   "camera_tilt_from_up_deg": {"mean": float(tilt.mean()),
+                                                               "max": float(tilt.max())}}

@@ -1,0 +1,479 @@
+"""Structure from motion (anigs.sfm, anigs.align) on small rendered textured scenes.
+
+The scene: flat textured Gaussians (random colours and brightness, 2-7 cm) on a ground
+plane and on the faces of four boxes, rendered with the project's rasterizer at 320x240.
+Two captures: a ring of 20 cameras around the boxes (SIMPLE_RADIAL, so the undistortion
+path runs) and a forward-facing grid of 16 cameras with a small baseline (SIMPLE_PINHOLE).
+"""
+from __future__ import annotations
+
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+pycolmap = pytest.importorskip("pycolmap")
+
+from anigs import sfm as sfm_mod  # noqa: E402
+from anigs.align import (Similarity, estimate_up, pose_errors, rotation_angle_deg, rotation_between,  # noqa: E402
+                         umeyama)
+from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at, save_cameras  # noqa: E402
+from anigs.gaussians import Gaussians  # noqa: E402
+from anigs.render import render_gaussians  # noqa: E402
+from anigs.sfm import SfmConfig, SfmError, run_sfm  # noqa: E402
+from anigs.video import save_png  # noqa: E402
+
+W, H = 320, 240
+# quaternions (w,x,y,z) turning the thin local z axis onto the world x, y, z normals
+_Q_NORMAL = np.array([[math.sqrt(.5), 0, math.sqrt(.5), 0], [math.sqrt(.5), -math.sqrt(.5), 0, 0], [1, 0, 0, 0]])
+
+
+def textured_scene(seed: int = 0, n_ground: int = 3000, n_box: int = 700) -> Gaussians:
+    """Flat random-coloured Gaussians on the ground (z=0) and on four boxes' faces."""
+    rng = np.random.default_rng(seed)
+    pts = [np.c_[rng.uniform(-2.5, 2.5, (n_ground, 2)), np.zeros(n_ground)]]
+    normals = [np.full(n_ground, 2)]
+    boxes = [((-0.8, -0.5), (0.7, 0.6, 0.9)), ((0.9, 0.6), (0.5, 0.8, 0.5)),
+             ((0.2, -1.2), (0.6, 0.4, 1.3)), ((-0.6, 1.1), (0.4, 0.4, 0.7))]
+    for (cx, cy), size in boxes:
+        size = np.array(size)
+        u = rng.uniform(-0.5, 0.5, (n_box, 3))
+        axis = rng.choice(3, n_box, p=[0.4, 0.4, 0.2])
+        u[np.arange(n_box), axis] = rng.choice([-0.5, 0.5], n_box)
+        pts.append(np.array([cx, cy, size[2] / 2]) + u * size)
+        normals.append(axis)
+    pts, normals = np.concatenate(pts), np.concatenate(normals)
+    n = len(pts)
+    colors = rng.uniform(0, 1, (n, 3)) * rng.uniform(0.1, 1, (n, 1))
+    scales = np.c_[np.exp(rng.uniform(math.log(0.02), math.log(0.07), (n, 2))), np.full(n, 0.003)]
+    g = Gaussians.from_points(torch.tensor(pts), torch.tensor(colors), 0.01, opacity=0.99)
+    g.quats = torch.tensor(_Q_NORMAL[normals], dtype=torch.float32)
+    g.log_scales = torch.tensor(np.log(scales), dtype=torch.float32)
+    return g
+
+
+def ring_cameras(n: int = 20, seed: int = 0) -> list[Camera]:
+    rng = np.random.default_rng(seed + 1)
+    K = intrinsics_from_fov(60, W, H)
+    cams = []
+    for i in range(n):
+        a = 2 * math.pi * i / n + 0.05 * rng.standard_normal()
+        eye = [3.5 * math.cos(a), 3.5 * math.sin(a), 2.3 + 0.3 * rng.standard_normal()]
+        cams.append(Camera(K, look_at(eye, [0, 0, 0.3]), W, H, f"ring_{i:03d}.png"))
+    return cams
+
+
+def forward_cameras(n: int = 16, spread: float = 0.15, seed: int = 0) -> list[Camera]:
+    """A hand-held forward-facing capture: small baseline, all cameras facing +y."""
+    rng = np.random.default_rng(seed + 2)
+    K = intrinsics_from_fov(60, W, H)
+    cams = []
+    for i in range(n):
+        dx, dz = rng.uniform(-spread, spread, 2)
+        target = np.array([0, 0, 0.3]) + 0.1 * rng.standard_normal(3)
+        cams.append(Camera(K, look_at([dx, -3.5, 1.6 + dz], target), W, H, f"ff_{i:03d}.png"))
+    return cams
+
+
+def render_capture(folder: Path, cams: list[Camera], g: Gaussians) -> tuple[Path, Path]:
+    images = folder / "images"
+    bg = torch.tensor([0.5, 0.5, 0.5])
+    with torch.no_grad():
+        for c in cams:
+            rgb, _, _ = render_gaussians(g, c, background=bg)
+            save_png(images / c.name, rgb)
+    save_cameras(folder / "gt_cameras.json", cams)
+    return images, folder / "gt_cameras.json"
+
+
+@pytest.fixture(scope="module")
+def scene() -> Gaussians:
+    return textured_scene()
+
+
+@pytest.fixture(scope="module")
+def ring(tmp_path_factory, scene):
+    """Ring capture reconstructed once (real COLMAP) and aligned to the ground truth."""
+    root = tmp_path_factory.mktemp("ring")
+    images, gt = render_capture(root, ring_cameras(), scene)
+    cfg = SfmConfig(camera_model="SIMPLE_RADIAL")
+    res = run_sfm(images, root / "sfm", cfg, gt_cameras=gt, keep_work=True)
+    return {"root": root, "images": images, "gt": gt, "res": res, "out": root / "sfm"}
+
+
+# ---- the real reconstruction ----------------------------------------------------------------
+
+def test_ring_registers_all_and_is_accurate(ring):
+    r = ring["res"].report
+    assert r["registered"] == r["images"] == 20
+    assert r["undistorted"] is True and r["camera_models"] == ["SIMPLE_RADIAL"]
+    e = r["gt_errors"]
+    assert e["rotation_error_deg"]["max"] < 0.5, e
+    assert e["center_error_pct_extent"]["max"] < 1.0, e
+    assert e["focal_error_pct"]["max"] < 2.0, e
+
+
+def test_ring_outputs_follow_the_contract(ring):
+    out = ring["out"]
+    cams = load_cameras(out / "cameras.json")
+    names = sorted(p.name for p in ring["images"].iterdir())
+    assert [c.name for c in cams] == names
+    for c in cams:  # undistorted images lie next to the cameras that describe them
+        from PIL import Image
+
+        with Image.open(out / "images" / c.name) as im:
+            assert im.size == (c.width, c.height)
+        assert c.K[0, 1] == 0 and abs(c.K[0, 0] - c.K[1, 1]) < 1e-9
+    pts = np.load(out / "points.npz")
+    assert pts["xyz"].dtype == np.float32 and pts["xyz"].shape[1] == 3 and len(pts["xyz"]) > 300
+    assert pts["rgb"].shape == pts["xyz"].shape and 0 <= pts["rgb"].min() and pts["rgb"].max() <= 1
+    # points lie on the scene: ground (z ~ 0) or boxes, inside the 5 m square (GT frame)
+    inside = (np.abs(pts["xyz"][:, :2]) < 2.6).all(1) & (pts["xyz"][:, 2] > -0.1) & (pts["xyz"][:, 2] < 1.4)
+    assert inside.mean() > 0.95
+    rec = pycolmap.Reconstruction(out / "sparse" / "0")
+    assert rec.num_reg_images() == 20
+    assert {rec.cameras[i].model.name for i in rec.cameras} <= {"PINHOLE", "SIMPLE_PINHOLE"}
+    # the written model and cameras.json agree: reproject the model's points with our cameras
+    by_name = {c.name: c for c in cams}
+    errs = []
+    for image_id in rec.reg_image_ids():
+        im = rec.images[image_id]
+        for p2 in im.points2D:
+            if p2.has_point3D():
+                uv, z = by_name[im.name].project(rec.points3D[p2.point3D_id].xyz[None])
+                assert z[0] > 0
+                errs.append(np.linalg.norm(uv[0] - p2.xy))
+    assert np.mean(errs) < 1.0
+    rep = ring["res"].report
+    for key in ("registered", "images", "mapping", "timings_s", "frame", "gt_errors", "features"):
+        assert key in rep
+    assert rep["mapping"]["retries"] == 0 and rep["mapping"]["models_found"][0] == 20
+
+
+def test_upright_frame_without_ground_truth(ring, tmp_path):
+    """From the existing model (no GT): up must be +z and the ground z = 0, up to scale."""
+    res = run_sfm(ring["images"], tmp_path / "sfm", SfmConfig(camera_model="SIMPLE_RADIAL"),
+                  model_dir=ring["out"] / "work" / "selected")
+    assert res.report["frame"]["mode"] == "upright"
+    gt = {c.name: c for c in load_cameras(ring["gt"])}
+    z = np.array([0.0, 0.0, 1.0])
+    for c in res.cameras:  # world up seen from each camera agrees with the ground truth
+        a, b = c.R @ z, gt[c.name].R @ z
+        assert math.degrees(math.acos(np.clip(a @ b, -1, 1))) < 0.5
+    h_est = np.array([c.center[2] for c in res.cameras])
+    h_gt = np.array([gt[c.name].center[2] for c in res.cameras])
+    s = (h_est @ h_gt) / (h_gt @ h_gt)  # heights above the ground, up to COLMAP's scale
+    assert np.abs(h_est - s * h_gt).max() < 0.03 * s * h_gt.mean()
+    assert abs(h_est.mean() - 1.6) < 1e-6  # camera_height: scaled to eye height
+    centroid = np.mean([c.center for c in res.cameras], axis=0)
+    assert np.abs(centroid[:2]).max() < 1e-6 * s
+
+
+def test_cli_from_existing_model(ring, tmp_path, capsys):
+    import json
+
+    from anigs.cli import main
+
+    out = tmp_path / "sfm"
+    rc = main(["sfm", "--images", str(ring["images"]), "--out", str(out), "--gt-cameras", str(ring["gt"]),
+               "--model", str(ring["out"] / "work" / "selected"),
+               "--params", json.dumps({"camera_model": "SIMPLE_RADIAL", "min_registered_fraction": 0.9})])
+    assert rc == 0
+    assert "registered 20/20 images" in capsys.readouterr().out
+    report = json.loads((out / "report.json").read_text())
+    assert report["mapping"]["source"].endswith("selected") and report["gt_errors"]["rotation_error_deg"]["max"] < 0.5
+    assert sorted(p.name for p in out.iterdir()) == ["cameras.json", "images", "points.npz", "report.json", "sparse"]
+    assert main(["sfm", "--images", str(ring["images"]), "--out", str(out), "--params", '{"bogus": 1}']) == 1
+
+
+def test_existing_project_sparse_folder(ring, tmp_path):
+    """--model accepts a COLMAP project's sparse/ folder (with 0/ inside), e.g. our own output."""
+    res = run_sfm(ring["out"] / "images", tmp_path / "again", SfmConfig(camera_model="PINHOLE"),
+                  gt_cameras=ring["gt"], model_dir=ring["out"] / "sparse")
+    assert res.report["registered"] == 20 and res.report["undistorted"] is False
+    assert res.report["gt_errors"]["rotation_error_deg"]["max"] < 0.5
+    (tmp_path / "nothing").mkdir()
+    with pytest.raises(FileNotFoundError, match="no COLMAP model"):
+        run_sfm(ring["out"] / "images", tmp_path / "x", model_dir=tmp_path / "nothing")
+
+
+# ---- failure handling (mapper replaced; the images and model are the ring's) -------------
+
+def _patch_colmap(monkeypatch, models_for_angle):
+    """Skip extraction/matching; the mapper returns models_for_angle(angle) or raises it."""
+    calls = []
+
+    def fake_extract(database, image_dir, names, cfg):
+        return {"extract_s": 0.0, "match_s": 0.0}
+
+    def fake_mapper(database, image_dir, out_dir, cfg, names, mapper, angle):
+        calls.append(angle)
+        result = models_for_angle(angle)
+        if isinstance(result, Exception):
+            raise result
+        return result
+
+    monkeypatch.setattr(sfm_mod, "extract_and_match", fake_extract)
+    monkeypatch.setattr(sfm_mod, "run_mapper", fake_mapper)
+    return calls
+
+
+def _partial(rec, keep: int):
+    part = pycolmap.Reconstruction(rec)
+    for fid in sorted(part.reg_frame_ids())[keep:]:
+        part.deregister_frame(fid)
+    return part
+
+
+@pytest.fixture(scope="module")
+def ring_model(ring):
+    return pycolmap.Reconstruction(ring["out"] / "sparse" / "0")
+
+
+def test_several_models_keep_the_largest(ring, ring_model, tmp_path, monkeypatch, caplog):
+    small = _partial(ring_model, 5)
+    calls = _patch_colmap(monkeypatch, lambda angle: {0: small, 1: pycolmap.Reconstruction(ring_model)})
+    with caplog.at_level(logging.WARNING, logger="anigs.sfm"):
+        res = run_sfm(ring["out"] / "images", tmp_path / "sfm", SfmConfig(camera_model="PINHOLE"))
+    assert calls == [16.0]
+    assert res.report["mapping"]["models_found"] == [20, 5]
+    assert res.report["mapping"]["other_models"] == [5]
+    assert len(res.cameras) == 20
+    assert "keeping the largest" in caplog.text
+
+
+def test_too_few_registered_is_an_error_after_retry(ring, ring_model, tmp_path, monkeypatch):
+    part = _partial(ring_model, 14)  # 14/20 = 0.7 < 0.8
+    calls = _patch_colmap(monkeypatch, lambda angle: {0: pycolmap.Reconstruction(part)})
+    with pytest.raises(SfmError, match=r"registered 14/20 images") as err:
+        run_sfm(ring["out"] / "images", tmp_path / "sfm", SfmConfig(camera_model="PINHOLE"))
+    assert calls == [16.0, 4.0]
+    assert "init_min_tri_angle=4.0" in str(err.value)
+    assert not (tmp_path / "sfm" / "cameras.json").exists()
+    # a lower threshold accepts the same model
+    res = run_sfm(ring["out"] / "images", tmp_path / "sfm2",
+                  SfmConfig(camera_model="PINHOLE", min_registered_fraction=0.6))
+    assert res.report["registered"] == 14
+    assert len(res.report["unregistered_images"]) == 6
+
+
+def test_mapping_failure_retries_with_lower_angle(ring, ring_model, tmp_path, monkeypatch, caplog):
+    def models(angle):
+        return RuntimeError("no good initial image pair found") if angle > 10 else {0: pycolmap.Reconstruction(ring_model)}
+
+    calls = _patch_colmap(monkeypatch, models)
+    with caplog.at_level(logging.WARNING, logger="anigs.sfm"):
+        res = run_sfm(ring["out"] / "images", tmp_path / "sfm", SfmConfig(camera_model="PINHOLE"))
+    assert calls == [16.0, 4.0]
+    attempts = res.report["mapping"]["attempts"]
+    assert res.report["mapping"]["retries"] == 1 and "no good initial image pair" in attempts[0]["result"]
+    assert attempts[1]["registered"] == 20
+    assert "retrying mapping with init_min_tri_angle=4" in caplog.text
+    # a failure with the retry disabled is an error naming 0/20
+    _patch_colmap(monkeypatch, lambda a: RuntimeError("boom"))
+    with pytest.raises(SfmError, match=r"registered 0/20"):
+        run_sfm(ring["out"] / "images", tmp_path / "sfm3",
+                SfmConfig(camera_model="PINHOLE", retry_init_min_tri_angle=None))
+
+
+# ---- checks before COLMAP runs ---------------------------------------------------------------
+
+def _forbid_colmap(monkeypatch):
+    def boom(*a, **k):
+        raise AssertionError("COLMAP must not run")
+
+    monkeypatch.setattr(sfm_mod, "extract_and_match", boom)
+
+
+def test_corrupt_images_listed_or_skipped(ring, tmp_path, monkeypatch, caplog):
+    folder = tmp_path / "imgs"
+    folder.mkdir()
+    for p in sorted(ring["images"].iterdir())[:4]:
+        (folder / p.name).write_bytes(p.read_bytes())
+    good = (folder / "ring_000.png").read_bytes()
+    (folder / "truncated.png").write_bytes(good[: len(good) // 3])
+    (folder / "noise.jpg").write_bytes(np.random.default_rng(0).bytes(3000))
+    _forbid_colmap(monkeypatch)
+    with pytest.raises(ValueError) as err:
+        run_sfm(folder, tmp_path / "sfm")
+    assert "2 unreadable" in str(err.value)
+    assert "truncated.png" in str(err.value) and "noise.jpg" in str(err.value)
+
+    seen = {}
+
+    def record(database, image_dir, names, cfg):
+        seen["names"] = names
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(sfm_mod, "extract_and_match", record)
+    with caplog.at_level(logging.WARNING), pytest.raises(RuntimeError, match="stop here"):
+        run_sfm(folder, tmp_path / "sfm", SfmConfig(skip_unreadable=True))
+    assert seen["names"] == [f"ring_{i:03d}.png" for i in range(4)]
+    assert "truncated.png" in caplog.text and "noise.jpg" in caplog.text
+    assert not list((tmp_path / "sfm").glob(".sfm_work.*"))  # work folder cleaned up
+
+
+def test_fewer_than_three_images(ring, tmp_path, monkeypatch):
+    folder = tmp_path / "two"
+    folder.mkdir()
+    for p in sorted(ring["images"].iterdir())[:2]:
+        (folder / p.name).write_bytes(p.read_bytes())
+    _forbid_colmap(monkeypatch)
+    with pytest.raises(ValueError, match="at least 3"):
+        run_sfm(folder, tmp_path / "sfm")
+    assert not (tmp_path / "sfm").exists()  # failed before creating anything
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "notes.txt").write_text("not an image")
+    with pytest.raises(FileNotFoundError, match="no JPEG/PNG"):
+        run_sfm(tmp_path / "empty", tmp_path / "out")
+    with pytest.raises(FileNotFoundError, match="not found"):
+        run_sfm(tmp_path / "missing", tmp_path / "out")
+
+
+def test_mixed_sizes_and_exif_rotation_checked_first(ring, tmp_path, monkeypatch, caplog):
+    from PIL import Image
+
+    folder = tmp_path / "imgs"
+    folder.mkdir()
+    srcs = sorted(ring["images"].iterdir())[:4]
+    for p in srcs[:3]:
+        (folder / p.name).write_bytes(p.read_bytes())
+    with Image.open(srcs[3]) as im:
+        exif = Image.Exif()
+        exif[0x0112] = 6
+        im.save(folder / "turned.jpg", exif=exif, quality=95)
+        im.resize((160, 120)).save(folder / "small.png")
+    _forbid_colmap(monkeypatch)
+    with caplog.at_level(logging.WARNING), pytest.raises(ValueError, match="2 sizes.*single_camera"):
+        run_sfm(folder, tmp_path / "sfm")
+    assert "EXIF rotation" in caplog.text and "turned.jpg" in caplog.text
+
+
+def test_spatial_matcher_needs_location_priors(ring, tmp_path):
+    folder = tmp_path / "imgs"
+    folder.mkdir()
+    for p in sorted(ring["images"].iterdir())[:3]:
+        (folder / p.name).write_bytes(p.read_bytes())
+    with pytest.raises(ValueError, match="spatial.*EXIF GPS"):
+        run_sfm(folder, tmp_path / "sfm", SfmConfig(matcher="spatial"))
+
+
+def test_config_rejects_unknown_and_bad_values():
+    with pytest.raises(KeyError, match="init_tri_angle"):
+        SfmConfig.from_dict({"init_tri_angle": 4})
+    with pytest.raises(ValueError, match="matcher"):
+        SfmConfig.from_dict({"matcher": "vocab"})
+    with pytest.raises(ValueError, match="camera_model"):
+        SfmConfig.from_dict({"camera_model": "FISHY"})
+    with pytest.raises(ValueError, match="min_registered_fraction"):
+        SfmConfig.from_dict({"min_registered_fraction": 0})
+    with pytest.raises(ValueError, match="takes 4"):
+        SfmConfig.from_dict({"camera_model": "SIMPLE_RADIAL", "camera_params": [300, 160, 120]})
+    with pytest.raises(ValueError, match="num_threads"):
+        SfmConfig.from_dict({"num_threads": 0})
+    assert SfmConfig.from_dict({"matcher": "sequential"}).matcher == "sequential"
+
+
+def test_same_seed_same_output(ring, tmp_path):
+    """num_threads=1 (the default) makes COLMAP bit-deterministic for a seed."""
+    folder = tmp_path / "imgs"
+    folder.mkdir()
+    for p in sorted(ring["images"].iterdir())[:7]:  # 7 neighbouring views: a quick reconstruction
+        (folder / p.name).write_bytes(p.read_bytes())
+    cfg = SfmConfig(camera_model="SIMPLE_PINHOLE")
+    a = run_sfm(folder, tmp_path / "a", cfg)
+    b = run_sfm(folder, tmp_path / "b", cfg)
+    assert a.report["registered"] == 7
+    assert np.array_equal(a.xyz, b.xyz) and np.array_equal(a.rgb, b.rgb)
+    assert all(np.array_equal(x.viewmat, y.viewmat) and np.array_equal(x.K, y.K) for x, y in zip(a.cameras, b.cameras))
+
+
+# ---- a real forward-facing capture -------------------------------------------------------------
+
+def test_forward_facing_capture(tmp_path, scene):
+    images, gt = render_capture(tmp_path, forward_cameras(), scene)
+    res = run_sfm(images, tmp_path / "sfm", SfmConfig(camera_model="SIMPLE_PINHOLE", matcher="sequential"),
+                  gt_cameras=gt)
+    r = res.report
+    assert r["registered"] == r["images"] == 16
+    assert r["undistorted"] is False
+    e = r["gt_errors"]
+    # small baseline: the centres pin the alignment rotation down loosely, the orientations do not
+    assert e["rotation_error_deg_after_best_rotation"]["max"] < 0.5, e
+    assert e["center_error_pct_extent"]["max"] < 3.0, e
+
+
+# ---- similarity algebra -------------------------------------------------------------------------
+
+def _random_similarity(rng) -> Similarity:
+    q = rng.standard_normal(4)
+    q /= np.linalg.norm(q)
+    w, x, y, z = q
+    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                  [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                  [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return Similarity(float(rng.uniform(0.3, 3)), R, rng.standard_normal(3))
+
+
+def test_umeyama_recovers_a_similarity():
+    rng = np.random.default_rng(3)
+    sim = _random_similarity(rng)
+    src = rng.standard_normal((30, 3))
+    fit = umeyama(src, sim.apply(src))
+    assert abs(fit.scale - sim.scale) < 1e-9 and np.allclose(fit.R, sim.R) and np.allclose(fit.t, sim.t)
+    noisy = umeyama(src, sim.apply(src) + 1e-3 * rng.standard_normal(src.shape))
+    assert rotation_angle_deg(noisy.R, sim.R) < 0.5
+    with pytest.raises(ValueError, match="collinear"):
+        umeyama(np.outer(np.arange(5.0), [1, 2, 3]), np.outer(np.arange(5.0), [3, 2, 1]))
+    with pytest.raises(ValueError, match="at least 3"):
+        umeyama(src[:2], src[:2])
+
+
+def test_similarity_keeps_projections_and_pose_errors():
+    rng = np.random.default_rng(4)
+    sim = _random_similarity(rng)
+    cams = ring_cameras(6)
+    pts = rng.uniform(-1, 1, (50, 3))
+    for c in cams:
+        moved = sim.apply_camera(c)
+        assert np.allclose(moved.R @ moved.R.T, np.eye(3))
+        uv0, z0 = c.project(pts)
+        uv1, z1 = moved.project(sim.apply(pts))
+        assert np.allclose(uv0, uv1) and np.allclose(z1, sim.scale * z0)
+    inv_moved = [sim.apply_camera(c) for c in cams]
+    back = umeyama(np.stack([c.center for c in inv_moved]), np.stack([c.center for c in cams]))
+    e = pose_errors([back.apply_camera(c) for c in inv_moved], cams)
+    assert e["rotation_error_deg"]["max"] < 1e-6 and e["center_error_pct_extent"]["max"] < 1e-6
+    both = sim.compose(back)
+    assert np.allclose(both.apply(pts), sim.apply(back.apply(pts)))
+
+
+def test_rotation_between():
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        a, b = rng.standard_normal(3), rng.standard_normal(3)
+        R = rotation_between(a, b)
+        assert np.allclose(R @ R.T, np.eye(3)) and np.isclose(np.linalg.det(R), 1)
+        assert np.allclose(R @ (a / np.linalg.norm(a)), b / np.linalg.norm(b))
+    R = rotation_between(np.array([0, 0, 1.0]), np.array([0, 0, -1.0]))
+    assert np.allclose(R @ [0, 0, 1], [0, 0, -1]) and np.isclose(np.linalg.det(R), 1)
+
+
+def test_estimate_up_ignores_a_common_pitch():
+    rng = np.random.default_rng(6)
+    K = intrinsics_from_fov(60, W, H)
+    sim = _random_similarity(rng)  # an arbitrary reconstruction frame
+    cams = []
+    for yaw in np.radians(rng.uniform(-40, 40, 12)):  # half-circle of views, all pitched 20 deg down
+        eye = rng.standard_normal(3) * [1, 1, 0.1] + [0, 0, 1.6]
+        fwd = [math.cos(yaw) * math.cos(-0.35), math.sin(yaw) * math.cos(-0.35), math.sin(-0.35)]
+        cams.append(sim.apply_camera(Camera(K, look_at(eye, eye + np.array(fwd)), W, H)))
+    up = estimate_up(cams)
+    assert math.degrees(math.acos(np.clip(up @ sim.R[:, 2], -1, 1))) < 0.1
+    # all facing one way: undetermined within the plane orthogonal to x, the mean -y is used
+    same = [cams[0]] * 5
+    up1 = estimate_up(same)
+    assert abs(up1 @ same[0].R[0]) < 1e-6 and up1 @ -same[0].R[1] > 0.999
