@@ -71,3 +71,24 @@ class RoundPlan:
 def view_id(i: int) -> str:
     """Queue position -> view id (``v00``, ``v01``, ...)."""
     return f"v{i:02d}"
+
+
+@dataclass(frozen=True)
+class AnimateConfig:
+    """``animate`` config section: how the dataset-model loop unrolls."""
+
+    frames: int = 25  # T: frames per clip and of the DCT motion period
+    views_per_round: int = 3  # views added to the dataset per round (paper: 1)
+    extra_rounds: int = 0  # refresh rounds after every view is in the dataset
+    view_expansion: bool = True  # false: every view from round 1 (ablation "w/o viewpoint expansion")
+    dataset_update: bool = True  # false: targets generated once from the static model (ablation)
+
+    @staticmethod
+    def from_dict(d: dict | None) -> "AnimateConfig":
+        from dataclasses import fields
+
+        d = dict(d or {})
+        unknown = sorted(set(d) - {f.name for f in fields(AnimateConfig)})
+        if unknown:
+            raise KeyError(f"animate: unknown key(s) {unknown}")
+        return AnimateConfig(**d)

@@ -1,9 +1,98 @@
-# Helpers shared by the rules.
+# Shared helpers: scenes, variants, effective config sections, the round plan.
+import json
+
 import anigs
+from anigs.config import load_scene, section
+from anigs.plan import RoundPlan
 
 ANIGS_VERSION = anigs.__version__
-RESULTS = config.get("results", "results")
+R = config["results"]
+SCENES = {name: load_scene(config["scene_dir"], name) for name in config["scenes"]}
+for _v in list(config["variants"]) + list(config["table_variants"]):
+    if _v not in config["variant_overrides"]:
+        raise ValueError(f"config: variant {_v!r} is not defined under variant_overrides "
+                         f"(defined: {sorted(config['variant_overrides'])})")
+
+
+def _names(source):
+    names = [n for n, s in SCENES.items() if s["source"] == source]
+    return "|".join(names) if names else "(?!x)x"  # never matches when no scene of that kind
+
+
+SYNTH_SCENES = _names("synthetic")
+PHOTO_SCENES = _names("photos")
+
+
+wildcard_constraints:
+    scene="[A-Za-z0-9_.-]+",
+    variant="[A-Za-z0-9_-]+",
+    round=r"[1-9][0-9]*",
+    view=r"v[0-9][0-9]+",
+
+
+def sec(scene, name, variant="full"):
+    """Effective config section for (scene, variant)."""
+    return section(config, SCENES[scene], variant, name)
+
+
+def jparams(name, extra=None):
+    """params: the section as canonical JSON (a change re-runs exactly the affected jobs)."""
+
+    def fn(wc):
+        d = sec(wc.scene, name, getattr(wc, "variant", "full"))
+        if extra is not None:
+            d = {**d, **extra(wc)}
+        return json.dumps(d, sort_keys=True)
+
+    return fn
+
+
+def is_synthetic(scene):
+    return SCENES[scene]["source"] == "synthetic"
+
+
+def num_views(scene):
+    v = sec(scene, "views")
+    return int(v["num_locations"]) * len(v["directions"])
+
+
+def view_ids(scene):
+    return RoundPlan(num_views(scene)).view_ids()
+
+
+def plan(scene, variant):
+    a = sec(scene, "animate", variant)
+    return RoundPlan(num_views(scene), a["views_per_round"], a["extra_rounds"], a["view_expansion"],
+                     a["dataset_update"])
+
+
+def model_path(scene, variant, r):
+    return f"{R}/{scene}/{variant}/round{r}/model.pt"
+
+
+def gt_file(scene, name):
+    return f"{R}/{scene}/capture/gt/{name}"
+
+
+def wants_gpu(scene, variant="full"):
+    """1 when a job of this scene asks for a GPU (an explicit cuda device or the LTX prior)."""
+    dev = str(config["device"])
+    return int(dev.startswith("cuda") or sec(scene, "refine", variant)["prior"] == "ltx")
 
 
 def final_targets():
-    return []
+    out = []
+    for s in SCENES:
+        for v in config["variants"]:
+            out += [f"{R}/{s}/{v}/final/final.json", f"{R}/{s}/{v}/export/animated.json",
+                    f"{R}/{s}/{v}/eval/metrics.json"]
+    return out
+
+
+# GPU-only settings on a machine without a GPU fail here, before any job starts (local runs).
+if workflow.local_exec and str(config["device"]).startswith("cuda"):
+    import torch
+
+    if not torch.cuda.is_available():
+        raise ValueError(f"config: device is {config['device']!r} but this machine has no CUDA device; "
+                         "use device: auto (or cpu), or submit to a GPU cluster with --profile workflow/profiles/slurm")

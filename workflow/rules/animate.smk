@@ -1,0 +1,110 @@
+# Stages 6-8, unrolled into rounds (see anigs/plan.py): round r renders every view of its
+# dataset with the model of round r-1 (round 0 = static canonical), refines each view in its
+# own job (fan-out: independent GPU jobs on a cluster), then trains one model (fan-in).
+
+VARIANT_DIR = f"{R}/{{scene}}/{{variant}}"
+
+
+def _render_model(wc):
+    r = plan(wc.scene, wc.variant).render_model_round(int(wc.round))
+    return [model_path(wc.scene, wc.variant, r)] if r > 0 else []
+
+
+def _frames(wc):
+    return {"num_frames": sec(wc.scene, "animate", wc.variant)["frames"], "device": config["device"]}
+
+
+rule render_clip:
+    input:
+        ply=f"{R}/{{scene}}/static/canonical.ply",
+        views=f"{R}/{{scene}}/views/views.json",
+        model=_render_model,
+    output:
+        f"{VARIANT_DIR}/round{{round}}/render/{{view}}.npz",
+    params:
+        p=jparams("render_clip", _frames),
+        model=lambda wc, input: f"--model {input.model[0]}" if input.model else "",
+        version=ANIGS_VERSION,
+    log:
+        f"{VARIANT_DIR}/logs/round{{round}}/render_{{view}}.log",
+    benchmark:
+        f"{VARIANT_DIR}/benchmarks/round{{round}}/render_{{view}}.tsv"
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=20,
+    shell:
+        "anigs --threads {threads} render-clip --canonical {input.ply:q} {params.model} --view-json {input.views:q} "
+        "--view-id {wildcards.view} --out {output:q} --params {params.p:q} > {log} 2>&1"
+
+
+def _refine_extra(wc):
+    s = SCENES[wc.scene]
+    return {"prompt": s.get("prompt", ""), "effects": s["effects"], "seed": config["seed"]}
+
+
+rule refine:
+    input:
+        clip=f"{VARIANT_DIR}/round{{round}}/render/{{view}}.npz",
+        masks=f"{R}/{{scene}}/masks",
+    output:
+        f"{VARIANT_DIR}/round{{round}}/target/{{view}}.npz",
+    params:
+        p=jparams("refine", _refine_extra),
+        version=ANIGS_VERSION,
+    log:
+        f"{VARIANT_DIR}/logs/round{{round}}/refine_{{view}}.log",
+    benchmark:
+        f"{VARIANT_DIR}/benchmarks/round{{round}}/refine_{{view}}.tsv"
+    threads: 1
+    resources:
+        mem_mb=6000,
+        runtime=60,
+        gpu=lambda wc: wants_gpu(wc.scene, wc.variant),
+    shell:
+        "anigs --threads {threads} refine --clip {input.clip:q} --mask {input.masks}/{wildcards.view}.png "
+        "--round {wildcards.round} --view {wildcards.view} --out {output:q} --params {params.p:q} > {log} 2>&1"
+
+
+def _targets(wc):
+    p = plan(wc.scene, wc.variant)
+    r = int(wc.round)
+    return [f"{R}/{wc.scene}/{wc.variant}/round{p.target_round(r, v)}/target/{v}.npz" for v in p.dataset(r)]
+
+
+def _init_model(wc):
+    r = int(wc.round)
+    return [model_path(wc.scene, wc.variant, r - 1)] if r > 1 else []
+
+
+def _update_extra(wc):
+    return {"device": config["device"], "seed": config["seed"] + 1000 * int(wc.round)}
+
+
+rule update:
+    input:
+        ply=f"{R}/{{scene}}/static/canonical.ply",
+        views=f"{R}/{{scene}}/views/views.json",
+        masks=f"{R}/{{scene}}/masks",
+        targets=_targets,
+        init=_init_model,
+    output:
+        model=f"{VARIANT_DIR}/round{{round}}/model.pt",
+        log_json=f"{VARIANT_DIR}/round{{round}}/update.json",
+    params:
+        p=jparams("update", _update_extra),
+        init=lambda wc, input: f"--init-model {input.init[0]}" if input.init else "",
+        version=ANIGS_VERSION,
+    log:
+        f"{VARIANT_DIR}/logs/round{{round}}/update.log",
+    benchmark:
+        f"{VARIANT_DIR}/benchmarks/round{{round}}/update.tsv"
+    threads: 2
+    resources:
+        mem_mb=8000,
+        runtime=120,
+        gpu=lambda wc: int(str(config["device"]).startswith("cuda")),
+    shell:
+        "anigs --threads {threads} update --canonical {input.ply:q} {params.init} --targets {input.targets} "
+        "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy --out {output.model:q} "
+        "--log-json {output.log_json:q} --params {params.p:q} > {log} 2>&1"

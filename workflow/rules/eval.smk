@@ -1,0 +1,50 @@
+# Stage 10: evaluation per (scene, variant) and the paper's tables.
+
+
+def _eval_gt(wc):
+    return f"--gt-dir {R}/{wc.scene}/capture/gt" if is_synthetic(wc.scene) else ""
+
+
+rule eval_scene:
+    input:
+        final=f"{R}/{{scene}}/{{variant}}/final/final.json",
+        masks=f"{R}/{{scene}}/masks",
+        ply=f"{R}/{{scene}}/static/canonical.ply",
+        model=final_model,
+        cameras=f"{R}/{{scene}}/sfm/cameras.json",
+        points=f"{R}/{{scene}}/sfm/points.npz",
+        images=f"{R}/{{scene}}/capture/images",
+    output:
+        f"{R}/{{scene}}/{{variant}}/eval/metrics.json",
+    params:
+        p=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
+        final=lambda wc: f"{R}/{wc.scene}/{wc.variant}/final/clips",
+        gt=_eval_gt,
+        version=ANIGS_VERSION,
+    log:
+        f"{R}/{{scene}}/{{variant}}/logs/eval.log",
+    benchmark:
+        f"{R}/{{scene}}/{{variant}}/benchmarks/eval.tsv"
+    threads: 2
+    resources:
+        mem_mb=8000,
+        runtime=60,
+    shell:
+        "anigs --threads {threads} eval --final-dir {params.final:q} --masks {input.masks:q} --model {input.model:q} "
+        "--canonical {input.ply:q} --cameras {input.cameras:q} --images {input.images:q} --points {input.points:q} "
+        "{params.gt} --scene {wildcards.scene} --variant {wildcards.variant} --out {output:q} "
+        "--params {params.p:q} > {log} 2>&1"
+
+
+rule tables_build:
+    input:
+        [f"{R}/{s}/{v}/eval/metrics.json" for s in SCENES for v in config["table_variants"]],
+    output:
+        f"{R}/tables/tables.json",
+    params:
+        out=f"{R}/tables",
+        version=ANIGS_VERSION,
+    log:
+        f"{R}/logs/tables.log",
+    shell:
+        "anigs tables --metrics {input} --out {params.out:q} > {log} 2>&1"

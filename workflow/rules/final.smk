@@ -1,0 +1,57 @@
+# Stage 9: final renders (videos, slices) and exports of the last round's model.
+
+
+def final_model(wc):
+    return model_path(wc.scene, wc.variant, plan(wc.scene, wc.variant).num_rounds)
+
+
+rule final_render:
+    input:
+        ply=f"{R}/{{scene}}/static/canonical.ply",
+        model=final_model,
+        views=f"{R}/{{scene}}/views/views.json",
+        cameras=f"{R}/{{scene}}/sfm/cameras.json",
+        masks=f"{R}/{{scene}}/masks",
+    output:
+        summary=f"{R}/{{scene}}/{{variant}}/final/final.json",
+        path=report(f"{R}/{{scene}}/{{variant}}/final/path.mp4", caption="../report/final.rst", category="Videos",
+                    subcategory="{scene} {variant}"),
+    params:
+        p=jparams("final", lambda wc: {"device": config["device"]}),
+        out=lambda wc: f"{R}/{wc.scene}/{wc.variant}/final",
+        version=ANIGS_VERSION,
+    log:
+        f"{R}/{{scene}}/{{variant}}/logs/final_render.log",
+    benchmark:
+        f"{R}/{{scene}}/{{variant}}/benchmarks/final_render.tsv"
+    threads: 2
+    resources:
+        mem_mb=4000,
+        runtime=30,
+    shell:
+        "anigs --threads {threads} render --canonical {input.ply:q} --model {input.model:q} --views {input.views:q} "
+        "--cameras {input.cameras:q} --masks {input.masks:q} --out {params.out:q} --params {params.p:q} > {log} 2>&1"
+
+
+rule export_scene:
+    input:
+        ply=f"{R}/{{scene}}/static/canonical.ply",
+        model=final_model,
+    output:
+        sidecar=f"{R}/{{scene}}/{{variant}}/export/animated.json",
+        ply=f"{R}/{{scene}}/{{variant}}/export/animated.ply",
+    params:
+        p=jparams("export"),
+        out=lambda wc: f"{R}/{wc.scene}/{wc.variant}/export",
+        version=ANIGS_VERSION,
+    log:
+        f"{R}/{{scene}}/{{variant}}/logs/export.log",
+    benchmark:
+        f"{R}/{{scene}}/{{variant}}/benchmarks/export.tsv"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=20,
+    shell:
+        "anigs --threads {threads} export --canonical {input.ply:q} --model {input.model:q} --out {params.out:q} "
+        "--params {params.p:q} > {log} 2>&1"

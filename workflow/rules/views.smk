@@ -1,0 +1,80 @@
+# Stages 4-5: the view queue (incremental viewpoint expansion) and dynamic masks per view.
+
+
+def _roi_args(wc):
+    """Regions of interest: ground-truth labels on synthetic scenes, else vegetation masks lifted to 3D."""
+    if is_synthetic(wc.scene):
+        return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
+                f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')}")
+    return f"--images {R}/{wc.scene}/capture/images"
+
+
+def _gt_inputs(wc):
+    if not is_synthetic(wc.scene):
+        return []
+    return [gt_file(wc.scene, n) for n in ("labels.npy", "motion.json", "gaussians.ply", "cameras.json")]
+
+
+rule views:
+    input:
+        ply=f"{R}/{{scene}}/static/canonical.ply",
+        cameras=f"{R}/{{scene}}/sfm/cameras.json",
+        images=f"{R}/{{scene}}/capture/images",
+        gt=_gt_inputs,
+    output:
+        views=f"{R}/{{scene}}/views/views.json",
+        topdown=report(f"{R}/{{scene}}/views/topdown.png", caption="../report/views.rst", category="Views"),
+    params:
+        p=jparams("views"),
+        roi=_roi_args,
+        out=lambda wc: f"{R}/{wc.scene}/views",
+        version=ANIGS_VERSION,
+    log:
+        f"{R}/{{scene}}/logs/views.log",
+    benchmark:
+        f"{R}/{{scene}}/benchmarks/views.tsv"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=20,
+    shell:
+        "anigs --threads {threads} views --canonical {input.ply:q} --cameras {input.cameras:q} {params.roi} "
+        "--out {params.out:q} --params {params.p:q} > {log} 2>&1"
+
+
+def _mask_gt_args(wc):
+    if not is_synthetic(wc.scene):
+        return ""
+    return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
+            f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')} "
+            f"--cameras {R}/{wc.scene}/sfm/cameras.json")
+
+
+rule masks:
+    input:
+        ply=f"{R}/{{scene}}/static/canonical.ply",
+        views=f"{R}/{{scene}}/views/views.json",
+        gt=_gt_inputs,
+    output:
+        # {view}.png, {view}_overlay.png (+ per-effect masks), dynamic.npy, masks.json
+        masks=directory(f"{R}/{{scene}}/masks"),
+    params:
+        p=jparams("masks"),
+        gt=_mask_gt_args,
+        out=lambda wc: f"{R}/{wc.scene}/masks",
+        version=ANIGS_VERSION,
+    log:
+        f"{R}/{{scene}}/logs/masks.log",
+    benchmark:
+        f"{R}/{{scene}}/benchmarks/masks.tsv"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=20,
+    shell:
+        "anigs --threads {threads} masks --canonical {input.ply:q} --views {input.views:q} {params.gt} "
+        "--out {params.out:q} --params {params.p:q} > {log} 2>&1"
+
+
+def masks_dir(wc):
+    return f"{R}/{wc.scene}/masks"
