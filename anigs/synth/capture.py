@@ -1,0 +1,197 @@
+"""The synthetic capture: a casual hand-held camera path through the garden, rendered at t=0.
+
+``write_capture(cfg, out_dir)`` writes
+
+    out_dir/images/img_000.png ...        the photos (what SfM sees)
+    out_dir/gt/cameras.json               ground-truth cameras (anigs.cameras format)
+    out_dir/gt/gaussians.ply              ground-truth Gaussians (standard 3DGS layout, SH degree 0)
+    out_dir/gt/labels.npy                 [N] int32 semantic label per Gaussian (scene.LABELS)
+    out_dir/gt/anchors.npy                [N,3] float32 sway anchor per Gaussian
+    out_dir/gt/motion.json                motion parameters + label/effect tables
+    out_dir/gt/scene.json                 the full config used, label counts, timing
+
+all atomically. The path: most images on an irregular loop around the lawn looking inwards
+(with slow yaw/pitch swings), the rest walking up the garden path towards the building;
+positions and orientations jittered like a hand-held camera.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
+from anigs.io import atomic_path, write_json
+from anigs.render import render_gaussians
+from anigs.synth.motion import MotionParams, motion_tables
+from anigs.synth.scene import LABELS, SceneConfig, build_scene, dataclass_from_dict, path_x
+from anigs.video import save_png
+
+log = logging.getLogger(__name__)
+
+LOOP_CENTER = (0.0, -0.3)
+LOOP_RADII = (3.3, 2.4)
+
+
+@dataclass
+class CaptureConfig:
+    """Camera path and image parameters (config section ``synthetic.capture``)."""
+
+    num_images: int = 48  # photos in the capture
+    width: int = 320
+    height: int = 240
+    fov_deg: float = 62.0  # horizontal field of view
+    eye_height: float = 1.6  # camera height above the ground (m)
+    pos_jitter: float = 0.06  # hand-held position noise (m, std)
+    rot_jitter_deg: float = 1.5  # hand-held orientation noise (degrees, std)
+    walk_fraction: float = 0.25  # share of the images taken walking up the path (rest: loop)
+    background: tuple = (0.62, 0.76, 0.92)  # sky colour (RGB in [0,1])
+
+    def __post_init__(self) -> None:
+        if not 3 <= self.num_images <= 1000:
+            raise ValueError(f"capture.num_images must be in [3, 1000], got {self.num_images}")
+        if self.width < 16 or self.height < 16:
+            raise ValueError(f"capture image size must be >= 16x16, got {self.width}x{self.height}")
+        if not 20 <= self.fov_deg <= 120:
+            raise ValueError(f"capture.fov_deg must be in [20, 120], got {self.fov_deg}")
+        if not 0.5 <= self.eye_height <= 3.0:
+            raise ValueError(f"capture.eye_height must be in [0.5, 3], got {self.eye_height}")
+        if not 0 <= self.walk_fraction <= 0.6:
+            raise ValueError(f"capture.walk_fraction must be in [0, 0.6], got {self.walk_fraction}")
+        if self.pos_jitter < 0 or self.rot_jitter_deg < 0:
+            raise ValueError("capture.pos_jitter and capture.rot_jitter_deg must be >= 0")
+        self.background = tuple(float(v) for v in self.background)
+        if len(self.background) != 3 or not all(0 <= v <= 1 for v in self.background):
+            raise ValueError(f"capture.background must be 3 values in [0,1], got {self.background}")
+
+    @staticmethod
+    def from_dict(d: dict | None) -> "CaptureConfig":
+        return dataclass_from_dict(CaptureConfig, d, "synthetic.capture")
+
+
+@dataclass
+class SynthConfig:
+    """Everything under ``synthetic:`` in a scene file: seed, scene, capture, motion."""
+
+    seed: int = 0
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    capture: CaptureConfig = field(default_factory=CaptureConfig)
+    motion: MotionParams = field(default_factory=MotionParams)
+
+    @staticmethod
+    def from_dict(d: dict | None) -> "SynthConfig":
+        d = dict(d or {})
+        allowed = {"seed", "scene", "capture", "motion"}
+        unknown = sorted(set(d) - allowed)
+        if unknown:
+            hint = " (pass the scene file's `synthetic` section, not the whole file)" if "synthetic" in unknown else ""
+            raise ValueError(f"synthetic: unknown key(s) {unknown}; allowed: {sorted(allowed)}{hint}")
+        seed = d.get("seed", 0)
+        if not isinstance(seed, int) or isinstance(seed, bool):
+            raise ValueError(f"synthetic.seed: expected an int, got {seed!r}")
+        return SynthConfig(seed, SceneConfig.from_dict(d.get("scene")), CaptureConfig.from_dict(d.get("capture")),
+                           MotionParams.from_dict(d.get("motion")))
+
+    def to_dict(self) -> dict:
+        cap = asdict(self.capture)
+        cap["background"] = list(self.capture.background)
+        return {"seed": self.seed, "scene": asdict(self.scene), "capture": cap, "motion": self.motion.to_dict()}
+
+
+def _camera(eye: np.ndarray, yaw: float, pitch: float, roll: float, K: np.ndarray, cfg: CaptureConfig,
+            name: str) -> Camera:
+    fwd = np.array([math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw), math.sin(pitch)])
+    V = look_at(eye, eye + fwd)
+    c, s = math.cos(roll), math.sin(roll)
+    Rr = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    V[:3, :3] = Rr @ V[:3, :3]
+    V[:3, 3] = Rr @ V[:3, 3]
+    return Camera(K, V, cfg.width, cfg.height, name)
+
+
+def camera_path(cfg: CaptureConfig | None = None, seed: int = 0) -> list[Camera]:
+    """The hand-held capture path (deterministic for ``seed``): a loop, then a walk up the path."""
+    cfg = cfg or CaptureConfig()
+    rng = np.random.default_rng(int(seed) + 7919)
+    K = intrinsics_from_fov(cfg.fov_deg, cfg.width, cfg.height)
+    n_walk = int(round(cfg.walk_fraction * cfg.num_images))
+    n_loop = cfg.num_images - n_walk
+    jr = math.radians(cfg.rot_jitter_deg)
+    cams: list[Camera] = []
+    cx, cy = LOOP_CENTER
+    for i in range(n_loop):  # irregular loop, starting in the south, counter-clockwise
+        th = -math.pi / 2 + 2 * math.pi * (i + rng.uniform(-0.25, 0.25)) / n_loop
+        rx = LOOP_RADII[0] * (1 + 0.06 * math.sin(2 * th + 0.4))
+        ry = LOOP_RADII[1] * (1 + 0.06 * math.sin(3 * th + 1.0))
+        eye = np.array([cx + rx * math.cos(th), cy + ry * math.sin(th),
+                        cfg.eye_height + 0.05 * math.sin(5 * th)])
+        eye += rng.normal(0, 1, 3) * np.array([cfg.pos_jitter, cfg.pos_jitter, 0.5 * cfg.pos_jitter])
+        inward = math.atan2(cy - eye[1], cx - eye[0])
+        yaw = inward + 0.45 * math.sin(2 * th + 0.5) + rng.normal(0, jr)
+        pitch = -0.2 - 0.06 * math.sin(3 * th) + rng.normal(0, jr)
+        cams.append(_camera(eye, yaw, pitch, rng.normal(0, jr), K, cfg, f"img_{len(cams):03d}.png"))
+    for j in range(n_walk):  # walk up the garden path towards the door
+        y = -4.2 + 4.8 * (j + rng.uniform(-0.2, 0.2)) / max(n_walk - 1, 1)
+        eye = np.array([float(path_x(y)) + 0.15 * math.sin(1.3 * y), y, cfg.eye_height])
+        eye += rng.normal(0, 1, 3) * np.array([cfg.pos_jitter, cfg.pos_jitter, 0.5 * cfg.pos_jitter])
+        yaw = math.pi / 2 + 0.35 * math.sin(1.1 * y + 0.3) + rng.normal(0, jr)
+        pitch = -0.24 + 0.05 * math.sin(2.3 * y) + rng.normal(0, jr)
+        cams.append(_camera(eye, yaw, pitch, rng.normal(0, jr), K, cfg, f"img_{len(cams):03d}.png"))
+    return cams
+
+
+def render_image(gaussians, camera: Camera, background=(0.62, 0.76, 0.92)) -> np.ndarray:
+    """Render one photo: float32 [H,W,3] in [0,1]."""
+    with torch.no_grad():
+        rgb, _, _ = render_gaussians(gaussians, camera, background=torch.tensor(background, dtype=torch.float32))
+    return rgb.clamp(0, 1).cpu().numpy()
+
+
+def _save_npy(path: Path, arr: np.ndarray) -> None:
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            np.save(fh, arr)
+
+
+def write_capture(cfg: SynthConfig | None, out_dir: str | Path) -> dict:
+    """Build the scene, render the capture at t=0 and write images + ground truth (see module doc).
+
+    Returns a summary dict (counts, timing, image names).
+    """
+    cfg = cfg or SynthConfig()
+    out = Path(out_dir)
+    img_dir, gt_dir = out / "images", out / "gt"
+    t0 = time.perf_counter()
+    g = build_scene(cfg.scene, cfg.seed)
+    t_build = time.perf_counter() - t0
+    cams = camera_path(cfg.capture, cfg.seed)
+    for cam in cams:
+        save_png(img_dir / cam.name, render_image(g, cam, cfg.capture.background))
+    t_render = time.perf_counter() - t0 - t_build
+    wanted = {c.name for c in cams}
+    stale = sorted(p.name for p in img_dir.glob("*.png") if p.name not in wanted)
+    for name in stale:  # a previous, larger capture must not leak images into SfM
+        (img_dir / name).unlink()
+    if stale:
+        log.warning("removed %d stale images from %s: %s", len(stale), img_dir, stale[:5])
+    labels = g.extras["label"].numpy().astype(np.int32)
+    counts = {name: int((labels == i).sum()) for i, name in LABELS.items()}
+    save_cameras(gt_dir / "cameras.json", cams, extra={"background": list(cfg.capture.background), "time": 0.0})
+    g.save_ply(gt_dir / "gaussians.ply")
+    _save_npy(gt_dir / "labels.npy", labels)
+    _save_npy(gt_dir / "anchors.npy", g.extras["anchor"].numpy().astype(np.float32))
+    write_json(gt_dir / "motion.json", {"params": cfg.motion.to_dict(), **motion_tables()})
+    summary = {
+        "num_gaussians": g.num, "label_counts": counts, "num_images": len(cams),
+        "image_size": [cfg.capture.width, cfg.capture.height],
+        "seconds": {"build": round(t_build, 3), "render": round(t_render, 3),
+                    "total": round(time.perf_counter() - t0, 3)},
+        "images": [c.name for c in cams],
+    }
+    write_json(gt_dir / "scene.json", {"config": cfg.to_dict(), **summary})
+    return summary
