@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import argparse
 
-from anigs.io import write_json
 import logging
 from dataclasses import dataclass
 from pathlib import Path
 
 from anigs.cli import parse_params
+from anigs.io import write_json
 from anigs.synth.scene import dataclass_from_dict
 
 log = logging.getLogger("anigs.capture")
