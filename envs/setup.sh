@@ -37,7 +37,7 @@ fi
 export PATH="$(cd "$VENV/bin" && pwd):$PATH"
 
 case "$MODE" in
-  demo) exec snakemake --cores all "$@" ;;
+  demo) exec snakemake --cores all --workflow-profile workflow/profiles/default "$@" ;;
   test) exec python -m pytest "$@" ;;
   install) echo "[anigs] installed into $VENV" ;;
   *) echo "usage: bash envs/setup.sh {demo|test|install} [args...]" >&2; exit 2 ;;
