@@ -61,3 +61,9 @@ def test_scene_files_and_merging(tmp_path):
     (tmp_path / "e.yaml").write_text(f"source: photos\nphotos: {tmp_path / 'empty'}\n")
     with pytest.raises(ValueError, match="no .jpg"):
         load_scene(tmp_path, "e")
+
+
+def test_config_docs_are_in_sync_with_the_schema():
+    res = subprocess.run([sys.executable, str(ROOT / "workflow/scripts/make_config_docs.py"), "--check"],
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr

@@ -1,0 +1,111 @@
+"""Write config/README.md (every config key: type, default, description) from the schema.
+
+    python workflow/scripts/make_config_docs.py          # rewrite
+    python workflow/scripts/make_config_docs.py --check  # exit 1 if stale
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[2]
+SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
+OUT = ROOT / "config" / "README.md"
+
+INTRO = """# Configuration
+
+`config/config.yaml` holds the workflow configuration; it is validated against
+`workflow/schemas/config.schema.yaml` before any job starts (a misspelled key is an error
+that names the key). Keys you leave out take the defaults below. This page is generated from
+the schema (`python workflow/scripts/make_config_docs.py`), which is itself generated from
+the stages' config dataclasses, so it always matches the code.
+
+## Scenes
+
+Each scene is a file `config/scenes/NAME.yaml` listed under `scenes:`. Keys:
+
+| key | meaning |
+|---|---|
+| `name` | scene name (defaults to the file name) |
+| `source` | `synthetic` (the embedded demo generator) or `photos` (a folder of your photos) |
+| `synthetic` | parameters of the synthetic generator (see `config/scenes/demo.yaml`) |
+| `photos` | folder of JPEG/PNG photos (for `source: photos`) |
+| `effects` | effect types to animate: `foliage_sway`, `leaf_flutter`, `grass_wave`, `flower_bob`, `water_ripple`; nothing else moves |
+| `prompt` | text prompt for the video prior |
+| any stage section | overrides of that section for this scene (e.g. `static: {iterations: 7000}`) |
+
+The effective section a stage receives is: `config.yaml` section <- scene override <- variant
+override (`variant_overrides`), merged key by key. `config/scenes/custom_example.yaml` shows a
+user's photo folder with LTX-Video weights on a GPU.
+
+## Results layout
+
+```
+results/{scene}/capture/         images/ (+ gt/ for synthetic scenes), capture.json
+results/{scene}/sfm/             sparse/ (COLMAP), images/ (undistorted), cameras.json, points.npz, report.json
+results/{scene}/static/          canonical.ply (standard 3DGS layout), metrics.json
+results/{scene}/views/           views.json (the queue), topdown.png
+results/{scene}/masks/           {view}.png, {view}_overlay.png, dynamic.npy, masks.json
+results/{scene}/{variant}/roundR/  render/{view}.npz, target/{view}.npz, model.pt, update.json
+results/{scene}/{variant}/final/   {view}.mp4, path.mp4, clips/, slices/, final.json
+results/{scene}/{variant}/export/  frames/frame_TTTT.ply, animated.ply, animated.json
+results/{scene}/{variant}/eval/    metrics.json
+results/tables/                    the paper's tables (csv, md, tex)
+```
+Logs and Snakemake benchmark TSVs (time and memory per job) sit beside them in `logs/` and
+`benchmarks/` folders.
+"""
+
+
+def _fmt(v) -> str:
+    return "`" + json.dumps(v) + "`"
+
+
+def _rows(node: dict, prefix: str, out: list[str]) -> None:
+    for key, p in node.get("properties", {}).items():
+        name = prefix + key
+        if p.get("type") == "object" and "properties" in p:
+            out.append(f"| `{name}` | object | | {p.get('description', '')} (keys below) |")
+            _rows(p, name + ".", out)
+        else:
+            t = p.get("type", "")
+            t = " or ".join(t) if isinstance(t, list) else t
+            out.append(f"| `{name}` | {t} | {_fmt(p.get('default'))} | {p.get('description', '')} |")
+
+
+def build() -> str:
+    schema = yaml.safe_load(SCHEMA.read_text())
+    lines = [INTRO, "## Keys", ""]
+    top, sections = [], []
+    for key, p in schema["properties"].items():
+        (sections if p.get("type") == "object" and "properties" in p else top).append((key, p))
+    lines += ["### Global", "", "| key | type | default | description |", "|---|---|---|---|"]
+    _rows({"properties": dict(top)}, "", lines)
+    for key, p in sections:
+        lines += ["", f"### `{key}`: {p.get('description', '')}", "", "| key | type | default | description |",
+                  "|---|---|---|---|"]
+        _rows(p, key + ".", lines)
+    return "\n".join(lines) + "\n"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--check", action="store_true")
+    args = ap.parse_args()
+    text = build()
+    if args.check:
+        ok = OUT.exists() and OUT.read_text() == text
+        if not ok:
+            print(f"{OUT} is stale: run python workflow/scripts/make_config_docs.py", file=sys.stderr)
+        return 0 if ok else 1
+    OUT.write_text(text)
+    print(f"wrote {OUT}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
