@@ -209,7 +209,7 @@ TOP = {
     "variants": {"type": "array", "items": {"type": "string"}, "minItems": 1, "default": ["full"],
                  "description": "method variants `snakemake` (rule all) builds; each lands in results/{scene}/{variant}"},
     "table_variants": {"type": "array", "items": {"type": "string"},
-                       "default": ["full", "no_update", "no_expansion", "no_compose", "opt_all", "deform_only"],
+                       "default": ["full", "no_dataset_update", "no_view_expansion", "no_composed_v2v", "opt_all", "opt_deform_only"],
                        "description": "variants `snakemake tables` evaluates for the ablation table (paper Table 5)"},
     "variant_overrides": {
         "type": "object",

@@ -1,0 +1,408 @@
+"""Paper-style tables (CSV, Markdown, LaTeX) from ``metrics.json`` files.
+
+metrics.json schema (``"schema": "anigs-metrics/1"``), one file per (scene, method, variant)::
+
+    {
+      "schema": "anigs-metrics/1",
+      "scene": "demo",            # table column
+      "dataset": "anigs",         # scene group: one FVD table per dataset (Table 1, then Table 2 ...)
+      "method": "Ours",           # row of Tables 1/2 (baselines: any other name)
+      "variant": "full",          # ablation id (Table 5): full | no_dataset_update | no_view_expansion |
+                                  #   no_composed_v2v | opt_all | opt_deform_only (others shown verbatim)
+      "anigs_version": "0.1.0",
+      "config": {...},            # the evaluation config used
+      "inputs": {...},            # files evaluated (clips, references, masks, ...)
+      "metrics": {
+        "<name>": {
+          "value": float | null,          # null when not available
+          "available": bool,
+          "reason": str | null,           # why not available (becomes an n/a footnote)
+          "higher_is_better": bool,
+          "unit": str,
+          "protocol": {...},              # how it was computed (sizes, windows, presets, ...)
+          "samples": {"test": n, "reference": m} | {"views": v, "frames": f} | ...,
+          "warnings": [str],              # e.g. fewer samples than feature dimensions
+          "feature_dim": int,             # Fréchet metrics only
+          "per_view": {...}               # optional detail
+        }
+      }
+    }
+
+Metric names: ``fvd/<prior>``, ``fid/<prior>`` (Fréchet, lower is better); weight-free
+``static_abs_diff``, ``static_drift``, ``static_flow`` (lower better), ``dynamic_abs_diff``,
+``dynamic_flow`` (motion energy), ``dominant_freq``, ``spectral_centroid`` (cycles/frame);
+synthetic scene ``gt/rms_amplitude_ratio``, ``gt/amplitude_w1``, ``gt/frequency_w1``,
+``gt/dominant_freq_learned``, ``gt/dominant_freq_gt``; Table 3 ``multiview/psnr_capture``,
+``multiview/psnr_novel`` (and ``multiview/ssim_*``).
+
+Tables written by :func:`write_tables`: ``table1_fvd`` (FVD per prior block, methods as rows,
+scenes + Avg as columns; the variant ``full`` of each method, or records without variant),
+``table2_fvd_<dataset>`` for further datasets, ``table3_multiview`` (original capture vs
+novel time), ``table5_ablation`` (FVD of one prior, variants as rows) and
+``weightfree`` (every method/variant x scene). Missing or unavailable cells read ``n/a``
+with a numbered footnote giving the reason; an average is given only when every scene of
+the row has a value.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+from anigs.io import atomic_write_text, read_json
+
+SCHEMA = "anigs-metrics/1"
+
+VARIANT_LABELS: dict[str, str] = {
+    "no_dataset_update": "w/o dataset--model update",
+    "no_view_expansion": "w/o viewpoint expansion",
+    "no_composed_v2v": "w/o ComposedV2V",
+    "opt_all": "w/ opt. all param.",
+    "opt_deform_only": "w/ opt. deformation only",
+    "full": "Ours (full model)",
+}
+ABLATION_ORDER = list(VARIANT_LABELS)
+
+PRIOR_LABELS = {"ltx": "LTX", "cosmos": "Cosmos", "dynamicrafter": "DynamiCrafter", "procedural": "Procedural"}
+
+WEIGHTFREE_COLUMNS: list[tuple[str, str]] = [
+    ("static_abs_diff", "static |dI/dt|"),
+    ("static_drift", "static drift"),
+    ("static_flow", "static flow (px)"),
+    ("dynamic_abs_diff", "dynamic |dI/dt|"),
+    ("dynamic_flow", "dynamic flow (px)"),
+    ("dominant_freq", "dom. freq (c/f)"),
+    ("gt/rms_amplitude_ratio", "GT amp. ratio"),
+    ("gt/amplitude_w1", "GT amp. W1"),
+    ("gt/frequency_w1", "GT freq. W1"),
+]
+
+MISSING = "no metrics file for this scene/method/variant"
+
+
+# ----------------------------------------------------------------------------- loading
+
+def load_metrics(paths: Iterable[str | Path]) -> list[dict[str, Any]]:
+    """Read and check metrics.json files; raise ValueError naming the file and the problem."""
+    records = []
+    for p in paths:
+        rec = read_json(p)
+        if not isinstance(rec, dict):
+            raise ValueError(f"{p}: expected a JSON object, got {type(rec).__name__}")
+        if rec.get("schema") != SCHEMA:
+            raise ValueError(f"{p}: schema is {rec.get('schema')!r}, expected {SCHEMA!r}")
+        for key in ("scene", "method", "metrics"):
+            if key not in rec:
+                raise ValueError(f"{p}: missing key {key!r}")
+        if not isinstance(rec["metrics"], dict):
+            raise ValueError(f"{p}: 'metrics' must be an object")
+        rec.setdefault("dataset", "default")
+        rec.setdefault("variant", "full")
+        rec["_path"] = str(p)
+        records.append(rec)
+    return records
+
+
+def prior_label(prior: str) -> str:
+    return PRIOR_LABELS.get(prior.lower(), prior)
+
+
+def variant_label(variant: str | None) -> str:
+    return VARIANT_LABELS.get(variant or "full", variant or "full")
+
+
+# ----------------------------------------------------------------------------- table model
+
+@dataclass
+class Cell:
+    value: float | None = None
+    note: int | None = None  # footnote number when n/a
+    bold: bool = False
+    fmt: str = "{:.2f}"
+
+    def text(self) -> str:
+        if self.value is None:
+            return "n/a"
+        if isinstance(self.value, float) and math.isinf(self.value):
+            return "inf"
+        return self.fmt.format(self.value)
+
+
+@dataclass
+class Table:
+    name: str
+    title: str
+    header: list[str]
+    rows: list[tuple[str, list[Cell]]] = field(default_factory=list)  # (label, cells); label '' + no cells = rule
+    sections: dict[int, str] = field(default_factory=dict)  # row index -> section heading before it
+    footnotes: list[str] = field(default_factory=list)
+
+    def note(self, reason: str) -> int:
+        if reason not in self.footnotes:
+            self.footnotes.append(reason)
+        return self.footnotes.index(reason) + 1
+
+    def cell(self, metric: dict[str, Any] | None, missing_reason: str = MISSING, fmt: str = "{:.2f}") -> Cell:
+        if metric is None:
+            return Cell(None, self.note(missing_reason), fmt=fmt)
+        if not metric.get("available", metric.get("value") is not None) or metric.get("value") is None:
+            return Cell(None, self.note(metric.get("reason") or "not available"), fmt=fmt)
+        v = metric["value"]
+        return Cell(float(v), fmt=fmt)  # float("inf") also reads the "inf" that write_json stores
+
+
+def _bold_best(table: Table, rows: range, higher_is_better: bool) -> None:
+    """Bold the best value per column among ``rows``."""
+    if not table.rows:
+        return
+    ncol = max(len(table.rows[r][1]) for r in rows) if rows else 0
+    for c in range(ncol):
+        vals = [(table.rows[r][1][c].value, r) for r in rows
+                if c < len(table.rows[r][1]) and table.rows[r][1][c].value is not None]
+        if len(vals) < 2:
+            continue
+        best = max(v for v, _ in vals) if higher_is_better else min(v for v, _ in vals)
+        for v, r in vals:
+            if v == best:
+                table.rows[r][1][c].bold = True
+
+
+def _avg_cell(table: Table, cells: list[Cell], fmt: str = "{:.2f}") -> Cell:
+    if cells and all(c.value is not None for c in cells):
+        return Cell(sum(c.value for c in cells) / len(cells), fmt=fmt)
+    return Cell(None, table.note("average needs a value for every scene of the row"), fmt=fmt)
+
+
+def _metric(rec: dict[str, Any] | None, name: str) -> dict[str, Any] | None:
+    if rec is None:
+        return None
+    m = rec["metrics"].get(name)
+    if m is None:
+        if name.startswith(("fvd/", "fid/")):
+            kind, prior = name.split("/", 1)
+            reason = (f"{kind.upper()}-{prior_label(prior)} not computed: no reference clips of prior {prior!r} "
+                      "were given to anigs eval (--reference PRIOR=PATH)")
+        else:
+            reason = f"metric {name!r} not computed"
+        return {"available": False, "value": None, "reason": reason}
+    return m
+
+
+def _scenes(records: Sequence[dict[str, Any]]) -> list[str]:
+    return list(dict.fromkeys(r["scene"] for r in records))
+
+
+def _index(records: Sequence[dict[str, Any]]) -> dict[tuple[str, str, str], dict[str, Any]]:
+    out = {}
+    for r in records:
+        key = (r["scene"], r["method"], r.get("variant") or "full")
+        if key in out:
+            raise ValueError(f"two metrics files for scene {key[0]!r}, method {key[1]!r}, variant {key[2]!r}: "
+                             f"{out[key]['_path']} and {r['_path']}")
+        out[key] = r
+    return out
+
+
+def _priors(records: Sequence[dict[str, Any]], kind: str = "fvd") -> list[str]:
+    names = [k.split("/", 1)[1] for r in records for k in r["metrics"] if k.startswith(kind + "/")]
+    order = {p: i for i, p in enumerate(PRIOR_LABELS)}
+    return sorted(dict.fromkeys(names), key=lambda p: (order.get(p.lower(), 99), p))
+
+
+# ----------------------------------------------------------------------------- the tables
+
+def fvd_table(records: Sequence[dict[str, Any]], name: str = "table1_fvd", title: str = "") -> Table:
+    """FVD per prior (blocks), methods as rows (variant 'full'), scenes + Avg as columns."""
+    recs = [r for r in records if (r.get("variant") or "full") == "full"]
+    scenes = _scenes(recs)
+    methods = list(dict.fromkeys(r["method"] for r in recs))
+    idx = _index(recs)
+    t = Table(name, title or "Quantitative evaluation (FVD, lower is better)", ["FVD"] + scenes + ["Avg."])
+    for prior in _priors(recs) or ["ltx"]:
+        t.sections[len(t.rows)] = f"FVD-{prior_label(prior)}"
+        start = len(t.rows)
+        for m in methods:
+            cells = [t.cell(_metric(idx.get((s, m, "full")), f"fvd/{prior}")) for s in scenes]
+            t.rows.append((m, cells + [_avg_cell(t, cells)]))
+        _bold_best(t, range(start, len(t.rows)), higher_is_better=False)
+    return t
+
+
+def multiview_table(records: Sequence[dict[str, Any]]) -> Table:
+    """Table 3: multiview PSNR of a static fit to renders at a novel time vs the original capture."""
+    recs = [r for r in records if any(k.startswith("multiview/") for k in r["metrics"])]
+    scenes = _scenes(recs) or _scenes(records)
+    t = Table("table3_multiview", "Multiview consistency: PSNR (dB, higher is better) of a 3DGS fitted to "
+              "renders from 50% of the training cameras, evaluated on the rest", ["PSNR"] + scenes)
+    cap = []
+    for s in scenes:
+        # the capture row is a property of the scene: take it from the full model's record, else any record
+        cands = [r for r in recs if r["scene"] == s and "multiview/psnr_capture" in r["metrics"]]
+        cands.sort(key=lambda r: (r.get("variant") or "full") != "full")
+        cap.append(t.cell(cands[0]["metrics"]["multiview/psnr_capture"] if cands else None,
+                          "multiview protocol not run on the original capture"))
+    t.rows.append(("Original capture", cap))
+    for method, variant in dict.fromkeys((r["method"], r.get("variant") or "full") for r in recs):
+        label = f"{method} novel time" if variant == "full" else f"{method} ({variant_label(variant)}) novel time"
+        idx = _index([r for r in recs if r["method"] == method and (r.get("variant") or "full") == variant])
+        t.rows.append((label, [t.cell(_metric(idx.get((s, method, variant)), "multiview/psnr_novel"))
+                               for s in scenes]))
+    return t
+
+
+def ablation_table(records: Sequence[dict[str, Any]], prior: str | None = None, method: str | None = None) -> Table:
+    """Table 5: FVD-<prior> of the ablation variants (rows, paper order) per scene."""
+    if method is None:
+        with_variants = [r["method"] for r in records if (r.get("variant") or "full") != "full"]
+        method = with_variants[0] if with_variants else (records[0]["method"] if records else "Ours")
+    recs = [r for r in records if r["method"] == method]
+    priors = _priors(recs)
+    prior = prior or (priors[0] if priors else "ltx")
+    scenes = _scenes(recs)
+    idx = _index(recs)
+    present = list(dict.fromkeys(r.get("variant") or "full" for r in recs))
+    variants = [v for v in ABLATION_ORDER if v != "full"] + [v for v in present if v not in ABLATION_ORDER] + ["full"]
+    t = Table("table5_ablation", f"Ablation study: FVD-{prior_label(prior)} (lower is better)",
+              [f"FVD-{prior_label(prior)}"] + scenes + ["Avg."])
+    for v in variants:
+        cells = [t.cell(_metric(idx.get((s, method, v)), f"fvd/{prior}"),
+                        f"variant '{v}' not evaluated (no metrics file)") for s in scenes]
+        t.rows.append((variant_label(v), cells + [_avg_cell(t, cells)]))
+    _bold_best(t, range(len(t.rows)), higher_is_better=False)
+    return t
+
+
+def weightfree_table(records: Sequence[dict[str, Any]]) -> Table:
+    """Weight-free metrics of every (scene, method, variant): one row each."""
+    cols = [(k, h) for k, h in WEIGHTFREE_COLUMNS if any(k in r["metrics"] for r in records)]
+    t = Table("weightfree", "Weight-free motion metrics (static: lower is better; dynamic: motion energy)",
+              ["scene", "method"] + [h for _, h in cols])
+    for s in _scenes(records):
+        start = len(t.rows)
+        for r in [r for r in records if r["scene"] == s]:
+            v = r.get("variant") or "full"
+            label = r["method"] if v == "full" else f"{r['method']} {variant_label(v)}"
+            fmt = "{:.4f}"
+            t.rows.append((f"{s} | {label}", [t.cell(r["metrics"].get(k) or
+                                                     {"available": False, "reason": f"metric {k!r} not computed"},
+                                                     fmt=fmt) for k, _ in cols]))
+        for c, (k, _) in enumerate(cols):
+            if k.startswith("static_"):
+                sub = Table("", "", [])
+                sub.rows = [(lbl, [cells[c]]) for lbl, cells in t.rows[start:]]
+                _bold_best(sub, range(len(sub.rows)), higher_is_better=False)
+    return t
+
+
+# ----------------------------------------------------------------------------- rendering
+
+def _split_label(t: Table, label: str) -> list[str]:
+    return label.split(" | ") if t.name == "weightfree" else [label]
+
+
+def to_csv(t: Table) -> str:
+    """CSV; tables with sections (prior blocks) get a leading ``block`` column; footnotes as ``# [i]`` rows."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow((["block"] if t.sections else []) + t.header)
+    section = ""
+    for i, (label, cells) in enumerate(t.rows):
+        section = t.sections.get(i, section)
+        w.writerow(([section] if t.sections else []) + _split_label(t, label)
+                   + [c.text() if c.note is None else f"n/a [{c.note}]" for c in cells])
+    for i, note in enumerate(t.footnotes, 1):
+        w.writerow([f"# [{i}] {note}"])
+    return buf.getvalue()
+
+
+def _n_label_cols(t: Table) -> int:
+    return len(t.header) - (len(t.rows[0][1]) if t.rows else len(t.header) - 1)
+
+
+def _md_escape(s: str) -> str:
+    return s.replace("|", "\\|")
+
+
+def to_markdown(t: Table) -> str:
+    lines = [f"**{t.title}**", "", "| " + " | ".join(_md_escape(h) for h in t.header) + " |",
+             "|" + "|".join([":--"] * _n_label_cols(t) + ["--:"] * (len(t.header) - _n_label_cols(t))) + "|"]
+    width = len(t.header)
+    for i, (label, cells) in enumerate(t.rows):
+        if i in t.sections:
+            lines.append("| " + " | ".join([f"**{_md_escape(t.sections[i])}**"] + [""] * (width - 1)) + " |")
+        texts = []
+        for c in cells:
+            s = c.text() if c.note is None else f"n/a<sup>{c.note}</sup>"
+            texts.append(f"**{s}**" if c.bold else s)
+        lines.append("| " + " | ".join([_md_escape(x) for x in _split_label(t, label)] + texts) + " |")
+    if t.footnotes:
+        lines.append("")
+        lines += [f"<sup>{i}</sup> {_md_escape(n)}  " for i, n in enumerate(t.footnotes, 1)]
+    return "\n".join(lines) + "\n"
+
+
+def _tex_escape(s: str) -> str:
+    out = s
+    for a, b in (("\\", r"\textbackslash{}"), ("&", r"\&"), ("%", r"\%"), ("$", r"\$"), ("#", r"\#"),
+                 ("_", r"\_"), ("{", r"\{"), ("}", r"\}"), ("~", r"\textasciitilde{}"), ("^", r"\^{}")):
+        out = out.replace(a, b) if a != "\\" else out.replace(a, "\x00")
+    out = out.replace("\x00", r"\textbackslash{}")
+    return out.replace("ComposedV2V", r"\textsc{ComposedV2V}")
+
+
+def to_latex(t: Table) -> str:
+    ncols = len(t.header)
+    nvals = ncols - _n_label_cols(t)
+    lines = [r"\begin{table}[t]", r"\centering", r"\caption{" + _tex_escape(t.title) + "}",
+             r"\label{tab:" + t.name + "}", r"\footnotesize",
+             r"\begin{tabular}{" + "l" * (ncols - nvals) + "c" * nvals + "}",
+             r"\toprule", " & ".join(_tex_escape(h) for h in t.header) + r" \\", r"\midrule"]
+    for i, (label, cells) in enumerate(t.rows):
+        if i in t.sections:
+            if i:
+                lines.append(r"\midrule")
+            lines.append(r"\textbf{" + _tex_escape(t.sections[i]) + r"} \\")
+            lines.append(r"\midrule")
+        texts = []
+        for c in cells:
+            s = c.text() if c.note is None else f"n/a$^{{{c.note}}}$"
+            texts.append(r"\textbf{" + s + "}" if c.bold else s)
+        lines.append(" & ".join([_tex_escape(x) for x in _split_label(t, label)] + texts) + r" \\")
+    lines += [r"\bottomrule", r"\end{tabular}"]
+    if t.footnotes:
+        lines.append(r"\par\smallskip{\scriptsize " + " ".join(f"$^{{{i}}}$ {_tex_escape(n)}."
+                                                                for i, n in enumerate(t.footnotes, 1)) + "}")
+    lines.append(r"\end{table}")
+    return "\n".join(lines) + "\n"
+
+
+def build_tables(records: Sequence[dict[str, Any]], ablation_prior: str | None = None) -> list[Table]:
+    """All tables for the given metric records (see module doc)."""
+    if not records:
+        raise ValueError("no metrics records given")
+    tables = []
+    datasets = list(dict.fromkeys(r.get("dataset", "default") for r in records))
+    for i, d in enumerate(datasets):
+        sub = [r for r in records if r.get("dataset", "default") == d]
+        name = "table1_fvd" if i == 0 else f"table2_fvd_{d}"
+        title = "Quantitative evaluation (FVD, lower is better)" + ("" if i == 0 else f" on {d}")
+        tables.append(fvd_table(sub, name, title))
+    tables.append(multiview_table(records))
+    tables.append(ablation_table(records, ablation_prior))
+    tables.append(weightfree_table(records))
+    return tables
+
+
+def write_tables(records: Sequence[dict[str, Any]], out_dir: str | Path, ablation_prior: str | None = None) -> list[Path]:
+    """Write every table as ``<name>.csv``, ``<name>.md``, ``<name>.tex`` (atomically); return the paths."""
+    out = Path(out_dir)
+    paths = []
+    for t in build_tables(records, ablation_prior):
+        for ext, fn in (("csv", to_csv), ("md", to_markdown), ("tex", to_latex)):
+            p = out / f"{t.name}.{ext}"
+            atomic_write_text(p, fn(t))
+            paths.append(p)
+    return paths
