@@ -171,11 +171,17 @@ def _type(value, annotation) -> list[str] | str:
     return types[0] if len(types) == 1 else types
 
 
+# Fields a stage sets itself from its section's top level (not user keys of the nested dict).
+EXCLUDE = {("refine", "procedural", "effects"), ("refine", "ltx", "steps")}
+
+
 def dataclass_schema(cls, path: tuple[str, ...], nest) -> dict:
     com = _comments(cls)
     hints = typing.get_type_hints(cls) if True else {}
     props = {}
     for f in dataclasses.fields(cls):
+        if path + (f.name,) in EXCLUDE:
+            continue
         value = _default(f)
         sub = nest.get(path + (f.name,))
         desc = com.get(f.name) or EXTRA.get(".".join(path + (f.name,))) or EXTRA.get(f.name)

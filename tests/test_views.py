@@ -1,0 +1,202 @@
+"""Incremental viewpoint expansion (anigs.views, anigs.viewmap, `anigs views`)."""
+from __future__ import annotations
+
+import json
+import logging
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from anigs.cameras import save_cameras
+from anigs.views import (ViewsConfig, azimuth_deg, ccw_order, farthest_point_order, in_wedges, plan_views,
+                         view_camera)
+from test_lift import toy_scene
+
+SMALL = dict(width=64, height=48, num_locations=3)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return toy_scene(ring=8)
+
+
+@pytest.fixture(scope="module")
+def plan(scene):
+    gs, lab, cams = scene
+    return plan_views(gs, lab == 4, cams, ViewsConfig(**SMALL))
+
+
+def test_farthest_point_order_spreads_and_weights():
+    sq = np.array([[0, 0], [1, 0], [0, 1], [1, 1], [0.5, 0.5], [0.45, 0.5]], float)
+    order = farthest_point_order(sq, np.ones(len(sq)), 4, start=0)
+    assert sorted(order) == [0, 1, 2, 3]
+    assert order[1] == 3  # the opposite corner comes first
+    w = np.array([1, 1, 1, 0.01, 1, 1])  # corner 3 barely sees anything: avoided
+    assert 3 not in farthest_point_order(sq, w, 3, start=0)
+    assert farthest_point_order(sq, np.ones(6), 4, 0) == order  # deterministic
+
+
+def test_ccw_order_and_wedges():
+    pts = np.array([[1, 0], [0, -1], [-1, 0], [0, 1]], float)
+    assert ccw_order(pts, np.zeros(2), first=0) == [0, 3, 2, 1]
+    assert ccw_order(pts, np.zeros(2), first=1) == [1, 0, 3, 2]
+    inside = in_wedges(np.array([0, 45, 100, 150, -150, -100, 180]), [0, 90, -90], 95)
+    assert inside.tolist() == [True, True, True, False, False, True, False]
+
+
+def test_view_camera_yaw_turns_left_and_fov():
+    up = np.array([0, 0, 1.0])
+    fwd = np.array([1.0, 0, 0])
+    c0 = view_camera(np.zeros(3), fwd, up, 0, 0, 95, 64, 48)
+    c90 = view_camera(np.zeros(3), fwd, up, 90, 0, 95, 64, 48)
+    cm90 = view_camera(np.zeros(3), fwd, up, -90, 0, 95, 64, 48)
+    assert np.allclose(c0.forward, [1, 0, 0], atol=1e-9)
+    assert np.allclose(c90.forward, [0, 1, 0], atol=1e-9)    # CCW seen from above = left turn
+    assert np.allclose(cm90.forward, [0, -1, 0], atol=1e-9)
+    assert c0.fov_x == pytest.approx(95.0)
+    assert np.allclose(-c0.R[1], up, atol=1e-9)  # level: image up is world up
+    tilted = view_camera(np.zeros(3), fwd, up, 0, -10, 95, 64, 48)
+    assert tilted.forward[2] == pytest.approx(-math.sin(math.radians(10)))
+    assert azimuth_deg(np.array([0, 1.0, 0]), up) == pytest.approx(90.0)
+
+
+def test_plan_queue_order_and_coverage(scene, plan):
+    gs, lab, cams = scene
+    views = plan.views
+    assert len(views) == 9
+    assert [v["location"] for v in views] == [0, 0, 0, 1, 1, 1, 2, 2, 2]
+    assert [v["yaw"] for v in views] == [0.0, 90.0, -90.0] * 3
+    assert [v["id"] for v in views] == [f"v{i:02d}" for i in range(9)]
+    for v, cam in zip(views, plan.cameras):
+        assert (v["camera"]["width"], v["camera"]["height"]) == (64, 48)
+        assert cam.fov_x == pytest.approx(95.0)
+        # camera at the chosen candidate's position and height
+        assert np.allclose(cam.center, plan.candidates[plan.chosen[v["location"]]], atol=1e-9)
+    # within a location, the three views are 90 degrees apart about up
+    f0, f90 = plan.cameras[0].forward, plan.cameras[1].forward
+    assert np.cross(f0, f90)[2] == pytest.approx(1.0, abs=1e-9)
+    # locations counter-clockwise around the ROI centroid, starting at the best-seeing candidate
+    xy = plan.candidates[plan.chosen][:, :2] - plan.roi_centroid[:2]
+    ang = np.unwrap(np.arctan2(xy[:, 1], xy[:, 0]))
+    assert np.all(np.diff(ang) > 0)
+    assert plan.chosen[0] == int(np.argmax(plan.candidate_visible))
+    cov = plan.coverage_after
+    assert all(b >= a for a, b in zip(cov, cov[1:]))
+    assert cov[-1] >= 0.75, cov
+    assert cov[-1] <= plan.reachable + 0.05
+    fr = plan.frustum_coverage_after  # occlusion ignored: never below the occlusion-aware coverage
+    assert len(fr) == len(cov) and all(f >= c - 1e-12 for f, c in zip(fr, cov))
+    assert views[0]["overlap_prev"] is None and all(v["overlap_prev"] is not None for v in views[1:])
+
+
+def test_plan_is_deterministic(scene):
+    gs, lab, cams = scene
+    cfg = ViewsConfig(width=48, height=36, num_locations=2, directions=[0, 90])
+    a = plan_views(gs, lab == 4, cams[:4], cfg)
+    b = plan_views(gs, lab == 4, cams[:4], cfg)
+    assert a.chosen == b.chosen
+    assert a.coverage_after == b.coverage_after
+    assert [v["camera"] for v in a.views] == [v["camera"] for v in b.views]
+
+
+def test_plan_errors(scene):
+    gs, lab, cams = scene
+    with pytest.raises(ValueError, match="no region of interest"):
+        plan_views(gs, np.zeros(gs.num, bool), cams, ViewsConfig(**SMALL))
+    with pytest.raises(ValueError, match=r"3 candidate positions but num_locations=4"):
+        plan_views(gs, lab == 4, cams[:3], ViewsConfig(width=64, height=48, num_locations=4))
+    with pytest.raises(ValueError, match="unknown key"):
+        ViewsConfig.from_dict({"num_location": 3})
+    with pytest.raises(ValueError, match="bool"):
+        plan_views(gs, (lab == 4).astype(int), cams, ViewsConfig(**SMALL))
+
+
+def test_non_overlapping_view_warns(scene, caplog):
+    """Two opposite narrow views see disjoint content: the second one is flagged with its numbers."""
+    gs, lab, cams = scene
+    cfg = ViewsConfig(width=48, height=36, num_locations=1, directions=[0, 180], fov_deg=40, forward="centroid")
+    with caplog.at_level(logging.WARNING, logger="anigs.views"):
+        p = plan_views(gs, lab == 4, cams[:2], cfg)
+    assert p.views[1]["overlap_prev"] == 0.0
+    msgs = [r.getMessage() for r in caplog.records if "overlaps none" in r.getMessage()]
+    assert msgs and "v01" in msgs[0] and "0 of its" in msgs[0]
+
+
+def test_jittered_candidates(scene):
+    from anigs.views import make_candidates
+
+    gs, lab, cams = scene
+    cand, fwd = make_candidates(cams, np.array([0, 0, 1.0]), ViewsConfig(jitter_copies=2, jitter_std=0.3))
+    assert cand.shape == (3 * len(cams), 3) and fwd.shape == cand.shape
+    assert np.allclose(cand[len(cams):, 2], np.repeat([c.center[2] for c in cams], 2))  # horizontal jitter only
+
+
+def test_topdown_png(tmp_path, scene, plan):
+    from anigs.viewmap import draw_topdown, save_topdown
+
+    gs, lab, _ = scene
+    img = draw_topdown(plan, gs.means.numpy(), lab == 4, size=300)
+    assert img.shape[1] == 300 and img.dtype == np.uint8
+    assert (img[..., 2] > 180).sum() > 50  # red location markers drawn
+    save_topdown(tmp_path / "top.png", plan, gs.means.numpy(), lab == 4, size=300)
+    assert cv2.imread(str(tmp_path / "top.png")).shape == img.shape
+
+
+def test_cli_views(tmp_path, scene):
+    from anigs.cli import main
+
+    gs, lab, cams = scene
+    gs.save_ply(tmp_path / "canonical.ply")
+    save_cameras(tmp_path / "cameras.json", cams)
+    np.save(tmp_path / "labels.npy", lab)
+    motion = {"labels": {"0": "ground", "1": "building", "4": "foliage"},
+              "label_effects": {"ground": [], "building": [], "foliage": ["foliage_sway"]}}
+    (tmp_path / "motion.json").write_text(json.dumps(motion))
+    out = tmp_path / "views"
+    rc = main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+               "--labels", str(tmp_path / "labels.npy"), "--motion", str(tmp_path / "motion.json"),
+               "--out", str(out), "--params", json.dumps({**SMALL, "num_locations": 2, "topdown_size": 200})])
+    assert rc == 0
+    data = json.loads((out / "views.json").read_text())
+    assert len(data["views"]) == 6 and len(data["coverage_after"]) == 6
+    assert data["num_roi"] == int((lab == 4).sum())
+    assert (np.load(out / "dynamic.npy") == (lab == 4)).all()
+    assert (out / "topdown.png").is_file()
+    # a bad key is a clear error (exit code 1), not a crash
+    assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+                 "--dynamic", str(out / "dynamic.npy"), "--out", str(tmp_path / "v2"),
+                 "--params", '{"bogus": 1}']) == 1
+
+
+@pytest.mark.parametrize("route", ["images", "masks-dir"])
+def test_cli_views_from_2d(tmp_path, route):
+    """Real-scene routes: ROI lifted from vegetation masks of the photos, or from given masks."""
+    from anigs.cli import main
+    from anigs.masks import compute_masks, render_frames, write_mask_png, write_rgb_png
+    from test_lift import SKY
+
+    gs, lab, cams = toy_scene(ring=6, lawn=True)
+    gs.save_ply(tmp_path / "canonical.ply")
+    save_cameras(tmp_path / "cameras.json", cams)
+    frames = render_frames(gs, cams, SKY)
+    src = tmp_path / "src"
+    if route == "images":
+        for f in frames:
+            write_rgb_png(src / f"{f.name}.png", f.image)
+    else:
+        masks = compute_masks("labels", frames, gaussians=gs, labels=lab, dynamic_labels=[4])
+        for f, m in zip(frames, masks):
+            write_mask_png(src / f"{f.name}.png", m["dynamic"])
+    out = tmp_path / "views"
+    rc = main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+               f"--{route}", str(src), "--out", str(out),
+               "--params", json.dumps({"width": 48, "height": 36, "num_locations": 2, "topdown_size": 200})])
+    assert rc == 0
+    data = json.loads((out / "views.json").read_text())
+    roi = np.load(out / "dynamic.npy")
+    truth = lab == 4
+    tp = (roi & truth).sum()
+    assert tp / roi.sum() >= 0.85 and tp / truth.sum() >= 0.85, (tp / roi.sum(), tp / truth.sum(), data["lift"])
+    assert data["lift"]["num_views"] == len(cams) and len(data["views"]) == 6
