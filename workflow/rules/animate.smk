@@ -2,17 +2,6 @@
 # dataset with the model of round r-1 (round 0 = static canonical), refines each view in its
 # own job (fan-out: independent GPU jobs on a cluster), then trains one model (fan-in).
 
-VARIANT_DIR = f"{R}/{{scene}}/{{variant}}"
-
-
-def _render_model(wc):
-    r = plan(wc.scene, wc.variant).render_model_round(int(wc.round))
-    return [model_path(wc.scene, wc.variant, r)] if r > 0 else []
-
-
-def _frames(wc):
-    return {"num_frames": sec(wc.scene, "animate", wc.variant)["frames"], "device": config["device"]}
-
 
 rule render_clip:
     input:
@@ -33,14 +22,11 @@ rule render_clip:
     resources:
         mem_mb=3000,
         runtime=20,
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} render-clip --canonical {input.ply:q} {params.model} --view-json {input.views:q} "
         "--view-id {wildcards.view} --out {output:q} --params {params.p:q} > {log} 2>&1"
-
-
-def _refine_extra(wc):
-    s = SCENES[wc.scene]
-    return {"prompt": s.get("prompt", ""), "effects": s["effects"], "seed": config["seed"]}
 
 
 rule refine:
@@ -61,24 +47,11 @@ rule refine:
         mem_mb=6000,
         runtime=60,
         gpu=lambda wc: wants_gpu(wc.scene, wc.variant),
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} refine --clip {input.clip:q} --mask {input.masks}/{wildcards.view}.png "
         "--round {wildcards.round} --view {wildcards.view} --out {output:q} --params {params.p:q} > {log} 2>&1"
-
-
-def _targets(wc):
-    p = plan(wc.scene, wc.variant)
-    r = int(wc.round)
-    return [f"{R}/{wc.scene}/{wc.variant}/round{p.target_round(r, v)}/target/{v}.npz" for v in p.dataset(r)]
-
-
-def _init_model(wc):
-    r = int(wc.round)
-    return [model_path(wc.scene, wc.variant, r - 1)] if r > 1 else []
-
-
-def _update_extra(wc):
-    return {"device": config["device"], "seed": config["seed"] + 1000 * int(wc.round)}
 
 
 rule update:
@@ -104,6 +77,8 @@ rule update:
         mem_mb=8000,
         runtime=120,
         gpu=lambda wc: int(str(config["device"]).startswith("cuda")),
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} update --canonical {input.ply:q} {params.init} --targets {input.targets} "
         "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy --out {output.model:q} "

@@ -24,6 +24,8 @@ rule capture_synthetic:
     resources:
         mem_mb=4000,
         runtime=20,
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} capture --source synthetic --params {params.p:q} --out {params.out:q} > {log} 2>&1"
 
@@ -47,5 +49,7 @@ rule capture_photos:
     resources:
         mem_mb=4000,
         runtime=30,
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs capture --source photos --photos {params.photos:q} --params {params.p:q} --out {params.out:q} > {log} 2>&1"

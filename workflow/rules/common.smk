@@ -1,5 +1,6 @@
 # Shared helpers: scenes, variants, effective config sections, the round plan.
 import json
+import os
 
 import anigs
 from anigs.config import load_scene, section
@@ -96,3 +97,71 @@ if workflow.local_exec and str(config["device"]).startswith("cuda"):
     if not torch.cuda.is_available():
         raise ValueError(f"config: device is {config['device']!r} but this machine has no CUDA device; "
                          "use device: auto (or cpu), or submit to a GPU cluster with --profile workflow/profiles/slurm")
+
+
+# ---- input/param helpers of the stage rules ----
+
+VARIANT_DIR = f"{R}/{{scene}}/{{variant}}"
+
+
+def _roi_args(wc):
+    """Regions of interest: ground-truth labels on synthetic scenes, else vegetation masks lifted to 3D."""
+    if is_synthetic(wc.scene):
+        return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
+                f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')}")
+    return f"--images {R}/{wc.scene}/capture/images"
+
+
+def _gt_inputs(wc):
+    if not is_synthetic(wc.scene):
+        return []
+    return [gt_file(wc.scene, n) for n in ("labels.npy", "motion.json", "gaussians.ply", "cameras.json")]
+
+
+def _mask_gt_args(wc):
+    if not is_synthetic(wc.scene):
+        return ""
+    return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
+            f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')} "
+            f"--cameras {R}/{wc.scene}/sfm/cameras.json")
+
+
+def masks_dir(wc):
+    return f"{R}/{wc.scene}/masks"
+
+
+def _render_model(wc):
+    r = plan(wc.scene, wc.variant).render_model_round(int(wc.round))
+    return [model_path(wc.scene, wc.variant, r)] if r > 0 else []
+
+
+def _frames(wc):
+    return {"num_frames": sec(wc.scene, "animate", wc.variant)["frames"], "device": config["device"]}
+
+
+def _refine_extra(wc):
+    s = SCENES[wc.scene]
+    return {"prompt": s.get("prompt", ""), "effects": s["effects"], "seed": config["seed"]}
+
+
+def _targets(wc):
+    p = plan(wc.scene, wc.variant)
+    r = int(wc.round)
+    return [f"{R}/{wc.scene}/{wc.variant}/round{p.target_round(r, v)}/target/{v}.npz" for v in p.dataset(r)]
+
+
+def _init_model(wc):
+    r = int(wc.round)
+    return [model_path(wc.scene, wc.variant, r - 1)] if r > 1 else []
+
+
+def _update_extra(wc):
+    return {"device": config["device"], "seed": config["seed"] + 1000 * int(wc.round)}
+
+
+def final_model(wc):
+    return model_path(wc.scene, wc.variant, plan(wc.scene, wc.variant).num_rounds)
+
+
+def _eval_gt(wc):
+    return f"--gt-dir {R}/{wc.scene}/capture/gt" if is_synthetic(wc.scene) else ""

@@ -1,10 +1,6 @@
 # Stage 10: evaluation per (scene, variant) and the paper's tables.
 
 
-def _eval_gt(wc):
-    return f"--gt-dir {R}/{wc.scene}/capture/gt" if is_synthetic(wc.scene) else ""
-
-
 rule eval_scene:
     input:
         final=f"{R}/{{scene}}/{{variant}}/final/final.json",
@@ -29,6 +25,8 @@ rule eval_scene:
     resources:
         mem_mb=8000,
         runtime=60,
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} eval --final-dir {params.final:q} --masks {input.masks:q} --model {input.model:q} "
         "--canonical {input.ply:q} --cameras {input.cameras:q} --images {input.images:q} --points {input.points:q} "
@@ -42,9 +40,11 @@ rule tables_build:
     output:
         f"{R}/tables/tables.json",
     params:
-        out=f"{R}/tables",
+        out=lambda wc, output: os.path.dirname(output[0]),
         version=ANIGS_VERSION,
     log:
         f"{R}/logs/tables.log",
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs tables --metrics {input} --out {params.out:q} > {log} 2>&1"

@@ -1,10 +1,6 @@
 # Stage 9: final renders (videos, slices) and exports of the last round's model.
 
 
-def final_model(wc):
-    return model_path(wc.scene, wc.variant, plan(wc.scene, wc.variant).num_rounds)
-
-
 rule final_render:
     input:
         ply=f"{R}/{{scene}}/static/canonical.ply",
@@ -28,6 +24,8 @@ rule final_render:
     resources:
         mem_mb=4000,
         runtime=30,
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} render --canonical {input.ply:q} --model {input.model:q} --views {input.views:q} "
         "--cameras {input.cameras:q} --masks {input.masks:q} --out {params.out:q} --params {params.p:q} > {log} 2>&1"
@@ -52,6 +50,8 @@ rule export_scene:
     resources:
         mem_mb=4000,
         runtime=20,
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} export --canonical {input.ply:q} --model {input.model:q} --out {params.out:q} "
         "--params {params.p:q} > {log} 2>&1"

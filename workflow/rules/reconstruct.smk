@@ -25,6 +25,8 @@ rule sfm:
     resources:
         mem_mb=8000,
         runtime=60,
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} sfm --images {input.images:q} --out {params.out:q} {params.gt} "
         "--params {params.p:q} > {log} 2>&1"
@@ -50,6 +52,8 @@ rule static_fit:
     resources:
         mem_mb=8000,
         runtime=120,
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} static --images {input.images:q} --cameras {input.cameras:q} "
         "--points {input.points:q} --out {params.out:q} --params {params.p:q} --no-progress > {log} 2>&1"

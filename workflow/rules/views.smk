@@ -1,20 +1,6 @@
 # Stages 4-5: the view queue (incremental viewpoint expansion) and dynamic masks per view.
 
 
-def _roi_args(wc):
-    """Regions of interest: ground-truth labels on synthetic scenes, else vegetation masks lifted to 3D."""
-    if is_synthetic(wc.scene):
-        return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
-                f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')}")
-    return f"--images {R}/{wc.scene}/capture/images"
-
-
-def _gt_inputs(wc):
-    if not is_synthetic(wc.scene):
-        return []
-    return [gt_file(wc.scene, n) for n in ("labels.npy", "motion.json", "gaussians.ply", "cameras.json")]
-
-
 rule views:
     input:
         ply=f"{R}/{{scene}}/static/canonical.ply",
@@ -37,17 +23,11 @@ rule views:
     resources:
         mem_mb=4000,
         runtime=20,
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} views --canonical {input.ply:q} --cameras {input.cameras:q} {params.roi} "
         "--out {params.out:q} --params {params.p:q} > {log} 2>&1"
-
-
-def _mask_gt_args(wc):
-    if not is_synthetic(wc.scene):
-        return ""
-    return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
-            f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')} "
-            f"--cameras {R}/{wc.scene}/sfm/cameras.json")
 
 
 rule masks:
@@ -71,10 +51,8 @@ rule masks:
     resources:
         mem_mb=4000,
         runtime=20,
+    conda:
+        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} masks --canonical {input.ply:q} --views {input.views:q} {params.gt} "
         "--out {params.out:q} --params {params.p:q} > {log} 2>&1"
-
-
-def masks_dir(wc):
-    return f"{R}/{wc.scene}/masks"
