@@ -19,6 +19,16 @@ inline void quat_to_rot(const float* qn, float* R) {
   R[6] = 2.f * (x * z - w * y); R[7] = 2.f * (y * z + w * x); R[8] = 1.f - 2.f * (x * x + y * y);
 }
 
+// cam: [R(9), t(3), fx, fy, cx, cy, near, far, eps2d]
+inline Cam unpack(const float* cam, int W, int H) {
+  Cam c;
+  for (int i = 0; i < 9; ++i) c.R[i] = cam[i];
+  for (int i = 0; i < 3; ++i) c.t[i] = cam[9 + i];
+  c.fx = cam[12]; c.fy = cam[13]; c.cx = cam[14]; c.cy = cam[15];
+  c.near = cam[16]; c.far = cam[17]; c.eps2d = cam[18]; c.W = W; c.H = H;
+  return c;
+}
+
 // Forward intermediates of one Gaussian, recomputed in the backward.
 struct Fwd {
   float qn[4], qnorm, Rq[9], M[9], Sig[9], pc[3], u, v, uclamped, vclamped, J[6], T[6], cov[3], det;
@@ -74,11 +84,7 @@ extern "C" {
 void anigs_project_forward(int N, const float* cam, int W, int H, const float* means, const float* quats,
                            const float* scales, const float* opac, float* means2d, float* conics,
                            float* depths, int* rects, int* radii, unsigned char* valid, int nthreads) {
-  proj::Cam c;
-  for (int i = 0; i < 9; ++i) c.R[i] = cam[i];
-  for (int i = 0; i < 3; ++i) c.t[i] = cam[9 + i];
-  c.fx = cam[12]; c.fy = cam[13]; c.cx = cam[14]; c.cy = cam[15];
-  c.near = cam[16]; c.far = cam[17]; c.eps2d = cam[18]; c.W = W; c.H = H;
+  const proj::Cam c = proj::unpack(cam, W, H);
 #ifdef _OPENMP
 #pragma omp parallel for schedule(static) num_threads(nthreads > 0 ? nthreads : 1)
 #endif
@@ -121,11 +127,7 @@ void anigs_project_backward(int N, const float* cam, int W, int H, const float* 
                             const float* scales, const unsigned char* valid, const float* g_means2d,
                             const float* g_conics, const float* g_depths, float* g_means, float* g_quats,
                             float* g_scales, int nthreads) {
-  proj::Cam c;
-  for (int i = 0; i < 9; ++i) c.R[i] = cam[i];
-  for (int i = 0; i < 3; ++i) c.t[i] = cam[9 + i];
-  c.fx = cam[12]; c.fy = cam[13]; c.cx = cam[14]; c.cy = cam[15];
-  c.near = cam[16]; c.far = cam[17]; c.eps2d = cam[18]; c.W = W; c.H = H;
+  const proj::Cam c = proj::unpack(cam, W, H);
 #ifdef _OPENMP
 #pragma omp parallel for schedule(static) num_threads(nthreads > 0 ? nthreads : 1)
 #endif
