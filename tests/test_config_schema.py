@@ -48,7 +48,7 @@ def test_scene_files_and_merging(tmp_path):
     scene = load_scene(ROOT / "config/scenes", "demo")
     assert scene["source"] == "synthetic" and scene["effects"]
     cfg = {"update": {"steps": 5, "lr_means": 1.0}, "variant_overrides": {"full": {}, "x": {"update": {"steps": 9}}}}
-    scene = deep_merge(scene, {"update": {"lr_means": 2.0}})
+    scene = {"source": "synthetic", "update": {"lr_means": 2.0}}
     assert section(cfg, scene, "full", "update") == {"steps": 5, "lr_means": 2.0}
     assert section(cfg, scene, "x", "update") == {"steps": 9, "lr_means": 2.0}
     (tmp_path / "bad.yaml").write_text("source: photos\nphotos: /nonexistent/folder\n")
