@@ -11,7 +11,8 @@ rule eval_scene:
         points=f"{R}/{{scene}}/sfm/points.npz",
         images=f"{R}/{{scene}}/capture/images",
     output:
-        f"{R}/{{scene}}/{{variant}}/eval/metrics.json",
+        report(f"{R}/{{scene}}/{{variant}}/eval/metrics.json", caption="../report/metrics.rst", category="Metrics",
+               subcategory="{scene} {variant}"),
     params:
         p=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
         final=lambda wc: f"{R}/{wc.scene}/{wc.variant}/final/clips",

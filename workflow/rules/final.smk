@@ -10,6 +10,8 @@ rule final_render:
         masks=f"{R}/{{scene}}/masks",
     output:
         summary=f"{R}/{{scene}}/{{variant}}/final/final.json",
+        slices=report(directory(f"{R}/{{scene}}/{{variant}}/final/slices"), patterns=["{name}.png"],
+                      caption="../report/slices.rst", category="Space-time slices", subcategory="{scene} {variant}"),
         path=report(f"{R}/{{scene}}/{{variant}}/final/path.mp4", caption="../report/final.rst", category="Videos",
                     subcategory="{scene} {variant}"),
     params:

@@ -37,7 +37,8 @@ rule masks:
         gt=_gt_inputs,
     output:
         # {view}.png, {view}_overlay.png (+ per-effect masks), dynamic.npy, masks.json
-        masks=directory(f"{R}/{{scene}}/masks"),
+        masks=report(directory(f"{R}/{{scene}}/masks"), patterns=["{name}_overlay.png"],
+                     caption="../report/masks.rst", category="Masks", subcategory="{scene}"),
     params:
         p=jparams("masks"),
         gt=_mask_gt_args,
