@@ -107,11 +107,15 @@ def test_second_run_has_nothing_to_do(run):
     assert "Nothing to be done" in res.stdout + res.stderr
 
 
-def test_changing_one_key_reruns_only_affected_jobs(run):
-    res = _snakemake(run, "-n", "--config", f"results={run}", "final={'fps': 7}")
+def test_changing_one_key_reruns_only_affected_jobs(run, tmp_path):
+    override = tmp_path / "override.yaml"
+    override.write_text("final:\n  fps: 7\n")
+    res = _snakemake(run, "-n", "--configfile", "config/test.yaml", str(override), "--config", f"results={run}")
     out = res.stdout + res.stderr
     assert res.returncode == 0, out
-    assert "final_render" in out and "update" not in out.split("Job stats")[-1] and "static_fit" not in out
+    table = out.split("Job stats:")[1].split("total")[0]
+    jobs = {line.split()[0] for line in table.splitlines()[3:] if line.strip()}
+    assert jobs == {"final_render", "eval_scene", "all"}, jobs
 
 
 def test_misspelled_key_fails_before_any_job(tmp_path):
