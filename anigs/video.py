@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from anigs.io import atomic_path
+from anigs.io import atomic_path, write_npz
 
 
 def _as_numpy(clip) -> np.ndarray:
@@ -38,9 +38,7 @@ def save_clip(path: str | Path, clip, meta: dict[str, Any] | None = None, dtype=
     clip = check_clip(clip)
     arrays: dict[str, Any] = {"frames": np.clip(clip, 0, 1).astype(dtype)}
     arrays["meta"] = np.array(json.dumps(meta or {}))
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
+    write_npz(path, **arrays)
 
 
 def load_clip(path: str | Path) -> tuple[np.ndarray, dict[str, Any]]:
