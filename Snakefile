@@ -1,10 +1,13 @@
 # anigs workflow: static 3DGS -> animated 3DGS (AniGS). See README.md and config/README.md.
+import os
+
 from snakemake.utils import min_version, validate
 
 min_version("8.0")
 
 
-configfile: "config/config.yaml"
+# the defaults; --configfile FILE overrides them key by key (works from any working directory)
+configfile: os.path.join(workflow.basedir, "config", "config.yaml")
 
 
 validate(config, "workflow/schemas/config.schema.yaml")

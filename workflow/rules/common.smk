@@ -8,7 +8,11 @@ from anigs.plan import RoundPlan
 
 ANIGS_VERSION = anigs.__version__
 R = config["results"]
-SCENES = {name: load_scene(config["scene_dir"], name) for name in config["scenes"]}
+# scene files: relative to the working directory, else to the workflow (when run from elsewhere)
+_scene_dir = config["scene_dir"]
+if not os.path.isabs(_scene_dir) and not os.path.isdir(_scene_dir):
+    _scene_dir = os.path.join(workflow.basedir, _scene_dir)
+SCENES = {name: load_scene(_scene_dir, name) for name in config["scenes"]}
 for _v in list(config["variants"]) + list(config["table_variants"]):
     if _v not in config["variant_overrides"]:
         raise ValueError(f"config: variant {_v!r} is not defined under variant_overrides "
