@@ -36,6 +36,8 @@ for rotation angles.
 """
 from __future__ import annotations
 
+import io
+
 import math
 from pathlib import Path
 from typing import Any
@@ -331,8 +333,12 @@ def save_model(path: str | Path, deformation: DCTDeformation, canonical: Gaussia
         "extra": dict(extra or {}),
     }
     _check_finite_tree(payload, f"save_model({path})", "")
+    # save through a buffer: torch.save names the zip archive after the file, and the atomic
+    # temporary name is random, which would make identical models differ byte for byte
+    buf = io.BytesIO()
+    torch.save(payload, buf)
     with atomic_path(path) as tmp:
-        torch.save(payload, tmp)
+        tmp.write_bytes(buf.getvalue())
 
 
 def load_model_payload(path: str | Path) -> dict[str, Any]:

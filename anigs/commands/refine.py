@@ -147,7 +147,9 @@ def run(args: argparse.Namespace) -> int:
                                              if isinstance(v, (int, float, str, list))}})
     log.info("refined %s (round %d, view %s, seed %d) with %s in %.2fs -> %s", clip_path, round_, view, seed,
              cfg.prior, info["seconds"], args.out)
-    save_clip(args.out, out, {**meta, "refine": info})
+    # wall time goes to the log, not into the artifact: the same inputs give the same file
+    stored = {k: v for k, v in info.items() if k != "seconds"}
+    save_clip(args.out, out, {**meta, "refine": stored})
     if args.info:
         write_json(args.info, info)
     return 0
