@@ -23,12 +23,13 @@ simulated where the scene calls for nothing. ``compose=False`` is the paper's
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import cv2
 import numpy as np
 
+from anigs.configs import reject_unknown_keys
 from anigs.prior.base import MaskLike, VideoPrior, check_strength, union_mask
 from anigs.video import check_clip
 
@@ -47,10 +48,7 @@ class ComposeConfig:
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "ComposeConfig":
         d = dict(d or {})
-        known = {f.name for f in fields(cls)}
-        bad = sorted(set(d) - known)
-        if bad:
-            raise ValueError(f"unknown key(s) {bad} in compose config; known: {sorted(known)}")
+        reject_unknown_keys(cls, d, "compose config", ValueError)
         cfg = cls(**d)
         if cfg.feather_px < 0:
             raise ValueError(f"feather_px must be >= 0, got {cfg.feather_px}")

@@ -20,7 +20,6 @@ NDC units, i.e. the pixel-space gradient of ``means2d`` times ``(width/2, height
 """
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 from dataclasses import dataclass, field
@@ -28,6 +27,7 @@ from typing import Any
 
 import torch
 
+from anigs.configs import reject_unknown_keys
 from anigs.render.projection import quat_to_rotmat
 
 log = logging.getLogger(__name__)
@@ -60,10 +60,7 @@ class DensifyConfig:
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "DensifyConfig":
         d = dict(d or {})
-        names = {f.name for f in dataclasses.fields(DensifyConfig)}
-        unknown = sorted(set(d) - names)
-        if unknown:
-            raise ValueError(f"densify config: unknown keys {unknown}; allowed: {sorted(names)}")
+        reject_unknown_keys(DensifyConfig, d, "densify config", ValueError)
         cfg = DensifyConfig(**d)
         cfg.validate()
         return cfg

@@ -2,7 +2,7 @@
 and space-time slices of the most animated patch (the paper's x-t / y-t figures)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -10,6 +10,7 @@ import torch
 from scipy.spatial.transform import Rotation, Slerp
 
 from anigs.cameras import Camera
+from anigs.configs import reject_unknown_keys
 
 
 @dataclass
@@ -29,10 +30,7 @@ class FinalConfig:
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "FinalConfig":
         d = dict(d or {})
-        known = {f.name for f in fields(FinalConfig)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise KeyError(f"final: unknown key(s) {unknown}; known: {sorted(known)}")
+        reject_unknown_keys(FinalConfig, d, "final", KeyError)
         return FinalConfig(**d)
 
 

@@ -6,7 +6,6 @@ densification by :mod:`anigs.densify`, every ``holdout_every``-th image held out
 """
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import time
@@ -18,6 +17,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
+from anigs.configs import reject_unknown_keys
 from anigs.densify import DensifyConfig, DensifyState, refine, update_state
 from anigs.device import get_device, seed_everything
 from anigs.gaussians import Gaussians
@@ -59,10 +59,7 @@ class FitConfig:
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "FitConfig":
         d = dict(d or {})
-        names = {f.name for f in dataclasses.fields(FitConfig)}
-        unknown = sorted(set(d) - names)
-        if unknown:
-            raise ValueError(f"static config: unknown keys {unknown}; allowed: {sorted(names)}")
+        reject_unknown_keys(FitConfig, d, "static config", ValueError)
         if "densify" in d and not isinstance(d["densify"], DensifyConfig):
             d["densify"] = DensifyConfig.from_dict(d["densify"])
         if "background" in d:

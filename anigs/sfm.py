@@ -41,6 +41,7 @@ import numpy as np
 
 from anigs.align import Similarity, pose_errors, umeyama, upright_similarity
 from anigs.cameras import Camera, load_cameras, save_cameras
+from anigs.configs import reject_unknown_keys
 from anigs.io import write_json, write_npz
 from anigs.photos import check_images, image_headers, list_images, report_unreadable, require_min_images
 
@@ -78,10 +79,7 @@ class SfmConfig:
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "SfmConfig":
         d = dict(d or {})
-        names = {f.name for f in dataclasses.fields(SfmConfig)}
-        unknown = sorted(set(d) - names)
-        if unknown:
-            raise KeyError(f"unknown sfm config key(s) {unknown}; valid keys: {sorted(names)}")
+        reject_unknown_keys(SfmConfig, d, "sfm config", KeyError)
         cfg = SfmConfig(**d)
         cfg.validate()
         return cfg

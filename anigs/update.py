@@ -26,13 +26,13 @@ from typing import Any
 
 import torch
 
+from anigs.animated import render_frame
 from anigs.cameras import Camera
-from anigs.deform import (DCTDeformation, dynamic_index_from_mask, offset_limits, resolve_num_bases,
-                          save_model)
+from anigs.configs import reject_unknown_keys
+from anigs.deform import DCTDeformation, dynamic_index_from_mask, offset_limits, resolve_num_bases, save_model
 from anigs.device import get_device, seed_everything
 from anigs.gaussians import Gaussians
 from anigs.losses import SDSContext, SDSHook, animation_loss, canonical_loss
-from anigs.animated import render_frame
 
 log = logging.getLogger("anigs.update")
 
@@ -76,10 +76,7 @@ class UpdateConfig:
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "UpdateConfig":
         d = dict(d or {})
-        known = {f.name for f in fields(UpdateConfig)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise KeyError(f"update config: unknown key(s) {unknown}; known keys: {sorted(known)}")
+        reject_unknown_keys(UpdateConfig, d, "update config", KeyError)
         cfg = UpdateConfig(**d)
         cfg.validate()
         return cfg

@@ -19,7 +19,6 @@ blending weight to the rendered image; ``depth`` = its centre passes a depth tes
 """
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 from dataclasses import dataclass, field
@@ -28,6 +27,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from anigs.cameras import Camera, intrinsics_from_fov
+from anigs.configs import reject_unknown_keys
 from anigs.gaussians import Gaussians
 from anigs.masks.lift import VisibilityConfig, visibility
 
@@ -37,10 +37,7 @@ log = logging.getLogger(__name__)
 def config_from_dict(cls, d: dict | None, where: str):
     """Build dataclass ``cls`` from ``d``; unknown keys are an error naming them."""
     d = dict(d or {})
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(d) - names)
-    if unknown:
-        raise ValueError(f"{where}: unknown key(s) {unknown}; valid keys: {sorted(names)}")
+    reject_unknown_keys(cls, d, where, ValueError)
     return cls(**d)
 
 

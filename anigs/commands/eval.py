@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from anigs.configs import reject_unknown_keys
 from anigs.metrics import metric_record, not_available
 
 log = logging.getLogger("anigs.eval")
@@ -66,10 +67,7 @@ class EvalConfig:
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "EvalConfig":
         d = dict(d or {})
-        names = {f.name for f in dataclasses.fields(EvalConfig)}
-        unknown = sorted(set(d) - names)
-        if unknown:
-            raise ValueError(f"eval config: unknown keys {unknown}; allowed: {sorted(names)}")
+        reject_unknown_keys(EvalConfig, d, "eval config", ValueError)
         cfg = EvalConfig(**d)
         cfg.validate()
         return cfg
@@ -201,8 +199,16 @@ def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg:
 def frechet_metrics(kind: str, clips: dict[str, np.ndarray], references: dict[str, list[np.ndarray]],
                     cfg: EvalConfig, device) -> dict[str, Any]:
     """FVD-<prior> or FID-<prior> records for every reference prior."""
-    from anigs.metrics.features import (I3D_HINT, INCEPTION_HINT, Unavailable, i3d_features, inception_features,
-                                        load_detector, pool_frames, sample_windows)
+    from anigs.metrics.features import (
+        I3D_HINT,
+        INCEPTION_HINT,
+        Unavailable,
+        i3d_features,
+        inception_features,
+        load_detector,
+        pool_frames,
+        sample_windows,
+    )
     from anigs.metrics.frechet import frechet_distance
 
     if kind == "fvd":

@@ -15,11 +15,13 @@ import logging
 import re
 import time
 import zlib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+
+from anigs.configs import reject_unknown_keys
 
 log = logging.getLogger("anigs.refine")
 
@@ -44,10 +46,7 @@ class RefineConfig:
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "RefineConfig":
         d = dict(d or {})
-        known = {f.name for f in fields(cls)}
-        bad = sorted(set(d) - known)
-        if bad:
-            raise ValueError(f"unknown key(s) {bad} in refine params; known: {sorted(known)}")
+        reject_unknown_keys(cls, d, "refine params", ValueError)
         cfg = cls(**d)
         if "effects" in cfg.procedural:
             raise ValueError("set `effects` at the top level of the refine params, not in `procedural`")

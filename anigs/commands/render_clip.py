@@ -13,13 +13,14 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import torch
 
 from anigs.cameras import Camera
+from anigs.configs import reject_unknown_keys
 
 log = logging.getLogger("anigs.render_clip")
 
@@ -36,10 +37,7 @@ class RenderClipConfig:
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "RenderClipConfig":
         d = dict(d or {})
-        known = {f.name for f in fields(RenderClipConfig)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise KeyError(f"render_clip config: unknown key(s) {unknown}; known keys: {sorted(known)}")
+        reject_unknown_keys(RenderClipConfig, d, "render_clip config", KeyError)
         cfg = RenderClipConfig(**d)
         if cfg.num_frames < 1:
             raise ValueError(f"render_clip config: num_frames must be >= 1, got {cfg.num_frames}")

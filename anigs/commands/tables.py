@@ -3,8 +3,10 @@ from __future__ import annotations
 
 import argparse
 import logging
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any
+
+from anigs.configs import reject_unknown_keys
 
 log = logging.getLogger("anigs.tables")
 
@@ -18,10 +20,7 @@ class TablesConfig:
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "TablesConfig":
         d = dict(d or {})
-        names = {f.name for f in fields(TablesConfig)}
-        unknown = sorted(set(d) - names)
-        if unknown:
-            raise ValueError(f"tables config: unknown keys {unknown}; allowed: {sorted(names)}")
+        reject_unknown_keys(TablesConfig, d, "tables config", ValueError)
         return TablesConfig(**d)
 
 

@@ -25,6 +25,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
+from anigs.configs import reject_unknown_keys
 from anigs.gaussians import Gaussians
 from anigs.render import rasterize
 
@@ -76,13 +77,9 @@ class LiftConfig:
 
     @staticmethod
     def from_dict(d: dict | None) -> "LiftConfig":
-        import dataclasses
 
         d = dict(d or {})
-        names = {f.name for f in dataclasses.fields(LiftConfig)}
-        unknown = sorted(set(d) - names)
-        if unknown:
-            raise ValueError(f"lift config: unknown key(s) {unknown}; valid keys: {sorted(names)}")
+        reject_unknown_keys(LiftConfig, d, "lift config", ValueError)
         return LiftConfig(**d)
 
     def visibility_config(self) -> "VisibilityConfig":

@@ -33,13 +33,14 @@ from __future__ import annotations
 import logging
 import math
 import warnings
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 import torch
 
+from anigs.configs import reject_unknown_keys
 from anigs.device import get_device
 from anigs.prior.base import MaskLike, VideoPrior, check_strength
 from anigs.video import check_clip
@@ -79,10 +80,7 @@ class LTXConfig:
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "LTXConfig":
         d = dict(d or {})
-        known = {f.name for f in fields(cls)}
-        bad = sorted(set(d) - known)
-        if bad:
-            raise ValueError(f"unknown key(s) {bad} in ltx prior config; known: {sorted(known)}")
+        reject_unknown_keys(cls, d, "ltx prior config", ValueError)
         cfg = cls(**d)
         if cfg.steps < 1:
             raise ValueError(f"ltx.steps must be >= 1, got {cfg.steps}")

@@ -15,15 +15,15 @@ view: the multi-view inconsistency that the dataset-model loop has to resolve.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
 
+from anigs.configs import reject_unknown_keys
 from anigs.flow import clip_backward_flow, identity_grid, warp
 from anigs.prior.base import MaskLike, VideoPrior, check_mask, check_strength
-from anigs.prior.spectral import (EFFECTS, MotionField, effect_spec, effects_from_prompt, prompt_gain,
-                                  synthesize_effect)
+from anigs.prior.spectral import EFFECTS, MotionField, effect_spec, effects_from_prompt, prompt_gain, synthesize_effect
 from anigs.video import check_clip
 
 log = logging.getLogger(__name__)
@@ -44,10 +44,7 @@ class ProceduralConfig:
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "ProceduralConfig":
         d = dict(d or {})
-        known = {f.name for f in fields(cls)}
-        bad = sorted(set(d) - known)
-        if bad:
-            raise ValueError(f"unknown key(s) {bad} in procedural prior config; known: {sorted(known)}")
+        reject_unknown_keys(cls, d, "procedural prior config", ValueError)
         cfg = cls(**d)
         cfg.effects = list(cfg.effects)
         for name in cfg.effects:

@@ -20,11 +20,13 @@ effect's mask and tapers smoothly to 0 at the mask boundary (``edge`` in px, at 
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping
 
 import cv2
 import numpy as np
+
+from anigs.configs import reject_unknown_keys
 
 KINDS = ("oscillate", "travel", "ripple")
 
@@ -82,10 +84,7 @@ def effect_spec(name: str, overrides: Mapping[str, Any] | None = None) -> Effect
     spec = EFFECTS[name]
     if not overrides:
         return spec
-    known = {f.name for f in fields(EffectSpec)}
-    bad = sorted(set(overrides) - known)
-    if bad:
-        raise ValueError(f"unknown key(s) {bad} for effect {name!r}; known: {sorted(known)}")
+    reject_unknown_keys(EffectSpec, overrides, f"effect {name!r}", ValueError)
     vals = {k: (tuple(v) if isinstance(v, list) else v) for k, v in overrides.items()}
     return replace(spec, **vals)
 
