@@ -30,6 +30,7 @@ localrules:
     export,
     eval,
     tables,
+    tradeoff,
 
 
 rule all:
@@ -66,3 +67,8 @@ rule eval:
 rule tables:
     input:
         f"{R}/tables/tables.json",
+
+
+rule tradeoff:
+    input:
+        lambda wc: tradeoff_targets(),

@@ -30,6 +30,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "export": ("anigs.commands.export", "export the animated scene (PLY sequence, DCT PLY + JSON)"),
     "eval": ("anigs.commands.eval", "evaluation metrics"),
     "tables": ("anigs.commands.tables", "paper tables from metric files"),
+    "tradeoff": ("anigs.commands.tradeoff", "accuracy-versus-time report of a sweep (CSV + plots)"),
 }
 
 

@@ -1,6 +1,7 @@
 """The whole workflow end to end on the tiny config (config/test.yaml), through real Snakemake jobs."""
 from __future__ import annotations
 
+import csv
 import json
 import os
 import shutil
@@ -8,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -203,3 +205,24 @@ def test_interrupted_run_resumes_to_the_same_artifacts(run, tmp_path):
     assert a.keys() == b.keys()
     different = [k for k in a if a[k] != b[k]]
     assert not different, f"artifacts differ after resuming: {different[:10]}"
+
+
+def test_tradeoff_sweep_reports_accuracy_against_time(run, tmp_path):
+    """`snakemake tradeoff`: one knob swept on the tiny scene; the base value reuses the finished run."""
+    override = tmp_path / "sweep.yaml"
+    override.write_text("tradeoff:\n  knobs:\n    update.num_bases: null\n    refine.strength: null\n"
+                        "    animate.views_per_round: null\n    update.steps: [10, 30]\n"
+                        "  plot_metrics: [static_abs_diff, dynamic_abs_diff]\n")
+    res = _snakemake(run, "tradeoff", "--configfile", "config/test.yaml", str(override), "--config", f"results={run}")
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    with open(run / "tradeoff" / "tiny.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["knob"], r["value"], r["variant"]) for r in rows] == [
+        ("update.steps", "10", "tradeoff-update-steps-10"), ("update.steps", "30", "full")]
+    update = json.loads((run / "tiny" / "tradeoff-update-steps-10" / "round1" / "update.json").read_text())
+    assert update["steps"] == 10
+    for r in rows:
+        assert float(r["seconds"]) > float(r["variant_seconds"]) > 0
+        assert r["static_abs_diff"] not in ("", "n/a")
+    img = cv2.imread(str(run / "tradeoff" / "tiny_update-steps.png"))
+    assert img is not None and img.shape[1] == 2 * 360

@@ -169,3 +169,29 @@ def final_model(wc):
 
 def _eval_gt(wc):
     return f"--gt-dir {R}/{wc.scene}/capture/gt" if is_synthetic(wc.scene) else ""
+
+
+def _dotted(d, keys):
+    for k in keys:
+        d = d.get(k) if isinstance(d, dict) else None
+    return d
+
+
+# ---- accuracy versus time: the sweep's points are variants (see anigs/tradeoff.py) ----
+from anigs.tradeoff import knob_filename, sweep_points as _sweep_points
+
+_TO = config.get("tradeoff", {})
+TRADEOFF = {}  # scene -> [SweepPoint]
+for _s in SCENES:
+    TRADEOFF[_s] = _sweep_points(
+        _TO.get("knobs", {}), _TO.get("base", "full"), config["variant_overrides"],
+        lambda knob, s=_s: _dotted(sec(s, knob.split(".")[0], _TO.get("base", "full")), knob.split(".")[1:]))
+    for _p in TRADEOFF[_s]:
+        config["variant_overrides"].setdefault(_p.variant, _p.overrides)
+
+
+def tradeoff_targets():
+    """results/tradeoff/{scene}.csv of every scene (`snakemake tradeoff`)."""
+    if not any(v for v in config.get("tradeoff", {}).get("knobs", {}).values()):
+        raise ValueError("config: tradeoff.knobs is empty; name the knobs to sweep (see config/README.md)")
+    return [f"{R}/tradeoff/{s}.csv" for s in SCENES]

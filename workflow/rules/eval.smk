@@ -49,3 +49,31 @@ rule tables_build:
         "../../envs/anigs.yaml"
     shell:
         "anigs tables --metrics {input} --out {params.out:q} > {log} 2>&1"
+
+
+def _tradeoff_metrics(wc):
+    return [f"{R}/{wc.scene}/{p.variant}/eval/metrics.json" for p in TRADEOFF[wc.scene]]
+
+
+def _tradeoff_points(wc):
+    return json.dumps([{"variant": p.variant, "knob": p.knob, "value": p.value} for p in TRADEOFF[wc.scene]])
+
+
+rule tradeoff_report:
+    input:
+        _tradeoff_metrics,
+    output:
+        csv=report(f"{R}/tradeoff/{{scene}}.csv", caption="../report/tradeoff.rst", category="Accuracy versus time"),
+        plots=[report(f"{R}/tradeoff/{{scene}}_{knob_filename(k)}.png", caption="../report/tradeoff.rst",
+                      category="Accuracy versus time") for k, v in config.get("tradeoff", {}).get("knobs", {}).items() if v],
+    params:
+        points=_tradeoff_points,
+        metrics=lambda wc: " ".join(config.get("tradeoff", {}).get("plot_metrics", [])),
+        version=ANIGS_VERSION,
+    log:
+        f"{R}/logs/tradeoff_{{scene}}.log",
+    conda:
+        "../../envs/anigs.yaml"
+    shell:
+        "anigs tradeoff --scene {wildcards.scene} --results {R:q} --points {params.points:q} "
+        "--out-csv {output.csv:q} --plot-metrics {params.metrics} > {log} 2>&1"

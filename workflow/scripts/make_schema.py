@@ -225,6 +225,18 @@ TOP = {
         "default": {},
         "description": "per-variant overrides of the animate/refine/update/final/export/eval sections "
                        "(the paper's ablations are just config)"},
+    "tradeoff": {
+        "type": "object", "additionalProperties": False, "default": {},
+        "description": "accuracy-versus-time sweep (`snakemake tradeoff`): one knob at a time around a base variant",
+        "properties": {
+            "base": {"type": "string", "default": "full", "description": "variant the sweep varies"},
+            "knobs": {"type": "object", "default": {},
+                      "propertyNames": {"pattern": r"^(animate|render_clip|refine|update|final|export|eval)\.[A-Za-z0-9_.]+$"},
+                      "additionalProperties": {"type": ["array", "null"], "minItems": 1},
+                      "description": "section.key -> values; each value becomes the variant tradeoff-SECTION-KEY-VALUE; null drops a knob"},
+            "plot_metrics": {"type": "array", "items": {"type": "string"}, "default": [],
+                             "description": "metrics of metrics.json plotted against seconds, one PNG per knob"},
+        }},
 }
 
 

@@ -1,0 +1,201 @@
+"""Accuracy versus time: the sweep's variants, and its report (CSV + one plot per knob).
+
+A sweep varies one knob at a time around a base variant. A knob is a dotted key of a
+per-variant config section (``update.steps``, ``refine.strength``, ``animate.views_per_round``)
+with a list of values; each (knob, value) becomes a workflow variant
+``tradeoff-<section>-<key>-<value>`` whose overrides are the base variant's plus that one key.
+A value equal to the base setting maps to the base variant itself (no extra jobs).
+
+Seconds come from Snakemake's benchmark TSVs (column ``s``): the per-scene stages the variant
+uses (static, views, masks) plus every job of the variant up to its final renders (evaluation
+and export excluded), so a row says what the result cost to compute.
+"""
+from __future__ import annotations
+
+import copy
+import csv
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+# config sections a variant may override (the others are shared by every variant of a scene)
+VARIANT_SECTIONS = ("animate", "render_clip", "refine", "update", "final", "export", "eval")
+SCENE_STAGES = ("static", "views", "masks")  # shared per-scene stages whose time every variant includes
+EXCLUDED_BENCHMARKS = ("eval.tsv", "export.tsv")
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    """One point of the sweep: ``variant`` runs the base with ``knob`` = ``value``."""
+
+    variant: str
+    knob: str
+    value: Any
+    overrides: dict
+
+
+def _slug(value: Any) -> str:
+    s = str(value).lower().replace(".", "p").replace("-", "m")
+    return re.sub(r"[^a-z0-9_]", "_", s)
+
+
+def variant_name(knob: str, value: Any) -> str:
+    """Workflow variant name of a sweep point, e.g. ``tradeoff-update-steps-40``."""
+    section, key = knob.split(".", 1)
+    return f"tradeoff-{section}-{key.replace('.', '-')}-{_slug(value)}"
+
+
+def _get(d: dict, keys: Sequence[str]) -> Any:
+    for k in keys:
+        if not isinstance(d, dict) or k not in d:
+            return None
+        d = d[k]
+    return d
+
+
+def sweep_points(knobs: dict[str, list], base: str, variant_overrides: dict[str, dict],
+                 base_value=None) -> list[SweepPoint]:
+    """Sweep points of ``knobs`` {"section.key": [values] | None} around variant ``base``.
+
+    ``base_value(knob)`` (optional) gives the base's effective setting of a knob; a value equal
+    to it maps to the base variant. Raises ValueError naming a knob outside the per-variant
+    sections, an empty value list or an unknown base.
+    """
+    if base not in variant_overrides:
+        raise ValueError(f"tradeoff.base: variant {base!r} is not defined under variant_overrides "
+                         f"(defined: {sorted(variant_overrides)})")
+    points = []
+    for knob, values in knobs.items():
+        if values is None:  # null drops a knob set by an earlier config file
+            continue
+        section, _, key = knob.partition(".")
+        if section not in VARIANT_SECTIONS or not key:
+            raise ValueError(f"tradeoff.knobs: {knob!r} is not <section>.<key> of a per-variant section "
+                             f"{VARIANT_SECTIONS} (per-scene stages such as static are shared by all variants)")
+        if not isinstance(values, list) or not values:
+            raise ValueError(f"tradeoff.knobs.{knob}: give a non-empty list of values, got {values!r}")
+        current = base_value(knob) if base_value is not None else None
+        for v in values:
+            if current is not None and v == current:
+                points.append(SweepPoint(base, knob, v, copy.deepcopy(variant_overrides[base])))
+                continue
+            ov = copy.deepcopy(variant_overrides[base])
+            node = ov.setdefault(section, {})
+            parts = key.split(".")
+            for p in parts[:-1]:
+                node = node.setdefault(p, {})
+            node[parts[-1]] = v
+            points.append(SweepPoint(variant_name(knob, v), knob, v, ov))
+    return points
+
+
+def benchmark_seconds(paths: Iterable[str | Path]) -> float:
+    """Sum of the ``s`` column (wall seconds) of Snakemake benchmark TSVs."""
+    total = 0.0
+    for p in paths:
+        with open(p, newline="") as f:
+            rows = list(csv.DictReader(f, delimiter="\t"))
+        if not rows or "s" not in rows[0]:
+            raise ValueError(f"{p}: not a Snakemake benchmark TSV (no 's' column)")
+        total += sum(float(r["s"]) for r in rows) / len(rows)  # mean over --benchmark-repeats
+    return total
+
+
+def point_benchmarks(results: str | Path, scene: str, variant: str) -> tuple[list[Path], list[Path]]:
+    """(shared per-scene TSVs, the variant's own TSVs) that a point's seconds add up."""
+    root = Path(results) / scene
+    shared = [root / "benchmarks" / f"{s}.tsv" for s in SCENE_STAGES if (root / "benchmarks" / f"{s}.tsv").exists()]
+    own = sorted(p for p in (root / variant / "benchmarks").rglob("*.tsv") if p.name not in EXCLUDED_BENCHMARKS)
+    return shared, own
+
+
+def report_rows(points: Sequence[SweepPoint], results: str | Path, scene: str,
+                metrics: dict[str, dict]) -> list[dict[str, Any]]:
+    """One row per point: knob, value, variant, seconds, variant_seconds, then every metric value.
+
+    ``metrics``: variant -> its metrics.json content.
+    """
+    rows = []
+    for p in points:
+        shared, own = point_benchmarks(results, scene, p.variant)
+        if not own:
+            raise FileNotFoundError(f"no benchmark TSVs for {scene}/{p.variant} under {results}")
+        own_s = benchmark_seconds(own)
+        row: dict[str, Any] = {"scene": scene, "knob": p.knob, "value": p.value, "variant": p.variant,
+                               "seconds": round(benchmark_seconds(shared) + own_s, 3),
+                               "variant_seconds": round(own_s, 3), "jobs": len(own)}
+        for name, rec in sorted(metrics[p.variant].get("metrics", {}).items()):
+            row[name] = rec.get("value") if rec.get("available") else None
+        rows.append(row)
+    return rows
+
+
+def write_csv(rows: Sequence[dict[str, Any]], path: str | Path) -> Path:
+    from anigs.io import atomic_path
+
+    cols: list[str] = []
+    for r in rows:
+        cols += [k for k in r if k not in cols]
+    with atomic_path(path) as tmp:
+        with open(tmp, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=cols, lineterminator="\n")
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: ("n/a" if r.get(k) is None else r.get(k)) for k in cols})
+    return Path(path)
+
+
+def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[str], path: str | Path,
+              panel: tuple[int, int] = (360, 260)) -> Path:
+    """PNG with one panel per metric: metric (y) against seconds (x), points labelled by value."""
+    import cv2
+
+    from anigs.io import atomic_path
+
+    sel = sorted((r for r in rows if r["knob"] == knob), key=lambda r: r["seconds"])
+    names = [m for m in metric_names if any(r.get(m) is not None for r in sel)] or ["seconds"]
+    pw, ph = panel
+    img = np.full((ph, pw * len(names), 3), 255, np.uint8)
+    font, L, B, T, Rm = cv2.FONT_HERSHEY_SIMPLEX, 58, 42, 30, 14
+    for i, m in enumerate(names):
+        x0 = i * pw
+        pts = [(r["seconds"], r.get(m), r["value"]) for r in sel if r.get(m) is not None]
+        cv2.putText(img, f"{m} vs seconds", (x0 + 8, 18), font, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.rectangle(img, (x0 + L, T), (x0 + pw - Rm, ph - B), (0, 0, 0), 1)
+        if not pts:
+            continue
+        xs, ys = np.array([p[0] for p in pts], float), np.array([p[1] for p in pts], float)
+        xlo, xhi = xs.min(), xs.max()
+        ylo, yhi = ys.min(), ys.max()
+        xpad = (xhi - xlo) * 0.1 or max(abs(xhi) * 0.1, 1.0)
+        ypad = (yhi - ylo) * 0.1 or max(abs(yhi) * 0.1, 1e-6)
+        xlo, xhi, ylo, yhi = xlo - xpad, xhi + xpad, ylo - ypad, yhi + ypad
+
+        def to_px(x: float, y: float) -> tuple[int, int]:
+            u = x0 + L + (x - xlo) / (xhi - xlo) * (pw - L - Rm)
+            v = ph - B - (y - ylo) / (yhi - ylo) * (ph - B - T)
+            return int(round(u)), int(round(v))
+
+        for frac in (0.0, 1.0):
+            xv, yv = xlo + frac * (xhi - xlo), ylo + frac * (yhi - ylo)
+            cv2.putText(img, f"{xv:.0f}", (to_px(xv, ylo)[0] - 10, ph - B + 14), font, 0.35, (60, 60, 60), 1)
+            cv2.putText(img, f"{yv:.3g}", (x0 + 2, to_px(xlo, yv)[1] + 4), font, 0.33, (60, 60, 60), 1)
+        cv2.putText(img, "seconds", (x0 + pw // 2 - 20, ph - 8), font, 0.38, (0, 0, 0), 1, cv2.LINE_AA)
+        px = [to_px(x, y) for x, y in zip(xs, ys)]
+        for a, b in zip(px[:-1], px[1:]):
+            cv2.line(img, a, b, (180, 120, 40), 1, cv2.LINE_AA)
+        for (u, v), (_, _, val) in zip(px, pts):
+            cv2.circle(img, (u, v), 4, (180, 80, 20), -1, cv2.LINE_AA)
+            cv2.putText(img, str(val), (u + 5, v - 5), font, 0.35, (20, 20, 160), 1, cv2.LINE_AA)
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), img):
+            raise OSError(f"could not write {path}")
+    return Path(path)
+
+
+def knob_filename(knob: str) -> str:
+    return knob.replace(".", "-")
+

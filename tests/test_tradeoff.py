@@ -1,0 +1,103 @@
+"""Accuracy-versus-time sweep: its variants, seconds from benchmark TSVs, the CSV and plots."""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import cv2
+import pytest
+
+from anigs.tradeoff import (SweepPoint, benchmark_seconds, plot_knob, report_rows, sweep_points, variant_name,
+                            write_csv)
+
+OVERRIDES = {"full": {}, "no_composed_v2v": {"refine": {"compose": False}}}
+
+
+def test_sweep_points_merge_the_knob_over_the_base_variant():
+    pts = sweep_points({"update.steps": [40, 120], "refine.procedural.amplitude_scale": [0.5]}, "no_composed_v2v",
+                       OVERRIDES)
+    assert [p.variant for p in pts] == ["tradeoff-update-steps-40", "tradeoff-update-steps-120",
+                                        "tradeoff-refine-procedural-amplitude_scale-0p5"]
+    assert pts[0].overrides == {"refine": {"compose": False}, "update": {"steps": 40}}
+    assert pts[2].overrides == {"refine": {"compose": False, "procedural": {"amplitude_scale": 0.5}}}
+    assert OVERRIDES["no_composed_v2v"] == {"refine": {"compose": False}}  # base left untouched
+
+
+def test_value_equal_to_the_base_setting_reuses_the_base_variant():
+    pts = sweep_points({"update.steps": [40, 120]}, "full", OVERRIDES, base_value=lambda knob: 120)
+    assert [p.variant for p in pts] == ["tradeoff-update-steps-40", "full"]
+
+
+def test_null_drops_a_knob():
+    assert sweep_points({"update.steps": None}, "full", OVERRIDES) == []
+
+
+@pytest.mark.parametrize("knobs,match", [
+    ({"static.iterations": [500]}, "static.iterations"),
+    ({"update": [1]}, "'update'"),
+    ({"update.steps": []}, "update.steps"),
+])
+def test_bad_knobs_are_named(knobs, match):
+    with pytest.raises(ValueError, match=match):
+        sweep_points(knobs, "full", OVERRIDES)
+
+
+def test_unknown_base_is_named():
+    with pytest.raises(ValueError, match="nope"):
+        sweep_points({"update.steps": [1]}, "nope", OVERRIDES)
+
+
+def test_variant_names_fit_the_workflow_wildcard():
+    import re
+
+    for v in (0.25, -1, "fast", 1e-3):
+        assert re.fullmatch(r"[A-Za-z0-9_-]+", variant_name("refine.strength", v))
+
+
+def _tsv(path: Path, seconds: list[float]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = "".join(f"{s}\t0:00:01\t100\n" for s in seconds)
+    path.write_text("s\th:m:s\tmax_rss\n" + rows)
+
+
+def test_benchmark_seconds_averages_repeats_and_sums_files(tmp_path):
+    _tsv(tmp_path / "a.tsv", [2.0, 4.0])
+    _tsv(tmp_path / "b.tsv", [1.5])
+    assert benchmark_seconds([tmp_path / "a.tsv", tmp_path / "b.tsv"]) == pytest.approx(4.5)
+    (tmp_path / "c.tsv").write_text("x\ty\n1\t2\n")
+    with pytest.raises(ValueError, match="c.tsv"):
+        benchmark_seconds([tmp_path / "c.tsv"])
+
+
+def _metrics(value: float, psnr: float | None) -> dict:
+    m = {"gt/amplitude_w1": {"value": value, "available": True}}
+    m["multiview/psnr_novel"] = ({"value": psnr, "available": True} if psnr is not None
+                                 else {"value": None, "available": False, "reason": "no weights"})
+    return {"metrics": m}
+
+
+def test_report_rows_csv_and_plot(tmp_path):
+    res = tmp_path / "results"
+    for s, sec in (("static", 100.0), ("views", 5.0), ("masks", 3.0)):
+        _tsv(res / "demo" / "benchmarks" / f"{s}.tsv", [sec])
+    _tsv(res / "demo" / "full" / "benchmarks" / "round1" / "update.tsv", [60.0])
+    _tsv(res / "demo" / "full" / "benchmarks" / "round1" / "render_v00.tsv", [10.0])
+    _tsv(res / "demo" / "full" / "benchmarks" / "eval.tsv", [999.0])  # evaluation is not part of the cost
+    _tsv(res / "demo" / "t40" / "benchmarks" / "round1" / "update.tsv", [20.0])
+    pts = [SweepPoint("t40", "update.steps", 40, {}), SweepPoint("full", "update.steps", 120, {})]
+    rows = report_rows(pts, res, "demo", {"t40": _metrics(0.01, None), "full": _metrics(0.004, 30.0)})
+    assert [r["seconds"] for r in rows] == [128.0, 178.0]
+    assert [r["variant_seconds"] for r in rows] == [20.0, 70.0]
+    assert rows[0]["multiview/psnr_novel"] is None and rows[1]["multiview/psnr_novel"] == 30.0
+    path = write_csv(rows, tmp_path / "tradeoff" / "demo.csv")
+    with open(path) as f:
+        got = list(csv.DictReader(f))
+    assert [g["value"] for g in got] == ["40", "120"]
+    assert got[0]["multiview/psnr_novel"] == "n/a"
+    png = plot_knob(rows, "update.steps", ["gt/amplitude_w1", "multiview/psnr_novel"], tmp_path / "p.png")
+    img = cv2.imread(str(png))
+    assert img is not None and img.shape[1] == 2 * 360
+    assert (img < 250).any()  # something was drawn
+    with pytest.raises(FileNotFoundError, match="nothing"):
+        report_rows([SweepPoint("nothing", "update.steps", 1, {})], res, "demo", {"nothing": _metrics(0, 0)})
