@@ -157,6 +157,112 @@ def test_pixel_heights_of_a_flat_ground():
     assert np.allclose(h, 0.0, atol=1e-9)
 
 
+def _ring(n: int = 6, height: float = 1.6):
+    from anigs.cameras import Camera, intrinsics_from_fov, look_at
+
+    K = intrinsics_from_fov(60, 32, 24)
+    return [Camera(K, look_at((4 * np.cos(a), 4 * np.sin(a), height), (0, 0, 0.5)), 32, 24, f"c{i}")
+            for i, a in enumerate(np.linspace(0, 2 * np.pi, n, endpoint=False))]
+
+
+def _ground_and_bushes(noise: float, seed: int = 0, extra: np.ndarray | None = None) -> np.ndarray:
+    """Centres of a ground layer at z = 0 scattered by ``noise`` (m, std) and bushes 0.4-1.5 m up."""
+    rng = np.random.default_rng(seed)
+    ground = np.c_[rng.uniform(-5, 5, (4000, 2)), rng.normal(0, noise, 4000) if noise > 0 else np.zeros(4000)]
+    bushes = np.c_[rng.uniform(-3, 3, (600, 2)), rng.uniform(0.4, 1.5, 600)]
+    return np.concatenate([ground, bushes] + ([extra] if extra is not None else []))
+
+
+def test_estimate_ground_measures_the_ground_layer():
+    """The layer is measured below the plane (nothing real is under the ground) and mirrored up."""
+    cams, up = _ring(), np.array([0, 0, 1.0])
+    clean = estimate_ground(_ground_and_bushes(0.0), up, cams)
+    assert abs(clean.offset) < 0.01 and clean.layer < 0.01
+    assert clean.camera_height == pytest.approx(1.6, abs=0.01)
+    assert clean.cut_height() == clean.min_height == pytest.approx(0.03 * clean.camera_height)
+    for sigma in (0.05, 0.1):
+        gp = estimate_ground(_ground_and_bushes(sigma), up, cams)
+        expect = 2.17 * sigma  # 97th percentile of |N(0, sigma)|
+        assert abs(gp.offset) < 0.2 * sigma and abs(gp.layer - expect) < 0.2 * expect, (gp, expect)
+        assert gp.cut_height() == pytest.approx(gp.layer)
+        assert gp.cut_height(layer_scale=0.0) == gp.min_height  # the fixed margin only
+        assert set(gp.to_dict()) >= {"normal", "offset", "min_height", "layer", "camera_height"}
+    # a hopeless ground (scattered by half the camera height) is capped at 0.3 x camera height
+    wild = estimate_ground(_ground_and_bushes(0.5), up, cams)
+    assert wild.cut_height() == pytest.approx(0.3 * wild.camera_height)
+    # things far under the ground (a reflection in a pond) are not ground noise
+    pond = np.c_[np.random.default_rng(1).uniform(-1, 1, (300, 2)), np.full(300, -1.5)]
+    assert estimate_ground(_ground_and_bushes(0.0, extra=pond), up, cams).layer < 0.01
+    with pytest.raises(ValueError, match="layer_quantile"):
+        estimate_ground(_ground_and_bushes(0.0), up, cams, layer_quantile=1.0)
+    with pytest.raises(ValueError, match="ground_layer"):
+        VegetationConfig(ground_layer=-1.0)
+
+
+@pytest.fixture(scope="module")
+def noisy_lawn_scene():
+    """The lawn scene with a badly fitted ground: splats scattered +-8 cm in height and tilted."""
+    gs, lab, cams = toy_scene(lawn=True, ring=6, ground_noise=0.08)
+    return gs, lab, cams, render_frames(gs, cams, SKY)
+
+
+def test_ground_layer_removes_a_noisy_lawn(noisy_lawn_scene):
+    """A green ground that renders above the fixed margin is removed; the bushes on it stay."""
+    gs, lab, cams, frames = noisy_lawn_scene
+    truth = compute_masks("labels", frames, gaussians=gs, labels=lab, dynamic_labels=[4])
+    lawn = compute_masks("labels", frames, gaussians=gs, labels=lab, dynamic_labels=[0])
+    ground = estimate_ground(gs.means.numpy(), np.array([0, 0, 1.0]), cams)
+    assert ground.layer > 2 * ground.min_height  # the scatter was measured
+    keep = [k for k, t in enumerate(truth) if t["dynamic"].any()]
+    assert len(keep) >= 4
+
+    def scores(masks):
+        iou = np.mean([mask_iou(masks[k]["dynamic"], truth[k]["dynamic"]) for k in keep])
+        recall = np.mean([(masks[k]["dynamic"] & truth[k]["dynamic"]).sum() / truth[k]["dynamic"].sum()
+                          for k in keep])
+        leak = sum((m["dynamic"] & l["dynamic"]).sum() for m, l in zip(masks, lawn)) / sum(
+            l["dynamic"].sum() for l in lawn)
+        return iou, recall, leak
+
+    iou, recall, leak = scores(compute_masks("vegetation", frames, ground=ground))
+    assert iou >= 0.75 and recall >= 0.95 and leak <= 0.15, (iou, recall, leak)
+    # the fixed margin alone (the old cue) lets most of the lawn in
+    iou0, _, leak0 = scores(compute_masks("vegetation", frames, ground=ground, config={"ground_layer": 0.0}))
+    assert leak0 >= 0.5 and iou0 < iou - 0.3, (iou0, leak0)
+
+
+def test_appearance_labels_follow_what_a_gaussian_shows(lawn_scene):
+    """A fitted Gaussian takes the label of what it depicts, not of its nearest labelled neighbour."""
+    import torch
+
+    from anigs.gaussians import Gaussians
+    from anigs.masks.labels import appearance_labels, render_label_map, transfer_labels
+
+    gs, lab, cams, _ = lawn_scene
+    # the labelled set itself: its own labels (hidden Gaussians fall back to nearest neighbour)
+    same, weights, classes = appearance_labels(gs, gs, lab, cams)
+    assert classes[0] == -1 and weights.shape == (gs.num, len(classes))
+    assert (same == lab).mean() >= 0.95
+    lmap = render_label_map(gs, lab, cams[3])
+    assert lmap.shape == (cams[3].height, cams[3].width) and (lmap == -1).any() and (lmap == 4).any()
+    # a floater 1 m in front of the camera, on its line of sight to a blob: its nearest
+    # labelled Gaussian is the ground below it, but in that view it shows the blob
+    cam = cams[3]
+    blob = gs.means.numpy()[lab == 4].astype(np.float64)
+    target = blob[np.argmin(np.linalg.norm(blob - cam.center, axis=1))]
+    ray = (target - cam.center) / np.linalg.norm(target - cam.center)
+    p = torch.tensor(cam.center + 1.0 * ray, dtype=torch.float32)[None]
+    floater = Gaussians.from_points(p, torch.tensor([[0.3, 0.45, 0.16]]), 0.03, opacity=0.9)
+    fitted = Gaussians.from_points(torch.cat([gs.means, p]), torch.zeros(gs.num + 1, 3), 0.01)
+    fitted.log_scales = torch.cat([gs.log_scales, floater.log_scales])
+    fitted.opacity_logits = torch.cat([gs.opacity_logits, floater.opacity_logits])
+    assert transfer_labels(gs.means.numpy(), lab, p.numpy())[0] != 4
+    got, _, _ = appearance_labels(fitted, gs, lab, [cam])
+    assert got[-1] == 4
+    with pytest.raises(ValueError, match="labels"):
+        appearance_labels(fitted, gs, lab[:-1], [cam])
+
+
 def test_sam2_backend_reports_what_to_install(tmp_path):
     """Where sam2 cannot import, building the backend raises ImportError naming the install step."""
     try:

@@ -8,7 +8,9 @@ weight is >= ``threshold`` of the pixel's alpha and the alpha is >= ``min_alpha`
 Also: a similarity alignment between two camera sets (Umeyama on camera centres, via
 :mod:`anigs.align`) so labels
 of ground-truth Gaussians can be rendered from cameras of a reconstruction in another frame,
-and nearest-neighbour label transfer between Gaussian sets.
+and two label transfers between Gaussian sets: nearest neighbour (:func:`transfer_labels`)
+and by appearance (:func:`appearance_labels`: each fitted Gaussian takes the label of what it
+depicts in the training views, which a fitted model's floaters and thick ground layer need).
 """
 from __future__ import annotations
 
@@ -55,6 +57,69 @@ def transfer_labels(src_means: np.ndarray, src_labels: np.ndarray, dst_means: np
 
     _, idx = cKDTree(np.asarray(src_means)).query(np.asarray(dst_means), k=1)
     return np.asarray(src_labels)[idx]
+
+
+def render_label_map(g: Gaussians, labels: np.ndarray, cam: Camera, min_alpha: float = 0.3) -> np.ndarray:
+    """Dominant label [H,W] (int64) of labelled Gaussians seen from ``cam``; -1 where alpha < ``min_alpha``."""
+    ids = sorted({int(i) for i in np.unique(labels)})
+    weights, alpha = render_effect_weights(g, labels, {str(i): [i] for i in ids}, cam)
+    stack = np.stack([weights[str(i)] for i in ids], 0)
+    out = np.asarray(ids, np.int64)[np.argmax(stack, 0)]
+    out[alpha < min_alpha] = -1
+    return out
+
+
+def appearance_labels(g: Gaussians, label_gaussians: Gaussians, labels: np.ndarray, cameras: Sequence[Camera],
+                      to_labels_frame: Similarity | None = None, min_alpha: float = 0.3,
+                      min_weight: float = 0.05) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """Label per Gaussian of ``g`` by what it depicts in ``cameras`` (e.g. the training views).
+
+    Each camera (in the frame of ``g``; moved by ``to_labels_frame`` into the frame of
+    ``label_gaussians``) renders the dominant label of ``label_gaussians`` per pixel
+    (:func:`render_label_map`); one backward pass of the rasterizer per 3 classes gives each
+    Gaussian of ``g`` its blending weight summed over the pixels of each class. A Gaussian
+    takes the class with the most weight; class -1 is empty space (sky): the Gaussian
+    depicts nothing labelled. Gaussians that the cameras (nearly) do not see (summed weight
+    < ``min_weight`` pixels: hidden ones only blend into the pixels of what hides them) take
+    the nearest labelled Gaussian's label (:func:`transfer_labels`).
+
+    Unlike the nearest-neighbour transfer this follows what a fitted Gaussian looks like
+    where it was fitted: a lawn splat floating among grass blades stays lawn.
+
+    Returns (labels [N] int64, weights [N, C] float64, class ids [C] with -1 first).
+    """
+    labels = np.asarray(labels)
+    if labels.shape != (label_gaussians.num,):
+        raise ValueError(f"appearance_labels: {len(labels)} labels for {label_gaussians.num} labelled Gaussians")
+    if not len(cameras):
+        raise ValueError("appearance_labels: no cameras")
+    classes = [-1] + sorted({int(i) for i in np.unique(labels)})
+    acc = np.zeros((g.num, len(classes)))
+    for cam in cameras:
+        lab_cam = cam if to_labels_frame is None else to_labels_frame.apply_camera(cam)
+        lmap = torch.from_numpy(render_label_map(label_gaussians, labels, lab_cam, min_alpha))
+        idx = frustum_subset(g, cam)
+        if len(idx) == 0:
+            continue
+        args = render_inputs(g, idx)
+        for s in range(0, len(classes), 3):
+            chunk = classes[s:s + 3]
+            colors = torch.zeros(len(idx), 3, requires_grad=True)
+            rgb, _, _ = rasterize(*args, colors, cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height)
+            gout = torch.zeros_like(rgb)
+            for j, c in enumerate(chunk):
+                gout[..., j] = (lmap == c).float()
+            rgb.backward(gout)
+            if colors.grad is not None:
+                acc[idx.numpy(), s:s + len(chunk)] += colors.grad[:, :len(chunk)].double().numpy()
+    out = np.asarray(classes, np.int64)[np.argmax(acc, 1)]
+    unseen = acc.sum(1) < min_weight
+    if unseen.any():
+        src = label_gaussians.means.detach().double().numpy()
+        if to_labels_frame is not None:  # back into the frame of g: x = R^T (y - t) / s
+            src = (src - to_labels_frame.t) @ to_labels_frame.R / to_labels_frame.scale
+        out[unseen] = transfer_labels(src, labels, g.means.detach().double().numpy()[unseen])
+    return out, acc, classes
 
 
 def render_effect_weights(g: Gaussians, labels: np.ndarray, effects: dict[str, Sequence[int]],

@@ -283,7 +283,10 @@ def lift_masks_report(g: Gaussians | torch.Tensor | np.ndarray, cameras: Sequenc
 
     ``ground`` (a :class:`anigs.masks.vegetation.GroundPlane`): Gaussians whose centre lies
     below ``cfg.ground_cut * ground.min_height`` above it are static (the 3D twin of the
-    2D ground cue: a lawn does not move).
+    2D ground cue: a lawn does not move). The cut stays at the fixed margin, not at the
+    measured ground layer (``ground.layer``) that the vegetation masks use: grass tufts,
+    flower beds and bush bottoms that good masks do mark live in that layer (on the demo,
+    cutting there took 0.1 of recall from the lifted ground-truth label masks).
     """
     cfg = cfg or LiftConfig()
     means, _ = _as_gaussians(g)

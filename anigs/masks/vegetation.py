@@ -9,21 +9,30 @@ Steps on an RGB frame [H,W,3] in [0,1]:
    largest, or bright and grey);
 3. threshold: Otsu on the index of the remaining pixels, clipped to
    [``min_threshold``, ``max_threshold``] so a frame without vegetation (Otsu splits noise)
-   or with only vegetation (Otsu splits leaves) stays sensible;
+   or with only vegetation (Otsu splits leaves) stays sensible (``otsu: false``:
+   ``min_threshold``; 0 is Meyer & Neto's plant rule, which keeps more dark foliage but also
+   pixels that are mostly wall and a little leaf);
 4. texture cue: ``texture_weight`` * local standard deviation of the luminance
    (``texture_window`` px) is added to the index before thresholding (foliage is textured);
 5. optional flower cue: bright saturated (or, with a rendered alpha, white) pixels within
    ``flower_radius`` px of vegetation and above the ground;
 6. ground cue (when the frame carries a rendered depth and a camera and a ground plane is
-   given): pixels whose surface lies less than the plane's ``min_height`` above the ground
-   are excluded: a green lawn is static ground, grass tufts and bushes stand above it;
+   given): pixels whose surface lies within the ground layer are excluded: a green lawn is
+   static ground, bushes and trees stand above it. The layer reaches
+   :meth:`GroundPlane.cut_height`: the fixed floor ``ground_margin`` * camera height, or, when
+   the reconstructed ground is thicker (a fitted lawn floats and sinks by decimetres where it
+   was poorly observed, and a ray sees the top of it), ``ground_layer`` * the thickness
+   measured under the plane by :func:`estimate_ground`, capped at ``ground_max_margin`` *
+   camera height; plus ``ground_depth_tol`` * the pixel's depth. Structures lower than the
+   layer (grass tufts in a thick fitted lawn) are lost with it;
 7. morphology: opening (``open_radius``), closing (``close_radius``), removal of connected
    components smaller than ``min_area`` (fraction of the frame) and of holes smaller than
    ``max_hole`` (fraction of the frame).
 
 An all-sky or all-wall frame gives an empty mask. :func:`estimate_ground` finds the ground
-plane of a Gaussian scene (densest low layer along ``up``) and scales ``min_height`` by the
-cameras' height above it, so the cue works in any reconstruction frame and scale.
+plane of a Gaussian scene (densest low layer along ``up``), scales ``min_height`` by the
+cameras' height above it, so the cue works in any reconstruction frame and scale, and
+measures how thick the reconstructed ground layer is.
 """
 from __future__ import annotations
 
@@ -61,10 +70,15 @@ class VegetationConfig:
     ground: bool = True          # use the ground cue when depth, camera and plane are available
     ground_margin: float = 0.03  # min height above ground, as a fraction of the camera height above it
     ground_depth_tol: float = 0.01  # plus this fraction of the pixel's depth (splat depth is coarse)
+    ground_layer: float = 1.0    # times the ground layer's thickness measured by estimate_ground (0 = margin only)
+    ground_max_margin: float = 0.3  # cap of the ground cut, as a fraction of the camera height
 
     def __post_init__(self) -> None:
         if self.index not in ("exgr", "exg"):
             raise ValueError(f"vegetation.index must be 'exgr' or 'exg', got {self.index!r}")
+        if self.ground_layer < 0 or self.ground_max_margin < 0:
+            raise ValueError(f"vegetation: ground_layer ({self.ground_layer}) and ground_max_margin "
+                             f"({self.ground_max_margin}) must be >= 0")
         if self.min_threshold > self.max_threshold:
             raise ValueError(f"vegetation: min_threshold {self.min_threshold} > max_threshold {self.max_threshold}")
 
@@ -140,30 +154,59 @@ def fill_small_holes(mask: np.ndarray, max_pixels: int) -> np.ndarray:
 
 @dataclass
 class GroundPlane:
-    """Ground plane ``x . normal = offset``; surfaces lower than ``min_height`` above it are ground."""
+    """Ground plane ``x . normal = offset`` and the thickness of the reconstructed ground layer.
+
+    ``min_height``: the fixed floor (``margin`` * camera height); ``layer``: how far the
+    reconstructed ground scatters around the plane, measured below it (see
+    :func:`estimate_ground`); ``camera_height``: median camera height above the plane (0 when
+    unknown). Surfaces lower than :meth:`cut_height` above the plane are ground.
+    """
 
     normal: np.ndarray
     offset: float
     min_height: float
+    layer: float = 0.0
+    camera_height: float = 0.0
+
+    def cut_height(self, layer_scale: float = 1.0, max_fraction: float = 0.3) -> float:
+        """Height below which a surface counts as ground: the larger of ``min_height`` and
+        ``layer_scale`` * ``layer``, capped at ``max_fraction`` * camera height (when known).
+        """
+        h = max(self.min_height, layer_scale * self.layer)
+        if self.camera_height > 0 and max_fraction > 0:
+            h = min(h, max(self.min_height, max_fraction * self.camera_height))
+        return float(h)
 
     def to_dict(self) -> dict:
         return {"normal": np.asarray(self.normal).tolist(), "offset": float(self.offset),
-                "min_height": float(self.min_height)}
+                "min_height": float(self.min_height), "layer": float(self.layer),
+                "camera_height": float(self.camera_height)}
 
 
 def estimate_ground(means: np.ndarray, up: np.ndarray, cameras: Sequence[Camera] = (),
-                    margin: float = 0.03, bins: int = 400) -> GroundPlane:
+                    margin: float = 0.03, bins: int = 400, layer_quantile: float = 0.97,
+                    layer_band: float = 0.5) -> GroundPlane:
     """Ground plane of Gaussian centres ``means`` [N,3] along ``up`` [3].
 
     The ground is the densest thin layer below the median height (a histogram peak, refined
     by the mean of the centres within one bin). ``min_height`` = ``margin`` * median camera
     height above it (or * the scene's height range when no cameras are given).
+
+    ``layer``: the thickness of the reconstructed ground. A fitted ground is not a thin sheet:
+    in poorly observed places its Gaussians scatter above and below the true surface, and a
+    ray sees the top of that scatter, so a static lawn renders well above the plane. Nothing
+    real lies under the ground, so the centres below the plane (within ``layer_band`` *
+    camera height of it) measure that scatter; its ``layer_quantile`` quantile, mirrored
+    upwards, is how high the ground layer reaches. On a clean reconstruction it is tiny and
+    ``min_height`` rules.
     """
     up = np.asarray(up, np.float64)
     up = up / np.linalg.norm(up)
     h = np.asarray(means, np.float64) @ up
     if len(h) < 10:
         raise ValueError(f"estimate_ground: need >= 10 Gaussians, got {len(h)}")
+    if not 0.0 < layer_quantile < 1.0:
+        raise ValueError(f"estimate_ground: layer_quantile must be in (0, 1), got {layer_quantile}")
     lo, hi = np.percentile(h, [0.5, 99.5])
     med = float(np.median(h))
     width = max((hi - lo) / bins, 1e-9)
@@ -175,13 +218,18 @@ def estimate_ground(means: np.ndarray, up: np.ndarray, cameras: Sequence[Camera]
     c = 0.5 * (edges[k] + edges[k + 1])
     near = h[np.abs(h - c) <= width]
     offset = float(near.mean()) if len(near) else float(c)
+    cam_h = 0.0
     if len(cameras):
         ref = float(np.median([c.center @ up - offset for c in cameras]))
         if ref <= 0:
             raise ValueError(f"estimate_ground: cameras are not above the estimated ground (median height {ref:.3g})")
+        cam_h = ref
     else:
         ref = float(hi - lo)
-    return GroundPlane(up, offset, margin * ref)
+    depth_below = offset - h
+    below = depth_below[(depth_below > 0) & (depth_below <= layer_band * ref)]
+    layer = float(np.quantile(below, layer_quantile)) if len(below) >= 10 else 0.0
+    return GroundPlane(up, offset, margin * ref, layer, cam_h)
 
 
 def pixel_heights(depth: np.ndarray, cam: Camera, plane: GroundPlane) -> np.ndarray:
@@ -226,14 +274,14 @@ def vegetation_mask(image: np.ndarray, cfg: VegetationConfig | None = None, name
     valid = (bright >= cfg.min_brightness) & ~grey & ~sky
     if frame is None or frame.alpha is None:
         valid &= ~sky_colour
-    above = np.ones((h, w), bool)  # surfaces standing above the ground (all, without the ground cue)
+    above = np.ones((h, w), bool)  # surfaces standing above the ground layer (all, without the ground cue)
     if cfg.ground and ground is not None and frame is not None and frame.depth is not None and frame.camera is not None:
         depth = np.asarray(frame.depth, np.float64)
         if depth.shape != (h, w):
             raise ValueError(f"frame {name!r}: depth is {depth.shape[1]}x{depth.shape[0]} but the image is {w}x{h}")
         seen = depth > 0 if frame.alpha is None else (np.asarray(frame.alpha) >= 0.5) & (depth > 0)
-        low = pixel_heights(depth, frame.camera, ground) < ground.min_height + cfg.ground_depth_tol * depth
-        above = ~(seen & low)
+        height = pixel_heights(depth, frame.camera, ground) - cfg.ground_depth_tol * depth
+        above = ~(seen & (height < ground.cut_height(cfg.ground_layer, cfg.ground_max_margin)))
         valid &= above
     thr = cfg.min_threshold
     if cfg.otsu and valid.sum() >= 16:
