@@ -3,8 +3,11 @@
 Pipeline (:func:`run_sfm`): check the images (unreadable files, fewer than 3) before COLMAP
 runs -> SIFT extraction (GPU when available) -> matching (exhaustive, sequential or
 spatial, from config) -> incremental mapping (or global mapping) with the failure
-handling below -> undistortion to PINHOLE when the camera model has distortion ->
-frame normalisation -> outputs.
+handling below -> fine-scale refinement (:mod:`anigs.sfm_refine`: bundle adjustment of the
+cameras on the finest, best-localised keypoints, robust loss; every point is kept) ->
+undistortion to PINHOLE when the camera model has distortion -> frame normalisation -> outputs.
+
+Parameters live in :mod:`anigs.sfm_config`, model conversion in :mod:`anigs.sfm_model`.
 
 Failure handling:
 - several models: the one with most registered images is kept, the others are reported;
@@ -29,90 +32,29 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import os
 import shutil
 import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 
-from anigs.align import Similarity, pose_errors, umeyama, upright_similarity
+from anigs.align import pose_errors, umeyama, upright_similarity
 from anigs.cameras import Camera, load_cameras, save_cameras
-from anigs.configs import reject_unknown_keys
 from anigs.io import write_json, write_npz
 from anigs.photos import check_images, image_headers, list_images, report_unreadable, require_min_images
+from anigs.sfm_config import MAPPERS, MATCHERS, UNDISTORTED_MODELS, SfmConfig
+from anigs.sfm_model import (find_model_dir, reconstruction_cameras, reconstruction_points, replace_dir,
+                             to_sim3d)
+from anigs.sfm_refine import refine_fine_scale
+
+__all__ = ["MAPPERS", "MATCHERS", "UNDISTORTED_MODELS", "SfmConfig", "SfmError", "SfmResult", "extract_and_match",
+           "map_with_retries", "reconstruction_cameras", "reconstruction_points", "refine_model", "run_mapper",
+           "run_sfm", "select_model"]
 
 log = logging.getLogger(__name__)
-
-MATCHERS = ("exhaustive", "sequential", "spatial")
-MAPPERS = ("incremental", "global")
-UNDISTORTED_MODELS = ("PINHOLE", "SIMPLE_PINHOLE")
-
-
-@dataclass
-class SfmConfig:
-    """Parameters of the ``sfm`` stage (config section ``sfm``)."""
-
-    camera_model: str = "SIMPLE_RADIAL"  # COLMAP camera model; SIMPLE_PINHOLE/PINHOLE for synthetic renders
-    single_camera: bool = True  # all images share one camera (one device, fixed zoom)
-    camera_params: Optional[list[float]] = None  # known intrinsics in COLMAP's order for camera_model
-    matcher: str = "exhaustive"  # exhaustive | sequential | spatial (needs GPS/pose priors)
-    sequential_overlap: int = 10  # neighbours matched per image by the sequential matcher
-    spatial_max_neighbors: int = 50  # neighbours matched per image by the spatial matcher
-    max_num_features: int = 8192  # SIFT features per image
-    max_image_size: int = -1  # SIFT extraction downscales larger images (-1: never)
-    mapper: str = "incremental"  # incremental | global
-    init_min_tri_angle: float = 16.0  # incremental mapper's initial-pair triangulation angle (deg)
-    retry_init_min_tri_angle: Optional[float] = 4.0  # lower angle for the retry; None disables the retry
-    min_registered_fraction: float = 0.8  # fewer registered images than this fraction is an error
-    undistort: bool = True  # undistort to PINHOLE when the camera model has distortion
-    skip_unreadable: bool = False  # skip corrupt image files with a warning instead of failing
-    ground_percentile: float = 5.0  # (no ground truth) this percentile of point heights is put at z=0
-    camera_height: Optional[float] = 1.6  # (no ground truth) scale so the mean camera height is this; None keeps COLMAP's scale
-    device: str = "auto"  # auto | cpu | cuda (SIFT extraction and matching)
-    num_threads: int = 1  # COLMAP threads; 1 is bit-deterministic for a seed, -1 (all cores) is faster but not
-    seed: int = 0  # COLMAP random seed
-
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "SfmConfig":
-        d = dict(d or {})
-        reject_unknown_keys(SfmConfig, d, "sfm config", KeyError)
-        cfg = SfmConfig(**d)
-        cfg.validate()
-        return cfg
-
-    def validate(self) -> None:
-        import pycolmap
-
-        if self.camera_model not in pycolmap.CameraModelId.__members__:
-            raise ValueError(f"sfm.camera_model {self.camera_model!r} is not a COLMAP camera model; "
-                             f"choose one of {sorted(pycolmap.CameraModelId.__members__)}")
-        if self.matcher not in MATCHERS:
-            raise ValueError(f"sfm.matcher {self.matcher!r} not in {MATCHERS}")
-        if self.mapper not in MAPPERS:
-            raise ValueError(f"sfm.mapper {self.mapper!r} not in {MAPPERS}")
-        if self.device not in ("auto", "cpu", "cuda"):
-            raise ValueError(f"sfm.device {self.device!r} not in ('auto', 'cpu', 'cuda')")
-        if not 0 < self.min_registered_fraction <= 1:
-            raise ValueError(f"sfm.min_registered_fraction must be in (0, 1], got {self.min_registered_fraction}")
-        if self.camera_height is not None and not self.camera_height > 0:
-            raise ValueError(f"sfm.camera_height must be > 0 or null, got {self.camera_height}")
-        if not 0 <= self.ground_percentile <= 100:
-            raise ValueError(f"sfm.ground_percentile must be in [0, 100], got {self.ground_percentile}")
-        if self.num_threads == 0 or self.num_threads < -1:
-            raise ValueError(f"sfm.num_threads must be -1 (all cores) or >= 1, got {self.num_threads}")
-        if self.camera_params is not None:
-            probe = pycolmap.Camera.create_from_model_name(0, self.camera_model, 1.0, 2, 2)
-            if len(self.camera_params) != len(probe.params):
-                raise ValueError(f"sfm.camera_params has {len(self.camera_params)} values; camera model "
-                                 f"{self.camera_model} takes {len(probe.params)} ({probe.params_info})")
-        for key in ("init_min_tri_angle", "retry_init_min_tri_angle"):
-            v = getattr(self, key)
-            if v is not None and not 0 < v < 90:
-                raise ValueError(f"sfm.{key} must be in (0, 90) degrees, got {v}")
 
 
 class SfmError(RuntimeError):
@@ -153,6 +95,7 @@ def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: Sf
     ext.num_threads = cfg.num_threads
     ext.max_image_size = cfg.max_image_size
     ext.sift.max_num_features = cfg.max_num_features
+    ext.sift.peak_threshold = cfg.sift_peak_threshold
     ext.use_gpu = device == pycolmap.Device.cuda
     mode = pycolmap.CameraMode.SINGLE if cfg.single_camera else pycolmap.CameraMode.PER_IMAGE
     t0 = time.perf_counter()
@@ -283,50 +226,26 @@ def map_with_retries(database: Path, image_dir: Path, work: Path, cfg: SfmConfig
     return best, report
 
 
-# ---- conversion ------------------------------------------------------------------------------
+# ---- refinement ------------------------------------------------------------------------------
 
-def reconstruction_cameras(rec) -> list[Camera]:
-    """Registered images of a PINHOLE-family ``pycolmap.Reconstruction`` as cameras, sorted by name."""
-    cams = []
-    for image_id in rec.reg_image_ids():
-        im = rec.images[image_id]
-        cam = rec.cameras[im.camera_id]
-        if cam.model.name not in UNDISTORTED_MODELS:
-            raise ValueError(f"image {im.name}: camera model {cam.model.name} has distortion; "
-                             "undistort before converting (sfm.undistort)")
-        V = np.eye(4)
-        V[:3, :] = im.cam_from_world().matrix()
-        cams.append(Camera(cam.calibration_matrix(), V, cam.width, cam.height, im.name))
-    return sorted(cams, key=lambda c: c.name)
+def refine_model(rec, database: Path, cfg: SfmConfig) -> dict:
+    """Fine-scale refinement of the mapped model in place (:mod:`anigs.sfm_refine`); returns its report.
 
-
-def reconstruction_points(rec) -> dict[str, np.ndarray]:
-    """Sparse points: xyz [P,3] float32, rgb [P,3] float32 in [0,1], error [P], track_length [P]."""
-    pts = list(rec.points3D.values())
-    if not pts:
-        return {"xyz": np.zeros((0, 3), np.float32), "rgb": np.zeros((0, 3), np.float32),
-                "error": np.zeros(0, np.float32), "track_length": np.zeros(0, np.int32)}
-    return {"xyz": np.array([p.xyz for p in pts], np.float32),
-            "rgb": np.array([p.color for p in pts], np.float32) / 255.0,
-            "error": np.array([p.error for p in pts], np.float32),
-            "track_length": np.array([p.track.length() for p in pts], np.int32)}
-
-
-def _to_sim3d(s: Similarity):
-    import pycolmap
-
-    return pycolmap.Sim3d(float(s.scale), pycolmap.Rotation3d(s.R), s.t.reshape(3, 1))
-
-
-def _replace_dir(src: Path, dst: Path) -> None:
-    """Move a finished folder onto ``dst`` (removing an older one) with renames only."""
-    old = None
-    if dst.exists():
-        old = dst.with_name(f".{dst.name}.old{os.getpid()}")
-        os.replace(dst, old)
-    os.replace(src, dst)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+    Skipped (with the reason in the report) when ``cfg.refine`` is off or the database with
+    the keypoints is missing or does not match the model.
+    """
+    if not cfg.refine:
+        return {"applied": False, "reason": "sfm.refine is false"}
+    if not database.exists():
+        return {"applied": False, "reason": "no feature database (model not mapped here)"}
+    try:
+        report = refine_fine_scale(rec, database, max_keypoint_scale=cfg.refine_max_keypoint_scale,
+                                   min_observations=cfg.refine_min_observations, loss_scale=cfg.refine_loss_scale,
+                                   num_threads=cfg.num_threads, max_image_size=cfg.max_image_size)
+    except ValueError as exc:
+        log.warning("fine-scale refinement skipped: %s", exc)
+        return {"applied": False, "reason": str(exc)}
+    return {"applied": True, **report}
 
 
 # ---- the stage -----------------------------------------------------------------------------------
@@ -376,11 +295,7 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
                               "pycolmap_version": pycolmap.__version__, "timings_s": {}}
     try:
         if model_dir is not None:
-            model_dir = Path(model_dir)
-            if not any((model_dir / f"cameras.{ext}").exists() for ext in ("bin", "txt")) and (model_dir / "0").is_dir():
-                model_dir = model_dir / "0"  # a COLMAP project's sparse/ folder
-            if not any((model_dir / f"cameras.{ext}").exists() for ext in ("bin", "txt")):
-                raise FileNotFoundError(f"no COLMAP model (cameras.bin/.txt, images, points3D) in {model_dir}")
+            model_dir = find_model_dir(Path(model_dir))
             rec = pycolmap.Reconstruction(str(model_dir))
             unknown = sorted({rec.images[i].name for i in rec.reg_image_ids()} - set(names))
             if unknown:
@@ -390,6 +305,7 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
                 raise SfmError(f"COLMAP model {model_dir} registers {reg}/{total} images, below "
                                f"min_registered_fraction={cfg.min_registered_fraction}")
             report["mapping"] = {"source": str(model_dir), "models_found": [reg], "other_models": [], "retries": 0}
+            report["refine"] = {"applied": False, "reason": "existing model (no feature database)"}
         else:
             stats = extract_and_match(work / "database.db", image_dir, names, cfg)
             report["timings_s"].update(extract=stats.pop("extract_s"), match=stats.pop("match_s"))
@@ -397,6 +313,9 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
             t0 = time.perf_counter()
             rec, report["mapping"] = map_with_retries(work / "database.db", image_dir, work, cfg, names)
             report["timings_s"]["mapping"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            report["refine"] = refine_model(rec, work / "database.db", cfg)
+            report["timings_s"]["refine"] = time.perf_counter() - t0
         report["registered"] = int(rec.num_reg_images())
         report["registered_fraction"] = report["registered"] / total
         registered = sorted(rec.images[i].name for i in rec.reg_image_ids())
@@ -440,7 +359,7 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
         else:
             sim, frame = upright_similarity(cams, pts["xyz"], cfg.ground_percentile, cfg.camera_height)
         frame.update(scale=sim.scale, matrix=sim.matrix())
-        rec.transform(_to_sim3d(sim))
+        rec.transform(to_sim3d(sim))
         cams = reconstruction_cameras(rec)
         pts = reconstruction_points(rec)
         report["frame"] = frame
@@ -456,8 +375,8 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
         sparse_tmp = Path(tempfile.mkdtemp(prefix=".sparse.", dir=out_dir))
         (sparse_tmp / "0").mkdir()
         rec.write(sparse_tmp / "0")
-        _replace_dir(sparse_tmp, out_dir / "sparse")
-        _replace_dir(images_tmp, out_dir / "images")
+        replace_dir(sparse_tmp, out_dir / "sparse")
+        replace_dir(images_tmp, out_dir / "images")
         save_cameras(out_dir / "cameras.json", cams, extra={"source": "colmap", "frame": frame["mode"]})
         write_npz(out_dir / "points.npz", **pts)
         report["timings_s"]["total"] = time.perf_counter() - t_start

@@ -200,6 +200,71 @@ def test_existing_project_sparse_folder(ring, tmp_path):
         run_sfm(ring["out"] / "images", tmp_path / "x", model_dir=tmp_path / "nothing")
 
 
+# ---- fine-scale refinement (anigs.sfm_refine) on the ring's database and raw model ---------------
+
+def test_ring_refinement_report(ring):
+    r = ring["res"].report
+    ref = r["refine"]
+    assert ref["applied"] is True and "refine" in r["timings_s"]
+    assert 0 < ref["observations_kept"] < ref["observations_total"]
+    assert 0 < ref["points_kept"] < ref["points_total"] == r["num_points"]  # the output keeps every point
+    assert ref["min_observations_per_image"] >= 2 and ref["cauchy_loss_scale_px"] > 0
+    assert ref["mean_reprojection_error_after_px"] < 1.0
+
+
+def test_keypoint_scales_and_pruning(ring):
+    from anigs.sfm_refine import keypoint_scales, prune_coarse_observations
+
+    db = ring["out"] / "work" / "database.db"
+    rec = pycolmap.Reconstruction(ring["out"] / "work" / "selected")
+    scales = keypoint_scales(db, rec)
+    ids = sorted(rec.reg_image_ids())
+    for i in ids:
+        assert len(scales[i]) == rec.images[i].num_points2D() and (scales[i] > 0).all()
+    assert min(s.min() for s in scales.values()) < 1.3 < max(s.max() for s in scales.values())
+    half = keypoint_scales(db, rec, max_image_size=W // 2)  # SIFT ran on half-size images
+    assert np.allclose(half[ids[0]], scales[ids[0]] / 2)
+
+    same = pycolmap.Reconstruction(rec)
+    rep = prune_coarse_observations(same, scales, 1e9, 0)
+    assert rep["observations_kept"] == rep["observations_total"] and same.num_points3D() == rec.num_points3D()
+
+    fine = pycolmap.Reconstruction(rec)
+    rep = prune_coarse_observations(fine, scales, 1.3, 10)
+    assert 0 < rep["observations_kept"] < rep["observations_total"]
+    assert rep["points_kept"] == fine.num_points3D() < rec.num_points3D()
+    for i in ids:  # each image keeps scales up to 1.3 px, or up to its 10th finest if that is coarser
+        before = np.sort(scales[i][rec.images[i].get_observation_point2D_idxs()])
+        limit = max(1.3, before[min(10, len(before)) - 1])
+        assert (scales[i][fine.images[i].get_observation_point2D_idxs()] <= limit).all()
+    assert all(p.track.length() >= 2 for p in fine.points3D.values())
+
+
+def test_refinement_undoes_a_camera_perturbation(ring):
+    from anigs.sfm_refine import refine_fine_scale
+
+    rec = pycolmap.Reconstruction(ring["out"] / "work" / "selected")
+    ids = sorted(rec.reg_image_ids())
+    ref = {i: rec.images[i].cam_from_world().rotation.matrix() for i in ids}
+    a, b = ids[5], ids[6]
+    frame = rec.frames[rec.images[a].frame_id]
+    pose = frame.rig_from_world
+    c, s = math.cos(math.radians(0.5)), math.sin(math.radians(0.5))
+    tilt = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])  # 0.5 degrees about the camera's x axis
+    frame.rig_from_world = pycolmap.Rigid3d(pycolmap.Rotation3d(tilt @ pose.rotation.matrix()),
+                                            np.asarray(pose.translation).reshape(3, 1))
+    relative = lambda r: rotation_angle_deg(r[a] @ r[b].T, ref[a] @ ref[b].T)  # noqa: E731
+    moved = {i: rec.images[i].cam_from_world().rotation.matrix() for i in ids}
+    assert relative(moved) > 0.45
+    n_points = rec.num_points3D()
+    report = refine_fine_scale(rec, ring["out"] / "work" / "database.db", max_keypoint_scale=1.3,
+                               min_observations=60, loss_scale=0.5)
+    after = {i: rec.images[i].cam_from_world().rotation.matrix() for i in ids}
+    assert relative(after) < 0.1, relative(after)
+    assert rec.num_points3D() == n_points and report["points_total"] == n_points
+    assert report["mean_reprojection_error_after_px"] < report["mean_reprojection_error_before_px"]
+
+
 # ---- failure handling (mapper replaced; the images and model are the ring's) -------------
 
 def _patch_colmap(monkeypatch, models_for_angle):
@@ -243,6 +308,7 @@ def test_several_models_keep_the_largest(ring, ring_model, tmp_path, monkeypatch
     assert res.report["mapping"]["other_models"] == [5]
     assert len(res.cameras) == 20
     assert "keeping the largest" in caplog.text
+    assert res.report["refine"] == {"applied": False, "reason": "no feature database (model not mapped here)"}
 
 
 def test_too_few_registered_is_an_error_after_retry(ring, ring_model, tmp_path, monkeypatch):
@@ -374,6 +440,10 @@ def test_config_rejects_unknown_and_bad_values():
         SfmConfig.from_dict({"camera_model": "SIMPLE_RADIAL", "camera_params": [300, 160, 120]})
     with pytest.raises(ValueError, match="num_threads"):
         SfmConfig.from_dict({"num_threads": 0})
+    for key, bad in (("refine_max_keypoint_scale", 0), ("refine_min_observations", -1), ("refine_loss_scale", -0.5),
+                     ("sift_peak_threshold", 0)):
+        with pytest.raises(ValueError, match=key):
+            SfmConfig.from_dict({key: bad})
     assert SfmConfig.from_dict({"matcher": "sequential"}).matcher == "sequential"
 
 
