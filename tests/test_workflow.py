@@ -190,7 +190,9 @@ def test_interrupted_run_resumes_to_the_same_artifacts(run, tmp_path):
     exe = Path(sys.executable).with_name("snakemake")
     env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ['PATH']}")
     cmd = [str(exe), "--cores", "2", "--configfile", "config/test.yaml", "--config", f"results={results}"]
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    # SIGINT default in the child: a shell's background job (nohup ... &) inherits SIGINT ignored
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     marker = results / "tiny" / "full" / "round1" / "target"
     deadline = time.time() + 900
     while time.time() < deadline and proc.poll() is None and not (marker.exists() and any(marker.iterdir())):
