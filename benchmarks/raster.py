@@ -7,7 +7,8 @@ Scenes (fixed by issue 2): seed 0, N Gaussians in a 2x2x2 cube centred 4 units i
 of the camera, scales log-uniform in [0.01, 0.05], opacities uniform in [0.1, 0.9], SH
 degree 0, 60 degree horizontal FOV. Each (scene, backend) runs in its own subprocess so
 the reported peak RSS is that run's alone. Prints wall-clock medians (what a user waits)
-and process CPU-time medians (robust when the machine is shared).
+and process CPU-time medians (robust when the machine is shared), and the load average
+before and after (timings from a busy machine are not comparable with quiet ones).
 """
 from __future__ import annotations
 
@@ -94,6 +95,7 @@ def main() -> None:
             backends.append("gsplat")
     except ImportError:
         pass
+    load_before = os.getloadavg()
     rows = []
     for scene in args.scenes.split(","):
         for backend in backends:
@@ -104,7 +106,10 @@ def main() -> None:
                 rows.append({"scene": scene, "backend": backend, "skipped": res.stderr.strip().splitlines()[-1]})
             else:
                 rows.append(json.loads(res.stdout.strip().splitlines()[-1]))
-    print(f"threads={args.threads}  (wall = median wall-clock, cpu = median process CPU time)")
+    load_after = os.getloadavg()
+    print(f"threads={args.threads}  (wall = median wall-clock, cpu = median process CPU time)  "
+          f"load average (1/5/15 min) before {'/'.join(f'{x:.2f}' for x in load_before)}, "
+          f"after {'/'.join(f'{x:.2f}' for x in load_after)}")
     print(f"{'scene':6} {'backend':7} {'fwd ms':>9} {'fwd+bwd ms':>11} {'fwd cpu':>9} {'f+b cpu':>9} "
           f"{'Mpairs/s':>9} {'peak MB':>8}")
     for r in rows:

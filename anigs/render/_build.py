@@ -1,10 +1,16 @@
-"""Build and load the CPU compositing kernel (``csrc/raster.cpp``).
+"""Build and load the CPU rasterizer kernel (``csrc/raster.cpp``, which includes the other files).
 
-The kernel is plain C++ with a C ABI: no torch headers, so it compiles in seconds with
+The kernel is plain C++17 with OpenMP (or, without it, its own std::thread pool) and a C
+ABI: no torch headers, so it compiles in seconds with
 the system compiler (``$CXX``, else ``c++``/``g++``/``clang++``) and loads with ctypes.
 The shared library is cached under ``$ANIGS_CACHE`` (default ``~/.cache/anigs``), keyed by
 a hash of the source and flags, and written atomically so parallel jobs can race safely.
 ``anigs build-kernel`` builds it ahead of time (the README's set-up does this).
+
+On x86-64 Linux the kernel targets the best instruction-set level the CPU reports
+(x86-64-v4 = AVX-512, v3 = AVX2, else the baseline). The level is part of the cache key,
+so machines sharing a home directory each get a library their CPU can run;
+``ANIGS_KERNEL_ARCH`` overrides the choice (e.g. ``x86-64-v3``; ``none`` for the baseline).
 """
 from __future__ import annotations
 
@@ -18,9 +24,15 @@ import tempfile
 from pathlib import Path
 
 SRC = Path(__file__).with_name("csrc") / "raster.cpp"
-ABI_VERSION = 3
-_FLAGS = ["-O3", "-std=c++17", "-shared", "-fPIC", "-ffp-contract=off", "-fno-math-errno"]
+ABI_VERSION = 4
+_FLAGS = ["-O3", "-std=c++17", "-shared", "-fPIC", "-pthread", "-ffp-contract=off", "-fno-math-errno"]
 _LIB: ctypes.CDLL | None = None
+
+# x86-64 micro-architecture levels and the /proc/cpuinfo flags each needs.
+_X86_LEVELS = [
+    ("x86-64-v4", {"avx512f", "avx512bw", "avx512cd", "avx512dq", "avx512vl"}),
+    ("x86-64-v3", {"avx", "avx2", "bmi1", "bmi2", "f16c", "fma", "movbe", "xsave"}),
+]
 
 
 class KernelBuildError(RuntimeError):
@@ -40,9 +52,41 @@ def _compiler() -> str:
         "'apt-get install g++'); meanwhile backend='torch' works without one")
 
 
+def arch_flags() -> list[str]:
+    """``-march`` level for this CPU (x86-64 Linux only; empty elsewhere or when unsure)."""
+    env = os.environ.get("ANIGS_KERNEL_ARCH")
+    if env is not None:
+        return [] if env in ("", "none") else [f"-march={env}"]
+    if platform.machine() not in ("x86_64", "AMD64"):
+        return []
+    try:
+        with open("/proc/cpuinfo") as fh:
+            flags = next((set(line.split(":", 1)[1].split()) for line in fh if line.startswith("flags")), set())
+    except OSError:
+        return []
+    for level, need in _X86_LEVELS:
+        if need <= flags:
+            return [f"-march={level}"]
+    return []
+
+
+def _thread_flags() -> list[str]:
+    """OpenMP by default; ``ANIGS_KERNEL_THREADS=pool`` builds the kernel's own thread pool.
+
+    With OpenMP the kernel's loops run on torch's own OpenMP threads (pip torch ships
+    libgomp.so.1 and the loader shares it), so no extra threads compete with torch's, which
+    spin for a while after every torch op. The pool (``csrc/pool.cpp``, also the fallback
+    when the compiler has no OpenMP) never waits for a worker that the OS has not scheduled,
+    which helps on an overloaded machine; there, ``OMP_WAIT_POLICY=PASSIVE`` (set before
+    importing torch) or one thread per job helps torch and the OpenMP kernel alike.
+    """
+    return [] if os.environ.get("ANIGS_KERNEL_THREADS") == "pool" else ["-fopenmp"]
+
+
 def library_path() -> Path:
     srcs = b"".join(p.read_bytes() for p in sorted(SRC.parent.glob("*.cpp")))
-    key = hashlib.sha256(srcs + " ".join(_FLAGS).encode() + platform.machine().encode()).hexdigest()[:16]
+    flags = " ".join(_FLAGS + arch_flags() + _thread_flags())
+    key = hashlib.sha256(srcs + flags.encode() + platform.machine().encode()).hexdigest()[:16]
     return cache_dir() / f"anigs_raster_{key}.so"
 
 
@@ -57,8 +101,12 @@ def build(verbose: bool = False) -> Path:
     os.close(fd)
     errors = []
     try:
-        for omp in (["-fopenmp"], []):  # fall back to single-threaded if OpenMP is missing
-            cmd = [cxx, *_FLAGS, *omp, str(SRC), "-o", tmp]
+        arch, omp = arch_flags(), _thread_flags()
+        # fall back to the kernel's own thread pool if OpenMP is missing, and to the baseline
+        # instruction set if the compiler does not know the -march level
+        variants = [(m, o) for m in ([arch, []] if arch else [[]]) for o in ([omp, []] if omp else [[]])]
+        for march, o in variants:
+            cmd = [cxx, *_FLAGS, *march, *o, str(SRC), "-o", tmp]
             res = subprocess.run(cmd, capture_output=True, text=True)
             if res.returncode == 0:
                 if verbose:
@@ -77,22 +125,24 @@ def load() -> ctypes.CDLL:
     global _LIB
     if _LIB is not None:
         return _LIB
-    # Our OpenMP runtime is separate from torch's: idle threads must sleep, not spin, or the
-    # two pools (and parallel Snakemake jobs) starve each other on small machines.
-    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    if _thread_flags():
+        # pip torch ships its own libgomp.so.1 and the loader shares it with the kernel (same
+        # soname): the kernel's loops then run on torch's threads with torch's wait policy.
+        # With a separate OpenMP runtime (another torch build), make ours passive so that the
+        # two pools do not starve each other on small machines.
+        os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     lib = ctypes.CDLL(str(build()))
     if lib.anigs_abi_version() != ABI_VERSION:
         raise KernelBuildError(f"stale kernel library {library_path()}: delete it and retry")
     P, I = ctypes.c_void_p, ctypes.c_int
-    lib.anigs_tile_counts.argtypes = [I, P, I, I, P]
-    lib.anigs_bin.argtypes = [I, P, I, I, P, P, P, P]
-    lib.anigs_forward.argtypes = [I, I, I, I, P, P, P, P, P, P, P, P, P, P, I]
-    lib.anigs_backward.argtypes = [I, I, I, I, P, P, P, P, P, P, P, P, P, P, P, P, I]
-    lib.anigs_reduce.argtypes = [I, I, P, P, P, P, P, I]
-    lib.anigs_project_forward.argtypes = [I, P, I, I, P, P, P, P, P, P, P, P, P, P, I]
-    lib.anigs_project_backward.argtypes = [I, P, I, I, P, P, P, P, P, P, P, P, P, P, I]
-    for f in (lib.anigs_tile_counts, lib.anigs_bin, lib.anigs_forward, lib.anigs_backward, lib.anigs_reduce,
-              lib.anigs_project_forward, lib.anigs_project_backward):
+    lib.anigs_preprocess.argtypes = [I, P, I, I, P, P, P, P, P, I, I, P, P, P, P, P, P, I, I]
+    lib.anigs_preprocess.restype = I
+    lib.anigs_preprocess_backward.argtypes = [I, P, I, I, P, P, P, P, I, I, P, P, P, P, P, P, P, P, I]
+    lib.anigs_sort_count.argtypes = [I, P, P, P, I, I, P, P, ctypes.POINTER(ctypes.c_longlong)]
+    lib.anigs_sort_count.restype = I
+    lib.anigs_composite_forward.argtypes = [I, I, I] + [P] * 18 + [I]
+    lib.anigs_composite_backward.argtypes = [I, I, I, I] + [P] * 19 + [I]
+    for f in (lib.anigs_preprocess_backward, lib.anigs_composite_forward, lib.anigs_composite_backward):
         f.restype = None
     _LIB = lib
     return lib

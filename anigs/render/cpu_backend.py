@@ -1,137 +1,207 @@
-"""Fast CPU compositing: tile-binned OpenMP kernel with a hand-written backward.
+"""Fast CPU rasterizer: compiled C++ kernel (``csrc/``) with hand-written backward.
 
-Same semantics as :func:`anigs.render.torch_backend.composite_torch`; float32 only.
+Same semantics as the torch reference path of :func:`anigs.render.rasterize` (projection in
+``projection.py``, colours in ``sh.py``, compositing in ``torch_backend.py``); float32 only.
+Two autograd Functions, each one or a few kernel calls with no per-splat torch ops:
+
+* ``_Preprocess``: per-Gaussian projection + colour (raw or SH degree 0-3) + input validation;
+  outputs ``means2d`` (kept in the graph, so ``meta["means2d"].retain_grad()`` works),
+  conics and feats (r, g, b, depth) for all N Gaussians.
+* ``_Composite``: depth sort, tile binning, compositing and the image tail (background,
+  alpha, expected depth); its backward returns per-Gaussian gradients directly.
 """
 from __future__ import annotations
+
+import math
 
 import torch
 
 from anigs.render import _build
+from anigs.render.projection import EPS_2D
 
-
-def _ptr(t: torch.Tensor) -> int:
-    return t.data_ptr()
+def _ptr(t: torch.Tensor | None) -> int | None:
+    return None if t is None else t.data_ptr()
 
 
 def _threads() -> int:
     return max(1, torch.get_num_threads())
 
 
-class _Composite(torch.autograd.Function):
-    @staticmethod
-    def forward(ctx, means2d, conics, feats, opacities, rects, width: int, height: int):
-        lib = _build.load()
-        ctx.dtypes = (means2d.dtype, conics.dtype, feats.dtype, opacities.dtype)
-        M, C = feats.shape
-        if C > 32:
-            raise ValueError(f"cpu backend supports at most 32 feature channels, got {C}")
-        means2d, conics, feats, opacities = (t.detach().float().contiguous() for t in (means2d, conics, feats, opacities))
-        rects = rects.to(torch.int32).contiguous()
-        counts = torch.empty(M, dtype=torch.int32)
-        lib.anigs_tile_counts(M, _ptr(rects), width, height, _ptr(counts))
-        gstart = (torch.cumsum(counts, 0, dtype=torch.int64) - counts).to(torch.int32)
-        npairs = int(counts.sum())
-        ntiles = ((width + 15) // 16) * ((height + 15) // 16)
-        tile_offsets = torch.empty(ntiles + 1, dtype=torch.int32)
-        tile_splats = torch.empty(max(npairs, 1), dtype=torch.int32)
-        pair_slots = torch.empty(max(npairs, 1), dtype=torch.int32)
-        lib.anigs_bin(M, _ptr(rects), width, height, _ptr(gstart), _ptr(tile_offsets), _ptr(tile_splats), _ptr(pair_slots))
-        out_feat = torch.empty(height, width, C)
-        out_T = torch.empty(height, width)
-        out_last = torch.empty(height, width, dtype=torch.int32)
-        lib.anigs_forward(M, C, width, height, _ptr(means2d), _ptr(conics), _ptr(feats), _ptr(opacities),
-                          _ptr(rects), _ptr(tile_offsets), _ptr(tile_splats),
-                          _ptr(out_feat), _ptr(out_T), _ptr(out_last), _threads())
-        ctx.save_for_backward(means2d, conics, feats, opacities, rects, counts, gstart,
-                              tile_offsets, tile_splats, pair_slots, out_T, out_last)
-        ctx.size = (width, height, npairs)
-        ctx.mark_non_differentiable(out_last)
-        return out_feat, out_T, out_last
-
-    @staticmethod
-    def backward(ctx, g_feat, g_T, _g_last):
-        lib = _build.load()
-        (means2d, conics, feats, opacities, rects, counts, gstart,
-         tile_offsets, tile_splats, pair_slots, out_T, out_last) = ctx.saved_tensors
-        width, height, npairs = ctx.size
-        M, C = feats.shape
-        D = 6 + C
-        g_feat = (torch.zeros(height, width, C) if g_feat is None else g_feat).float().contiguous()
-        g_T = (torch.zeros(height, width) if g_T is None else g_T).float().contiguous()
-        pair_grads = torch.zeros(max(npairs, 1), D)
-        lib.anigs_backward(M, C, width, height, _ptr(means2d), _ptr(conics), _ptr(feats), _ptr(opacities),
-                           _ptr(rects), _ptr(tile_offsets), _ptr(tile_splats), _ptr(out_T), _ptr(out_last),
-                           _ptr(g_feat), _ptr(g_T), _ptr(pair_grads), _threads())
-        grads = torch.empty(M, D)
-        lib.anigs_reduce(M, D, _ptr(gstart), _ptr(counts), _ptr(pair_slots), _ptr(pair_grads), _ptr(grads), _threads())
-        dm, dq, df, do = ctx.dtypes
-        return (grads[:, 0:2].to(dm), grads[:, 2:5].to(dq), grads[:, 6:].to(df), grads[:, 5].to(do),
-                None, None, None)
+def _f32(t: torch.Tensor) -> torch.Tensor:
+    """Detached float32 contiguous view (no copy when it already is one)."""
+    t = t.detach()
+    if t.dtype != torch.float32:
+        t = t.float()
+    return t if t.is_contiguous() else t.contiguous()
 
 
-class _Project(torch.autograd.Function):
+def _grad_in(t: torch.Tensor | None) -> torch.Tensor | None:
+    if t is None:
+        return None
+    if t.dtype != torch.float32:
+        t = t.float()
+    return t if t.is_contiguous() else t.contiguous()
+
+
+def _image_grad(t: torch.Tensor | None) -> torch.Tensor | None:
+    """Upstream image grad as float32, any strides (the kernel takes them: expanded grads
+    such as those of ``rgb.sum()`` are read in place instead of being materialized)."""
+    if t is None:
+        return None
+    return t if t.dtype == torch.float32 else t.float()
+
+
+def _strides(t: torch.Tensor | None, n: int) -> list[int]:
+    return [0] * n if t is None else list(t.stride())
+
+
+def camera_params(viewmat: torch.Tensor, K: torch.Tensor, near: float, far: float, eps2d: float = EPS_2D,
+                  on_invalid=None) -> torch.Tensor:
+    """Kernel camera block [R(9), t(3), fx, fy, cx, cy, near, far, eps2d] (float32)."""
+    v = viewmat.detach().cpu().flatten().tolist()  # python floats: exact for float32/64
+    k = K.detach().cpu().flatten().tolist()
+    if on_invalid is not None and not math.isfinite(sum(v) + sum(k)):  # any NaN/Inf (or beyond float32)
+        on_invalid(0)
+    vals = [*v[0:3], *v[4:7], *v[8:11], v[3], v[7], v[11], k[0], k[4], k[2], k[5],
+            float(near), min(float(far), 3e38), float(eps2d)]
+    return torch.tensor(vals, dtype=torch.float32)
+
+
+class _Preprocess(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, means, quats, scales, opacities, cam, width: int, height: int):
+    def forward(ctx, means, quats, scales, opacities, colors, cam, sh_degree: int, width: int, height: int,
+                on_invalid):
         lib = _build.load()
         n = means.shape[0]
-        ctx.dtypes = (means.dtype, quats.dtype, scales.dtype)
-        means, quats, scales, opacities = (t.detach().float().contiguous() for t in (means, quats, scales, opacities))
-        means2d, conics = torch.empty(n, 2), torch.empty(n, 3)
-        depths = torch.empty(n)
+        ctx.dtypes = (means.dtype, quats.dtype, scales.dtype, colors.dtype)
+        ctx.colors_shape = colors.shape
+        m, q, s, o, c = (_f32(t) for t in (means, quats, scales, opacities, colors))
+        k = 1 if sh_degree < 0 else c.shape[1]
+        means2d, conics, feats = torch.empty(n, 2), torch.empty(n, 3), torch.empty(n, 4)
         rects = torch.empty(n, 4, dtype=torch.int32)
         radii = torch.empty(n, dtype=torch.int32)
         valid = torch.empty(n, dtype=torch.uint8)
-        lib.anigs_project_forward(n, _ptr(cam), width, height, _ptr(means), _ptr(quats), _ptr(scales), _ptr(opacities),
-                                  _ptr(means2d), _ptr(conics), _ptr(depths), _ptr(rects), _ptr(radii), _ptr(valid),
-                                  _threads())
-        ctx.save_for_backward(means, quats, scales, valid, cam)
-        ctx.size = (width, height)
+        flags = lib.anigs_preprocess(n, _ptr(cam), width, height, _ptr(m), _ptr(q), _ptr(s), _ptr(o), _ptr(c),
+                                     k, sh_degree, _ptr(means2d), _ptr(conics), _ptr(feats), _ptr(rects),
+                                     _ptr(radii), _ptr(valid), int(on_invalid is not None), _threads())
+        if flags and on_invalid is not None:
+            on_invalid(flags)
+        ctx.save_for_backward(m, q, s, c, valid, cam)
+        ctx.args = (sh_degree, k, width, height)
         ctx.mark_non_differentiable(rects, radii, valid)
-        return means2d, conics, depths, rects, radii, valid
+        return means2d, conics, feats, rects, radii, valid
 
     @staticmethod
-    def backward(ctx, g_m2d, g_con, g_dep, _r, _rad, _v):
+    def backward(ctx, g_m2d, g_con, g_feat, _r, _rad, _v):
         lib = _build.load()
-        means, quats, scales, valid, cam = ctx.saved_tensors
-        width, height = ctx.size
-        n = means.shape[0]
-        z = lambda *s: torch.zeros(*s)
-        g_m2d = (z(n, 2) if g_m2d is None else g_m2d).float().contiguous()
-        g_con = (z(n, 3) if g_con is None else g_con).float().contiguous()
-        g_dep = (z(n) if g_dep is None else g_dep).float().contiguous()
+        m, q, s, c, valid, cam = ctx.saved_tensors
+        sh_degree, k, width, height = ctx.args
+        n = m.shape[0]
         gm, gq, gs = torch.empty(n, 3), torch.empty(n, 4), torch.empty(n, 3)
-        lib.anigs_project_backward(n, _ptr(cam), width, height, _ptr(means), _ptr(quats), _ptr(scales), _ptr(valid),
-                                   _ptr(g_m2d), _ptr(g_con), _ptr(g_dep), _ptr(gm), _ptr(gq), _ptr(gs), _threads())
-        dm, dq, ds = ctx.dtypes
-        return gm.to(dm), gq.to(dq), gs.to(ds), None, None, None, None
+        gc = torch.empty(ctx.colors_shape)
+        g_m2d, g_con, g_feat = _grad_in(g_m2d), _grad_in(g_con), _grad_in(g_feat)
+        lib.anigs_preprocess_backward(n, _ptr(cam), width, height, _ptr(m), _ptr(q), _ptr(s), _ptr(c), k, sh_degree,
+                                      _ptr(valid), _ptr(g_m2d), _ptr(g_con), _ptr(g_feat),
+                                      _ptr(gm), _ptr(gq), _ptr(gs), _ptr(gc), _threads())
+        dm, dq, ds, dc = ctx.dtypes
+        return gm.to(dm), gq.to(dq), gs.to(ds), None, gc.to(dc), None, None, None, None, None
+
+
+class _Composite(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, means2d, conics, feats, opacities, background, valid, rects, width: int, height: int,
+                info: dict):
+        lib = _build.load()
+        nt = _threads()
+        n = means2d.shape[0]
+        ctx.opac_dtype, ctx.bg_dtype = opacities.dtype, background.dtype
+        o = _f32(opacities)
+        bg = _f32(background)
+        order = torch.empty(max(n, 1), dtype=torch.int32)
+        gstart = torch.empty(n + 1, dtype=torch.int32)
+        npairs = _build.ctypes.c_longlong(0)
+        M = lib.anigs_sort_count(n, _ptr(feats), _ptr(valid), _ptr(rects), width, height, _ptr(order), _ptr(gstart),
+                                 _build.ctypes.byref(npairs))
+        npairs = npairs.value
+        if npairs >= 2**31:
+            raise ValueError(f"rasterize: {npairs} (tile, Gaussian) pairs exceed the cpu backend's int32 limit")
+        ntiles = ((width + 15) // 16) * ((height + 15) // 16)
+        recs = torch.empty(max(M, 1), 16)
+        tile_offsets = torch.empty(ntiles + 1, dtype=torch.int32)
+        tile_splats = torch.empty(max(npairs, 1), dtype=torch.int32)
+        rgb, alpha, depth = torch.empty(height, width, 3), torch.empty(height, width), torch.empty(height, width)
+        pair_slots = T = accd = last = None
+        if any(ctx.needs_input_grad):  # buffers only the backward reads
+            pair_slots = torch.empty(max(npairs, 1), dtype=torch.int32)
+            T, accd = torch.empty(height, width), torch.empty(height, width)
+            last = torch.empty(height, width, dtype=torch.int32)
+        lib.anigs_composite_forward(M, width, height, _ptr(order), _ptr(gstart), _ptr(means2d), _ptr(conics),
+                                    _ptr(feats), _ptr(o), _ptr(rects), _ptr(bg), _ptr(recs), _ptr(tile_offsets),
+                                    _ptr(tile_splats), _ptr(pair_slots), _ptr(rgb), _ptr(alpha), _ptr(depth),
+                                    _ptr(T), _ptr(accd), _ptr(last), nt)
+        # kernel-owned intermediates (neither inputs nor outputs): kept on ctx directly
+        ctx.state = (n, M, width, height, order, gstart, valid, recs, tile_offsets, tile_splats, pair_slots, bg,
+                     T, accd, last)
+        info["num_visible"] = M
+        return rgb, alpha, depth
+
+    @staticmethod
+    def backward(ctx, g_rgb, g_alpha, g_depth):
+        lib = _build.load()
+        (n, M, width, height, order, gstart, valid, recs, tile_offsets, tile_splats, pair_slots, bg,
+         T, accd, last) = ctx.state
+        g_m2d, g_con, g_feat, g_o = torch.empty(n, 2), torch.empty(n, 3), torch.empty(n, 4), torch.empty(n)
+        g_rgb, g_alpha, g_depth = _image_grad(g_rgb), _image_grad(g_alpha), _image_grad(g_depth)
+        gstrides = (_build.ctypes.c_longlong * 7)(*_strides(g_rgb, 3), *_strides(g_alpha, 2), *_strides(g_depth, 2))
+        lib.anigs_composite_backward(n, M, width, height, _ptr(order), _ptr(gstart), _ptr(valid), _ptr(recs),
+                                     _ptr(tile_offsets),
+                                     _ptr(tile_splats), _ptr(pair_slots), _ptr(bg), _ptr(T), _ptr(accd), _ptr(last),
+                                     _ptr(g_rgb), _ptr(g_alpha), _ptr(g_depth), gstrides,
+                                     _ptr(g_m2d), _ptr(g_con), _ptr(g_feat), _ptr(g_o), _threads())
+        g_bg = None
+        if ctx.needs_input_grad[4] and g_rgb is not None:
+            g_bg = (g_rgb * T[..., None]).sum((0, 1)).to(ctx.bg_dtype)
+        return g_m2d, g_con, g_feat, g_o.to(ctx.opac_dtype), g_bg, None, None, None, None, None
+
+
+def _device_check(t: torch.Tensor) -> None:
+    if t.device.type != "cpu":
+        raise ValueError(f"the cpu backend needs CPU tensors, got {t.device}; use backend='auto'")
+
+
+def render_cpu(means, quats, scales, opacities, colors, viewmat, K, width: int, height: int,
+               sh_degree: int | None, background: torch.Tensor | None, near: float, far: float, on_invalid=None):
+    """The cpu backend of :func:`anigs.render.rasterize` (inputs already shape-checked).
+
+    ``on_invalid(flags)`` is called (and should raise) when the kernel finds non-finite
+    inputs or out-of-range scales/opacities; None skips the checks.
+    Returns rgb [H,W,3], alpha [H,W], depth [H,W], means2d [N,2], radii [N], valid [N], M.
+    """
+    _device_check(means)
+    cam = camera_params(viewmat, K, near, far, on_invalid=on_invalid)
+    deg = -1 if sh_degree is None else int(sh_degree)
+    if not -1 <= deg <= 3:
+        raise ValueError(f"SH degree must be in 0..3, got {deg}")
+    means2d, conics, feats, rects, radii, valid = _Preprocess.apply(
+        means, quats, scales, opacities, colors, cam, deg, width, height, on_invalid)
+    if background is None:
+        background = torch.zeros(3)
+    info: dict = {}
+    rgb, alpha, depth = _Composite.apply(means2d, conics, feats, opacities, background, valid, rects, width, height,
+                                         info)
+    return rgb, alpha, depth, means2d, radii, valid.view(torch.bool), info["num_visible"]
 
 
 def project_cpu(means, quats, scales, opacities, viewmat, K, width: int, height: int,
-                near: float = 0.01, far: float = 1e10, eps2d: float = 0.3):
+                near: float = 0.01, far: float = 1e10, eps2d: float = EPS_2D):
     """Fused projection (same contract as ``projection.project_gaussians``, no cov2d).
 
     Returns means2d [N,2], conics [N,3], depths [N] (differentiable w.r.t. means, quats,
     scales), rects [N,4] int32, radii [N] int32, valid [N] bool.
     """
-    if means.device.type != "cpu":
-        raise ValueError(f"the cpu backend needs CPU tensors, got {means.device}; use backend='auto'")
-    v = viewmat.detach().double().cpu()
-    k = K.detach().double().cpu()
-    cam = torch.cat([v[:3, :3].reshape(-1), v[:3, 3], torch.stack([k[0, 0], k[1, 1], k[0, 2], k[1, 2]]),
-                     torch.tensor([near, min(far, 3e38), eps2d], dtype=torch.float64)]).float().contiguous()
-    m2d, con, dep, rects, radii, valid = _Project.apply(means, quats, scales, opacities, cam, int(width), int(height))
-    return m2d, con, dep, rects, radii, valid.bool()
-
-
-def composite_cpu(
-    means2d: torch.Tensor, conics: torch.Tensor, feats: torch.Tensor, opacities: torch.Tensor,
-    rects: torch.Tensor, width: int, height: int,
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Composite M depth-sorted splats; same contract as ``composite_torch``.
-
-    Returns accumulated features [H,W,C] and final transmittance [H,W].
-    """
-    if means2d.device.type != "cpu":
-        raise ValueError(f"the cpu backend needs CPU tensors, got {means2d.device}; use backend='auto'")
-    feat, T, _ = _Composite.apply(means2d, conics, feats, opacities, rects, int(width), int(height))
-    return feat, T
+    _device_check(means)
+    cam = camera_params(viewmat, K, near, far, eps2d)
+    zeros = torch.zeros(means.shape[0], 3)
+    m2d, con, feats, rects, radii, valid = _Preprocess.apply(
+        means, quats, scales, opacities, zeros, cam, -1, int(width), int(height), None)
+    return m2d, con, feats[:, 3], rects, radii, valid.view(torch.bool)

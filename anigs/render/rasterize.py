@@ -5,8 +5,10 @@
 
 Backends: ``torch`` (pure PyTorch reference), ``cpu`` (compiled tile kernel),
 ``gsplat`` (CUDA). ``auto`` picks gsplat on CUDA tensors when gsplat imports, else cpu
-for CPU tensors, else torch. The torch and cpu backends share the differentiable
-projection in :mod:`anigs.render.projection` and differ only in compositing.
+for CPU tensors, else torch. The torch path below is the readable reference: projection
+(:mod:`anigs.render.projection`), colours (:mod:`anigs.render.sh`), depth sort and
+compositing (:mod:`anigs.render.torch_backend`). The cpu backend
+(:mod:`anigs.render.cpu_backend`) computes the same thing in fused C++ kernels.
 """
 from __future__ import annotations
 
@@ -28,6 +30,14 @@ def _check_inputs(named: dict[str, torch.Tensor]) -> None:
         if t.numel() and not torch.isfinite(t).all():
             bad = int((~torch.isfinite(t.detach())).sum())
             raise ValueError(f"rasterize: input {name!r} contains {bad} non-finite values (NaN or Inf)")
+
+
+def _validate(named: dict[str, torch.Tensor]) -> None:
+    """Finite inputs, scales >= 0, opacities in [0,1]; raises a ValueError naming the culprit."""
+    _check_inputs(named)
+    scales, opacities = named["scales"], named["opacities"]
+    if bool((scales < 0).any()) or bool((opacities < 0).any()) or bool((opacities > 1).any()):
+        raise ValueError("rasterize: scales must be >= 0 and opacities in [0,1] (pass activated values)")
 
 
 def select_backend(backend: str, device: torch.device) -> str:
@@ -85,13 +95,31 @@ def rasterize(
                          f"got {tuple(colors.shape)}")
     if viewmat.shape != (4, 4) or K.shape != (3, 3):
         raise ValueError(f"rasterize: viewmat must be [4,4] and K [3,3], got {tuple(viewmat.shape)}, {tuple(K.shape)}")
-    _check_inputs({"means": means, "quats": quats, "scales": scales, "opacities": opacities,
-                   "colors": colors, "viewmat": viewmat, "K": K})
-    if bool((scales < 0).any()) or bool((opacities < 0).any()) or bool((opacities > 1).any()):
-        raise ValueError("rasterize: scales must be >= 0 and opacities in [0,1] (pass activated values)")
+    named = {"means": means, "quats": quats, "scales": scales, "opacities": opacities,
+             "colors": colors, "viewmat": viewmat, "K": K}
+    for name, t in named.items():
+        if not torch.is_tensor(t):
+            raise TypeError(f"rasterize: {name} must be a tensor, got {type(t).__name__}")
     device = means.device
-    bg = torch.zeros(3, dtype=means.dtype, device=device) if background is None else background.to(means)
     backend = select_backend(backend, device)
+    if backend == "cpu":
+        # One fused kernel path; it also validates the inputs (and defers to _validate for
+        # the error message), so no per-call torch ops run here.
+        from anigs.render.cpu_backend import render_cpu
+
+        def on_invalid(_flags: int) -> None:
+            _validate(named)
+            raise ValueError("rasterize: inputs are not finite in float32, or scales/opacities out of range")
+
+        rgb, alpha, depth, means2d, radii, valid, num_visible = render_cpu(
+            means, quats, scales, opacities, colors, viewmat, K, width, height, sh_degree,
+            None if background is None else background.to(means), near, far, on_invalid)
+        meta = {"depth": depth, "radii": radii, "means2d": means2d, "visible": valid,
+                "backend": backend, "num_visible": num_visible}
+        return rgb, alpha, meta
+
+    _validate(named)
+    bg = torch.zeros(3, dtype=means.dtype, device=device) if background is None else background.to(means)
 
     if backend == "gsplat":
         from anigs.render import gsplat_backend
@@ -101,14 +129,8 @@ def rasterize(
         meta["backend"] = "gsplat"
         return rgb, alpha, meta
 
-    if backend == "cpu":
-        from anigs.render.cpu_backend import project_cpu
-
-        means2d, conics, depths, rects, radii, valid = project_cpu(
-            means, quats, scales, opacities, viewmat, K, width, height, near, far)
-    else:
-        p = project_gaussians(means, quats, scales, opacities, viewmat, K, width, height, near, far)
-        means2d, conics, depths, rects, radii, valid = p.means2d, p.conics, p.depths, p.rects, p.radii, p.valid
+    p = project_gaussians(means, quats, scales, opacities, viewmat, K, width, height, near, far)
+    means2d, conics, depths, rects, radii, valid = p.means2d, p.conics, p.depths, p.rects, p.radii, p.valid
     idx = torch.nonzero(valid, as_tuple=False).squeeze(1)
     # front-to-back order (stable, so equal depths keep input order)
     idx = idx[torch.argsort(depths.detach()[idx], stable=True)]
@@ -118,15 +140,9 @@ def rasterize(
         cam_center = -viewmat[:3, :3].T @ viewmat[:3, 3]
         col = sh_colors(sh_degree, colors[idx], means[idx], cam_center)
     feats = torch.cat([col, depths[idx, None]], dim=1)
-    args = (means2d[idx], conics[idx], feats, opacities[idx], rects[idx], width, height)
-    if backend == "cpu":
-        from anigs.render.cpu_backend import composite_cpu
+    from anigs.render.torch_backend import composite_torch
 
-        acc, T = composite_cpu(*args)
-    else:
-        from anigs.render.torch_backend import composite_torch
-
-        acc, T = composite_torch(*args)
+    acc, T = composite_torch(means2d[idx], conics[idx], feats, opacities[idx], rects[idx], width, height)
     alpha = 1 - T
     rgb = acc[..., :3] + T[..., None] * bg
     depth = torch.where(alpha > 0, acc[..., 3] / alpha.clamp_min(1e-10), torch.zeros_like(alpha))
