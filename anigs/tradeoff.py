@@ -1,19 +1,30 @@
 """Accuracy versus time: the sweep's variants, and its report (CSV + one plot per knob).
 
-A sweep varies one knob at a time around a base variant. A knob is a dotted key of a
-per-variant config section (``update.steps``, ``refine.strength``, ``animate.views_per_round``)
-with a list of values; each (knob, value) becomes a workflow variant
-``tradeoff-<section>-<key>-<value>`` whose overrides are the base variant's plus that one key.
-A value equal to the base setting maps to the base variant itself (no extra jobs).
+A sweep varies one knob at a time around a base variant. A knob is a dotted key of a config
+section with a list of values, or a bare section name whose values are mappings (several keys
+set together, e.g. ``views: [{width: 128, height: 96}]`` for the render resolution).
 
-Seconds come from Snakemake's benchmark TSVs (column ``s``): the per-scene stages the variant
-uses (static, views, masks) plus every job of the variant up to its final renders (evaluation
-and export excluded), so a row says what the result cost to compute.
+* Per-variant sections (``update.steps``, ``refine.strength``, ``animate.views_per_round``):
+  each (knob, value) becomes a workflow variant ``tradeoff-<section>-<key>-<value>`` whose
+  overrides are the base variant's plus that one key.
+* Per-scene stages (``static.iterations``, ``views``, ``masks.*``), which every variant of a
+  scene shares: each (knob, value) becomes a *derived scene* ``<scene>--tradeoff-...`` (the
+  scene with that override) run with the base variant. It reuses the base scene's outputs of
+  the stages upstream of the knob's section (:data:`SCENE_STAGE_ORDER`; the capture and SfM
+  always), and recomputes the rest.
+
+A value equal to the base setting maps to the base point itself (no extra jobs).
+
+Seconds come from Snakemake's benchmark TSVs (column ``s``): the per-scene stages the point
+uses (static, views, masks, from the scene that computed them) plus every job of the variant up
+to its final renders (evaluation and export excluded), so a row says what the result cost to
+compute.
 """
 from __future__ import annotations
 
 import copy
 import csv
+import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,31 +32,82 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
+from anigs.config import deep_merge
+
 # config sections a variant may override (the others are shared by every variant of a scene)
 VARIANT_SECTIONS = ("animate", "render_clip", "refine", "update", "final", "export", "eval")
 SCENE_STAGES = ("static", "views", "masks")  # shared per-scene stages whose time every variant includes
+# per-scene stages in pipeline order: a derived scene shares every stage before its knob's
+SCENE_STAGE_ORDER = ("capture", "sfm", *SCENE_STAGES)
 EXCLUDED_BENCHMARKS = ("eval.tsv", "export.tsv")
+DERIVED_SEP = "--"
 
 
 @dataclass(frozen=True)
 class SweepPoint:
-    """One point of the sweep: ``variant`` runs the base with ``knob`` = ``value``."""
+    """One point of the sweep: ``variant`` of scene ``<scene><scene_tag>`` with ``knob`` = ``value``.
+
+    ``scene_tag`` is empty for per-variant knobs; for a per-scene knob it is the derived scene's
+    suffix (``--tradeoff-static-iterations-500``) and ``scene_overrides`` its section override.
+    """
 
     variant: str
     knob: str
     value: Any
     overrides: dict
+    scene_tag: str = ""
+    scene_overrides: dict | None = None
+
+    def scene(self, base_scene: str) -> str:
+        return base_scene + self.scene_tag
+
+    @property
+    def section(self) -> str:
+        return self.knob.split(".", 1)[0]
 
 
 def _slug(value: Any) -> str:
+    if isinstance(value, dict):
+        return "-".join(f"{k}-{_slug(v)}" for k, v in sorted(value.items()))
     s = str(value).lower().replace(".", "p").replace("-", "m")
     return re.sub(r"[^a-z0-9_]", "_", s)
 
 
 def variant_name(knob: str, value: Any) -> str:
-    """Workflow variant name of a sweep point, e.g. ``tradeoff-update-steps-40``."""
-    section, key = knob.split(".", 1)
-    return f"tradeoff-{section}-{key.replace('.', '-')}-{_slug(value)}"
+    """Workflow name of a sweep point, e.g. ``tradeoff-update-steps-40``, ``tradeoff-views-height-96-width-128``."""
+    section, _, key = knob.partition(".")
+    head = f"tradeoff-{section}-{key.replace('.', '-')}" if key else f"tradeoff-{section}"
+    return f"{head}-{_slug(value)}"
+
+
+def derived_scene(scene: str) -> tuple[str, str]:
+    """(base scene, knob section) of a derived scene name; (scene, "") for a plain scene."""
+    base, sep, tag = scene.partition(DERIVED_SEP)
+    if not sep:
+        return scene, ""
+    return base, tag.split("-")[1]
+
+
+def stage_owner(scene: str, stage: str) -> str:
+    """The scene whose outputs of per-scene ``stage`` ``scene`` uses (itself, or a derived
+    scene's base for the stages upstream of its knob's section)."""
+    base, section = derived_scene(scene)
+    if not section or SCENE_STAGE_ORDER.index(stage) >= SCENE_STAGE_ORDER.index(section):
+        return scene
+    return base
+
+
+def _knob_value(value: Any, key: str) -> dict:
+    """The section override of one knob value: {key: value} (nested by dots), or the mapping itself."""
+    if not key:
+        return copy.deepcopy(value)
+    out: dict = {}
+    node = out
+    parts = key.split(".")
+    for p in parts[:-1]:
+        node = node.setdefault(p, {})
+    node[parts[-1]] = copy.deepcopy(value)
+    return out
 
 
 def _get(d: dict, keys: Sequence[str]) -> Any:
@@ -56,13 +118,24 @@ def _get(d: dict, keys: Sequence[str]) -> Any:
     return d
 
 
+def _same_as_base(value: Any, section: str, key: str, base_value) -> bool:
+    """Whether ``value`` equals the base's effective setting (every key of a mapping value)."""
+    if base_value is None:
+        return False
+    if not key:
+        return all(base_value(f"{section}.{k}") == v for k, v in value.items())
+    current = base_value(f"{section}.{key}")
+    return current is not None and value == current
+
+
 def sweep_points(knobs: dict[str, list], base: str, variant_overrides: dict[str, dict],
                  base_value=None) -> list[SweepPoint]:
-    """Sweep points of ``knobs`` {"section.key": [values] | None} around variant ``base``.
+    """Sweep points of ``knobs`` {"section.key": [values] | "section": [mappings] | None} around ``base``.
 
-    ``base_value(knob)`` (optional) gives the base's effective setting of a knob; a value equal
-    to it maps to the base variant. Raises ValueError naming a knob outside the per-variant
-    sections, an empty value list or an unknown base.
+    ``base_value(knob)`` (optional; knob = "section.key") gives the base's effective setting; a
+    value equal to it maps to the base point. Raises ValueError naming a knob outside the
+    per-variant sections and per-scene stages, an empty value list, a bare-section knob whose
+    values are not mappings, or an unknown base.
     """
     if base not in variant_overrides:
         raise ValueError(f"tradeoff.base: variant {base!r} is not defined under variant_overrides "
@@ -72,23 +145,24 @@ def sweep_points(knobs: dict[str, list], base: str, variant_overrides: dict[str,
         if values is None:  # null drops a knob set by an earlier config file
             continue
         section, _, key = knob.partition(".")
-        if section not in VARIANT_SECTIONS or not key:
+        if section not in VARIANT_SECTIONS + SCENE_STAGES:
             raise ValueError(f"tradeoff.knobs: {knob!r} is not <section>.<key> of a per-variant section "
-                             f"{VARIANT_SECTIONS} (per-scene stages such as static are shared by all variants)")
+                             f"{VARIANT_SECTIONS} or a per-scene stage {SCENE_STAGES}")
         if not isinstance(values, list) or not values:
             raise ValueError(f"tradeoff.knobs.{knob}: give a non-empty list of values, got {values!r}")
-        current = base_value(knob) if base_value is not None else None
+        if not key and not all(isinstance(v, dict) and v for v in values):
+            raise ValueError(f"tradeoff.knobs.{knob}: a bare section knob takes mappings of its keys "
+                             f"(e.g. {{width: 128, height: 96}}), got {values!r}")
         for v in values:
-            if current is not None and v == current:
-                points.append(SweepPoint(base, knob, v, copy.deepcopy(variant_overrides[base])))
-                continue
-            ov = copy.deepcopy(variant_overrides[base])
-            node = ov.setdefault(section, {})
-            parts = key.split(".")
-            for p in parts[:-1]:
-                node = node.setdefault(p, {})
-            node[parts[-1]] = v
-            points.append(SweepPoint(variant_name(knob, v), knob, v, ov))
+            base_ov = copy.deepcopy(variant_overrides[base])
+            if _same_as_base(v, section, key, base_value):
+                points.append(SweepPoint(base, knob, v, base_ov))
+            elif section in VARIANT_SECTIONS:
+                ov = deep_merge(base_ov, {section: _knob_value(v, key)})
+                points.append(SweepPoint(variant_name(knob, v), knob, v, ov))
+            else:
+                points.append(SweepPoint(base, knob, v, base_ov, scene_tag=DERIVED_SEP + variant_name(knob, v),
+                                         scene_overrides={section: _knob_value(v, key)}))
     return points
 
 
@@ -105,29 +179,36 @@ def benchmark_seconds(paths: Iterable[str | Path]) -> float:
 
 
 def point_benchmarks(results: str | Path, scene: str, variant: str) -> tuple[list[Path], list[Path]]:
-    """(shared per-scene TSVs, the variant's own TSVs) that a point's seconds add up."""
-    root = Path(results) / scene
-    shared = [root / "benchmarks" / f"{s}.tsv" for s in SCENE_STAGES if (root / "benchmarks" / f"{s}.tsv").exists()]
-    own = sorted(p for p in (root / variant / "benchmarks").rglob("*.tsv") if p.name not in EXCLUDED_BENCHMARKS)
+    """(per-scene stage TSVs, the variant's own TSVs) that a point's seconds add up.
+
+    ``scene`` may be a derived scene: each stage's TSV is read from the scene that ran it.
+    """
+    shared = [Path(results) / stage_owner(scene, s) / "benchmarks" / f"{s}.tsv" for s in SCENE_STAGES]
+    shared = [p for p in shared if p.exists()]
+    own = sorted(p for p in (Path(results) / scene / variant / "benchmarks").rglob("*.tsv")
+                 if p.name not in EXCLUDED_BENCHMARKS)
     return shared, own
 
 
 def report_rows(points: Sequence[SweepPoint], results: str | Path, scene: str,
                 metrics: dict[str, dict]) -> list[dict[str, Any]]:
-    """One row per point: knob, value, variant, seconds, variant_seconds, then every metric value.
+    """One row per point: knob, value, variant, run (its results folder), seconds, variant_seconds,
+    then every metric value.
 
-    ``metrics``: variant -> its metrics.json content.
+    ``metrics``: "{point scene}/{variant}" -> its metrics.json content.
     """
     rows = []
     for p in points:
-        shared, own = point_benchmarks(results, scene, p.variant)
+        run = f"{p.scene(scene)}/{p.variant}"
+        shared, own = point_benchmarks(results, p.scene(scene), p.variant)
         if not own:
-            raise FileNotFoundError(f"no benchmark TSVs for {scene}/{p.variant} under {results}")
+            raise FileNotFoundError(f"no benchmark TSVs for {run} under {results}")
         own_s = benchmark_seconds(own)
-        row: dict[str, Any] = {"scene": scene, "knob": p.knob, "value": p.value, "variant": p.variant,
+        value = json.dumps(p.value, sort_keys=True) if isinstance(p.value, dict) else p.value
+        row: dict[str, Any] = {"scene": scene, "knob": p.knob, "value": value, "variant": p.variant, "run": run,
                                "seconds": round(benchmark_seconds(shared) + own_s, 3),
                                "variant_seconds": round(own_s, 3), "jobs": len(own)}
-        for name, rec in sorted(metrics[p.variant].get("metrics", {}).items()):
+        for name, rec in sorted(metrics[run].get("metrics", {}).items()):
             row[name] = rec.get("value") if rec.get("available") else None
         rows.append(row)
     return rows

@@ -8,8 +8,8 @@ from pathlib import Path
 import cv2
 import pytest
 
-from anigs.tradeoff import (SweepPoint, benchmark_seconds, plot_knob, report_rows, sweep_points, variant_name,
-                            write_csv)
+from anigs.tradeoff import (SweepPoint, benchmark_seconds, plot_knob, report_rows, stage_owner, sweep_points,
+                            variant_name, write_csv)
 
 OVERRIDES = {"full": {}, "no_composed_v2v": {"refine": {"compose": False}}}
 
@@ -34,8 +34,10 @@ def test_null_drops_a_knob():
 
 
 @pytest.mark.parametrize("knobs,match", [
-    ({"static.iterations": [500]}, "static.iterations"),
-    ({"update": [1]}, "'update'"),
+    ({"sfm.max_features": [500]}, "sfm.max_features"),  # SfM is shared by the whole sweep
+    ({"nonsense.key": [1]}, "nonsense.key"),
+    ({"update": [1]}, "update"),  # a bare section takes mappings
+    ({"views": [{}]}, "views"),
     ({"update.steps": []}, "update.steps"),
 ])
 def test_bad_knobs_are_named(knobs, match):
@@ -46,6 +48,41 @@ def test_bad_knobs_are_named(knobs, match):
 def test_unknown_base_is_named():
     with pytest.raises(ValueError, match="nope"):
         sweep_points({"update.steps": [1]}, "nope", OVERRIDES)
+
+
+BASE = {"static.iterations": 1000, "views.width": 256, "views.height": 192, "update.steps": 120}
+
+
+def test_per_scene_knobs_become_derived_scenes_of_the_base_variant():
+    pts = sweep_points({"static.iterations": [500, 1000], "views": [{"width": 128, "height": 96}]}, "no_composed_v2v",
+                       OVERRIDES, base_value=BASE.get)
+    assert [(p.scene("demo"), p.variant) for p in pts] == [
+        ("demo--tradeoff-static-iterations-500", "no_composed_v2v"), ("demo", "no_composed_v2v"),
+        ("demo--tradeoff-views-height-96-width-128", "no_composed_v2v")]
+    assert pts[0].scene_overrides == {"static": {"iterations": 500}}
+    assert pts[0].overrides == {"refine": {"compose": False}}  # the base variant's own overrides
+    assert pts[2].scene_overrides == {"views": {"width": 128, "height": 96}}
+
+
+def test_a_mapping_equal_to_the_base_settings_reuses_the_base():
+    pts = sweep_points({"views": [{"width": 256, "height": 192}, {"width": 256, "height": 96}]}, "full", OVERRIDES,
+                       base_value=BASE.get)
+    assert [p.scene("demo") for p in pts] == ["demo", "demo--tradeoff-views-height-96-width-256"]
+
+
+def test_a_mapping_value_of_a_variant_section_sets_several_keys():
+    pts = sweep_points({"update": [{"steps": 40, "num_bases": 6}]}, "full", OVERRIDES, base_value=BASE.get)
+    assert pts[0].variant == "tradeoff-update-num_bases-6-steps-40"
+    assert pts[0].overrides == {"update": {"steps": 40, "num_bases": 6}} and not pts[0].scene_tag
+
+
+def test_derived_scenes_reuse_the_stages_upstream_of_their_knob():
+    st, vw = "demo--tradeoff-static-iterations-500", "demo--tradeoff-views-height-96-width-128"
+    assert [stage_owner(st, s) for s in ("capture", "sfm", "static", "views", "masks")] == [
+        "demo", "demo", st, st, st]
+    assert [stage_owner(vw, s) for s in ("capture", "sfm", "static", "views", "masks")] == [
+        "demo", "demo", "demo", vw, vw]
+    assert stage_owner("demo", "sfm") == "demo"
 
 
 def test_variant_names_fit_the_workflow_wildcard():
@@ -86,7 +123,7 @@ def test_report_rows_csv_and_plot(tmp_path):
     _tsv(res / "demo" / "full" / "benchmarks" / "eval.tsv", [999.0])  # evaluation is not part of the cost
     _tsv(res / "demo" / "t40" / "benchmarks" / "round1" / "update.tsv", [20.0])
     pts = [SweepPoint("t40", "update.steps", 40, {}), SweepPoint("full", "update.steps", 120, {})]
-    rows = report_rows(pts, res, "demo", {"t40": _metrics(0.01, None), "full": _metrics(0.004, 30.0)})
+    rows = report_rows(pts, res, "demo", {"demo/t40": _metrics(0.01, None), "demo/full": _metrics(0.004, 30.0)})
     assert [r["seconds"] for r in rows] == [128.0, 178.0]
     assert [r["variant_seconds"] for r in rows] == [20.0, 70.0]
     assert rows[0]["multiview/psnr_novel"] is None and rows[1]["multiview/psnr_novel"] == 30.0
@@ -100,4 +137,23 @@ def test_report_rows_csv_and_plot(tmp_path):
     assert img is not None and img.shape[1] == 2 * 360
     assert (img < 250).any()  # something was drawn
     with pytest.raises(FileNotFoundError, match="nothing"):
-        report_rows([SweepPoint("nothing", "update.steps", 1, {})], res, "demo", {"nothing": _metrics(0, 0)})
+        report_rows([SweepPoint("nothing", "update.steps", 1, {})], res, "demo", {"demo/nothing": _metrics(0, 0)})
+
+
+def test_a_derived_scene_counts_its_own_stages_and_the_base_scenes_upstream(tmp_path):
+    res = tmp_path / "results"
+    for s, sec in (("static", 100.0), ("views", 5.0), ("masks", 3.0)):
+        _tsv(res / "demo" / "benchmarks" / f"{s}.tsv", [sec])
+    st, vw = "demo--tradeoff-static-iterations-500", "demo--tradeoff-views-height-96-width-128"
+    for s, sec in (("static", 40.0), ("views", 4.0), ("masks", 2.0)):
+        _tsv(res / st / "benchmarks" / f"{s}.tsv", [sec])
+    for s, sec in (("views", 1.0), ("masks", 0.5)):
+        _tsv(res / vw / "benchmarks" / f"{s}.tsv", [sec])
+    for scene in (st, vw):
+        _tsv(res / scene / "full" / "benchmarks" / "round1" / "update.tsv", [10.0])
+    pts = sweep_points({"static.iterations": [500], "views": [{"width": 128, "height": 96}]}, "full",
+                       {"full": {}}, base_value=BASE.get)
+    rows = report_rows(pts, res, "demo", {f"{st}/full": _metrics(0.02, None), f"{vw}/full": _metrics(0.03, None)})
+    assert [r["seconds"] for r in rows] == [56.0, 111.5]  # 40+4+2+10; the base's static 100 + 1+0.5+10
+    assert [r["run"] for r in rows] == [f"{st}/full", f"{vw}/full"]
+    assert json.loads(rows[1]["value"]) == {"width": 128, "height": 96}

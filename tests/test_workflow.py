@@ -210,21 +210,37 @@ def test_interrupted_run_resumes_to_the_same_artifacts(run, tmp_path):
 
 
 def test_tradeoff_sweep_reports_accuracy_against_time(run, tmp_path):
-    """`snakemake tradeoff`: one knob swept on the tiny scene; the base value reuses the finished run."""
+    """`snakemake tradeoff` on the tiny scene: a per-variant knob (update.steps) and a per-scene one
+    (static.iterations, a derived scene sharing the capture and SfM); base values reuse the finished run."""
     override = tmp_path / "sweep.yaml"
     override.write_text("tradeoff:\n  knobs:\n    update.num_bases: null\n    refine.strength: null\n"
-                        "    animate.views_per_round: null\n    update.steps: [10, 30]\n"
+                        "    animate.views_per_round: null\n    views: null\n    update.steps: [10, 30]\n"
+                        "    static.iterations: [100, 300]\n"
                         "  plot_metrics: [static_abs_diff, dynamic_abs_diff]\n")
     res = _snakemake(run, "tradeoff", "--configfile", "config/test.yaml", str(override), "--config", f"results={run}")
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     with open(run / "tradeoff" / "tiny.csv") as f:
         rows = list(csv.DictReader(f))
-    assert [(r["knob"], r["value"], r["variant"]) for r in rows] == [
-        ("update.steps", "10", "tradeoff-update-steps-10"), ("update.steps", "30", "full")]
+    derived = "tiny--tradeoff-static-iterations-100"
+    assert [(r["knob"], r["value"], r["variant"], r["run"]) for r in rows] == [
+        ("update.steps", "10", "tradeoff-update-steps-10", "tiny/tradeoff-update-steps-10"),
+        ("update.steps", "30", "full", "tiny/full"),
+        ("static.iterations", "100", "full", f"{derived}/full"),
+        ("static.iterations", "300", "full", "tiny/full")]
+    from anigs.tradeoff import benchmark_seconds
+
     update = json.loads((run / "tiny" / "tradeoff-update-steps-10" / "round1" / "update.json").read_text())
     assert update["steps"] == 10
+    assert json.loads((run / derived / "static" / "metrics.json").read_text())["iterations"] == 100
+    assert not (run / derived / "sfm").exists() and not (run / derived / "capture").exists()  # the base's, reused
     for r in rows:
         assert float(r["seconds"]) > float(r["variant_seconds"]) > 0
         assert r["static_abs_diff"] not in ("", "n/a")
-    img = cv2.imread(str(run / "tradeoff" / "tiny_update-steps.png"))
-    assert img is not None and img.shape[1] == 2 * 360
+    by_run = {r["run"]: r for r in rows}
+    for name, scene in (("tiny/full", "tiny"), (f"{derived}/full", derived)):  # each point pays its own stages
+        stages = benchmark_seconds(run / scene / "benchmarks" / f"{s}.tsv" for s in ("static", "views", "masks"))
+        r = by_run[name]
+        assert float(r["seconds"]) - float(r["variant_seconds"]) == pytest.approx(stages, abs=0.01)
+    for knob in ("update-steps", "static-iterations"):
+        img = cv2.imread(str(run / "tradeoff" / f"tiny_{knob}.png"))
+        assert img is not None and img.shape[1] == 2 * 360

@@ -5,8 +5,8 @@
 
 rule render_clip:
     input:
-        ply=f"{R}/{{scene}}/static/canonical.ply",
-        views=f"{R}/{{scene}}/views/views.json",
+        ply=stage_path("static", "canonical.ply"),
+        views=stage_path("views", "views.json"),
         model=_render_model,
     output:
         f"{VARIANT_DIR}/round{{round}}/render/{{view}}.npz",
@@ -32,7 +32,7 @@ rule render_clip:
 rule refine:
     input:
         clip=f"{VARIANT_DIR}/round{{round}}/render/{{view}}.npz",
-        masks=f"{R}/{{scene}}/masks",
+        masks=stage_path("masks"),
     output:
         f"{VARIANT_DIR}/round{{round}}/target/{{view}}.npz",
     params:
@@ -56,9 +56,9 @@ rule refine:
 
 rule update:
     input:
-        ply=f"{R}/{{scene}}/static/canonical.ply",
-        views=f"{R}/{{scene}}/views/views.json",
-        masks=f"{R}/{{scene}}/masks",
+        ply=stage_path("static", "canonical.ply"),
+        views=stage_path("views", "views.json"),
+        masks=stage_path("masks"),
         targets=_targets,
         init=_init_model,
     output:

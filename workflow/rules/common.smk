@@ -1,9 +1,11 @@
 # Shared helpers: scenes, variants, effective config sections, the round plan.
 import json
 import os
+import re
 
 import anigs
-from anigs.config import load_scene, section
+from anigs.config import deep_merge, load_scene, section
+from anigs.tradeoff import knob_filename, stage_owner, sweep_points as _sweep_points
 from anigs.plan import RoundPlan
 
 ANIGS_VERSION = anigs.__version__
@@ -12,7 +14,11 @@ R = config["results"]
 _scene_dir = config["scene_dir"]
 if not os.path.isabs(_scene_dir) and not os.path.isdir(_scene_dir):
     _scene_dir = os.path.join(workflow.basedir, _scene_dir)
-SCENES = {name: load_scene(_scene_dir, name) for name in config["scenes"]}
+SCENES = {name: load_scene(_scene_dir, name) for name in config["scenes"]}  # the scenes config names
+ALL_SCENES = dict(SCENES)  # and the accuracy-versus-time sweep's derived scenes (added below)
+for _s in SCENES:
+    if "--" in _s:
+        raise ValueError(f"config: scene name {_s!r} may not contain '--' (it marks the sweep's derived scenes)")
 for _v in list(config["variants"]) + list(config["table_variants"]):
     if _v not in config["variant_overrides"]:
         raise ValueError(f"config: variant {_v!r} is not defined under variant_overrides "
@@ -20,7 +26,7 @@ for _v in list(config["variants"]) + list(config["table_variants"]):
 
 
 def _names(source):
-    names = [n for n, s in SCENES.items() if s["source"] == source]
+    names = [re.escape(n) for n, s in SCENES.items() if s["source"] == source]
     return "|".join(names) if names else "(?!x)x"  # never matches when no scene of that kind
 
 
@@ -37,7 +43,7 @@ wildcard_constraints:
 
 def sec(scene, name, variant="full"):
     """Effective config section for (scene, variant)."""
-    return section(config, SCENES[scene], variant, name)
+    return section(config, ALL_SCENES[scene], variant, name)
 
 
 def jparams(name, extra=None):
@@ -53,7 +59,7 @@ def jparams(name, extra=None):
 
 
 def is_synthetic(scene):
-    return SCENES[scene]["source"] == "synthetic"
+    return ALL_SCENES[scene]["source"] == "synthetic"
 
 
 def num_views(scene):
@@ -75,8 +81,19 @@ def model_path(scene, variant, r):
     return f"{R}/{scene}/{variant}/round{r}/model.pt"
 
 
+def stage_dir(scene, stage):
+    """Output folder of per-scene ``stage`` (capture, sfm, static, views, masks) that ``scene`` uses:
+    its own, or for a derived scene of the sweep its base scene's upstream of the swept stage."""
+    return f"{R}/{stage_owner(scene, stage)}/{stage}"
+
+
+def stage_path(stage, rel=""):
+    """Input function: ``stage_dir(wildcards.scene, stage)/rel``."""
+    return lambda wc: f"{stage_dir(wc.scene, stage)}/{rel}".rstrip("/")
+
+
 def gt_file(scene, name):
-    return f"{R}/{scene}/capture/gt/{name}"
+    return f"{stage_dir(scene, 'capture')}/gt/{name}"
 
 
 def wants_gpu(scene, variant="full"):
@@ -113,7 +130,7 @@ def _roi_args(wc):
     if is_synthetic(wc.scene):
         return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
                 f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')}")
-    return f"--images {R}/{wc.scene}/capture/images"
+    return f"--images {stage_dir(wc.scene, 'capture')}/images"
 
 
 def _gt_inputs(wc):
@@ -127,11 +144,7 @@ def _mask_gt_args(wc):
         return ""
     return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
             f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')} "
-            f"--cameras {R}/{wc.scene}/sfm/cameras.json")
-
-
-def masks_dir(wc):
-    return f"{R}/{wc.scene}/masks"
+            f"--cameras {stage_dir(wc.scene, 'sfm')}/cameras.json")
 
 
 def _render_model(wc):
@@ -144,7 +157,7 @@ def _frames(wc):
 
 
 def _refine_extra(wc):
-    s = SCENES[wc.scene]
+    s = ALL_SCENES[wc.scene]
     return {"prompt": s.get("prompt", ""), "effects": s["effects"], "seed": config["seed"]}
 
 
@@ -168,7 +181,7 @@ def final_model(wc):
 
 
 def _eval_gt(wc):
-    return f"--gt-dir {R}/{wc.scene}/capture/gt" if is_synthetic(wc.scene) else ""
+    return f"--gt-dir {stage_dir(wc.scene, 'capture')}/gt" if is_synthetic(wc.scene) else ""
 
 
 def _dotted(d, keys):
@@ -177,9 +190,8 @@ def _dotted(d, keys):
     return d
 
 
-# ---- accuracy versus time: the sweep's points are variants (see anigs/tradeoff.py) ----
-from anigs.tradeoff import knob_filename, sweep_points as _sweep_points
-
+# ---- accuracy versus time: the sweep's points are variants, or derived scenes for per-scene
+# stages (see anigs/tradeoff.py) ----
 _TO = config.get("tradeoff", {})
 TRADEOFF = {}  # scene -> [SweepPoint]
 for _s in SCENES:
@@ -188,6 +200,8 @@ for _s in SCENES:
         lambda knob, s=_s: _dotted(sec(s, knob.split(".")[0], _TO.get("base", "full")), knob.split(".")[1:]))
     for _p in TRADEOFF[_s]:
         config["variant_overrides"].setdefault(_p.variant, _p.overrides)
+        if _p.scene_tag:
+            ALL_SCENES[_p.scene(_s)] = deep_merge(SCENES[_s], _p.scene_overrides)
 
 
 def tradeoff_targets():

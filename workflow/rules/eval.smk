@@ -4,12 +4,12 @@
 rule eval_scene:
     input:
         final=f"{R}/{{scene}}/{{variant}}/final/final.json",
-        masks=f"{R}/{{scene}}/masks",
-        ply=f"{R}/{{scene}}/static/canonical.ply",
+        masks=stage_path("masks"),
+        ply=stage_path("static", "canonical.ply"),
         model=final_model,
-        cameras=f"{R}/{{scene}}/sfm/cameras.json",
-        points=f"{R}/{{scene}}/sfm/points.npz",
-        images=f"{R}/{{scene}}/capture/images",
+        cameras=stage_path("sfm", "cameras.json"),
+        points=stage_path("sfm", "points.npz"),
+        images=stage_path("capture", "images"),
     output:
         report(f"{R}/{{scene}}/{{variant}}/eval/metrics.json", caption="../report/metrics.rst", category="Metrics",
                subcategory="{scene} {variant}"),
@@ -52,11 +52,12 @@ rule tables_build:
 
 
 def _tradeoff_metrics(wc):
-    return [f"{R}/{wc.scene}/{p.variant}/eval/metrics.json" for p in TRADEOFF[wc.scene]]
+    return [f"{R}/{p.scene(wc.scene)}/{p.variant}/eval/metrics.json" for p in TRADEOFF[wc.scene]]
 
 
 def _tradeoff_points(wc):
-    return json.dumps([{"variant": p.variant, "knob": p.knob, "value": p.value} for p in TRADEOFF[wc.scene]])
+    return json.dumps([{"variant": p.variant, "knob": p.knob, "value": p.value, "scene_tag": p.scene_tag}
+                       for p in TRADEOFF[wc.scene]])
 
 
 rule tradeoff_report:

@@ -3,11 +3,11 @@
 
 rule final_render:
     input:
-        ply=f"{R}/{{scene}}/static/canonical.ply",
+        ply=stage_path("static", "canonical.ply"),
         model=final_model,
-        views=f"{R}/{{scene}}/views/views.json",
-        cameras=f"{R}/{{scene}}/sfm/cameras.json",
-        masks=f"{R}/{{scene}}/masks",
+        views=stage_path("views", "views.json"),
+        cameras=stage_path("sfm", "cameras.json"),
+        masks=stage_path("masks"),
     output:
         summary=f"{R}/{{scene}}/{{variant}}/final/final.json",
         slices=report(directory(f"{R}/{{scene}}/{{variant}}/final/slices"), patterns=["{name}.png"],
@@ -35,7 +35,7 @@ rule final_render:
 
 rule export_scene:
     input:
-        ply=f"{R}/{{scene}}/static/canonical.ply",
+        ply=stage_path("static", "canonical.ply"),
         model=final_model,
     output:
         sidecar=f"{R}/{{scene}}/{{variant}}/export/animated.json",

@@ -34,9 +34,9 @@ rule sfm:
 
 rule static_fit:
     input:
-        images=f"{R}/{{scene}}/sfm/images",
-        cameras=f"{R}/{{scene}}/sfm/cameras.json",
-        points=f"{R}/{{scene}}/sfm/points.npz",
+        images=stage_path("sfm", "images"),
+        cameras=stage_path("sfm", "cameras.json"),
+        points=stage_path("sfm", "points.npz"),
     output:
         ply=f"{R}/{{scene}}/static/canonical.ply",
         metrics=f"{R}/{{scene}}/static/metrics.json",

@@ -3,9 +3,9 @@
 
 rule views:
     input:
-        ply=f"{R}/{{scene}}/static/canonical.ply",
-        cameras=f"{R}/{{scene}}/sfm/cameras.json",
-        images=f"{R}/{{scene}}/capture/images",
+        ply=stage_path("static", "canonical.ply"),
+        cameras=stage_path("sfm", "cameras.json"),
+        images=stage_path("capture", "images"),
         gt=_gt_inputs,
     output:
         views=f"{R}/{{scene}}/views/views.json",
@@ -32,8 +32,8 @@ rule views:
 
 rule masks:
     input:
-        ply=f"{R}/{{scene}}/static/canonical.ply",
-        views=f"{R}/{{scene}}/views/views.json",
+        ply=stage_path("static", "canonical.ply"),
+        views=stage_path("views", "views.json"),
         gt=_gt_inputs,
     output:
         # {view}.png, {view}_overlay.png (+ per-effect masks), dynamic.npy, masks.json

@@ -231,9 +231,12 @@ TOP = {
         "properties": {
             "base": {"type": "string", "default": "full", "description": "variant the sweep varies"},
             "knobs": {"type": "object", "default": {},
-                      "propertyNames": {"pattern": r"^(animate|render_clip|refine|update|final|export|eval)\.[A-Za-z0-9_.]+$"},
+                      "propertyNames": {"pattern": r"^((animate|render_clip|refine|update|final|export|eval|static|views|masks)"
+                                                   r"(\.[A-Za-z0-9_.]+)?)$"},
                       "additionalProperties": {"type": ["array", "null"], "minItems": 1},
-                      "description": "section.key -> values; each value becomes the variant tradeoff-SECTION-KEY-VALUE; null drops a knob"},
+                      "description": "section.key -> values, or section -> mappings of its keys; a per-variant section's "
+                                     "value becomes the variant tradeoff-SECTION-KEY-VALUE, a per-scene stage's (static, "
+                                     "views, masks) the derived scene SCENE--tradeoff-SECTION-KEY-VALUE; null drops a knob"},
             "plot_metrics": {"type": "array", "items": {"type": "string"}, "default": [],
                              "description": "metrics of metrics.json plotted against seconds, one PNG per knob"},
         }},
