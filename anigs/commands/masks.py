@@ -4,10 +4,24 @@ For each view of ``views.json`` the first frame is rendered from the canonical m
 read from ``--frames DIR``: ``{id}.png``, or ``{id}.npz`` clips whose frame 0 is used) and
 segmented by the configured backend (``vegetation`` default, ``labels``, ``sam2``).
 
+With ``--images DIR`` (the capture photos the canonical model was fitted to, named after the
+cameras of ``--cameras``) the backend also segments the photos (depth and alpha for the
+ground cue rendered from the canonical model at each capture camera; the vegetation ground
+cut there is ``capture_ground_layer`` times the measured layer: a training view sees the
+fitted ground close to where it was fitted), and the lifting votes over the capture views and
+the queued views together. A fitted Gaussian is judged by what it shows in the images it was
+fitted to, in clean photos, not only in renders from new viewpoints (blurred, with floaters).
+
+With ``complete_masks`` each queued view's mask is then completed with the pixels that the
+lifted dynamic Gaussians dominate in that view (the render of the 3D set), so every Gaussian
+that moves lies inside the masks the later stages composite with.
+
 Writes to ``--out``: ``{id}.png`` (dynamic mask, 0/255), ``{id}_{effect}.png`` when the backend
 gives several effect types, ``{id}_overlay.png``, ``dynamic.npy`` (bool [N] canonical Gaussians
 lifted from the masks) and ``masks.json`` (per-view fractions; with ``--labels``: IoU of each
-mask against the ground-truth label masks and precision/recall of the lifted Gaussians).
+mask against the ground-truth label masks and precision/recall of the lifted Gaussians; with
+``--gt-gaussians``, ``--gt-cameras`` and ``--cameras`` also against the appearance labels:
+``iou_appearance`` per view and ``lift_appearance``, see :func:`anigs.masks.labels.appearance_labels`).
 """
 from __future__ import annotations
 
@@ -38,6 +52,9 @@ class MasksConfig:
     lift: dict = field(default_factory=dict)        # LiftConfig keys
     per_effect: bool = True                    # write one mask per effect type when there are several
     compare: bool = True                       # with --labels: IoU / precision / recall vs ground truth
+    appearance: bool = True                    # with --labels, --gt-*, --cameras: also vs appearance labels (~0.3 s/photo)
+    capture_ground_layer: float = 0.5          # with --images: vegetation ground_layer on the capture photos
+    complete_masks: bool = True                # add the pixels the lifted dynamic Gaussians dominate to each mask
 
     @staticmethod
     def from_dict(d: dict | None) -> "MasksConfig":
@@ -48,6 +65,8 @@ class MasksConfig:
             raise ValueError(f"masks.backend must be vegetation, labels or sam2, got {cfg.backend!r}")
         if len(cfg.background) != 3:
             raise ValueError(f"masks.background must be [r, g, b], got {cfg.background}")
+        if cfg.capture_ground_layer < 0:
+            raise ValueError(f"masks.capture_ground_layer must be >= 0, got {cfg.capture_ground_layer}")
         return cfg
 
 
@@ -62,7 +81,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--motion", help="motion.json: which labels move, per effect type (with --labels)")
     p.add_argument("--gt-gaussians", help="PLY the labels belong to when it is not the canonical set")
     p.add_argument("--gt-cameras", help="cameras in the frame of --gt-gaussians (matched by name to --cameras)")
-    p.add_argument("--cameras", help="the reconstruction's cameras (sfm/cameras.json), to align with --gt-cameras")
+    p.add_argument("--cameras", help="the reconstruction's cameras (sfm/cameras.json), to align with --gt-cameras "
+                                     "and to place the --images")
+    p.add_argument("--images", help="the capture photos (sfm/images, named after the --cameras): segmented too, and "
+                                    "the lifting votes over them and the queued views")
 
 
 def _load_frames(frames_dir: str | None, g, cams, background) -> list:
@@ -102,6 +124,50 @@ def _labels_backend(args, cfg: MasksConfig, g, effects):
             log.info("masks: camera frame -> ground-truth frame: scale %.4g, centre RMS %.3g", sim.scale, rms)
         return LabelsBackend(lg, labels, effects, to_gaussians_frame=sim, **cfg.labels)
     return LabelsBackend(g, labels, effects, **cfg.labels)
+
+
+def capture_frames(images_dir: str, cameras, g) -> list:
+    """Frames of the capture photos (``{camera name}`` or ``{stem}.png`` in ``images_dir``), with the
+    depth and alpha of the canonical model ``g`` rendered at each camera (for the ground cue).
+
+    Cameras without a photo are skipped with a warning; none at all is an error.
+    """
+    from anigs.commands.views import camera_for_size
+    from anigs.masks import Frame, read_rgb_png, render_frames
+
+    d = Path(images_dir)
+    if not d.is_dir():
+        raise FileNotFoundError(f"--images folder not found: {d}")
+    out = []
+    for cam in cameras:
+        path = next((p for p in (d / cam.name, d / (Path(cam.name).stem + ".png")) if p.is_file()), None)
+        if path is None:
+            log.warning("masks: no capture photo for camera %s in %s: skipped", cam.name, d)
+            continue
+        img = read_rgb_png(path)
+        c = camera_for_size(cam, img.shape[0], img.shape[1], what=f"image {path}")
+        r = render_frames(g, [c])[0]
+        out.append(Frame(img, c, r.depth, r.alpha, c.name))
+    if not out:
+        raise ValueError(f"masks: none of the {len(cameras)} cameras has a photo in {d}")
+    return out
+
+
+def _precision_recall(pred: np.ndarray, truth: np.ndarray) -> dict:
+    tp = int((pred & truth).sum())
+    return {"precision": tp / max(int(pred.sum()), 1), "recall": tp / max(int(truth.sum()), 1)}
+
+
+def _appearance_yardstick(args, cfg: MasksConfig, g, effects, capture_cams, frames):
+    """(dynamic flag [N] of the appearance labels, their label masks [H,W] per frame)."""
+    from anigs.masks import compute_masks
+    from anigs.masks.labels import LabelsBackend, align_cameras, appearance_labels, dynamic_label_ids
+
+    labels = np.load(args.labels)
+    sim, _ = align_cameras(capture_cams, load_cameras(args.gt_cameras))
+    app, _, _ = appearance_labels(g, load_ply(args.gt_gaussians), labels, capture_cams, to_labels_frame=sim)
+    masks = [r["dynamic"] for r in compute_masks(LabelsBackend(g, app, effects, **cfg.labels), frames)]
+    return np.isin(app, dynamic_label_ids(effects)), masks
 
 
 def run(args: argparse.Namespace) -> int:
@@ -145,9 +211,40 @@ def run(args: argparse.Namespace) -> int:
         backend = build(cfg.sam2, vegetation=cfg.vegetation or None)
     results = compute_masks(backend, frames)
 
-    truth = None
+    # the lifting votes over the queued views, and over the capture photos when given
+    lift_cams, lift_in = [fr.camera for fr in frames], [r["dynamic"] for r in results]
+    capture_cams = load_cameras(args.cameras) if args.cameras else None
+    if args.images:
+        if capture_cams is None:
+            raise ValueError("--images needs --cameras (the cameras of the capture photos, sfm/cameras.json)")
+        cap_frames = capture_frames(args.images, capture_cams, g)
+        cap_backend = backend
+        if cfg.backend == "vegetation":
+            from anigs.masks.vegetation import build
+
+            cap_backend = build(dataclasses.replace(veg, ground_layer=cfg.capture_ground_layer), ground=ground)
+        cap_masks = [r["dynamic"] for r in compute_masks(cap_backend, cap_frames)]
+        lift_cams += [f.camera for f in cap_frames]
+        lift_in += cap_masks
+        info["capture"] = {"images": len(cap_frames), "fraction": float(np.mean([m.mean() for m in cap_masks]))}
+        log.info("masks: %d capture photos segmented (dynamic %.1f%%), lifting over them too",
+                 len(cap_frames), 100 * info["capture"]["fraction"])
+    dyn, lift_info = lift_masks_report(g, lift_cams, lift_in, lift_cfg, ground=ground)
+    info["lift"] = lift_info
+    if cfg.complete_masks and cfg.backend != "labels":  # the labels backend's masks are the ground truth
+        from anigs.masks.labels import dynamic_masks
+
+        added = []
+        for res, extra in zip(results, dynamic_masks(g, dyn, [fr.camera for fr in frames])):
+            added.append(float((extra & ~res["dynamic"]).mean()))
+            res["dynamic"] = res["dynamic"] | extra
+        info["completed_fraction"] = added
+
+    truth = app_truth = app_dynamic = None
     if args.labels and cfg.compare:
         truth = results if cfg.backend == "labels" else compute_masks(_labels_backend(args, cfg, g, effects), frames)
+        if cfg.appearance and args.gt_gaussians and args.gt_cameras and capture_cams is not None:
+            app_dynamic, app_truth = _appearance_yardstick(args, cfg, g, effects, capture_cams, frames)
 
     for k, (fr, res) in enumerate(zip(frames, results)):
         m = res["dynamic"]
@@ -162,26 +259,31 @@ def run(args: argparse.Namespace) -> int:
         if truth is not None:
             entry["iou_vs_labels"] = mask_iou(m, truth[k]["dynamic"])
             entry["labels_fraction"] = float(truth[k]["dynamic"].mean())
+        if app_truth is not None:
+            entry["iou_appearance"] = mask_iou(m, app_truth[k])
         info["views"].append(entry)
-        log.info("masks: %s dynamic %.1f%%%s", fr.name, 100 * m.mean(),
-                 f" IoU vs labels {entry['iou_vs_labels']:.3f}" if truth is not None else "")
-    if truth is not None:
-        ious = [v["iou_vs_labels"] for v in info["views"]]
-        info["iou_vs_labels"] = {"mean": float(np.mean(ious)), "min": float(np.min(ious))}
+        log.info("masks: %s dynamic %.1f%%%s%s", fr.name, 100 * m.mean(),
+                 f" IoU vs labels {entry['iou_vs_labels']:.3f}" if truth is not None else "",
+                 f" vs appearance {entry['iou_appearance']:.3f}" if app_truth is not None else "")
+    for key, on in (("iou_vs_labels", truth is not None), ("iou_appearance", app_truth is not None)):
+        if on:
+            vals = [v[key] for v in info["views"]]
+            info[key] = {"mean": float(np.mean(vals)), "min": float(np.min(vals))}
 
-    dyn, lift_info = lift_masks_report(g, [fr.camera for fr in frames], [r["dynamic"] for r in results], lift_cfg,
-                                       ground=ground)
-    info["lift"] = lift_info
     if args.labels and cfg.compare:
         from anigs.commands.views import roi_from_labels
 
         gt = roi_from_labels(g, args.labels, args.motion, None, args.gt_gaussians,
-                             args.gt_cameras, load_cameras(args.cameras) if args.cameras else cams)
-        tp = int((dyn & gt).sum())
-        info["lift_vs_labels"] = {"precision": tp / max(int(dyn.sum()), 1), "recall": tp / max(int(gt.sum()), 1),
-                                  "num_gt_dynamic": int(gt.sum()), "num_lifted": int(dyn.sum())}
+                             args.gt_cameras, capture_cams if capture_cams is not None else cams)
+        info["lift_vs_labels"] = {**_precision_recall(dyn, gt), "num_gt_dynamic": int(gt.sum()),
+                                  "num_lifted": int(dyn.sum())}
         log.info("masks: lifted Gaussians vs labels: precision %.3f recall %.3f",
                  info["lift_vs_labels"]["precision"], info["lift_vs_labels"]["recall"])
+        if app_dynamic is not None:
+            info["lift_appearance"] = {**_precision_recall(dyn, app_dynamic),
+                                       "num_appearance_dynamic": int(app_dynamic.sum()), "num_lifted": int(dyn.sum())}
+            log.info("masks: lifted Gaussians vs appearance labels: precision %.3f recall %.3f",
+                     info["lift_appearance"]["precision"], info["lift_appearance"]["recall"])
     with atomic_path(out / "dynamic.npy") as tmp:
         with open(tmp, "wb") as fh:
             np.save(fh, dyn)

@@ -183,6 +183,26 @@ class LabelsBackend:
         return masks
 
 
+def dynamic_masks(g: Gaussians, dynamic: np.ndarray, cameras: Sequence[Camera], threshold: float = 0.5,
+                  min_alpha: float = 0.3) -> list[np.ndarray]:
+    """Masks bool [H,W] per camera of the pixels that the Gaussians flagged in ``dynamic`` [N] dominate.
+
+    The render of a 3D dynamic set: a pixel is in the mask when the flagged Gaussians carry
+    >= ``threshold`` of its alpha and the alpha is >= ``min_alpha`` (as :class:`LabelsBackend`).
+    """
+    dynamic = np.asarray(dynamic, bool)
+    if dynamic.shape != (g.num,):
+        raise ValueError(f"dynamic_masks: flags have shape {dynamic.shape}, the Gaussians number {g.num}")
+    backend = LabelsBackend(g, dynamic.astype(np.int64), {"dynamic": [1]}, threshold, min_alpha)
+    out = []
+    for cam in cameras:
+        if not dynamic.any():
+            out.append(np.zeros((cam.height, cam.width), bool))
+            continue
+        out.append(backend(Frame(np.zeros((cam.height, cam.width, 3), np.float32), cam, name=cam.name))["dynamic"])
+    return out
+
+
 def build(gaussians: Gaussians, labels: np.ndarray, effects: dict[str, Sequence[int]] | None = None,
           dynamic_labels: Sequence[int] | None = None, threshold: float = 0.5, min_alpha: float = 0.3,
           to_gaussians_frame: Similarity | None = None) -> LabelsBackend:

@@ -15,7 +15,12 @@ Steps on an RGB frame [H,W,3] in [0,1]:
 4. texture cue: ``texture_weight`` * local standard deviation of the luminance
    (``texture_window`` px) is added to the index before thresholding (foliage is textured);
 5. optional flower cue: bright saturated (or, with a rendered alpha, white) pixels within
-   ``flower_radius`` px of vegetation and above the ground;
+   ``flower_radius`` px of vegetation colour. With ``flowers_in_ground`` they count inside the
+   ground layer of step 6 too: height cannot tell a flower bed from a fitted lawn that
+   scatters by decimetres, colour can (a blossom is not green; lawn, soil and bricks are not
+   bright and saturated). Single blossoms are a few pixels: ``flower_bed_radius`` closes them
+   into beds, with the vegetation-coloured pixels between them (stems, leaves), before the
+   small components of step 7 are dropped;
 6. ground cue (when the frame carries a rendered depth and a camera and a ground plane is
    given): pixels whose surface lies within the ground layer are excluded: a green lawn is
    static ground, bushes and trees stand above it. The layer reaches
@@ -63,6 +68,8 @@ class VegetationConfig:
     flower_saturation: float = 0.45
     flower_radius: int = 3       # px: how close to vegetation a flower pixel must be
     flower_min_value: float = 0.6  # brightest channel of a blossom (darker saturated = soil, bark)
+    flowers_in_ground: bool = True  # blossoms count inside the ground layer too (next to green)
+    flower_bed_radius: int = 3   # px: close the blossoms into beds (with the green between them), 0 = off
     open_radius: int = 0         # morphological opening radius (px), 0 = off (thin blades survive)
     close_radius: int = 0        # morphological closing radius (px), 0 = off
     min_area: float = 0.0005     # remove components smaller than this fraction of the frame
@@ -274,6 +281,7 @@ def vegetation_mask(image: np.ndarray, cfg: VegetationConfig | None = None, name
     valid = (bright >= cfg.min_brightness) & ~grey & ~sky
     if frame is None or frame.alpha is None:
         valid &= ~sky_colour
+    valid_colour = valid.copy()
     above = np.ones((h, w), bool)  # surfaces standing above the ground layer (all, without the ground cue)
     if cfg.ground and ground is not None and frame is not None and frame.depth is not None and frame.camera is not None:
         depth = np.asarray(frame.depth, np.float64)
@@ -289,16 +297,25 @@ def vegetation_mask(image: np.ndarray, cfg: VegetationConfig | None = None, name
         if t is not None:
             thr = float(np.clip(t, cfg.min_threshold, cfg.max_threshold))
     mask = valid & (idx > thr)
-    if cfg.flowers and mask.any():
+    green = valid_colour & (idx > thr)  # vegetation colour, ground layer included
+    if cfg.flowers and (mask.any() or (cfg.flowers_in_ground and green.any())):
         # colourful (or white) blossoms next to vegetation: any hue, blue included once the
         # geometry tells sky apart
-        near = cv2.dilate(mask.astype(np.uint8), _disk(max(cfg.flower_radius, 1))) > 0
+        seeds = (mask | green) if cfg.flowers_in_ground else mask
+        near = cv2.dilate(seeds.astype(np.uint8), _disk(max(cfg.flower_radius, 1))) > 0
         white = (img.min(-1) >= 0.75) & (sat < cfg.min_saturation)
         colourful = (sat >= cfg.flower_saturation) & (img.max(-1) >= cfg.flower_min_value)  # not soil
         if frame is None or frame.alpha is None:
             colourful &= ~sky_colour
             white[:] = False
-        flower = (colourful | white) & ~sky & above & (idx <= thr) & near
+        flower = (colourful | white) & ~sky & (idx <= thr) & near
+        if not cfg.flowers_in_ground:
+            flower &= above
+        if cfg.flower_bed_radius > 0 and flower.any():
+            # single blossoms are a few pixels: close them into beds, with the green stems and
+            # leaves between them (inside the ground layer too), before small components go
+            bed = cv2.morphologyEx(flower.astype(np.uint8), cv2.MORPH_CLOSE, _disk(cfg.flower_bed_radius)) > 0
+            flower |= bed & (green | colourful | white) & ~sky
         mask |= flower
     if cfg.open_radius > 0:
         mask = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, _disk(cfg.open_radius)) > 0

@@ -143,8 +143,7 @@ def _mask_gt_args(wc):
     if not is_synthetic(wc.scene):
         return ""
     return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
-            f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')} "
-            f"--cameras {stage_dir(wc.scene, 'sfm')}/cameras.json")
+            f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')}")
 
 
 def _render_model(wc):

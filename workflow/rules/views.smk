@@ -34,6 +34,9 @@ rule masks:
     input:
         ply=stage_path("static", "canonical.ply"),
         views=stage_path("views", "views.json"),
+        # the capture photos are segmented too: the lift to 3D votes over them and the queued views
+        images=stage_path("sfm", "images"),
+        cameras=stage_path("sfm", "cameras.json"),
         gt=_gt_inputs,
     output:
         # {view}.png, {view}_overlay.png (+ per-effect masks), dynamic.npy, masks.json
@@ -55,5 +58,6 @@ rule masks:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} masks --canonical {input.ply:q} --views {input.views:q} {params.gt} "
+        "anigs --threads {threads} masks --canonical {input.ply:q} --views {input.views:q} "
+        "--images {input.images:q} --cameras {input.cameras:q} {params.gt} "
         "--out {params.out:q} --params {params.p:q} > {log} 2>&1"
