@@ -92,6 +92,19 @@ def test_strided_upstream_gradients(kind):
         _assert_close(gt, gc, name)
 
 
+def test_unused_outputs_match_zero_gradients():
+    """Outputs that the loss does not use get no gradient tensor (the kernel skips them);
+    the result equals the one with explicit zero gradients for them."""
+    W, H = 40, 30
+    scene = random_scene(1200, W, H, 0, seed=43)
+    wt = torch.randn(H, W, 3, generator=torch.Generator().manual_seed(6))
+    _, _, g_none = _grads(scene, W, H, None, "cpu", lambda rgb, alpha, depth: (rgb * wt).sum())
+    _, _, g_zero = _grads(scene, W, H, None, "cpu",
+                          lambda rgb, alpha, depth: (rgb * wt).sum() + 0 * (alpha.sum() + depth.sum()))
+    for name, a, b in zip(["means", "quats", "scales", "opacities", "colors"], g_none, g_zero):
+        torch.testing.assert_close(a, b, rtol=1e-6, atol=1e-9, msg=name)
+
+
 def test_concurrent_renders_from_threads_match():
     """Two Python threads rendering at once (ctypes releases the GIL) get the serial results."""
     W, H = 64, 48

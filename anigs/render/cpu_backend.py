@@ -72,6 +72,7 @@ class _Preprocess(torch.autograd.Function):
     def forward(ctx, means, quats, scales, opacities, colors, cam, sh_degree: int, width: int, height: int,
                 on_invalid):
         lib = _build.load()
+        ctx.set_materialize_grads(False)  # unused outputs: None, not zero-filled tensors
         n = means.shape[0]
         ctx.dtypes = (means.dtype, quats.dtype, scales.dtype, colors.dtype)
         ctx.colors_shape = colors.shape
@@ -112,6 +113,9 @@ class _Composite(torch.autograd.Function):
     def forward(ctx, means2d, conics, feats, opacities, background, valid, rects, width: int, height: int,
                 info: dict):
         lib = _build.load()
+        # an unused output (often depth) then has no gradient tensor: the kernel skips that
+        # channel instead of reading materialized zeros
+        ctx.set_materialize_grads(False)
         nt = _threads()
         n = means2d.shape[0]
         ctx.opac_dtype, ctx.bg_dtype = opacities.dtype, background.dtype

@@ -10,8 +10,12 @@
 //   anigs_preprocess_backward (project.cpp)
 // Parallelism: OpenMP (or pool.cpp's threads) over Gaussians and over 16x16 tiles. Inside
 // a tile, a splat's box rows are processed in vector windows (GCC/Clang vector extensions:
-// 16/8 lanes with AVX-512, 8 with AVX2, 4 with SSE or NEON). Every reduction has a fixed order, so results are bit-identical whatever the
-// thread count.
+// 16/8 lanes with AVX-512, 8 with AVX2, 4 with SSE or NEON), in two passes per (tile, splat)
+// pair: the exponentials of all its rows (PairEval::eval), then the compositing (or its
+// backward) over those rows. The row loops have no data-dependent branches on the alpha
+// tests (masked lanes are no-ops): such branches mispredict often and cost more than the
+// few rows they skip. Every reduction has a fixed order, so results are bit-identical
+// whatever the thread count.
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -121,23 +125,102 @@ ANIGS_INLINE float hsum(vf16 v) {
   for (int i = 0; i < 8; ++i) a[i] = v[i] + v[i + 8];
   return ((a[0] + a[4]) + (a[2] + a[6])) + ((a[1] + a[5]) + (a[3] + a[7]));
 }
+// out[d] += lane sum of v[d], d < N, in a fixed order. With AVX the first eight sums come
+// from one transpose-and-add tree (14 shuffles, 7 adds) instead of eight separate
+// horizontal sums (each a chain of lane extracts): the backward pays this once per
+// (tile, splat) pair, which for small splats costs as much as a few rows.
+template <int N> ANIGS_INLINE void add_sums(const vf4 (&v)[N], float* out) {
+  for (int d = 0; d < N; ++d) out[d] += hsum(v[d]);
+}
+template <int N> ANIGS_INLINE void add_sums(const vf8 (&v)[N], float* out) {
+  int d = 0;
+#if defined(__AVX__)
+  if (N >= 8) {
+    __m256 a[8];
+    std::memcpy(a, v, sizeof(a));
+    __m256 p[4], q[2];
+    for (int i = 0; i < 4; ++i)  // per 128-bit half: (a0+a2, b0+b2, a1+a3, b1+b3)
+      p[i] = _mm256_add_ps(_mm256_unpacklo_ps(a[2 * i], a[2 * i + 1]), _mm256_unpackhi_ps(a[2 * i], a[2 * i + 1]));
+    for (int i = 0; i < 2; ++i)  // per half: one partial sum for each of 4 vectors
+      q[i] = _mm256_add_ps(_mm256_shuffle_ps(p[2 * i], p[2 * i + 1], 0x44),
+                           _mm256_shuffle_ps(p[2 * i], p[2 * i + 1], 0xee));
+    const __m256 r = _mm256_add_ps(_mm256_permute2f128_ps(q[0], q[1], 0x20), _mm256_permute2f128_ps(q[0], q[1], 0x31));
+    alignas(32) float t[8];
+    _mm256_store_ps(t, r);
+    for (int i = 0; i < 8; ++i) out[i] += t[i];
+    d = 8;
+  }
+#endif
+  for (; d < N; ++d) out[d] += hsum(v[d]);
+}
+template <int N> ANIGS_INLINE void add_sums(const vf16 (&v)[N], float* out) {
+  vf8 h[N];  // fold the two 8-lane halves first
+  for (int d = 0; d < N; ++d) {
+    vf8 lo, hi;
+    std::memcpy(&lo, &v[d], sizeof(lo));
+    std::memcpy(&hi, reinterpret_cast<const char*>(&v[d]) + sizeof(lo), sizeof(hi));
+    h[d] = lo + hi;
+  }
+  add_sums<N>(h, out);
+}
+
+// vmin(a, b) = a < b ? a : b and vmax(a, b) = a > b ? a : b lane-wise (b where a is NaN):
+// one instruction each on x86 (minps/maxps have exactly these semantics), where the
+// generic select takes a compare and a blend.
+#if defined(__AVX512F__)
+ANIGS_INLINE vf16 vmin(vf16 a, vf16 b) { return (vf16)_mm512_min_ps((__m512)a, (__m512)b); }
+ANIGS_INLINE vf16 vmax(vf16 a, vf16 b) { return (vf16)_mm512_max_ps((__m512)a, (__m512)b); }
+#else
+ANIGS_INLINE vf16 vmin(vf16 a, vf16 b) { return sel(a < b, a, b); }
+ANIGS_INLINE vf16 vmax(vf16 a, vf16 b) { return sel(a > b, a, b); }
+#endif
+#if defined(__AVX__)
+ANIGS_INLINE vf8 vmin(vf8 a, vf8 b) { return (vf8)_mm256_min_ps((__m256)a, (__m256)b); }
+ANIGS_INLINE vf8 vmax(vf8 a, vf8 b) { return (vf8)_mm256_max_ps((__m256)a, (__m256)b); }
+#else
+ANIGS_INLINE vf8 vmin(vf8 a, vf8 b) { return sel(a < b, a, b); }
+ANIGS_INLINE vf8 vmax(vf8 a, vf8 b) { return sel(a > b, a, b); }
+#endif
+#if defined(__SSE__)
+ANIGS_INLINE vf4 vmin(vf4 a, vf4 b) { return (vf4)_mm_min_ps((__m128)a, (__m128)b); }
+ANIGS_INLINE vf4 vmax(vf4 a, vf4 b) { return (vf4)_mm_max_ps((__m128)a, (__m128)b); }
+#else
+ANIGS_INLINE vf4 vmin(vf4 a, vf4 b) { return sel(a < b, a, b); }
+ANIGS_INLINE vf4 vmax(vf4 a, vf4 b) { return sel(a > b, a, b); }
+#endif
+
+// a * b + c, fused (one rounding) where the hardware has FMA. Only vexp uses it: its
+// polynomial is an approximation anyway, and fusing shortens its dependency chain, which
+// bounds the row loops. (Elsewhere -ffp-contract=off keeps the reference's operation order.)
+#if defined(__FMA__)
+ANIGS_INLINE vf4 fmadd(vf4 a, vf4 b, vf4 c) { return (vf4)_mm_fmadd_ps((__m128)a, (__m128)b, (__m128)c); }
+ANIGS_INLINE vf8 fmadd(vf8 a, vf8 b, vf8 c) { return (vf8)_mm256_fmadd_ps((__m256)a, (__m256)b, (__m256)c); }
+#else
+template <class F> ANIGS_INLINE F fmadd(F a, F b, F c) { return a * b + c; }
+#endif
+#if defined(__AVX512F__)
+ANIGS_INLINE vf16 fmadd(vf16 a, vf16 b, vf16 c) { return (vf16)_mm512_fmadd_ps((__m512)a, (__m512)b, (__m512)c); }
+#elif defined(__FMA__)
+ANIGS_INLINE vf16 fmadd(vf16 a, vf16 b, vf16 c) { return a * b + c; }
+#endif
+
 // exp(x) for float lanes (Cephes expf: Cody-Waite reduction + degree-7 polynomial,
 // ~1 ulp). x is clamped at -87 so far-away lanes stay finite; only x <= 0 is used.
 template <class F, class I> ANIGS_INLINE F vexp(F x) {
-  x = sel(x > -87.f, x, bc<F>(-87.f));
+  x = vmax(x, bc<F>(-87.f));
   const F magic = bc<F>(12582912.f);  // 1.5 * 2^23: adding it rounds to an integer
-  const F t = x * 1.44269504088896341f + magic;
+  const F t = fmadd(x, bc<F>(1.44269504088896341f), magic);
   const F n = t - magic;
   const I ni = (I)t - (I)magic;
-  F r = x - n * 0.693359375f;
-  r = r - n * -2.12194440e-4f;
+  F r = fmadd(n, bc<F>(-0.693359375f), x);
+  r = fmadd(n, bc<F>(2.12194440e-4f), r);
   // p(r) = sum_k p_k r^k, k = 0..5, in Estrin's scheme (short dependency chains)
   const F r2 = r * r, r4 = r2 * r2;
-  const F p01 = r * 1.6666665459e-1f + 5.0000001201e-1f;
-  const F p23 = r * 8.3334519073e-3f + 4.1665795894e-2f;
-  const F p45 = r * 1.9875691500e-4f + 1.3981999507e-3f;
-  const F p = (p01 + r2 * p23) + r4 * p45;
-  const F y = p * r2 + r + 1.f;
+  const F p01 = fmadd(r, bc<F>(1.6666665459e-1f), bc<F>(5.0000001201e-1f));
+  const F p23 = fmadd(r, bc<F>(8.3334519073e-3f), bc<F>(4.1665795894e-2f));
+  const F p45 = fmadd(r, bc<F>(1.9875691500e-4f), bc<F>(1.3981999507e-3f));
+  const F p = fmadd(r4, p45, fmadd(r2, p23, p01));
+  const F y = fmadd(p, r2, r) + 1.f;
   return y * (F)((ni + 127) << 23);
 }
 alignas(64) const int32_t LANE_I[16] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
@@ -175,15 +258,30 @@ template <int L> struct PairEval {
     const I li = ld<I>(LANE_I);
     box = (li >= bci<I>(bx0 - ax)) & (li < bci<I>(bx1 - ax));
   }
-  // alpha and G of the row at dy; returns the lanes of m passing the box, exponent and 1/255 tests.
-  ANIGS_INLINE I row(const Rec& s, float dy, I m, F& G, F& alpha) const {
-    const float cdy = s.C * dy * dy;
-    const F power = -0.5f * (Adx2 + cdy) - Bdx * dy;
-    G = vexp<F, I>(power);
-    const F oG = s.o * G;
-    alpha = sel(oG < ALPHA_MAX, oG, bc<F>(ALPHA_MAX));
-    return m & box & (power <= 0.f) & (alpha >= ALPHA_MIN);
+  // G, alpha and the lanes passing the box, exponent and 1/255 tests, for rows [y0, y1).
+  // This runs as a pass of its own before the compositing pass: its rows are independent
+  // and short, so the CPU overlaps many exp evaluations (the longest dependency chain of a
+  // row); fused into the compositing loop, whose rows are long, only a few rows fit in the
+  // out-of-order window and the exp latency is exposed on every row.
+  template <class Rows> ANIGS_INLINE void eval(const Rec& s, int y0, int y1, Rows& r) const {
+    for (int y = y0; y < y1; ++y) {
+      const float dy = (float(y) + 0.5f) - s.my;
+      const float cdy = s.C * dy * dy;
+      const F power = -0.5f * (Adx2 + cdy) - Bdx * dy;
+      const F G = vexp<F, I>(power);
+      const F oG = s.o * G;
+      const F alpha = vmin(oG, bc<F>(ALPHA_MAX));
+      const int i = y - y0;
+      r.G[i] = G;
+      r.alpha[i] = alpha;
+      r.m[i] = box & (power <= 0.f) & (alpha >= ALPHA_MIN);
+    }
   }
+};
+// Per-row results of PairEval::eval for one pair (at most TILE rows).
+template <int L> struct Rows {
+  typename VT<L>::f G[TILE], alpha[TILE];
+  typename VT<L>::i m[TILE];
 };
 
 // Per-tile pixel state: 16 rows, each padded to RS lanes so a window may start at any of
@@ -211,15 +309,16 @@ ANIGS_INLINE bool forward_pair(const Rec& s, int ax, int off, int bx0, int bx1, 
   typedef typename VT<L>::f F;
   typedef typename VT<L>::i I;
   const PairEval<L> pe(s, ax, bx0, bx1);
+  Rows<L> rw;
+  pe.eval(s, by0, by1, rw);
   const I jl1v = bci<I>(jl1);
   I term_any = bci<I>(0);
   for (int y = by0; y < by1; ++y) {
     const int k = (y - py0) * RS + off;
     const I done = ld<I>(t.done + k);
     if (!any(pe.box & ~done)) continue;  // every pixel of the row already stopped
-    F G, alpha;
-    I m = pe.row(s, (float(y) + 0.5f) - s.my, ~done, G, alpha);
-    if (!any(m)) continue;
+    const F alpha = rw.alpha[y - by0];
+    I m = rw.m[y - by0] & ~done;
     const F Tr = ld<F>(t.T + k);
     const F nextT = Tr * (1.f - alpha);
     const I term = m & (nextT <= T_MIN);  // stop before the splat crossing the floor
@@ -245,6 +344,8 @@ ANIGS_INLINE void backward_pair(const Rec& s, int ax, int off, int bx0, int bx1,
   const PairEval<L> pe(s, ax, bx0, bx1);
   const F Adx = s.A * pe.dx, ndx = -pe.dx, hdx2 = -0.5f * pe.dx * pe.dx;
   const I jlv = bci<I>(jl);
+  Rows<L> rw;
+  pe.eval(s, by0, by1, rw);
   F sum[6 + NC];
   for (int d = 0; d < 6 + NC; ++d) sum[d] = bc<F>(0.f);
   for (int y = by0; y < by1; ++y) {
@@ -252,9 +353,8 @@ ANIGS_INLINE void backward_pair(const Rec& s, int ax, int off, int bx0, int bx1,
     const I live = pe.box & (jlv < ld<I>(t.last + k));
     if (!any(live)) continue;  // every pixel of the row stopped before this splat
     const float dy = (float(y) + 0.5f) - s.my;
-    F G, alpha;
-    const I m = pe.row(s, dy, live, G, alpha);
-    if (!any(m)) continue;
+    const F G = rw.G[y - by0], alpha = rw.alpha[y - by0];
+    const I m = rw.m[y - by0] & live;
     const F Tk = ld<F>(t.T + k), GS = ld<F>(t.GS + k);
     const F inv = 1.f / (1.f - alpha);
     const F Tj = Tk * inv;  // transmittance in front of this splat
@@ -277,7 +377,7 @@ ANIGS_INLINE void backward_pair(const Rec& s, int ax, int off, int bx0, int bx1,
     sum[3] += dP * (ndx * dy);
     sum[4] += dP * ((-0.5f * dy) * dy);
   }
-  for (int d = 0; d < 6 + NC; ++d) out[d] += hsum(sum[d]);
+  add_sums<6 + NC>(sum, out);
 }
 
 // Tile-rect overlap of splat s with tile (px0, py0, tw, th); false when empty.
