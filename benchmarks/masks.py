@@ -64,7 +64,8 @@ def main(argv: list[str] | None = None) -> int:
     from anigs.cli import parse_params
     import dataclasses
 
-    from anigs.commands.masks import MasksConfig, capture_frames
+    from anigs.commands.masks import MasksConfig
+    from anigs.masks.capture import capture_frames
     from anigs.commands.views import roi_from_labels
     from anigs.gaussians import load_ply
     from anigs.io import read_json

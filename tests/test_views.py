@@ -200,3 +200,23 @@ def test_cli_views_from_2d(tmp_path, route):
     tp = (roi & truth).sum()
     assert tp / roi.sum() >= 0.85 and tp / truth.sum() >= 0.85, (tp / roi.sum(), tp / truth.sum(), data["lift"])
     assert data["lift"]["num_views"] == len(cams) and len(data["views"]) == 6
+
+
+def test_regions_of_interest_lifted_from_capture_photos(tmp_path, scene):
+    """Real scenes: `anigs views --images` segments the photos (vegetation backend, ground cue from
+    the canonical model's depth) and lifts them to 3D; missing or unmatched photos are errors."""
+    from anigs.commands.views import roi_from_masks
+    from anigs.masks import render_frames, write_rgb_png
+
+    gs, lab, cams = scene
+    for fr in render_frames(gs, cams):
+        write_rgb_png(tmp_path / "images" / f"{fr.name}.png", fr.image)
+    roi, info = roi_from_masks(gs, cams, None, str(tmp_path / "images"), {}, tmp_path)
+    truth = lab == 4
+    tp = int((roi & truth).sum())
+    assert tp / max(int(roi.sum()), 1) >= 0.9 and tp / int(truth.sum()) >= 0.8, info
+    with pytest.raises(FileNotFoundError, match="nope"):
+        roi_from_masks(gs, cams, None, str(tmp_path / "nope"), {}, tmp_path)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ValueError, match="has a photo"):
+        roi_from_masks(gs, cams, None, str(tmp_path / "empty"), {}, tmp_path)

@@ -126,33 +126,6 @@ def _labels_backend(args, cfg: MasksConfig, g, effects):
     return LabelsBackend(g, labels, effects, **cfg.labels)
 
 
-def capture_frames(images_dir: str, cameras, g) -> list:
-    """Frames of the capture photos (``{camera name}`` or ``{stem}.png`` in ``images_dir``), with the
-    depth and alpha of the canonical model ``g`` rendered at each camera (for the ground cue).
-
-    Cameras without a photo are skipped with a warning; none at all is an error.
-    """
-    from anigs.commands.views import camera_for_size
-    from anigs.masks import Frame, read_rgb_png, render_frames
-
-    d = Path(images_dir)
-    if not d.is_dir():
-        raise FileNotFoundError(f"--images folder not found: {d}")
-    out = []
-    for cam in cameras:
-        path = next((p for p in (d / cam.name, d / (Path(cam.name).stem + ".png")) if p.is_file()), None)
-        if path is None:
-            log.warning("masks: no capture photo for camera %s in %s: skipped", cam.name, d)
-            continue
-        img = read_rgb_png(path)
-        c = camera_for_size(cam, img.shape[0], img.shape[1], what=f"image {path}")
-        r = render_frames(g, [c])[0]
-        out.append(Frame(img, c, r.depth, r.alpha, c.name))
-    if not out:
-        raise ValueError(f"masks: none of the {len(cameras)} cameras has a photo in {d}")
-    return out
-
-
 def _precision_recall(pred: np.ndarray, truth: np.ndarray) -> dict:
     tp = int((pred & truth).sum())
     return {"precision": tp / max(int(pred.sum()), 1), "recall": tp / max(int(truth.sum()), 1)}
@@ -217,6 +190,8 @@ def run(args: argparse.Namespace) -> int:
     if args.images:
         if capture_cams is None:
             raise ValueError("--images needs --cameras (the cameras of the capture photos, sfm/cameras.json)")
+        from anigs.masks.capture import capture_frames
+
         cap_frames = capture_frames(args.images, capture_cams, g)
         cap_backend = backend
         if cfg.backend == "vegetation":

@@ -82,20 +82,11 @@ def find_mask(masks_dir: Path, cam: Camera) -> Path | None:
     return None
 
 
-def camera_for_size(cam: Camera, h: int, w: int, what: str) -> Camera:
-    """``cam`` at an image size of ``w``x``h`` (same aspect ratio required)."""
-    if (cam.height, cam.width) == (h, w):
-        return cam
-    if abs(w / h - cam.width / cam.height) > 0.01:
-        raise ValueError(f"{what} is {w}x{h} but camera {cam.name!r} is {cam.width}x{cam.height} "
-                         "(different aspect ratio)")
-    return cam.scaled(w, h)
-
-
 def roi_from_masks(g: Gaussians, cameras: list[Camera], masks_dir: str | None, images_dir: str | None,
                    stage: dict, out: Path) -> tuple[np.ndarray, dict]:
     """Dynamic flag [N] lifted from 2D masks of the candidate cameras (read, or computed from photos)."""
-    from anigs.masks import Frame, compute_masks, read_mask_png, read_rgb_png, render_frames
+    from anigs.masks import compute_masks, read_mask_png
+    from anigs.masks.capture import camera_for_size, capture_frames
     from anigs.masks.lift import LiftConfig, lift_masks_report
     from anigs.masks.vegetation import VegetationConfig, estimate_ground
 
@@ -118,19 +109,7 @@ def roi_from_masks(g: Gaussians, cameras: list[Camera], masks_dir: str | None, i
             cams.append(camera_for_size(cam, *m.shape, what=f"mask {path}"))
             masks.append(m)
     else:
-        d = Path(images_dir)
-        if not d.is_dir():
-            raise FileNotFoundError(f"--images folder not found: {d}")
-        frames = []
-        for cam in cameras:
-            path = d / cam.name if (d / cam.name).is_file() else d / (Path(cam.name).stem + ".png")
-            if not path.is_file():
-                log.warning("views: no image for camera %s in %s: camera skipped", cam.name, d)
-                continue
-            img = read_rgb_png(path)
-            c = camera_for_size(cam, img.shape[0], img.shape[1], what=f"image {path}")
-            rendered = render_frames(g, [c])[0]
-            frames.append(Frame(img, c, rendered.depth, rendered.alpha, c.name))
+        frames = capture_frames(images_dir, cameras, g)
         masks = [m["dynamic"] for m in compute_masks("vegetation", frames, config=veg_cfg, ground=ground)]
         cams = [f.camera for f in frames]
     if not cams:
