@@ -15,7 +15,8 @@ set together, e.g. ``views: [{width: 128, height: 96}]`` for the render resoluti
 
 A value equal to the base setting maps to the base point itself (no extra jobs).
 
-Seconds come from Snakemake's benchmark TSVs (column ``s``): the per-scene stages the point
+Seconds come from Snakemake's benchmark TSVs (column ``s``, and ``cpu_time`` for the CPU
+seconds, which stay comparable when other work shared the machine): the per-scene stages the point
 uses (static, views, masks, from the scene that computed them) plus every job of the variant up
 to its final renders (evaluation and export excluded), so a row says what the result cost to
 compute.
@@ -166,15 +167,19 @@ def sweep_points(knobs: dict[str, list], base: str, variant_overrides: dict[str,
     return points
 
 
-def benchmark_seconds(paths: Iterable[str | Path]) -> float:
-    """Sum of the ``s`` column (wall seconds) of Snakemake benchmark TSVs."""
+def benchmark_seconds(paths: Iterable[str | Path], column: str = "s") -> float | None:
+    """Sum over Snakemake benchmark TSVs of ``column`` (mean over --benchmark-repeats): ``s`` wall
+    seconds, ``cpu_time`` CPU seconds of the job's process tree. None when a TSV lacks ``column``
+    (older Snakemake versions write no cpu_time); a TSV without ``s`` is an error."""
     total = 0.0
     for p in paths:
         with open(p, newline="") as f:
             rows = list(csv.DictReader(f, delimiter="\t"))
         if not rows or "s" not in rows[0]:
             raise ValueError(f"{p}: not a Snakemake benchmark TSV (no 's' column)")
-        total += sum(float(r["s"]) for r in rows) / len(rows)  # mean over --benchmark-repeats
+        if column not in rows[0]:
+            return None
+        total += sum(float(r[column]) for r in rows) / len(rows)
     return total
 
 
@@ -192,8 +197,9 @@ def point_benchmarks(results: str | Path, scene: str, variant: str) -> tuple[lis
 
 def report_rows(points: Sequence[SweepPoint], results: str | Path, scene: str,
                 metrics: dict[str, dict]) -> list[dict[str, Any]]:
-    """One row per point: knob, value, variant, run (its results folder), seconds, variant_seconds,
-    then every metric value.
+    """One row per point: knob, value, variant, run (its results folder), seconds and
+    variant_seconds (wall), cpu_seconds and variant_cpu_seconds (CPU time: comparable when the
+    machine was shared), jobs, then every metric value.
 
     ``metrics``: "{point scene}/{variant}" -> its metrics.json content.
     """
@@ -203,11 +209,16 @@ def report_rows(points: Sequence[SweepPoint], results: str | Path, scene: str,
         shared, own = point_benchmarks(results, p.scene(scene), p.variant)
         if not own:
             raise FileNotFoundError(f"no benchmark TSVs for {run} under {results}")
-        own_s = benchmark_seconds(own)
+        own_s, own_cpu = benchmark_seconds(own), benchmark_seconds(own, "cpu_time")
+        shared_cpu = benchmark_seconds(shared, "cpu_time")
         value = json.dumps(p.value, sort_keys=True) if isinstance(p.value, dict) else p.value
         row: dict[str, Any] = {"scene": scene, "knob": p.knob, "value": value, "variant": p.variant, "run": run,
                                "seconds": round(benchmark_seconds(shared) + own_s, 3),
-                               "variant_seconds": round(own_s, 3), "jobs": len(own)}
+                               "variant_seconds": round(own_s, 3),
+                               "cpu_seconds": None if own_cpu is None or shared_cpu is None
+                               else round(shared_cpu + own_cpu, 3),
+                               "variant_cpu_seconds": None if own_cpu is None else round(own_cpu, 3),
+                               "jobs": len(own)}
         for name, rec in sorted(metrics[run].get("metrics", {}).items()):
             row[name] = rec.get("value") if rec.get("available") else None
         rows.append(row)

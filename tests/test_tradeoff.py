@@ -92,16 +92,20 @@ def test_variant_names_fit_the_workflow_wildcard():
         assert re.fullmatch(r"[A-Za-z0-9_-]+", variant_name("refine.strength", v))
 
 
-def _tsv(path: Path, seconds: list[float]) -> None:
+def _tsv(path: Path, seconds: list[float], cpu: bool = True) -> None:
+    """A benchmark TSV whose cpu_time is half the wall seconds (without the column: older Snakemake)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    rows = "".join(f"{s}\t0:00:01\t100\n" for s in seconds)
-    path.write_text("s\th:m:s\tmax_rss\n" + rows)
+    rows = "".join(f"{s}\t0:00:01\t100" + (f"\t{s / 2}" if cpu else "") + "\n" for s in seconds)
+    path.write_text("s\th:m:s\tmax_rss" + ("\tcpu_time" if cpu else "") + "\n" + rows)
 
 
 def test_benchmark_seconds_averages_repeats_and_sums_files(tmp_path):
     _tsv(tmp_path / "a.tsv", [2.0, 4.0])
     _tsv(tmp_path / "b.tsv", [1.5])
     assert benchmark_seconds([tmp_path / "a.tsv", tmp_path / "b.tsv"]) == pytest.approx(4.5)
+    assert benchmark_seconds([tmp_path / "a.tsv", tmp_path / "b.tsv"], "cpu_time") == pytest.approx(2.25)
+    _tsv(tmp_path / "old.tsv", [1.0], cpu=False)
+    assert benchmark_seconds([tmp_path / "a.tsv", tmp_path / "old.tsv"], "cpu_time") is None
     (tmp_path / "c.tsv").write_text("x\ty\n1\t2\n")
     with pytest.raises(ValueError, match="c.tsv"):
         benchmark_seconds([tmp_path / "c.tsv"])
@@ -126,6 +130,7 @@ def test_report_rows_csv_and_plot(tmp_path):
     rows = report_rows(pts, res, "demo", {"demo/t40": _metrics(0.01, None), "demo/full": _metrics(0.004, 30.0)})
     assert [r["seconds"] for r in rows] == [128.0, 178.0]
     assert [r["variant_seconds"] for r in rows] == [20.0, 70.0]
+    assert [r["cpu_seconds"] for r in rows] == [64.0, 89.0] and rows[0]["variant_cpu_seconds"] == 10.0
     assert rows[0]["multiview/psnr_novel"] is None and rows[1]["multiview/psnr_novel"] == 30.0
     path = write_csv(rows, tmp_path / "tradeoff" / "demo.csv")
     with open(path) as f:

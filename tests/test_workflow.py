@@ -235,6 +235,7 @@ def test_tradeoff_sweep_reports_accuracy_against_time(run, tmp_path):
     assert not (run / derived / "sfm").exists() and not (run / derived / "capture").exists()  # the base's, reused
     for r in rows:
         assert float(r["seconds"]) > float(r["variant_seconds"]) > 0
+        assert float(r["cpu_seconds"]) > float(r["variant_cpu_seconds"]) > 0  # Snakemake 8 writes cpu_time
         assert r["static_abs_diff"] not in ("", "n/a")
     by_run = {r["run"]: r for r in rows}
     for name, scene in (("tiny/full", "tiny"), (f"{derived}/full", derived)):  # each point pays its own stages
