@@ -18,7 +18,7 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.configs import reject_unknown_keys
-from anigs.densify import DensifyConfig, DensifyState, refine, update_state
+from anigs.densify import DensifyConfig, DensifyState, refine, schedule_for, update_state
 from anigs.device import get_device, seed_everything
 from anigs.gaussians import Gaussians
 from anigs.render import rasterize
@@ -298,6 +298,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
                    mininterval=0.1 if sys.stderr.isatty() else 10.0)
     ema_loss = ema_psnr = None
     deg = 0
+    densify_cfg = schedule_for(cfg.densify, cfg.iterations)
     for step in range(1, cfg.iterations + 1):
         deg = min(cfg.sh_degree, (step - 1) // cfg.sh_increase_every)
         for group in optimizer.param_groups:
@@ -330,7 +331,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
             save_checkpoint(step)
         if cfg.eval_every > 0 and step % cfg.eval_every == 0 and step != cfg.iterations:
             curve.append(checkpoint(step, deg))  # before refinement: an opacity reset would hide the progress
-        params = refine(params, optimizer, dstate, step, cfg.densify, extent, gen)
+        params = refine(params, optimizer, dstate, step, densify_cfg, extent, gen)
         if bar is not None:
             bar.update(1)
             if step % 10 == 0 or step == cfg.iterations:

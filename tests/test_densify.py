@@ -214,3 +214,15 @@ def test_refine_resets_opacity_on_schedule():
     refine(params, opt, st, 50, cfg, 1.0)
     assert torch.sigmoid(params["opacity_logits"].detach()).max() <= 0.01 + 1e-6
     assert st.last.get("opacity_reset") == 1
+
+
+def test_schedule_ends_densification_before_the_fit_ends():
+    """A fit shorter than densify.stop still ends with steps free of densification."""
+    from anigs.densify import DensifyConfig, schedule_for
+
+    cfg = DensifyConfig(start=300, stop=1200, every=100)
+    assert schedule_for(cfg, 500).stop == 400 and schedule_for(cfg, 1000).stop == 800
+    assert schedule_for(cfg, 3000).stop == 1200  # a long fit keeps the configured stop
+    assert schedule_for(DensifyConfig(stop_fraction=1.0), 1000).stop == 1000
+    with pytest.raises(ValueError, match="stop_fraction"):
+        DensifyConfig.from_dict({"stop_fraction": 0})

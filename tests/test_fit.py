@@ -273,3 +273,22 @@ def test_load_points_formats(tmp_path):
         load_points(tmp_path / "b.npz")
     with pytest.raises(FileNotFoundError, match="anigs sfm"):
         load_points(tmp_path / "missing.npz")
+
+
+def test_fit_ends_densification_before_its_last_steps(scene, monkeypatch):
+    """densify.stop beyond the fit's length is cut to stop_fraction x iterations."""
+    import anigs.fit
+
+    gt, cams, imgs = scene
+    p, c = sfm_points(gt, every=4)
+    seen = []
+    real = anigs.fit.refine
+
+    def spy(params, optimizer, state, step, cfg, *a, **k):
+        seen.append(cfg.stop)
+        return real(params, optimizer, state, step, cfg, *a, **k)
+
+    monkeypatch.setattr(anigs.fit, "refine", spy)
+    cfg = FitConfig.from_dict({**FAST, "densify": {"start": 10, "stop": 1000, "every": 10, "reset_every": 0}})
+    fit_static(imgs, cams, p, c, cfg, progress=False)
+    assert seen and set(seen) == {32}  # 0.8 x 40 iterations
