@@ -62,10 +62,6 @@ class SweepPoint:
     def scene(self, base_scene: str) -> str:
         return base_scene + self.scene_tag
 
-    @property
-    def section(self) -> str:
-        return self.knob.split(".", 1)[0]
-
 
 def _slug(value: Any) -> str:
     if isinstance(value, dict):
@@ -111,7 +107,8 @@ def _knob_value(value: Any, key: str) -> dict:
     return out
 
 
-def _get(d: dict, keys: Sequence[str]) -> Any:
+def get_dotted(d: dict, keys: Sequence[str]) -> Any:
+    """``d[k0][k1]...``, or None where a key is missing."""
     for k in keys:
         if not isinstance(d, dict) or k not in d:
             return None

@@ -5,7 +5,7 @@ import re
 
 import anigs
 from anigs.config import deep_merge, load_scene, section
-from anigs.tradeoff import knob_filename, stage_owner, sweep_points as _sweep_points
+from anigs.tradeoff import DERIVED_SEP, get_dotted, knob_filename, stage_owner, sweep_points as _sweep_points
 from anigs.plan import RoundPlan
 
 ANIGS_VERSION = anigs.__version__
@@ -17,8 +17,8 @@ if not os.path.isabs(_scene_dir) and not os.path.isdir(_scene_dir):
 SCENES = {name: load_scene(_scene_dir, name) for name in config["scenes"]}  # the scenes config names
 ALL_SCENES = dict(SCENES)  # and the accuracy-versus-time sweep's derived scenes (added below)
 for _s in SCENES:
-    if "--" in _s:
-        raise ValueError(f"config: scene name {_s!r} may not contain '--' (it marks the sweep's derived scenes)")
+    if DERIVED_SEP in _s:
+        raise ValueError(f"config: scene name {_s!r} may not contain {DERIVED_SEP!r} (it marks the sweep's derived scenes)")
 for _v in list(config["variants"]) + list(config["table_variants"]):
     if _v not in config["variant_overrides"]:
         raise ValueError(f"config: variant {_v!r} is not defined under variant_overrides "
@@ -183,12 +183,6 @@ def _eval_gt(wc):
     return f"--gt-dir {stage_dir(wc.scene, 'capture')}/gt" if is_synthetic(wc.scene) else ""
 
 
-def _dotted(d, keys):
-    for k in keys:
-        d = d.get(k) if isinstance(d, dict) else None
-    return d
-
-
 # ---- accuracy versus time: the sweep's points are variants, or derived scenes for per-scene
 # stages (see anigs/tradeoff.py) ----
 _TO = config.get("tradeoff", {})
@@ -196,7 +190,7 @@ TRADEOFF = {}  # scene -> [SweepPoint]
 for _s in SCENES:
     TRADEOFF[_s] = _sweep_points(
         _TO.get("knobs", {}), _TO.get("base", "full"), config["variant_overrides"],
-        lambda knob, s=_s: _dotted(sec(s, knob.split(".")[0], _TO.get("base", "full")), knob.split(".")[1:]))
+        lambda knob, s=_s: get_dotted(sec(s, knob.split(".")[0], _TO.get("base", "full")), knob.split(".")[1:]))
     for _p in TRADEOFF[_s]:
         config["variant_overrides"].setdefault(_p.variant, _p.overrides)
         if _p.scene_tag:
