@@ -41,8 +41,10 @@ import numpy as np
 
 
 def _pr(pred: np.ndarray, truth: np.ndarray) -> dict:
-    tp = int((pred & truth).sum())
-    return {"precision": round(tp / max(int(pred.sum()), 1), 4), "recall": round(tp / max(int(truth.sum()), 1), 4),
+    from anigs.masks.lift import precision_recall
+
+    pr = precision_recall(pred, truth)
+    return {"precision": round(pr["precision"], 4), "recall": round(pr["recall"], 4),
             "lifted": int(pred.sum()), "truth": int(truth.sum())}
 
 

@@ -126,11 +126,6 @@ def _labels_backend(args, cfg: MasksConfig, g, effects):
     return LabelsBackend(g, labels, effects, **cfg.labels)
 
 
-def _precision_recall(pred: np.ndarray, truth: np.ndarray) -> dict:
-    tp = int((pred & truth).sum())
-    return {"precision": tp / max(int(pred.sum()), 1), "recall": tp / max(int(truth.sum()), 1)}
-
-
 def _appearance_yardstick(args, cfg: MasksConfig, g, effects, capture_cams, frames):
     """(dynamic flag [N] of the appearance labels, their label masks [H,W] per frame)."""
     from anigs.masks import compute_masks
@@ -147,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
     from anigs.masks import compute_masks, mask_iou, overlay, write_mask_png, write_rgb_png
     from anigs.masks.labels import effects_from_motion
-    from anigs.masks.lift import LiftConfig, lift_masks_report
+    from anigs.masks.lift import LiftConfig, lift_masks_report, precision_recall
     from anigs.masks.vegetation import VegetationConfig, estimate_ground
     from anigs.views import cameras_from_views
 
@@ -250,12 +245,12 @@ def run(args: argparse.Namespace) -> int:
 
         gt = roi_from_labels(g, args.labels, args.motion, None, args.gt_gaussians,
                              args.gt_cameras, capture_cams if capture_cams is not None else cams)
-        info["lift_vs_labels"] = {**_precision_recall(dyn, gt), "num_gt_dynamic": int(gt.sum()),
+        info["lift_vs_labels"] = {**precision_recall(dyn, gt), "num_gt_dynamic": int(gt.sum()),
                                   "num_lifted": int(dyn.sum())}
         log.info("masks: lifted Gaussians vs labels: precision %.3f recall %.3f",
                  info["lift_vs_labels"]["precision"], info["lift_vs_labels"]["recall"])
         if app_dynamic is not None:
-            info["lift_appearance"] = {**_precision_recall(dyn, app_dynamic),
+            info["lift_appearance"] = {**precision_recall(dyn, app_dynamic),
                                        "num_appearance_dynamic": int(app_dynamic.sum()), "num_lifted": int(dyn.sum())}
             log.info("masks: lifted Gaussians vs appearance labels: precision %.3f recall %.3f",
                      info["lift_appearance"]["precision"], info["lift_appearance"]["recall"])

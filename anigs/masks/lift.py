@@ -276,6 +276,13 @@ def propagate_labels(means: np.ndarray, decided: np.ndarray, value: np.ndarray, 
     return out
 
 
+def precision_recall(pred: np.ndarray, truth: np.ndarray) -> dict[str, float]:
+    """Precision and recall of a lifted dynamic set ``pred`` [N] bool against ``truth`` [N] bool
+    (0 when the denominator is empty)."""
+    tp = int((pred & truth).sum())
+    return {"precision": tp / max(int(pred.sum()), 1), "recall": tp / max(int(truth.sum()), 1)}
+
+
 def lift_masks_report(g: Gaussians | torch.Tensor | np.ndarray, cameras: Sequence[Camera], masks: Sequence[np.ndarray],
                       cfg: LiftConfig | None = None, depths: Sequence[np.ndarray] | None = None,
                       ground=None) -> tuple[np.ndarray, dict]:
