@@ -1,0 +1,104 @@
+"""Regions, the effects each region carries, and the parameters of effect detection.
+
+A *region* is what the detector finds (foliage, grass, flowers, water); an *effect* is what the
+animation simulates. Foliage carries two effects (``foliage_sway``, ``leaf_flutter``) that share
+its masks and Gaussians.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+from anigs.configs import reject_unknown_keys
+
+REGIONS: tuple[str, ...] = ("foliage", "grass", "flowers", "water")
+REGION_EFFECTS: dict[str, tuple[str, ...]] = {
+    "foliage": ("foliage_sway", "leaf_flutter"),
+    "grass": ("grass_wave",),
+    "flowers": ("flower_bob",),
+    "water": ("water_ripple",),
+}
+EFFECT_REGION: dict[str, str] = {e: r for r, effs in REGION_EFFECTS.items() for e in effs}
+EFFECTS: tuple[str, ...] = tuple(EFFECT_REGION)
+
+
+@dataclass
+class Config:
+    """Parameters of :func:`anigs.effects.detect_effects` (config section ``effects``).
+
+    Lengths in pixels are fractions of the photo's diagonal (``*_frac``) so they hold at any
+    resolution; heights are fractions of the cameras' median height above the fitted ground.
+    """
+
+    requested: list | str = "auto"  # effects to simulate: auto (every detected one) or a list; a listed effect the scene lacks is reported and skipped
+    # photos
+    max_photos: int = 24             # photos analysed (evenly spaced over the capture)
+    max_side: int = 400              # photos are downscaled to this longest side (px)
+    min_alpha: float = 0.5           # pixels where the fitted model is thinner than this are empty (sky)
+    # geometry
+    up: str = "z"                    # world up: "z" (the SfM stage writes z-up) or "auto" (estimated from the cameras and points)
+    neighbour_radius: float = 0.06   # 3D neighbourhood radius for planarity, x the median photo depth
+    neighbours: int = 32             # at most this many neighbours per Gaussian
+    wall_max_variation: float = 0.04  # surface variation below this = locally planar (walls, floors, pictures)
+    wall_max_upness: float = 0.35    # |normal . up| below this = vertical
+    floor_min_upness: float = 0.85   # |normal . up| above this = horizontal
+    ground_margin: float = 0.03      # ground layer: surfaces below this x camera height are ground
+    ground_min_support: float = 0.03  # the ground plane counts when this fraction of Gaussians lies on it
+    ground_max_below: float = 0.1    # ... and at most this fraction lies clearly under it
+    grass_max_height: float = 0.2    # vegetation whose components stay below this x camera height is grass
+    # colour
+    green_hue: tuple = (62.0, 170.0)  # hue band of vegetation (degrees)
+    green_min_saturation: float = 0.16  # HSV saturation a vegetation pixel needs at least
+    min_value: float = 0.03          # darker pixels carry no colour (dark foliage is still found above this)
+    flower_min_saturation: float = 0.45  # HSV saturation a blossom pixel needs at least
+    flower_min_value: float = 0.4    # brightest channel of a blossom (darker saturated: soil, bark)
+    flower_green_hue: tuple = (68.0, 215.0)  # blossoms are saturated colours outside this band (red, yellow, blue, violet)
+    white_flowers: bool = True       # bright near-white blobs inside vegetation count as blossoms
+    flower_radius_frac: float = 0.025  # a blossom lies within this of vegetation
+    flower_min_ring: float = 0.25    # share of a blossom's surroundings that must be vegetation
+    flower_bed_frac: float = 0.015   # closing radius joining blossoms (and the stems between them) into beds
+    flower_rim_frac: float = 0.008  # blossoms grow this far over their blended, less saturated rim
+    flower_bed_share: float = 0.1    # low plant components with blossoms on this share of their area are beds
+    max_rectangularity: float = 0.9  # green components filling >= this of their bounding rectangle are pictures
+    # water
+    water_hue: tuple = (165.0, 265.0)  # bluish / cyan hues of water (sky reflection, depth)
+    water_min_saturation: float = 0.2  # HSV saturation a water pixel needs at least
+    water_max_texture: float = 0.035  # local luminance std of water (weakly textured)
+    water_max_height: float = 0.06   # water lies below this x camera height above the ground plane
+    reflect_min_spread: float = 0.25  # colour spread across photos (relative) that marks a reflective surface
+    texture_frac: float = 0.012      # window of the local luminance std
+    # regions and decisions
+    min_component_frac: float = 0.0004  # components smaller than this share of the photo are dropped
+    min_pixel_fraction: float = 0.002   # an effect needs this share of the photos' pixels ...
+    min_gaussian_fraction: float = 0.001  # ... and of the Gaussians ...
+    min_gaussians: int = 20          # ... and at least this many Gaussians ...
+    min_photo_fraction: float = 0.1  # ... and a region in this share of the photos (at least 2)
+    vote_threshold: float = 0.5      # a Gaussian joins the region voted by this share of the photos that see it
+    propagate_k: int = 8             # Gaussians seen by no photo take the majority of their k neighbours
+
+    def __post_init__(self) -> None:
+        if self.up not in ("z", "auto"):
+            raise ValueError(f"effects.up must be 'z' or 'auto', got {self.up!r}")
+        if self.max_photos < 1 or self.max_side < 16:
+            raise ValueError(f"effects: max_photos ({self.max_photos}) must be >= 1 and max_side "
+                             f"({self.max_side}) >= 16")
+        for name in ("green_hue", "flower_green_hue", "water_hue"):
+            v = tuple(float(x) for x in getattr(self, name))
+            if len(v) != 2 or not 0 <= v[0] < v[1] <= 360:
+                raise ValueError(f"effects.{name} must be (low, high) degrees in [0, 360], got {v}")
+            setattr(self, name, v)
+        if not 0 < self.vote_threshold <= 1:
+            raise ValueError(f"effects.vote_threshold must be in (0, 1], got {self.vote_threshold}")
+        for name in ("neighbour_radius", "grass_max_height", "water_max_height", "ground_margin"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"effects.{name} must be > 0, got {getattr(self, name)}")
+
+    @staticmethod
+    def from_dict(d: dict | None) -> "Config":
+        """Build from a config section; unknown keys are an error naming them."""
+        d = dict(d or {})
+        reject_unknown_keys(Config, d, "effects config", ValueError)
+        return Config(**d)
+
+    def to_dict(self) -> dict:
+        out = asdict(self)
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}

@@ -1,0 +1,104 @@
+"""2D cues of effect detection on one photo: colour classes, texture and connected components.
+
+All functions take RGB float [H,W,3] in [0,1] or bool / float maps [H,W] and return [H,W] maps
+(or per-component arrays indexed by the component label, 0 = background).
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from anigs.masks.vegetation import fill_small_holes, remove_small, saturation
+
+LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+
+
+def disk(r: int) -> np.ndarray:
+    """Elliptic structuring element of radius ``r`` (px)."""
+    r = max(int(r), 1)
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+
+
+def hsv(img: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Hue [H,W] in degrees [0,360), saturation (max-min)/max and value max, each [H,W]."""
+    h = cv2.cvtColor(np.ascontiguousarray(img, np.float32), cv2.COLOR_RGB2HSV)[..., 0]
+    return h, saturation(img), img.max(-1)
+
+
+def in_band(hue: np.ndarray, band: tuple[float, float]) -> np.ndarray:
+    """Hue inside [low, high] degrees."""
+    return (hue >= band[0]) & (hue <= band[1])
+
+
+def green(img: np.ndarray, hue_band: tuple[float, float], min_sat: float, min_value: float) -> np.ndarray:
+    """Vegetation colour: a green hue at any brightness above ``min_value`` (dark, shaded foliage
+    included), saturated enough to be a colour, and green not below red (``G >= R``)."""
+    h, s, v = hsv(img)
+    return in_band(h, hue_band) & (s >= min_sat) & (v >= min_value) & (img[..., 1] >= img[..., 0])
+
+
+def colourful(img: np.ndarray, green_band: tuple[float, float], min_sat: float, min_value: float,
+              white: bool) -> np.ndarray:
+    """Blossom colour: saturated and bright with a hue outside the green band (any other hue: red,
+    yellow, blue, violet ...), or, with ``white``, bright near-white."""
+    h, s, v = hsv(img)
+    out = (s >= min_sat) & (v >= min_value) & ~in_band(h, green_band)
+    if white:
+        out |= (img.min(-1) >= 0.8) & (s < 0.15)
+    return out
+
+
+def texture(img: np.ndarray, window: int) -> np.ndarray:
+    """Local standard deviation [H,W] of the luminance in a ``window`` x ``window`` box."""
+    lum = img @ LUMA
+    k = (max(int(window), 3),) * 2
+    mean = cv2.blur(lum, k)
+    return np.sqrt(np.maximum(cv2.blur(lum * lum, k) - mean * mean, 0.0))
+
+
+def clean(mask: np.ndarray, min_pixels: int, hole_pixels: int) -> np.ndarray:
+    """Drop components smaller than ``min_pixels`` and fill holes up to ``hole_pixels``."""
+    return fill_small_holes(remove_small(np.asarray(mask, bool), min_pixels), hole_pixels)
+
+
+def components(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """8-connected components: (count incl. background, labels [H,W] int32, areas [count])."""
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(np.asarray(mask, np.uint8), connectivity=8)
+    return n, lab, stats[:, cv2.CC_STAT_AREA].astype(np.int64)
+
+
+def ring_share(labels: np.ndarray, n: int, radius: int, inside: np.ndarray) -> np.ndarray:
+    """Per component [n]: the share of its surrounding ring (``radius`` px wide, outside every
+    component) where ``inside`` holds (0 where the ring is empty)."""
+    grown = cv2.dilate(labels.astype(np.float32), disk(radius)).astype(np.int64)
+    ring = (labels == 0) & (grown > 0)
+    total = np.bincount(grown[ring], minlength=n)[:n]
+    hit = np.bincount(grown[ring & inside], minlength=n)[:n]
+    return np.where(total > 0, hit / np.maximum(total, 1), 0.0)
+
+
+def rectangularity(labels: np.ndarray, n: int, areas: np.ndarray, min_pixels: int) -> np.ndarray:
+    """Per component [n]: area / area of its minimum-area rotated rectangle (1 = a rectangle; an
+    ellipse is ~0.79, ragged foliage lower); 0 for components under ``min_pixels``."""
+    out = np.zeros(n)
+    for i in np.flatnonzero(areas >= max(min_pixels, 16)):
+        if i == 0:
+            continue
+        ys, xs = np.nonzero(labels == i)
+        (_, _), (w, h), _ = cv2.minAreaRect(np.column_stack([xs, ys]).astype(np.float32))
+        out[i] = areas[i] / max((w + 1) * (h + 1), 1.0)
+    return out
+
+
+def component_quantile(labels: np.ndarray, n: int, values: np.ndarray, q: float) -> np.ndarray:
+    """Per component [n]: the ``q`` quantile of ``values`` [H,W] over its pixels (nan if empty)."""
+    out = np.full(n, np.nan)
+    flat, v = labels.ravel(), values.ravel()
+    order = np.argsort(flat, kind="stable")
+    bounds = np.searchsorted(flat[order], np.arange(n + 1))
+    for i in range(1, n):
+        seg = v[order[bounds[i]:bounds[i + 1]]]
+        seg = seg[np.isfinite(seg)]
+        if len(seg):
+            out[i] = float(np.quantile(seg, q))
+    return out

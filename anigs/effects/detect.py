@@ -1,0 +1,233 @@
+"""Which effects a scene contains and where: :func:`detect_effects` and its result.
+
+Pipeline (no downloaded weights):
+
+1. a few capture photos (``max_photos``, evenly spaced, downscaled to ``max_side``);
+2. 3D cues of the fitted model: up, ground plane, per-Gaussian surface variation and
+   ``|normal . up|`` (:func:`~anigs.effects.geometry.local_shape`), multi-view colour spread;
+3. per photo: the model's depth/alpha and the cue maps rendered at its camera, then the region
+   masks of :func:`~anigs.effects.regions.classify_photo`;
+4. lift: every Gaussian votes, over the photos where it is visible (depth test), for the region
+   under its centre; it joins the region voted by >= ``vote_threshold`` of them. Gaussians no
+   photo sees take the majority of their ``propagate_k`` nearest decided neighbours
+   (:func:`anigs.masks.lift.propagate_labels`); foliage, grass and flowers stop at the ground;
+5. decide per region: detected when it covers >= ``min_pixel_fraction`` of the photos' pixels,
+   >= ``min_gaussian_fraction`` (and ``min_gaussians``) of the Gaussians and appears in
+   >= ``min_photo_fraction`` of the photos (at least 2).
+
+Confidence: detected, ``0.5 + 0.5 * mean(strength_px, strength_g, photo share, agreement)`` with
+``strength = min(1, fraction / (3 * minimum))`` and ``agreement`` the mean vote share of the
+region's Gaussians; not detected, ``1 - 0.5 * min(1, max(pixel, Gaussian fraction / minimum))``.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import cv2
+import numpy as np
+
+from anigs.cameras import Camera
+from anigs.effects.config import EFFECTS, REGION_EFFECTS, REGIONS, Config
+from anigs.effects.geometry import Ground, colour_spread, local_shape, render_features, scene_ground, world_up
+from anigs.effects.reasons import reason
+from anigs.effects.regions import PhotoMaps, PhotoRegions, classify_photo
+from anigs.gaussians import Gaussians
+from anigs.io import write_json
+from anigs.masks import check_image
+from anigs.masks.capture import camera_for_size
+from anigs.masks.lift import VisibilityConfig, project_to_pixels, propagate_labels, visible_depth
+
+log = logging.getLogger("anigs.effects")
+
+
+@dataclass
+class EffectResult:
+    """One effect's decision and region (``masks`` per analysed photo, ``indices`` of Gaussians)."""
+
+    name: str
+    region: str
+    detected: bool
+    pixel_fraction: float
+    gaussian_fraction: float
+    confidence: float
+    reason: str
+    masks: list[np.ndarray]
+    indices: np.ndarray
+    photo_fraction: float = 0.0
+    agreement: float = 0.0
+
+    def to_json(self) -> dict:
+        return {"detected": bool(self.detected), "pixel_fraction": round(float(self.pixel_fraction), 5),
+                "gaussian_fraction": round(float(self.gaussian_fraction), 5),
+                "confidence": round(float(self.confidence), 3), "reason": self.reason, "region": self.region,
+                "num_gaussians": int(len(self.indices)), "photo_fraction": round(float(self.photo_fraction), 4),
+                "agreement": round(float(self.agreement), 4)}
+
+
+@dataclass
+class EffectsResult:
+    """All effects of a scene, the analysed photos and the per-Gaussian region ids (-1 = none)."""
+
+    effects: dict[str, EffectResult]
+    photos: list[np.ndarray]
+    cameras: list[Camera]
+    region_of: np.ndarray
+    ground: Ground
+    cfg: Config
+
+    @property
+    def detected(self) -> list[str]:
+        """Names of the detected effects, in ``EFFECTS`` order."""
+        return [e for e in EFFECTS if self.effects[e].detected]
+
+    def dynamic(self, effects: Sequence[str] | None = None) -> np.ndarray:
+        """bool [N]: Gaussians of the detected effects (of ``effects`` only, when given)."""
+        out = np.zeros(len(self.region_of), bool)
+        for e in self.detected:
+            if effects is None or e in effects:
+                out[self.effects[e].indices] = True
+        return out
+
+    def to_json(self) -> dict:
+        """The ``effects.json`` object: effect name -> decision under ``effects``, plus context."""
+        return {"effects": {e: r.to_json() for e, r in self.effects.items()}, "detected": self.detected,
+                "num_gaussians": int(len(self.region_of)), "photos": [c.name for c in self.cameras],
+                "ground": self.ground.to_dict(), "config": self.cfg.to_dict()}
+
+    def save(self, out_dir: str | Path) -> None:
+        """Write ``effects.json`` and ``regions.npy`` (int8 [N]: index into ``REGIONS``, -1 none)."""
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        write_json(out / "effects.json", self.to_json())
+        np.save(out / "regions.npy", self.region_of.astype(np.int8))
+
+
+def _prepare(images: Sequence[np.ndarray], cameras: Sequence[Camera], cfg: Config) -> tuple[list, list]:
+    """Evenly spaced photos (float32 [H,W,3]) downscaled to ``max_side``, with their cameras."""
+    if len(images) != len(cameras):
+        raise ValueError(f"detect_effects: {len(images)} images but {len(cameras)} cameras")
+    if not len(images):
+        raise ValueError("detect_effects: no photos")
+    pick = np.unique(np.round(np.linspace(0, len(images) - 1, min(len(images), cfg.max_photos))).astype(int))
+    photos, cams = [], []
+    for i in pick:
+        img = check_image(images[i], cameras[i].name)
+        h, w = img.shape[:2]
+        cam = camera_for_size(cameras[i], h, w, f"photo {cameras[i].name!r}")
+        s = cfg.max_side / max(h, w)
+        if s < 1:
+            nw, nh = max(int(round(w * s)), 1), max(int(round(h * s)), 1)
+            img = cv2.resize(img, (nw, nh), interpolation=cv2.INTER_AREA)
+            cam = cam.scaled(nw, nh)
+        photos.append(np.ascontiguousarray(img, np.float32))
+        cams.append(cam)
+    return photos, cams
+
+
+def _median_depth(means: np.ndarray, cams: Sequence[Camera]) -> float:
+    zs = []
+    for cam in cams:
+        inside, _, _, z = project_to_pixels(means, cam)
+        if inside.any():
+            zs.append(float(np.median(z[inside])))
+    if not zs:
+        raise ValueError("detect_effects: no Gaussian lies in front of any photo's camera")
+    return float(np.median(zs))
+
+
+def _lift(means: np.ndarray, max_scale: np.ndarray, maps: Sequence[PhotoMaps], regions: Sequence[PhotoRegions],
+          ground: Ground, cfg: Config) -> tuple[np.ndarray, np.ndarray]:
+    """Region id [N] (-1 none) and vote share [N] of every Gaussian (see module docstring)."""
+    n, r = len(means), len(REGIONS)
+    votes = np.zeros((n, r + 1))
+    seen_n = np.zeros(n)
+    vis = VisibilityConfig(mode="depth")
+    for p, reg in zip(maps, regions):
+        ids = np.zeros(p.depth.shape, np.int64)
+        for k, name in enumerate(REGIONS):
+            ids[reg.masks[name]] = k + 1
+        seen = visible_depth(means, p.camera, p.depth, p.alpha, max_scale, vis)
+        _, px, py, _ = project_to_pixels(means, p.camera, vis.near)
+        np.add.at(votes, (np.flatnonzero(seen), ids[py[seen], px[seen]]), 1.0)
+        seen_n += seen
+    share = votes[:, 1:] / np.maximum(seen_n, 1)[:, None]
+    best = np.argmax(share, 1)
+    top = share[np.arange(n), best]
+    region = np.where(top >= cfg.vote_threshold, best, -1)
+    decided = seen_n > 0
+    out = region.copy()
+    for k in range(r):
+        out[propagate_labels(means, decided, region == k, cfg.propagate_k) & ~decided] = k
+    if ground.plane is not None:  # plants stop at the ground (water lies on it)
+        hgt = means @ ground.plane.normal - ground.plane.offset
+        below = hgt < 0.5 * ground.plane.min_height
+        out[below & np.isin(out, [REGIONS.index(x) for x in ("foliage", "grass", "flowers")])] = -1
+    return out, np.where(decided, top, 0.0)
+
+
+def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaussians: Gaussians,
+                   cfg: Config | None = None) -> EffectsResult:
+    """Detect foliage, grass, flowers and water in a scene (see module docstring).
+
+    Args:
+        images: capture photos, RGB [H,W,3] (float in [0,1] or uint8), one per camera.
+        cameras: their cameras (any resolution of the same aspect ratio).
+        gaussians: the fitted static model.
+        cfg: :class:`Config` (defaults documented there).
+    Returns an :class:`EffectsResult` with one :class:`EffectResult` per effect of ``EFFECTS``.
+    """
+    cfg = cfg or Config()
+    photos, cams = _prepare(images, cameras, cfg)
+    g = gaussians.detach()
+    means = g.means.double().numpy()
+    max_scale = g.scales.max(1).values.double().numpy()
+    up = world_up(cams, cfg.up, means)
+    ground = scene_ground(means, cams, up, cfg.ground_margin, cfg.ground_min_support, cfg.ground_max_below)
+    if ground.note:
+        log.info("effects: %s", ground.note)
+    radius = cfg.neighbour_radius * _median_depth(means, cams)
+    variation, upness = local_shape(means, up, radius, cfg.neighbours)
+    shape = np.column_stack([variation, upness])
+    renders = [render_features(g, shape, cam) for cam in cams]
+    spread = colour_spread(g, photos, cams, [r[2] for r in renders])
+    second = [spread]
+    if ground.plane is not None:
+        second.append(means @ ground.plane.normal - ground.plane.offset)
+    second = np.column_stack(second)
+    maps = []
+    for img, cam, (m, a, d) in zip(photos, cams, renders):
+        m2 = render_features(g, second, cam)[0]
+        height = m2[..., 1] if ground.plane is not None else None
+        maps.append(PhotoMaps(img, cam, d, a, m[..., 0], m[..., 1], m2[..., 0], height, cam.name))
+    regions = [classify_photo(p, ground, cfg) for p in maps]
+    region_of, share = _lift(means, max_scale, maps, regions, ground, cfg)
+    effects: dict[str, EffectResult] = {}
+    n_photos = len(maps)
+    min_photos = max(2, int(np.ceil(cfg.min_photo_fraction * n_photos))) if n_photos > 1 else 1
+    for k, name in enumerate(REGIONS):
+        masks = [reg.masks[name] for reg in regions]
+        fracs = np.array([m.mean() for m in masks])
+        pf = float(fracs.mean())
+        idx = np.flatnonzero(region_of == k)
+        gf = len(idx) / max(len(means), 1)
+        with_region = int((fracs >= cfg.min_component_frac).sum())
+        photo_frac = with_region / n_photos
+        agreement = float(share[idx].mean()) if len(idx) else 0.0
+        ok = (pf >= cfg.min_pixel_fraction and gf >= cfg.min_gaussian_fraction and len(idx) >= cfg.min_gaussians
+              and with_region >= min_photos)
+        if ok:
+            score = np.mean([min(1.0, pf / (3 * cfg.min_pixel_fraction)), min(1.0, gf / (3 * cfg.min_gaussian_fraction)),
+                             photo_frac, agreement])
+            conf = 0.5 + 0.5 * float(score)
+        else:
+            conf = 1.0 - 0.5 * min(1.0, max(pf / cfg.min_pixel_fraction, gf / cfg.min_gaussian_fraction))
+        rejected = sum(r.rejected_wall_green for r in regions) / max(sum(m.size for m in masks), 1)
+        text = reason(name, ok, pf, gf, with_region, n_photos, cfg, ground, rejected)
+        for eff in REGION_EFFECTS[name]:
+            effects[eff] = EffectResult(eff, name, ok, pf, gf, conf, text, masks, idx, photo_frac, agreement)
+    res = EffectsResult(effects, photos, cams, region_of, ground, cfg)
+    log.info("effects: detected %s", res.detected or "nothing")
+    return res

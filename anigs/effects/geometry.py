@@ -1,0 +1,137 @@
+"""3D cues of effect detection, per Gaussian of the fitted model, and their per-pixel renders.
+
+- up direction and ground plane (:func:`scene_ground`, via :func:`anigs.masks.vegetation.estimate_ground`);
+- local shape of the Gaussian centres (:func:`local_shape`): PCA of the neighbours within a
+  radius gives the surface variation ``l3 / (l1 + l2 + l3)`` (0 on a plane, 1/3 isotropic) and
+  ``|normal . up|`` (1 on floors and water, 0 on walls and pictures);
+- multi-view colour spread (:func:`colour_spread`): how much the photos disagree on the colour
+  of a Gaussian's centre (reflections change with the viewpoint; diffuse surfaces do not);
+- :func:`render_features`: up to 3 per-Gaussian features rendered as per-pixel maps.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+import torch
+
+from anigs.cameras import Camera
+from anigs.gaussians import Gaussians
+from anigs.masks.lift import VisibilityConfig, frustum_subset, project_to_pixels, render_inputs, visible_depth
+from anigs.masks.vegetation import GroundPlane, estimate_ground
+from anigs.render import rasterize
+
+log = logging.getLogger("anigs.effects")
+
+
+@dataclass
+class Ground:
+    """The ground plane when it could be found, and why not otherwise."""
+
+    plane: GroundPlane | None
+    up: np.ndarray
+    support: float = 0.0  # share of the Gaussians lying on the plane
+    note: str = ""
+
+    def to_dict(self) -> dict:
+        return {"found": self.plane is not None, "up": self.up.tolist(), "support": round(self.support, 4),
+                "note": self.note, **({"plane": self.plane.to_dict()} if self.plane is not None else {})}
+
+
+def world_up(cameras: Sequence[Camera], mode: str = "z", points: np.ndarray | None = None) -> np.ndarray:
+    """Up [3]: +z (the SfM stage writes z-up), or with ``auto`` the capture's estimated up
+    (:func:`anigs.geometry.estimate_up`: camera axes, photo orientation and the points' planes)."""
+    if mode == "z":
+        return np.array([0.0, 0.0, 1.0])
+    from anigs.geometry import estimate_up
+
+    return estimate_up(cameras, points).up
+
+
+def scene_ground(means: np.ndarray, cameras: Sequence[Camera], up: np.ndarray, margin: float,
+                 min_support: float, max_below: float = 0.1) -> Ground:
+    """Ground plane of ``means`` [N,3] along ``up``; ``plane`` is None (with a note) when the cameras
+    are not above it, fewer than ``min_support`` of the Gaussians lie within its layer, or more than
+    ``max_below`` lie clearly under it (a close-up without visible ground)."""
+    try:
+        plane = estimate_ground(means, up, cameras, margin=margin)
+    except ValueError as err:
+        return Ground(None, up, 0.0, f"no ground plane ({err})")
+    h = means @ plane.normal - plane.offset
+    band = max(plane.cut_height(), 1e-9)
+    support = float((np.abs(h) <= band).mean())
+    if support < min_support:
+        return Ground(None, up, support, f"no ground plane: only {100 * support:.1f}% of the Gaussians lie on "
+                                         f"the lowest dense layer (needs {100 * min_support:.1f}%)")
+    below = float((h < -max(band, 0.1 * plane.camera_height)).mean())
+    if below > max_below:  # nothing real lies under the ground: this layer is not it
+        return Ground(None, up, support, f"no ground plane: {100 * below:.0f}% of the Gaussians lie under the "
+                                         f"lowest dense layer (at most {100 * max_below:.0f}% allowed)")
+    return Ground(plane, up, support, "")
+
+
+def local_shape(means: np.ndarray, up: np.ndarray, radius: float, k: int = 32) -> tuple[np.ndarray, np.ndarray]:
+    """Surface variation [N] and ``|normal . up|`` [N] of each centre's neighbourhood (<= ``k``
+    neighbours within ``radius``; fewer than 4 neighbours: variation 1/3, upness 0.5)."""
+    from scipy.spatial import cKDTree
+
+    n = len(means)
+    k = int(min(k, n))
+    dist, idx = cKDTree(means).query(means, k=k, distance_upper_bound=radius)
+    dist, idx = np.asarray(dist).reshape(n, k), np.asarray(idx).reshape(n, k)
+    valid = np.isfinite(dist)
+    cnt = valid.sum(1)
+    safe = np.where(valid, idx, np.arange(n)[:, None])
+    nb = means[safe]                                                   # [N,k,3]
+    w = valid[..., None].astype(np.float64)
+    mu = (nb * w).sum(1) / np.maximum(cnt, 1)[:, None]
+    d = (nb - mu[:, None]) * w
+    cov = np.einsum("nki,nkj->nij", d, d) / np.maximum(cnt, 1)[:, None, None]
+    evals, evecs = np.linalg.eigh(cov)                                 # ascending
+    variation = evals[:, 0] / np.maximum(evals.sum(1), 1e-18)
+    upness = np.abs(evecs[:, :, 0] @ up)
+    few = cnt < 4
+    variation[few], upness[few] = 1.0 / 3.0, 0.5
+    return variation, upness
+
+
+def colour_spread(g: Gaussians, photos: Sequence[np.ndarray], cameras: Sequence[Camera],
+                  depths: Sequence[np.ndarray]) -> np.ndarray:
+    """Relative spread [N] of the photos' luminance at each visible centre: std / (mean + 0.05);
+    0 for Gaussians seen by fewer than 2 photos."""
+    means = g.means.detach().double().numpy()
+    max_scale = g.scales.detach().max(1).values.double().numpy()
+    s1 = np.zeros(len(means))
+    s2 = np.zeros(len(means))
+    cnt = np.zeros(len(means))
+    vis = VisibilityConfig(mode="depth")
+    for img, cam, depth in zip(photos, cameras, depths):
+        seen = visible_depth(means, cam, depth, None, max_scale, vis)
+        _, px, py, _ = project_to_pixels(means, cam, vis.near)
+        lum = img[py, px] @ np.array([0.299, 0.587, 0.114])
+        s1 += np.where(seen, lum, 0.0)
+        s2 += np.where(seen, lum * lum, 0.0)
+        cnt += seen
+    mean = s1 / np.maximum(cnt, 1)
+    std = np.sqrt(np.maximum(s2 / np.maximum(cnt, 1) - mean * mean, 0.0))
+    return np.where(cnt >= 2, std / (mean + 0.05), 0.0)
+
+
+def render_features(g: Gaussians, features: np.ndarray, cam: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Render per-Gaussian ``features`` [N,C<=3] at ``cam``: (maps [H,W,C] (alpha-normalised),
+    alpha [H,W], depth [H,W])."""
+    features = np.asarray(features, np.float32)
+    c = features.shape[1]
+    if c > 3:
+        raise ValueError(f"render_features: at most 3 channels per pass, got {c}")
+    idx = frustum_subset(g, cam)
+    cols = torch.zeros(len(idx), 3)
+    cols[:, :c] = torch.from_numpy(features[idx.numpy()])
+    with torch.no_grad():
+        rgb, alpha, meta = rasterize(*render_inputs(g, idx), cols, cam.torch_viewmat(), cam.torch_K(),
+                                     cam.width, cam.height)
+    a = alpha.numpy()
+    maps = rgb.numpy()[..., :c] / np.maximum(a, 1e-6)[..., None]
+    return maps, a, meta["depth"].numpy()

@@ -1,0 +1,87 @@
+"""Overview PNG of the detected effects: each region tinted on a few photos, with captions.
+
+Layout: one row per chosen photo (those with the most detected region first, spread over the
+capture), one column per region (foliage, grass, flowers, water); a title above each column
+names its effects and the decision, and the reasons are printed below the grid.
+"""
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from anigs.effects.config import REGION_EFFECTS, REGIONS
+from anigs.effects.detect import EffectsResult
+from anigs.masks import overlay, write_rgb_png
+
+COLOURS = {"foliage": (0.1, 0.95, 0.2), "grass": (1.0, 0.9, 0.1), "flowers": (1.0, 0.2, 0.85), "water": (0.1, 0.8, 1.0)}
+FONT = cv2.FONT_HERSHEY_SIMPLEX
+
+
+def _text_block(lines: list[str], width: int, scale: float = 0.42, colour=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """White RGB float block [h, width, 3] with ``lines`` wrapped to fit."""
+    chars = max(int(width / (19 * scale)), 20)
+    wrapped = [w for line in lines for w in (textwrap.wrap(line, chars) or [""])]
+    lh = int(30 * scale) + 4
+    block = np.full((lh * len(wrapped) + 8, width, 3), 255, np.uint8)
+    ink = tuple(int(255 * c) for c in colour)
+    for i, line in enumerate(wrapped):
+        cv2.putText(block, line, (6, lh * (i + 1)), FONT, scale, ink, 1, cv2.LINE_AA)
+    return block.astype(np.float32) / 255.0
+
+
+def _pick_photos(res: EffectsResult, count: int) -> list[int]:
+    """Photos with the most detected-region pixels, spread over the capture."""
+    n = len(res.photos)
+    detected_regions = {res.effects[e].region for e in res.detected}
+    score = np.zeros(n)
+    for r in detected_regions:
+        eff = res.effects[REGION_EFFECTS[r][0]]
+        score += np.array([m.mean() for m in eff.masks])
+    order = []
+    for chunk in np.array_split(np.arange(n), min(count, n)):
+        order.append(int(chunk[np.argmax(score[chunk])]))
+    return order
+
+
+def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_width: int = 256) -> None:
+    """Write the overview PNG of ``res`` to ``path`` (``photos`` rows, one column per region)."""
+    rows = []
+    header = []
+    for r in REGIONS:
+        e = res.effects[REGION_EFFECTS[r][0]]
+        state = f"found ({e.confidence:.2f})" if e.detected else f"not found ({e.confidence:.2f})"
+        header.append(_text_block([f"{r}: {'+'.join(REGION_EFFECTS[r])}", state], panel_width,
+                                  colour=tuple(0.6 * c for c in COLOURS[r]) if e.detected else (0.45, 0.45, 0.45)))
+    hh = max(b.shape[0] for b in header)
+    rows.append(np.concatenate([np.pad(b, ((0, hh - b.shape[0]), (0, 0), (0, 0)), constant_values=1.0)
+                                for b in header], 1))
+    for i in _pick_photos(res, photos):
+        img = res.photos[i]
+        h, w = img.shape[:2]
+        ph = int(round(h * panel_width / w))
+        panels = []
+        for r in REGIONS:
+            e = res.effects[REGION_EFFECTS[r][0]]
+            m = e.masks[i]
+            tinted = overlay(img, m, COLOURS[r], 0.55 if e.detected else 0.3)
+            if not e.detected:
+                tinted = 0.55 * tinted + 0.45 * img.mean(-1, keepdims=True)
+            panel = (np.clip(cv2.resize(tinted, (panel_width, ph), interpolation=cv2.INTER_AREA), 0, 1) * 255
+                     ).astype(np.uint8)
+            cv2.putText(panel, f"{res.cameras[i].name} {100 * m.mean():.1f}%", (4, ph - 6), FONT, 0.38,
+                        (255, 255, 255), 1, cv2.LINE_AA)
+            panel = panel.astype(np.float32) / 255.0
+            panels.append(np.pad(panel, ((2, 2), (2, 2), (0, 0)), constant_values=1.0))
+        rows.append(np.concatenate(panels, 1))
+    width = rows[-1].shape[1]
+    found = res.detected
+    lines = ["Effects found: " + (", ".join(found) if found else "none: the scene stays still")]
+    lines += [res.effects[REGION_EFFECTS[r][0]].reason for r in REGIONS]
+    if res.ground.note:
+        lines.append(res.ground.note)
+    rows.append(_text_block(lines, width))
+    rows = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=1.0) for r in rows]
+    write_rgb_png(path, np.concatenate(rows, 0))

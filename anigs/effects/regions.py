@@ -1,0 +1,150 @@
+"""Per-photo regions: foliage, grass, flowers and water masks of one capture photo.
+
+Inputs per photo: the RGB photo, the fitted model's depth and alpha at its camera, and the
+rendered per-Gaussian maps (surface variation, ``|normal . up|``, multi-view colour spread) of
+:mod:`anigs.effects.geometry`. The rules:
+
+1. *valid*: the model covers the pixel (alpha >= ``min_alpha``; sky and empty space are not);
+2. *wall*: locally planar and vertical (walls, fences, pictures and screens on walls);
+3. *vegetation*: green hue at any brightness (shaded foliage included), not on a wall; green
+   components that fill their bounding rectangle and are flat are pictures and are dropped;
+4. *lawn*: vegetation lower than the ground cut (the flat ground sheet: static); the rest is *plant*;
+5. *flowers*: saturated colours of any hue outside the green band (red included) or white,
+   within ``flower_radius_frac`` of plant pixels and surrounded by plants for at least
+   ``flower_min_ring`` of their ring, closed into beds with the stems between blossoms; low
+   plant components with blossoms on >= ``flower_bed_share`` of their area are flower beds;
+6. *foliage* / *grass*: plant components whose 90th-percentile height above the ground reaches
+   ``grass_max_height`` x camera height are foliage, lower ones grass (all foliage without a
+   ground plane);
+7. *water*: low (near the ground plane), horizontal and planar, weakly textured cores with a
+   bluish hue or a reflective (view-dependent) colour, grown over the same colour, not green.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from anigs.cameras import Camera
+from anigs.effects import cues
+from anigs.effects.config import Config
+from anigs.effects.geometry import Ground
+from anigs.masks.vegetation import pixel_heights
+
+
+@dataclass
+class PhotoMaps:
+    """One photo with the model's renders at its camera (all [H,W] unless noted)."""
+
+    image: np.ndarray        # RGB [H,W,3] float32 in [0,1]
+    camera: Camera
+    depth: np.ndarray
+    alpha: np.ndarray
+    variation: np.ndarray    # surface variation of the Gaussians seen
+    upness: np.ndarray       # |normal . up|
+    reflect: np.ndarray      # multi-view colour spread
+    height: np.ndarray | None = None  # height above the ground plane of the Gaussians seen (None: no plane)
+    name: str = ""
+
+
+@dataclass
+class PhotoRegions:
+    """Region masks bool [H,W] of one photo and what was set aside."""
+
+    masks: dict[str, np.ndarray]
+    rejected_wall_green: int = 0  # green pixels on flat vertical surfaces / rectangular pictures
+    valid: int = 0                # pixels the model covers
+    extra: dict = field(default_factory=dict)
+
+
+def _px(frac: float, h: int, w: int) -> int:
+    return max(int(round(frac * np.hypot(h, w))), 1)
+
+
+def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
+    """Foliage, grass, flowers and water masks of one photo (see module docstring)."""
+    img = p.image
+    h, w = img.shape[:2]
+    min_px = max(int(round(cfg.min_component_frac * h * w)), 4)
+    valid = (p.alpha >= cfg.min_alpha) & (p.depth > 0)
+    flat = p.variation < cfg.wall_max_variation
+    wall = valid & flat & (p.upness < cfg.wall_max_upness)
+    floor = valid & flat & (p.upness > cfg.floor_min_upness)
+    plane = ground.plane
+    if plane is not None:
+        height = p.height if p.height is not None else pixel_heights(p.depth.astype(np.float64), p.camera, plane)
+        cam_h = plane.camera_height if plane.camera_height > 0 else 1.0
+        low = valid & (height < plane.cut_height())
+    else:
+        height = np.full((h, w), np.nan)
+        cam_h = 1.0
+        low = np.zeros((h, w), bool)
+    green_all = cues.green(img, cfg.green_hue, cfg.green_min_saturation, cfg.min_value) & valid
+    veg = green_all & ~wall
+    # flat green rectangles are pictures, not plants
+    n, lab, areas = cues.components(veg)
+    rect = cues.rectangularity(lab, n, areas, int(0.01 * h * w))
+    var_med = cues.component_quantile(lab, n, p.variation, 0.5)
+    picture = (rect >= cfg.max_rectangularity) & (np.nan_to_num(var_med, nan=1.0) < 2 * cfg.wall_max_variation)
+    picture[0] = False
+    veg &= ~picture[lab]
+    rejected = int((green_all & ~veg).sum())
+    lawn = veg & low
+    plant = veg & ~lawn
+    # plant components and how high they reach (all "tall" without a ground plane)
+    n_p, lab_p, _ = cues.components(plant)
+    if plane is not None:
+        top = np.nan_to_num(cues.component_quantile(lab_p, n_p, height, 0.9), nan=0.0)
+        tall = top >= cfg.grass_max_height * cam_h
+    else:
+        tall = np.ones(n_p, bool)
+    tall[0] = False
+    # flowers: saturated non-green (any hue) or white blobs next to plants
+    r_f = _px(cfg.flower_radius_frac, h, w)
+    col = cues.colourful(img, cfg.flower_green_hue, cfg.flower_min_saturation, cfg.flower_min_value,
+                         cfg.white_flowers) & valid & ~wall & ~green_all
+    near = cv2.dilate(plant.astype(np.uint8), cues.disk(r_f)) > 0
+    n, lab, areas = cues.components(col & near)
+    ring = cues.ring_share(lab, n, r_f, plant)
+    keep = (ring >= cfg.flower_min_ring) & (areas >= 2)
+    keep[0] = False
+    blossom = keep[lab]
+    flowers = blossom.copy()
+    if blossom.any():
+        # low plant components dotted with blossoms are flower beds (stems and leaves included)
+        grown = cv2.dilate(lab_p.astype(np.float32), cues.disk(r_f)).astype(np.int64)
+        hits = np.bincount(grown[blossom], minlength=n_p)[:n_p]
+        area_p = np.bincount(lab_p.ravel(), minlength=n_p)[:n_p]
+        bed_comp = ~tall & (hits >= cfg.flower_bed_share * np.maximum(area_p, 1))
+        bed_comp[0] = False
+        flowers |= bed_comp[lab_p]
+        bed = cv2.morphologyEx(blossom.astype(np.uint8), cv2.MORPH_CLOSE,
+                               cues.disk(_px(cfg.flower_bed_frac, h, w))) > 0
+        flowers |= bed & (plant | col) & valid & ~wall
+        # blossom edges blend with their surroundings: grow over the less saturated rim
+        _, sat, _ = cues.hsv(img)
+        rim = cv2.dilate(blossom.astype(np.uint8), cues.disk(_px(cfg.flower_rim_frac, h, w))) > 0
+        flowers |= rim & valid & ~wall & ~green_all & (sat >= 0.5 * cfg.flower_min_saturation)
+        flowers = cues.clean(flowers, max(min_px // 2, 2), min_px)
+    # foliage and grass: the rest of the plant components by how high they reach
+    rest = cues.clean(plant & ~flowers, min_px, min_px) & plant & ~flowers
+    foliage = rest & tall[lab_p]
+    grass = rest & ~foliage
+    # water: low, horizontal, planar, weakly textured, bluish or reflective
+    water = np.zeros((h, w), bool)
+    if plane is not None:
+        hue, sat, _ = cues.hsv(img)
+        reach = cfg.water_max_height * cam_h
+        near_plane = valid & (height < max(plane.cut_height(), reach)) & (height > -reach)
+        colour = (cues.in_band(hue, cfg.water_hue) & (sat >= cfg.water_min_saturation)) | \
+                 (p.reflect >= cfg.reflect_min_spread)
+        base = near_plane & floor & colour & ~green_all & ~flowers
+        tex = cues.texture(img, _px(cfg.texture_frac, h, w))
+        core = cues.clean(base & (tex < cfg.water_max_texture), min_px, min_px)
+        if core.any():
+            grow = cv2.dilate(core.astype(np.uint8), cues.disk(_px(cfg.texture_frac, h, w))) > 0
+            water = cues.clean(core | (grow & base), min_px, 4 * min_px)
+            water &= ~green_all & ~flowers & valid
+    masks = {"foliage": foliage, "grass": grass, "flowers": flowers, "water": water}
+    return PhotoRegions(masks, rejected, int(valid.sum()))
