@@ -169,3 +169,88 @@ def test_config_and_input_errors():
 def test_warp_identity_is_exact():
     frame = textured_frame()
     assert np.array_equal(warp(frame, np.zeros((H, W, 2), np.float32)), frame)
+
+
+# ---- diffusion-prior flaws (issue 18): off by default, each one does what it says -------------------
+def grey_textured(h=H, w=W, seed=0):
+    """Mid-grey texture (no clipping at 0/1 for intensity noise)."""
+    return 0.3 + 0.4 * textured_frame(h, w, seed)
+
+
+def test_flaws_are_off_by_default_and_validated():
+    from anigs.prior.procedural import FLAW_KEYS
+
+    cfg = ProceduralConfig()
+    assert not cfg.flaws_on and all(getattr(cfg, k) == 0 for k in FLAW_KEYS)
+    prior = ProceduralPrior()
+    clip = np.repeat(grey_textured()[None], 9, 0)
+    prior.refine(clip, box_mask(), "", 3, 0.5)
+    assert "flaws" not in prior.last_info
+    for k in FLAW_KEYS:
+        with pytest.raises(ValueError, match=k):
+            ProceduralConfig.from_dict({k: -0.1})
+    with pytest.raises(ValueError, match="shimmer_corr_px"):
+        ProceduralConfig.from_dict({"shimmer_corr_px": 0})
+
+
+def test_static_shimmer_magnitude_and_only_static_pixels():
+    sigma, T = 0.0125, 9
+    clip = np.repeat(grey_textured()[None], T, 0)
+    mask = box_mask()
+    clean = ProceduralPrior().refine(clip, mask, "", 4, 0.5)
+    out = ProceduralPrior({"static_shimmer": sigma}).refine(clip, mask, "", 4, 0.5)
+    static = mask == 0
+    assert np.array_equal(out[0], clip[0])                      # frame 0 stays the canonical frame
+    assert np.array_equal(out[:, ~static], clean[:, ~static])   # the dynamic region is untouched
+    mad = np.abs(np.diff(out[:, static], axis=0)).mean()
+    assert mad == pytest.approx(2 * sigma / np.sqrt(np.pi), rel=0.2)   # the stated VBench-style figure
+
+
+def test_static_drift_grows_to_the_configured_rms():
+    T, drift = 9, 1.0
+    clip = np.repeat(grey_textured(96, 128, 1)[None], T, 0)
+    mask = np.zeros((96, 128), np.float32)
+    mask[30:60, 40:80] = 1
+    out = ProceduralPrior({"static_drift_px": drift}).refine(clip, mask, "", 2, 0.5)
+    core = cv2.erode((mask == 0).astype(np.uint8), np.ones((15, 15))) > 0
+    core[:8], core[-8:], core[:, :8], core[:, -8:] = False, False, False, False
+    rms = [float(np.sqrt((backward_flow(out[t], out[0])[core] ** 2).sum(-1).mean())) for t in (T // 2, T - 1)]
+    assert rms[1] == pytest.approx(drift, rel=0.3)
+    assert rms[0] == pytest.approx(drift * (T // 2) / (T - 1), rel=0.35)
+
+
+def test_per_view_gain_and_direction_of_the_kept_motion():
+    """strength 0 keeps the clip's motion; the flaws scale and rotate it by the view's draw."""
+    frame, mask = grey_textured(), box_mask()
+    src = ProceduralPrior({"effects": ["foliage_sway"], "amplitude_scale": 4.0}).generate(frame, mask, "", 5, 13)
+    prior = ProceduralPrior({"view_amplitude_log": 0.3, "view_direction_deg": 40.0})
+    draws = []
+    for seed in (1, 2):
+        out = prior.refine(src, mask, "", seed, 0.0)
+        f = prior.last_info["flaws"]
+        draws.append((f["gain"], f["angle_deg"]))
+        core = cv2.erode(mask, np.ones((11, 11))) > 0
+        d_src = backward_flow(src[-1], src[0])[core]
+        d_out = backward_flow(out[-1], out[0])[core]
+        a = np.deg2rad(f["angle_deg"])
+        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        want = f["gain"] * d_src @ rot.T
+        assert np.abs(d_out - want).mean() < 0.3 * np.abs(want).mean() + 0.05
+    assert draws[0] != draws[1]                      # each view (seed) draws its own flaw
+    again = prior.refine(src, mask, "", 1, 0.0)
+    assert prior.last_info["flaws"]["gain"] == draws[0][0]  # deterministic per seed
+    assert np.isfinite(again).all()
+
+
+def test_time_shift_of_the_kept_motion():
+    from anigs.prior.procedural import time_shifted
+
+    T = 7
+    est = np.zeros((T, 2, 3, 2), np.float32)
+    est[..., 0] = np.arange(T, dtype=np.float32)[:, None, None] ** 2      # d(t) = t^2 in x
+    sh = time_shifted(est, 1.5)
+    assert np.all(sh[0] == 0)
+    t = 2
+    assert sh[t, 0, 0, 0] == pytest.approx((t + 1.5) ** 2 - 1.5 ** 2, abs=0.3)  # linear interpolation of t^2
+    assert np.array_equal(time_shifted(est, 0.0), est)
+    assert np.all(np.isfinite(time_shifted(est, 100.0)))                         # clamped past the end

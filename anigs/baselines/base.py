@@ -1,0 +1,270 @@
+"""The baselines' one interface: same inputs as the model update, same output as the model update.
+
+    result = fit_baseline("lifting", canonical, dynamic_mask, views, {"num_bases": 12})
+    save_model("model.pt", result.deformation, result.canonical, ...)   # or run_baseline(...)
+
+Inputs are exactly those of :func:`anigs.animate.update.run_update`: the canonical Gaussians
+G^0 (N), the per-Gaussian dynamic mask [N] (bool, or integer effect labels with 0 = static),
+the round's training views (:class:`anigs.animate.update.ViewData`: camera + refined target
+clip [T,H,W,3]) and a config dict. Each baseline produces per-Gaussian 3D trajectories
+``[T,D,3]`` of the D dynamic Gaussians; :func:`trajectories_to_deformation` projects them on the
+paper's DCT basis, so the result is a :class:`~anigs.animate.deform.DCTDeformation` plus a
+canonical scene, written with :func:`~anigs.animate.deform.save_model`. Rendering, export and
+evaluation then read a baseline's ``model.pt`` exactly like ours (``load_model``), and static
+Gaussians are bit-identical at every frame by construction.
+
+DCT projection: the basis ``k = 1..K`` has zero temporal mean, so the dynamic Gaussians'
+canonical positions become the temporal means of their trajectories and the coefficients are
+the least-squares fit of the zero-mean remainder (exact for ``K = T-1``; a low-pass for smaller
+K, the same function space as our model). The trajectories start at the canonical scene
+(frame 0 of every target is the static render), so the model's t = 0 render matches it up to
+the DCT truncation.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+import torch
+
+from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, resolve_num_bases, save_model
+from anigs.animate.update import ViewData
+from anigs.configs import reject_unknown_keys
+from anigs.gaussians import Gaussians
+
+log = logging.getLogger("anigs.baselines")
+
+BASELINES = ("lifting", "physics")
+MODEL_KIND = "baseline"
+
+
+@dataclass
+class CommonConfig:
+    """The keys both baselines' configs share, and their ``from_dict`` (unknown keys rejected),
+    ``to_dict`` and checks."""
+
+    num_bases: int = 16            # DCT K of the output model (clamped to T-1)
+    flow_preset: str = "medium"    # OpenCV DIS preset of the 2D motion: ultrafast | fast | medium
+    fb_threshold_px: float = 1.0   # forward-backward flow check: tracks whose loop error exceeds this (px) are dropped
+    depth_tol: float = 0.05        # visibility: projected depth <= rendered depth * (1 + depth_tol)
+    min_alpha: float = 0.5         # visibility: rendered opacity at the Gaussian's pixel at least this
+    background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])  # background colour of the visibility renders
+    backend: str = "auto"          # rasterizer backend of the visibility renders
+    device: str = "auto"           # torch device of the visibility renders
+    seed: int = 0                  # random seed (the fits are deterministic; kept for uniformity)
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any] | None):
+        d = dict(d or {})
+        reject_unknown_keys(cls, d, f"{cls.__name__}", KeyError)
+        cfg = cls(**d)
+        cfg.validate()
+        return cfg
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def validate(self) -> None:
+        from anigs.flow import _PRESETS
+
+        if self.num_bases < 0:
+            raise ValueError(f"{type(self).__name__}: num_bases must be >= 0, got {self.num_bases}")
+        if self.flow_preset not in _PRESETS:
+            raise ValueError(f"{type(self).__name__}: flow_preset {self.flow_preset!r} not in {sorted(_PRESETS)}")
+        if not self.fb_threshold_px > 0 or not self.depth_tol >= 0 or not 0 <= self.min_alpha < 1:
+            raise ValueError(f"{type(self).__name__}: fb_threshold_px > 0, depth_tol >= 0, 0 <= min_alpha < 1 required")
+        if len(self.background) != 3:
+            raise ValueError(f"{type(self).__name__}: background must be 3 numbers")
+
+
+@dataclass
+class BaselineResult:
+    """What a baseline returns.
+
+    canonical: G^0 with the dynamic rows' positions set to the temporal means of the trajectories;
+    deformation: the DCT field [D,3,K] (no rotation offsets); trajectories: float64 [T,D,3] world
+    positions before the DCT projection; info: JSON-able facts (visible counts, fitted parameters).
+    """
+
+    canonical: Gaussians
+    deformation: DCTDeformation
+    trajectories: torch.Tensor
+    info: dict[str, Any] = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+def check_inputs(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData], what: str
+                 ) -> tuple[torch.Tensor, int]:
+    """Validate the shared inputs; returns (dynamic index [D] long, T)."""
+    if not views:
+        raise ValueError(f"{what}: no views (refined target clips) given")
+    mask = torch.as_tensor(dynamic_mask)
+    idx = dynamic_index_from_mask(mask, canonical.num)
+    T = int(views[0].clip.shape[0])
+    for i, v in enumerate(views):
+        c = v.clip
+        if c.ndim != 4 or c.shape[-1] != 3 or c.shape[0] != T:
+            raise ValueError(f"{what}: view {i} ({v.camera.name!r}) clip has shape {tuple(c.shape)}; "
+                             f"expected [T={T},H,W,3] like view 0")
+        if tuple(c.shape[1:3]) != (v.camera.height, v.camera.width):
+            raise ValueError(f"{what}: view {i} clip is {c.shape[2]}x{c.shape[1]} but its camera is "
+                             f"{v.camera.width}x{v.camera.height}")
+        if not bool(torch.isfinite(torch.as_tensor(c)).all()):
+            raise ValueError(f"{what}: view {i} ({v.camera.name!r}) clip has NaN or Inf values")
+    return idx, T
+
+
+def trajectories_to_deformation(canonical: Gaussians, dynamic_index: torch.Tensor, trajectories: torch.Tensor,
+                                num_bases: int) -> tuple[Gaussians, DCTDeformation]:
+    """Project world trajectories [T,D,3] of the dynamic rows onto the DCT basis.
+
+    Returns (canonical with ``means[dynamic_index]`` = temporal mean of each trajectory, the
+    field with K = min(num_bases, T-1) least-squares coefficients, rotation off). Static rows of
+    the canonical scene are the input tensors' values, untouched.
+    """
+    traj = torch.as_tensor(trajectories, dtype=torch.float64)
+    idx = torch.as_tensor(dynamic_index).long().reshape(-1)
+    T = int(traj.shape[0])
+    if traj.ndim != 3 or traj.shape[1:] != (idx.numel(), 3):
+        raise ValueError(f"trajectories must be [T,D={idx.numel()},3], got {tuple(traj.shape)}")
+    if not bool(torch.isfinite(traj).all()):
+        raise ValueError("trajectories contain NaN or Inf")
+    K = resolve_num_bases(num_bases, T, log)
+    deformation = DCTDeformation(idx, T, K, rotation=False, num_gaussians=canonical.num)
+    means = canonical.means.detach().clone()
+    if idx.numel() == 0:
+        return Gaussians(means, canonical.quats, canonical.log_scales, canonical.opacity_logits, canonical.sh,
+                         extras=canonical.extras), deformation
+    mean = traj.mean(0)  # [D,3]
+    if K > 0:
+        B = deformation.basis(torch.arange(T)).to(torch.float64)  # [T,K]
+        rest = (traj - mean).reshape(T, -1)  # [T,D*3]
+        coeffs = torch.linalg.lstsq(B, rest).solution  # [K,D*3]
+        with torch.no_grad():
+            deformation.pos_coeffs.copy_(coeffs.T.reshape(idx.numel(), 3, K).to(deformation.pos_coeffs.dtype))
+    means[idx] = mean.to(means.dtype)
+    deformation.pos_coeffs.requires_grad_(False)
+    return Gaussians(means, canonical.quats, canonical.log_scales, canonical.opacity_logits, canonical.sh,
+                     extras=canonical.extras), deformation
+
+
+def finish(canonical: Gaussians, idx: torch.Tensor, traj: torch.Tensor, num_bases: int, info: dict[str, Any],
+           t0: float) -> BaselineResult:
+    """Project trajectories [T,D,3] to the DCT model and wrap everything in a :class:`BaselineResult`."""
+    canon, deformation = trajectories_to_deformation(canonical, idx, traj, num_bases)
+    if idx.numel():
+        T = traj.shape[0]
+        with torch.no_grad():
+            fitted = deformation.trajectories(canon.means.double(), torch.arange(T)).double()
+        disp = (traj - traj[:1]).norm(dim=-1)
+        info["dct_residual_rms"] = float((fitted - traj).norm(dim=-1).pow(2).mean().sqrt())
+        info["displacement_rms"] = float(disp.pow(2).mean().sqrt())
+        info["displacement_max"] = float(disp.max())
+    info["num_dynamic"] = int(idx.numel())
+    info["num_bases"] = deformation.num_bases
+    info["num_frames"] = deformation.num_frames
+    return BaselineResult(canon, deformation, traj, info, time.perf_counter() - t0)
+
+
+# ---------------------------------------------------------------------------------------- registry
+FitFn = Callable[[Gaussians, torch.Tensor, list[ViewData], Mapping[str, Any] | None], BaselineResult]
+
+
+def get_baseline(name: str) -> FitFn:
+    """The ``fit`` function of baseline ``name`` (``lifting`` | ``physics``)."""
+    if name == "lifting":
+        from anigs.baselines.lifting import fit
+
+        return fit
+    if name == "physics":
+        from anigs.baselines.physics import fit
+
+        return fit
+    raise ValueError(f"unknown baseline {name!r}; available: {list(BASELINES)}")
+
+
+def fit_baseline(name: str, canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData],
+                 config: Mapping[str, Any] | None = None) -> BaselineResult:
+    """Fit baseline ``name`` (see module docstring); the same inputs as ``run_update``."""
+    return get_baseline(name)(canonical, dynamic_mask, views, config)
+
+
+def load_views(targets: list[str | Path], view_json: str | Path | None = None,
+               view_ids: list[str] | None = None) -> list[ViewData]:
+    """Target clips (.npz) and their cameras: from ``view_json`` by view id (default: the file
+    stems), else from each clip's metadata (``camera``)."""
+    from anigs.cameras import Camera, load_view_camera
+    from anigs.video import load_clip
+
+    if view_ids is not None and len(view_ids) != len(targets):
+        raise ValueError(f"{len(view_ids)} view ids for {len(targets)} targets")
+    views = []
+    for k, t in enumerate(targets):
+        clip, meta = load_clip(t)
+        if view_json is not None:
+            cam = load_view_camera(view_json, view_ids[k] if view_ids else Path(t).stem)
+        elif "camera" in meta:
+            cam = Camera.from_dict(meta["camera"])
+        else:
+            raise KeyError(f"target {t} has no camera in its metadata; pass view_json")
+        views.append(ViewData(cam, torch.from_numpy(clip)))
+    return views
+
+
+def run_baseline(method: str, canonical: str | Path | Gaussians, dynamic: str | Path | np.ndarray | torch.Tensor,
+                 targets: list[str | Path], out: str | Path, params: Mapping[str, Any] | None = None,
+                 view_json: str | Path | None = None, view_ids: list[str] | None = None,
+                 log_json: str | Path | None = None) -> BaselineResult:
+    """Path-level entry point for a CLI stage: fit ``method`` and write ``out`` (a ``model.pt``
+    readable by :func:`anigs.animate.deform.load_model`).
+
+    Args:
+        method: ``lifting`` | ``physics``.
+        canonical: canonical 3DGS PLY (or Gaussians).
+        dynamic: ``dynamic.npy`` [N] (bool or int effect labels) or the array itself.
+        targets: refined target clips (.npz), one per view (lifting uses all, physics one).
+        out: output ``model.pt``.
+        params: the baseline's config section (unknown keys rejected).
+        view_json / view_ids: cameras (default: from each clip's metadata).
+        log_json: optional JSON with timing and the fit's facts.
+    """
+    from anigs.io import write_json
+
+    t0 = time.perf_counter()
+    canon = canonical if isinstance(canonical, Gaussians) else Gaussians.load_ply(canonical)
+    if isinstance(dynamic, (str, Path)):
+        if not Path(dynamic).exists():
+            raise FileNotFoundError(f"dynamic selection not found: {dynamic}")
+        dynamic = np.load(dynamic)
+    mask = torch.as_tensor(np.asarray(dynamic))
+    if mask.ndim != 1 or mask.shape[0] != canon.num:
+        raise ValueError(f"dynamic selection has shape {tuple(mask.shape)}, expected [{canon.num}]")
+    views = load_views(list(targets), view_json, view_ids)
+    result = fit_baseline(method, canon, mask, views, params)
+    cfg = dict(params or {})
+    save_model(out, result.deformation, result.canonical, {"method": method, **cfg},
+               extra={"kind": MODEL_KIND, "method": method, "targets": [str(t) for t in targets],
+                      "info": _jsonable(result.info)})
+    total = time.perf_counter() - t0
+    if log_json is not None:
+        write_json(log_json, {"method": method, "seconds": total, "fit_seconds": result.seconds,
+                              "info": _jsonable(result.info), "config": cfg})
+    log.info("%s baseline: wrote %s (%d dynamic Gaussians, K=%d, T=%d) in %.1f s", method, out,
+             result.deformation.num_dynamic, result.deformation.num_bases, result.deformation.num_frames, total)
+    return result
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, (np.generic,)):
+        return obj.item()
+    if isinstance(obj, (np.ndarray, torch.Tensor)):
+        return np.asarray(obj).tolist()
+    return obj
