@@ -104,9 +104,14 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def rotation_angle_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
-    """Angle in degrees of the relative rotation ``Ra Rb^T``."""
-    cos = (np.trace(np.asarray(Ra) @ np.asarray(Rb).T) - 1) / 2
-    return math.degrees(math.acos(float(np.clip(cos, -1.0, 1.0))))
+    """Angle in degrees of the relative rotation ``R = Ra Rb^T``, accurate at every angle.
+
+    ``atan2(sin, cos)`` with ``sin`` the norm of R's skew-symmetric part and ``cos = (tr R - 1) / 2``:
+    ``acos`` of the trace alone loses all precision near 0 (an error of 1e-16 in the trace is an
+    angle of ~1e-6 degrees), and ``asin`` of the skew part near 180 degrees."""
+    R = np.asarray(Ra, dtype=np.float64) @ np.asarray(Rb, dtype=np.float64).T
+    skew = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2
+    return math.degrees(math.atan2(float(np.linalg.norm(skew)), float((np.trace(R) - 1) / 2)))
 
 
 def pose_errors(est: Sequence[Camera], gt: Sequence[Camera]) -> dict:
@@ -148,24 +153,17 @@ def pose_errors(est: Sequence[Camera], gt: Sequence[Camera]) -> dict:
 
 # ---- z-up frame for reconstructions without ground truth ------------------------------------
 
-def estimate_up(cams: list[Camera], prior_weight: float = 1e-3) -> np.ndarray:
-    """World up direction [3] from upright cameras (no roll).
+def estimate_up(cams: list[Camera], points: np.ndarray | None = None) -> np.ndarray:
+    """World up direction [3] of a reconstruction (:func:`anigs.geometry.estimate_up`).
 
-    The cameras' x axes are horizontal when the cameras are held upright, whatever their
-    pitch, so up is the unit vector most orthogonal to all x axes: the smallest eigenvector
-    of ``mean(x x^T)``. When the x axes are nearly parallel (every camera facing the same
-    way) that is undetermined within the plane orthogonal to x; a weak prior towards the
-    mean -y axis (``prior_weight * (I - y y^T)``) settles it there, which leaves the cameras'
-    common pitch in the estimate. The sign follows the mean -y axis.
+    Up is orthogonal to the cameras' horizontal image axes (x for an upright photo, y for one
+    stored sideways: each camera's roll is chosen), weakly pulled towards the mean image-up
+    axis where the axes leave a direction free (all facing one way), unless the point cloud's
+    ground and walls settle it. Never raises: undecidable cases fall back to upright photos.
     """
-    xs = np.stack([c.R[0] for c in cams])
-    ybar = -np.stack([c.R[1] for c in cams]).mean(0)
-    if np.linalg.norm(ybar) < 1e-6:
-        raise ValueError("cannot estimate the up direction: the cameras' up axes cancel out")
-    yhat = ybar / np.linalg.norm(ybar)
-    M = xs.T @ xs / len(xs) + prior_weight * (np.eye(3) - np.outer(yhat, yhat))
-    up = np.linalg.eigh(M)[1][:, 0]
-    return up if up @ yhat >= 0 else -up
+    from anigs import geometry
+
+    return geometry.estimate_up(cams, points).up
 
 
 def upright_similarity(cams: list[Camera], xyz: np.ndarray, ground_percentile: float,
@@ -176,12 +174,28 @@ def upright_similarity(cams: list[Camera], xyz: np.ndarray, ground_percentile: f
     ground equals it (e.g. 1.6 for photos taken at eye height in metres); otherwise, or when
     the cameras are not above the estimated ground, COLMAP's scale is kept.
     """
-    up = estimate_up(cams)
-    tilt = np.degrees(np.arccos(np.clip(np.stack([-c.R[1] for c in cams]) @ up, -1, 1)))
+    from anigs import geometry
+
+    xyz = np.asarray(xyz, np.float64).reshape(-1, 3)
+    est = geometry.estimate_up(cams, xyz if len(xyz) >= 50 else None)
+    up = est.up
+    a, _ = geometry.roll_axes(cams)
+    img_up = a[np.arange(len(cams)), np.asarray(est.rolls_deg, int) // 90] if est.rolls_deg else -np.stack(
+        [c.R[1] for c in cams])
+    tilt = np.degrees(np.arccos(np.clip(img_up @ up, -1, 1)))
     R = rotation_between(up, np.array([0.0, 0.0, 1.0]))
     centers = np.stack([c.center for c in cams]) @ R.T
-    heights = (xyz.astype(np.float64) @ R.T)[:, 2] if len(xyz) else centers[:, 2]
-    t = np.array([-centers[:, 0].mean(), -centers[:, 1].mean(), -np.percentile(heights, ground_percentile)])
+    heights = (xyz @ R.T)[:, 2] if len(xyz) else centers[:, 2]
+    ground_z = float(np.percentile(heights, ground_percentile))
+    ground_mode = "percentile"
+    if len(xyz) >= 10 and np.median(centers[:, 2]) <= ground_z:
+        # cameras not above the low percentile (looking up at a building): the ground below them
+        gr = geometry.estimate_ground(xyz @ R.T, np.array([0.0, 0.0, 1.0]), [
+            Camera(c.K, np.c_[np.c_[c.R @ R.T, c.t].T, [0, 0, 0, 1]].T, c.width, c.height) for c in cams])
+        ground_z, ground_mode = gr.offset, f"ground-{gr.method}"
+        log.warning("upright frame: the cameras are not above the %g-th percentile of the point heights; "
+                    "ground from %s", ground_percentile, gr.method)
+    t = np.array([-centers[:, 0].mean(), -centers[:, 1].mean(), -ground_z])
     mean_height = float((centers[:, 2] + t[2]).mean())
     extent = float(np.ptp(centers, axis=0).max()) if len(cams) > 1 else 0.0
     scale = 1.0
@@ -192,6 +206,7 @@ def upright_similarity(cams: list[Camera], xyz: np.ndarray, ground_percentile: f
             log.warning("cameras are not above the estimated ground (mean height %.3g): keeping COLMAP's scale",
                         mean_height)
     return Similarity(scale, R, scale * t), {"mode": "upright", "up_in_colmap_frame": up,
+                                   "up_estimate": est.to_dict(), "ground": ground_mode,
                                    "mean_camera_height_before_scaling": mean_height,
                                    "camera_tilt_from_up_deg": {"mean": float(tilt.mean()),
                                                                "max": float(tilt.max())}}

@@ -1,4 +1,4 @@
-"""Incremental viewpoint expansion (anigs.views, anigs.viewmap, `anigs views`)."""
+"""Incremental viewpoint expansion (anigs.views, anigs.views.topdown, `anigs views`)."""
 from __future__ import annotations
 
 import json
@@ -14,7 +14,10 @@ from anigs.views import (ViewsConfig, azimuth_deg, ccw_order, farthest_point_ord
                          view_camera)
 from test_lift import toy_scene
 
-SMALL = dict(width=64, height=48, num_locations=3)
+# the queue mechanics (order, yaws, overlap) on the toy ring, whose level views see mostly sky:
+# the paper's schedule as is (layout and coverage are tested with the garden layouts below)
+SCHEDULE = dict(layout="walk", min_coverage=0.0)
+SMALL = dict(width=64, height=48, num_locations=3, **SCHEDULE)
 
 
 @pytest.fixture(scope="module")
@@ -93,7 +96,7 @@ def test_plan_queue_order_and_coverage(scene, plan):
 
 def test_plan_is_deterministic(scene):
     gs, lab, cams = scene
-    cfg = ViewsConfig(width=48, height=36, num_locations=2, directions=[0, 90])
+    cfg = ViewsConfig(width=48, height=36, num_locations=2, directions=[0, 90], **SCHEDULE)
     a = plan_views(gs, lab == 4, cams[:4], cfg)
     b = plan_views(gs, lab == 4, cams[:4], cfg)
     assert a.chosen == b.chosen
@@ -106,7 +109,7 @@ def test_plan_errors(scene):
     with pytest.raises(ValueError, match="no region of interest"):
         plan_views(gs, np.zeros(gs.num, bool), cams, ViewsConfig(**SMALL))
     with pytest.raises(ValueError, match=r"3 candidate positions but num_locations=4"):
-        plan_views(gs, lab == 4, cams[:3], ViewsConfig(width=64, height=48, num_locations=4))
+        plan_views(gs, lab == 4, cams[:3], ViewsConfig(width=64, height=48, num_locations=4, **SCHEDULE))
     with pytest.raises(ValueError, match="unknown key"):
         ViewsConfig.from_dict({"num_location": 3})
     with pytest.raises(ValueError, match="bool"):
@@ -116,7 +119,8 @@ def test_plan_errors(scene):
 def test_non_overlapping_view_warns(scene, caplog):
     """Two opposite narrow views see disjoint content: the second one is flagged with its numbers."""
     gs, lab, cams = scene
-    cfg = ViewsConfig(width=48, height=36, num_locations=1, directions=[0, 180], fov_deg=40, forward="centroid")
+    cfg = ViewsConfig(width=48, height=36, num_locations=1, directions=[0, 180], fov_deg=40, forward="centroid",
+                      **SCHEDULE)
     with caplog.at_level(logging.WARNING, logger="anigs.views"):
         p = plan_views(gs, lab == 4, cams[:2], cfg)
     assert p.views[1]["overlap_prev"] == 0.0
@@ -134,7 +138,7 @@ def test_jittered_candidates(scene):
 
 
 def test_topdown_png(tmp_path, scene, plan):
-    from anigs.viewmap import draw_topdown, save_topdown
+    from anigs.views.topdown import draw_topdown, save_topdown
 
     gs, lab, _ = scene
     img = draw_topdown(plan, gs.means.numpy(), lab == 4, size=300)
@@ -192,7 +196,8 @@ def test_cli_views_from_2d(tmp_path, route):
     out = tmp_path / "views"
     rc = main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
                f"--{route}", str(src), "--out", str(out),
-               "--params", json.dumps({"width": 48, "height": 36, "num_locations": 2, "topdown_size": 200})])
+               "--params", json.dumps({"width": 48, "height": 36, "num_locations": 2, "topdown_size": 200,
+                                            **SCHEDULE})])
     assert rc == 0
     data = json.loads((out / "views.json").read_text())
     roi = np.load(out / "dynamic.npy")
@@ -205,7 +210,7 @@ def test_cli_views_from_2d(tmp_path, route):
 def test_regions_of_interest_lifted_from_capture_photos(tmp_path, scene):
     """Real scenes: `anigs views --images` segments the photos (vegetation backend, ground cue from
     the canonical model's depth) and lifts them to 3D; missing or unmatched photos are errors."""
-    from anigs.commands.views import roi_from_masks
+    from anigs.stages.views import roi_from_masks
     from anigs.masks import render_frames, write_rgb_png
 
     gs, lab, cams = scene
@@ -220,3 +225,104 @@ def test_regions_of_interest_lifted_from_capture_photos(tmp_path, scene):
     (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match="has a photo"):
         roi_from_masks(gs, cams, None, str(tmp_path / "empty"), {}, tmp_path)
+
+
+# ---- layouts and the scene-coverage test ----------------------------------------------------
+@pytest.fixture(scope="module")
+def garden_gs():
+    from anigs.synth.scene import SceneConfig, build_scene
+
+    g = build_scene(SceneConfig(num_gaussians=4000), 0)
+    return g, g.extras["label"].numpy()
+
+
+def _layout_cams(layout: str, n: int = 10, roll: str = "none"):
+    from anigs.synth.capture import CaptureConfig, camera_path
+
+    cams = camera_path(CaptureConfig(layout=layout, num_images=n, roll=roll), 0)
+    return [c.scaled(80, 60) for c in cams]
+
+
+@pytest.mark.parametrize("layout,kind", [("walk", "walk"), ("forward", "forward"), ("orbit", "orbit")])
+def test_every_queued_view_sees_the_scene(garden_gs, layout, kind):
+    """Forward-facing, orbit and walk captures of the garden: the layout is recognised and every
+    queued view has >= 80% of its pixels on Gaussians seen in >= 2 capture photos (recomputed
+    here independently of the planner's bookkeeping); failed directions are recorded, not queued."""
+    from anigs.masks.lift import VisibilityConfig, render_depth, visibility
+
+    g, lab = garden_gs
+    cams = _layout_cams(layout)
+    roi = np.isin(lab, [4, 5, 6])
+    cfg = ViewsConfig(width=64, height=48, num_locations=2, max_candidates=10, extra_locations=4)
+    plan = plan_views(g, roi, cams, cfg)
+    assert plan.layout.kind == kind
+    assert len(plan.views) >= 4
+    obs = np.zeros(g.num, int)
+    for c in cams:
+        obs += visibility(g, c, VisibilityConfig(mode="weight", min_weight=cfg.min_weight))
+    import torch
+
+    sub = g.subset(torch.from_numpy(np.nonzero(obs >= 2)[0]))
+    for v, cam in zip(plan.views, plan.cameras):
+        _, alpha = render_depth(sub, cam)
+        cov = float((alpha >= 0.5).mean())
+        assert cov >= 0.8 and cov == pytest.approx(v["coverage"], abs=1e-9), (v["id"], cov)
+        assert abs(-cam.R[1] @ np.array([0, 0, 1.0]) - math.cos(math.radians(v["pitch"]))) < 1e-9  # no roll
+    for r in plan.rejected:
+        assert r["coverage"] < 0.8
+    data = plan.to_json()
+    assert data["layout"]["kind"] == kind and len(data["scene_coverage"]["per_view"]) == len(plan.views)
+
+
+def test_forward_facing_views_face_the_roi(garden_gs):
+    """Forward-facing: yaw 0 looks at the ROI (the flower bed in front), not at the heading that
+    packs the most ROI into the three wedges; +-90 directions that fail are recorded as rejected."""
+    g, lab = garden_gs
+    cams = _layout_cams("forward")
+    roi = (lab == 6) & (g.means.numpy()[:, 0] < -1.0)   # the west bed, the one photographed
+    plan = plan_views(g, roi, cams, ViewsConfig(width=64, height=48, num_locations=2, max_candidates=10))
+    centroid = g.means.numpy()[roi].mean(0)
+    zero = [cam for v, cam in zip(plan.views, plan.cameras) if v["requested_yaw"] == 0]
+    assert zero
+    for cam in zero:
+        d = centroid - cam.center
+        assert geometry_angle(cam.forward[:2], d[:2]) < 5
+    assert any(r["requested_yaw"] != 0 for r in plan.rejected)  # +-90 were tried and rejected
+
+
+def geometry_angle(a, b) -> float:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return math.degrees(math.acos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
+
+
+def test_sideways_photos_give_upright_views(garden_gs):
+    """Photos stored sideways (portrait without EXIF rotation) with views.up auto: the queued
+    views are level with world up (not rolled by 90 degrees)."""
+    g, lab = garden_gs
+    cams = _layout_cams("walk", roll="portrait")
+    plan = plan_views(g, np.isin(lab, [4]), cams, ViewsConfig(width=48, height=36, num_locations=1, up="auto",
+                                                               max_candidates=6, min_coverage=0.0))
+    assert plan.up_estimate is not None and plan.up_estimate["roll_counts"]["90"] + \
+        plan.up_estimate["roll_counts"]["270"] == len(cams)
+    assert geometry_angle(plan.up, [0, 0, 1]) < 3
+    for cam in plan.cameras:
+        assert -cam.R[1] @ np.array([0, 0, 1.0]) > 0.9   # image up is world up
+
+
+def test_replacement_directions_order():
+    cfg = ViewsConfig(pitch_step_deg=10, max_pitch_drop_deg=20, yaw_steps=[0.5, 1.0])
+    dirs = __import__("anigs.views", fromlist=["x"]).replacement_directions(90.0, 0.0, 10.0, cfg)
+    assert dirs[:3] == [(90.0, 0.0), (90.0, -10.0), (90.0, -20.0)]
+    assert dirs[3] == (50.0, 0.0) and dirs[-1] == (10.0, -20.0)
+    assert len(dirs) == 9
+
+
+def test_topdown_shows_rejected(garden_gs):
+    from anigs.views.topdown import draw_topdown
+
+    g, lab = garden_gs
+    cams = _layout_cams("forward")
+    plan = plan_views(g, lab == 6, cams, ViewsConfig(width=48, height=36, num_locations=1, max_candidates=6))
+    assert plan.rejected
+    img = draw_topdown(plan, g.means.numpy(), lab == 6, size=300)
+    assert (np.abs(img.astype(int) - [40, 40, 140]).sum(-1) == 0).sum() > 5   # rejected rays drawn

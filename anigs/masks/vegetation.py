@@ -91,9 +91,9 @@ class VegetationConfig:
 
     @staticmethod
     def from_dict(d: dict | None) -> "VegetationConfig":
-        from anigs.views import config_from_dict
+        from anigs.configs import from_dict
 
-        return config_from_dict(VegetationConfig, d, "masks.vegetation config")
+        return from_dict(VegetationConfig, d, "masks.vegetation config")
 
 
 def _disk(r: int) -> np.ndarray:
@@ -193,7 +193,7 @@ class GroundPlane:
 def estimate_ground(means: np.ndarray, up: np.ndarray, cameras: Sequence[Camera] = (),
                     margin: float = 0.03, bins: int = 400, layer_quantile: float = 0.97,
                     layer_band: float = 0.5) -> GroundPlane:
-    """Ground plane of Gaussian centres ``means`` [N,3] along ``up`` [3].
+    """Ground plane of Gaussian centres ``means`` [N,3] along ``up`` [3] (:func:`anigs.geometry.estimate_ground`).
 
     The ground is the densest thin layer below the median height (a histogram peak, refined
     by the mean of the centres within one bin). ``min_height`` = ``margin`` * median camera
@@ -206,37 +206,15 @@ def estimate_ground(means: np.ndarray, up: np.ndarray, cameras: Sequence[Camera]
     camera height of it) measure that scatter; its ``layer_quantile`` quantile, mirrored
     upwards, is how high the ground layer reaches. On a clean reconstruction it is tiny and
     ``min_height`` rules.
+
+    Cameras not above that layer (looking up at a building) or no ground below them (a
+    close-up) no longer raise: the geometry module searches below the cameras or falls back to
+    a plane under all content, and logs it.
     """
-    up = np.asarray(up, np.float64)
-    up = up / np.linalg.norm(up)
-    h = np.asarray(means, np.float64) @ up
-    if len(h) < 10:
-        raise ValueError(f"estimate_ground: need >= 10 Gaussians, got {len(h)}")
-    if not 0.0 < layer_quantile < 1.0:
-        raise ValueError(f"estimate_ground: layer_quantile must be in (0, 1), got {layer_quantile}")
-    lo, hi = np.percentile(h, [0.5, 99.5])
-    med = float(np.median(h))
-    width = max((hi - lo) / bins, 1e-9)
-    low = h[(h >= lo) & (h <= med)]
-    if len(low) == 0:
-        low = h
-    hist, edges = np.histogram(low, bins=max(int((med - lo) / width), 1), range=(lo, max(med, lo + width)))
-    k = int(np.argmax(hist))
-    c = 0.5 * (edges[k] + edges[k + 1])
-    near = h[np.abs(h - c) <= width]
-    offset = float(near.mean()) if len(near) else float(c)
-    cam_h = 0.0
-    if len(cameras):
-        ref = float(np.median([c.center @ up - offset for c in cameras]))
-        if ref <= 0:
-            raise ValueError(f"estimate_ground: cameras are not above the estimated ground (median height {ref:.3g})")
-        cam_h = ref
-    else:
-        ref = float(hi - lo)
-    depth_below = offset - h
-    below = depth_below[(depth_below > 0) & (depth_below <= layer_band * ref)]
-    layer = float(np.quantile(below, layer_quantile)) if len(below) >= 10 else 0.0
-    return GroundPlane(up, offset, margin * ref, layer, cam_h)
+    from anigs.geometry import estimate_ground as _estimate_ground
+
+    gr = _estimate_ground(means, up, cameras, bins=bins, layer_quantile=layer_quantile, layer_band=layer_band)
+    return GroundPlane(gr.normal, gr.offset, margin * gr.ref, gr.layer, gr.camera_height)
 
 
 def pixel_heights(depth: np.ndarray, cam: Camera, plane: GroundPlane) -> np.ndarray:

@@ -10,9 +10,19 @@
     out_dir/gt/motion.json                motion parameters + label/effect tables
     out_dir/gt/scene.json                 the full config used, label counts, timing
 
-all atomically. The path: most images on an irregular loop around the lawn looking inwards
-(with slow yaw/pitch swings), the rest walking up the garden path towards the building;
-positions and orientations jittered like a hand-held camera.
+all atomically. The path (``capture.layout``):
+
+``walk`` (default)  most images on an irregular loop around the lawn looking inwards (with slow
+                    yaw/pitch swings), the rest walking up the garden path towards the building;
+``forward``         a forward-facing (LLFF-style) close-up of the west flower bed in front of the
+                    facade: a grid of positions 1 m in front of it, all looking the same way;
+``orbit``           an inward orbit around the east tree, every camera looking at its crown;
+``facade``          a walk along the building looking up at it (pitch 25-45 degrees up).
+
+Positions and orientations are jittered like a hand-held camera. ``capture.roll`` turns photos
+sideways (a portrait photo stored without its EXIF rotation): ``portrait`` rolls every camera
+by 90 degrees about its optical axis, ``mixed`` every other one (the image keeps its size).
+The scene, labels and wind motion are the same for every layout.
 """
 from __future__ import annotations
 
@@ -25,17 +35,20 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from anigs.configs import from_dict
 from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
 from anigs.io import atomic_path, write_json
 from anigs.render import render_gaussians
 from anigs.synth.motion import MotionParams, motion_tables
-from anigs.synth.scene import LABELS, SceneConfig, build_scene, dataclass_from_dict, path_x
+from anigs.synth.scene import BEDS, LABELS, TREE_SITES, Y1, SceneConfig, build_scene, path_x
 from anigs.video import save_png
 
 log = logging.getLogger(__name__)
 
 LOOP_CENTER = (0.0, -0.3)
 LOOP_RADII = (3.3, 2.4)
+CAPTURE_LAYOUTS = ("walk", "forward", "orbit", "facade")
+CAPTURE_ROLLS = ("none", "portrait", "mixed")
 
 
 @dataclass
@@ -51,8 +64,14 @@ class CaptureConfig:
     rot_jitter_deg: float = 1.5  # hand-held orientation noise (degrees, std)
     walk_fraction: float = 0.25  # share of the images taken walking up the path (rest: loop)
     background: tuple = (0.62, 0.76, 0.92)  # sky colour (RGB in [0,1])
+    layout: str = "walk"  # walk | forward | orbit | facade (see module docstring)
+    roll: str = "none"  # none | portrait | mixed: photos stored sideways (rolled 90 degrees)
 
     def __post_init__(self) -> None:
+        if self.layout not in CAPTURE_LAYOUTS:
+            raise ValueError(f"capture.layout must be one of {CAPTURE_LAYOUTS}, got {self.layout!r}")
+        if self.roll not in CAPTURE_ROLLS:
+            raise ValueError(f"capture.roll must be one of {CAPTURE_ROLLS}, got {self.roll!r}")
         if not 3 <= self.num_images <= 1000:
             raise ValueError(f"capture.num_images must be in [3, 1000], got {self.num_images}")
         if self.width < 16 or self.height < 16:
@@ -71,7 +90,7 @@ class CaptureConfig:
 
     @staticmethod
     def from_dict(d: dict | None) -> "CaptureConfig":
-        return dataclass_from_dict(CaptureConfig, d, "synthetic.capture")
+        return from_dict(CaptureConfig, d, "synthetic.capture", check_types=True)
 
 
 @dataclass
@@ -100,6 +119,9 @@ class SynthConfig:
     def to_dict(self) -> dict:
         cap = asdict(self.capture)
         cap["background"] = list(self.capture.background)
+        for key, default in (("layout", "walk"), ("roll", "none")):  # the default capture's scene.json stays as it was
+            if cap[key] == default:
+                del cap[key]
         return {"seed": self.seed, "scene": asdict(self.scene), "capture": cap, "motion": self.motion.to_dict()}
 
 
@@ -115,8 +137,93 @@ def _camera(eye: np.ndarray, yaw: float, pitch: float, roll: float, K: np.ndarra
 
 
 def camera_path(cfg: CaptureConfig | None = None, seed: int = 0) -> list[Camera]:
-    """The hand-held capture path (deterministic for ``seed``): a loop, then a walk up the path."""
+    """The capture cameras of ``cfg.layout`` (deterministic for ``seed``), rolled by ``cfg.roll``."""
     cfg = cfg or CaptureConfig()
+    if cfg.layout == "walk":
+        cams = walk_path(cfg, seed)
+    else:
+        cams = {"forward": forward_path, "orbit": orbit_path, "facade": facade_path}[cfg.layout](cfg, seed)
+    if cfg.roll != "none":
+        cams = [roll_camera(c, 90.0) if cfg.roll == "portrait" or i % 2 == 1 else c for i, c in enumerate(cams)]
+    return cams
+
+
+def roll_camera(cam: Camera, deg: float) -> Camera:
+    """``cam`` rolled by ``deg`` about its optical axis (positive: the image content turns clockwise)."""
+    r = math.radians(deg)
+    c, s = math.cos(r), math.sin(r)
+    Rr = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    V = cam.viewmat.copy()
+    V[:3, :3] = Rr @ V[:3, :3]
+    V[:3, 3] = Rr @ V[:3, 3]
+    return Camera(cam.K.copy(), V, cam.width, cam.height, cam.name)
+
+
+def _jittered(rng: np.random.Generator, cfg: CaptureConfig, eye: np.ndarray, target: np.ndarray, K: np.ndarray,
+              name: str) -> Camera:
+    """Hand-held camera at ``eye`` (+ position noise) looking at ``target`` (+ orientation noise)."""
+    eye = eye + rng.normal(0, 1, 3) * np.array([cfg.pos_jitter, cfg.pos_jitter, 0.5 * cfg.pos_jitter])
+    d = np.asarray(target, float) - eye
+    jr = math.radians(cfg.rot_jitter_deg)
+    yaw = math.atan2(d[1], d[0]) + rng.normal(0, jr)
+    pitch = math.atan2(d[2], math.hypot(d[0], d[1])) + rng.normal(0, jr)
+    return _camera(eye, yaw, pitch, rng.normal(0, jr), K, cfg, name)
+
+
+def forward_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
+    """Forward-facing close-up of the west flower bed: a 2-row grid of positions 1 m in front of
+    it, 0.9-1.2 m high, all looking north at the bed (about 25 degrees down)."""
+    rng = np.random.default_rng(int(seed) + 104729)
+    K = intrinsics_from_fov(cfg.fov_deg, cfg.width, cfg.height)
+    x0, x1, y0, y1 = BEDS[0]
+    cols = max(int(math.ceil(cfg.num_images / 2)), 1)
+    cams: list[Camera] = []
+    for i in range(cfg.num_images):
+        r, c = divmod(i, cols)
+        x = -3.9 + 1.6 * (c + 0.5) / cols
+        eye = np.array([x, y0 - 1.0, 0.9 + 0.3 * r])
+        target = np.array([x + 0.15 * math.sin(1.7 * i), 0.5 * (y0 + y1), 0.25])
+        cams.append(_jittered(rng, cfg, eye, target, K, f"img_{i:03d}.png"))
+    return cams
+
+
+ORBIT_TREE = TREE_SITES[1]
+
+
+def orbit_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
+    """Inward orbit around the east tree (ellipse 1.75 x 2.4 m, inside the fence), 1.3 m high,
+    every camera looking at the crown base (1.9 m)."""
+    rng = np.random.default_rng(int(seed) + 1299709)
+    K = intrinsics_from_fov(cfg.fov_deg, cfg.width, cfg.height)
+    tx, ty = ORBIT_TREE
+    cams: list[Camera] = []
+    for i in range(cfg.num_images):
+        th = 2 * math.pi * (i + rng.uniform(-0.2, 0.2)) / cfg.num_images
+        eye = np.array([tx + 1.75 * math.cos(th), ty + 2.4 * math.sin(th), 1.3])
+        cams.append(_jittered(rng, cfg, eye, np.array([tx, ty, 1.9]), K, f"img_{i:03d}.png"))
+    return cams
+
+
+def facade_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
+    """A walk along the building looking up at it: 1.5-3 m in front of the facade, eye height,
+    pitched 25-45 degrees up, headings within +-30 degrees of the facade normal."""
+    rng = np.random.default_rng(int(seed) + 15485863)
+    K = intrinsics_from_fov(cfg.fov_deg, cfg.width, cfg.height)
+    cams: list[Camera] = []
+    for i in range(cfg.num_images):
+        s = (i + 0.5) / cfg.num_images
+        eye = np.array([-3.5 + 7.0 * s, Y1 - 1.5 - 1.5 * rng.uniform(), cfg.eye_height])
+        head = math.pi / 2 + math.radians(30.0) * math.sin(2 * math.pi * s + 0.4)
+        pitch = math.radians(25.0 + 20.0 * rng.uniform())
+        dist = 3.0
+        target = eye + dist * np.array([math.cos(pitch) * math.cos(head), math.cos(pitch) * math.sin(head),
+                                        math.sin(pitch)])
+        cams.append(_jittered(rng, cfg, eye, target, K, f"img_{i:03d}.png"))
+    return cams
+
+
+def walk_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
+    """The default hand-held path (deterministic for ``seed``): a loop, then a walk up the path."""
     rng = np.random.default_rng(int(seed) + 7919)
     K = intrinsics_from_fov(cfg.fov_deg, cfg.width, cfg.height)
     n_walk = int(round(cfg.walk_fraction * cfg.num_images))

@@ -12,9 +12,11 @@ import cv2
 import numpy as np
 
 from anigs.io import atomic_path
-from anigs.views import ViewPlan, horizontal_basis
+from anigs.geometry import horizontal_basis
+from anigs.views.plan import ViewPlan
 
 # BGR colours
+_REJECTED = (40, 40, 140)
 _DIR_COLOURS = [(200, 90, 20), (0, 140, 255), (180, 40, 180), (40, 160, 40), (30, 30, 200)]
 
 
@@ -79,18 +81,30 @@ def draw_topdown(plan: ViewPlan, means: np.ndarray, roi: np.ndarray, size: int =
         cv2.polylines(img, [poly], True, col, 1, cv2.LINE_AA)
         tip = eye + 0.6 * ray * fwd
         cv2.arrowedLine(img, ipt(eye), ipt(tip), col, 1, cv2.LINE_AA, tipLength=0.15)
+    for r in plan.rejected:  # directions that failed the coverage test: short dark-red ray ending in an x
+        eye = to2(np.asarray(r["position"]))
+        fwd = to2(np.asarray(r["forward"]))
+        n = np.linalg.norm(fwd)
+        if n < 1e-9:
+            continue
+        tip = eye + 0.45 * ray * fwd / n
+        cv2.line(img, ipt(eye), ipt(tip), _REJECTED, 1, cv2.LINE_AA)
+        cv2.drawMarker(img, ipt(tip), _REJECTED, cv2.MARKER_TILTED_CROSS, 7, 1, cv2.LINE_AA)
     for i, ci in enumerate(plan.chosen):
         p = ipt(cand[ci])
         cv2.circle(img, p, 8, (30, 30, 220), -1, cv2.LINE_AA)
         cv2.putText(img, str(i), (p[0] + 9, p[1] - 9), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (30, 30, 220), 2, cv2.LINE_AA)
     y0 = size + 18
-    cv2.putText(img, "grey: scene  green: ROI  circles: candidates  red: locations (CCW order)",
+    cv2.putText(img, "grey: scene  green: ROI  circles: candidates  red: locations (CCW order)  x: rejected",
                 (8, y0), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
     x = 8
     for j, yaw in enumerate(yaws):
         col = _DIR_COLOURS[j % len(_DIR_COLOURS)]
         cv2.putText(img, f"yaw {yaw:+.0f}", (x, y0 + 20), cv2.FONT_HERSHEY_SIMPLEX, 0.45, col, 1, cv2.LINE_AA)
         x += 90
+    if plan.layout is not None:
+        cv2.putText(img, f"layout {plan.layout.kind}, {len(plan.rejected)} rejected", (8, y0 + 38),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
     if plan.coverage_after:
         cv2.putText(img, f"ROI coverage {100 * plan.coverage_after[-1]:.1f}% after {len(plan.views)} views",
                     (x + 10, y0 + 20), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)

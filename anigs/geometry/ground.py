@@ -1,0 +1,118 @@
+"""Ground plane (:func:`estimate_ground`) and scene extent (:func:`scene_extent`)."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from anigs.cameras import Camera
+from anigs.geometry.basics import unit
+
+log = logging.getLogger("anigs.geometry")
+
+
+@dataclass
+class Ground:
+    """Ground plane ``x . normal = offset`` (see :func:`estimate_ground`).
+
+    ``layer``: thickness of the reconstructed ground measured below the plane;
+    ``camera_height``: median camera height above the plane (0 without cameras);
+    ``ref``: the length ``min_height`` margins scale with (camera height, else the height range).
+    """
+
+    normal: np.ndarray
+    offset: float
+    layer: float
+    camera_height: float
+    ref: float
+    method: str = "densest-layer"   # densest-layer | below-cameras | fallback
+    fallback: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"normal": [float(v) for v in self.normal], "offset": float(self.offset), "layer": float(self.layer),
+                "camera_height": float(self.camera_height), "method": self.method, "fallback": self.fallback}
+
+
+def _densest_layer(h: np.ndarray, lo: float, top: float, width: float) -> float:
+    low = h[(h >= lo) & (h <= top)]
+    if len(low) == 0:
+        low = h
+    hist, edges = np.histogram(low, bins=max(int((top - lo) / width), 1), range=(lo, max(top, lo + width)))
+    k = int(np.argmax(hist))
+    c = 0.5 * (edges[k] + edges[k + 1])
+    near = h[np.abs(h - c) <= width]
+    return float(near.mean()) if len(near) else float(c)
+
+
+def estimate_ground(means: np.ndarray, up: np.ndarray, cameras: Sequence[Camera] = (), bins: int = 400,
+                    layer_quantile: float = 0.97, layer_band: float = 0.5, min_below: int = 10) -> Ground:
+    """Ground plane of points ``means`` [N,3] along ``up`` [3].
+
+    The densest thin layer below the median height (histogram peak refined by the mean of the
+    points within one bin). When cameras are given and are not above it, the search is
+    repeated among the points below the lowest camera; with fewer than ``min_below`` such
+    points the fallback plane lies one bin below the lowest point (a warning is logged).
+    ``layer``: the ``layer_quantile`` quantile of the depths of the points within
+    ``layer_band`` * ref below the plane (the scatter of a fitted ground).
+    Raises only for bad arguments (fewer than 10 points, quantile outside (0, 1)).
+    """
+    up = unit(np.asarray(up, np.float64))
+    h = np.asarray(means, np.float64) @ up
+    if len(h) < 10:
+        raise ValueError(f"estimate_ground: need >= 10 Gaussians, got {len(h)}")
+    if not 0.0 < layer_quantile < 1.0:
+        raise ValueError(f"estimate_ground: layer_quantile must be in (0, 1), got {layer_quantile}")
+    lo, hi = np.percentile(h, [0.5, 99.5])
+    med = float(np.median(h))
+    width = max((hi - lo) / bins, 1e-9)
+    offset = _densest_layer(h, lo, med, width)
+    method, fallback = "densest-layer", False
+    cam_h = 0.0
+    if len(cameras):
+        ch = np.array([c.center @ up for c in cameras])
+        ref = float(np.median(ch - offset))
+        if ref <= 0:
+            below = h[h < ch.min() - width]
+            if len(below) >= min_below:
+                offset = _densest_layer(below, float(np.percentile(below, 0.5)), float(below.max()), width)
+                method = "below-cameras"
+                log.warning("estimate_ground: the densest layer (median camera height %.3g above it) is not below "
+                            "the cameras; using the densest layer of the %d points below them", ref, len(below))
+            else:
+                offset = float(min(lo, ch.min()) - width)
+                method, fallback = "fallback", True
+                log.warning("estimate_ground: no ground below the cameras (%d points below the lowest camera); "
+                            "fallback plane just below all content (the ground cue excludes nothing)", len(below))
+            ref = float(np.median(ch - offset))
+            if ref <= 0:  # cameras far below their own median: keep a positive reference length
+                ref = float(max(hi - lo, width))
+        cam_h = ref
+    else:
+        ref = float(hi - lo)
+    depth_below = offset - h
+    below = depth_below[(depth_below > 0) & (depth_below <= layer_band * ref)]
+    layer = float(np.quantile(below, layer_quantile)) if len(below) >= 10 else 0.0
+    return Ground(up, offset, layer, cam_h, ref, method, fallback)
+
+
+# ---- extent -------------------------------------------------------------------------------
+@dataclass
+class Extent:
+    """Size of a scene: ``center`` [3], ``radius`` (robust, of the content), ``camera_diameter``."""
+
+    center: np.ndarray
+    radius: float
+    camera_diameter: float
+
+
+def scene_extent(cameras: Sequence[Camera], points: np.ndarray | None = None, quantile: float = 0.95) -> Extent:
+    """Centre and radius of the content (``quantile`` of distances to the median point) and the
+    largest distance between two camera centres. Without points the cameras stand in."""
+    cc = np.stack([c.center for c in cameras]) if len(cameras) else np.zeros((1, 3))
+    P = np.asarray(points, np.float64) if points is not None and len(points) else cc
+    center = np.median(P, 0)
+    radius = float(np.quantile(np.linalg.norm(P - center, axis=1), quantile))
+    diam = float(np.max(np.linalg.norm(cc[:, None] - cc[None], axis=-1))) if len(cc) > 1 else 0.0
+    return Extent(center, max(radius, 1e-9), diam)

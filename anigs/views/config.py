@@ -1,0 +1,85 @@
+"""The ``views`` stage's parameters (:class:`ViewsConfig`)."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+
+
+from anigs import geometry
+from anigs.configs import from_dict
+from anigs.masks.lift import VisibilityConfig
+
+log = logging.getLogger("anigs.views")
+
+
+@dataclass
+class ViewsConfig:
+    """Parameters of the view queue (config section ``views``)."""
+
+    num_locations: int = 4            # N camera locations
+    directions: list = field(default_factory=lambda: [0.0, 90.0, -90.0])  # yaw order per location (deg)
+    fov_deg: float = 95.0             # horizontal field of view of every view
+    width: int = 256                  # view image width
+    height: int = 192                 # view image height
+    pitch_deg: float = 0.0            # elevation of the views (negative looks down)
+    up: str = "z"                     # "z" or "auto" (estimated from the candidate cameras)
+    forward: str = "best"             # yaw-0 heading: best | centroid | camera
+    heading_step_deg: float = 5.0     # resolution of the 'best' heading search
+    jitter_std: float = 0.0           # std of horizontal jitter of extra candidates (world units)
+    jitter_copies: int = 0            # jittered copies per camera centre
+    visibility_power: float = 1.0     # FPS score = min distance * (visible fraction)^power
+    max_candidates: int = 64          # more candidates are thinned by farthest-point sampling first
+    visibility: str = "weight"        # coverage test: weight | depth | frustum
+    min_weight: float = 0.05          # 'weight' test: min summed blending weight (pixels)
+    rel_tol: float = 0.03             # 'depth' test: relative depth tolerance
+    scale_tol: float = 2.0            # 'depth' test: tolerance in Gaussian max-scales
+    min_overlap: float = 0.0          # warn when a view's overlap with previous views is <= this
+    seed: int = 0                     # jitter seed
+    layout: str = "auto"              # auto | walk | forward | orbit (auto: classified from the cameras)
+    min_coverage: float = 0.8         # min fraction of a view's pixels that see the fitted scene
+    coverage_alpha: float = 0.5       # a pixel sees the scene when its accumulated alpha is >= this
+    min_observations: int = 2         # only Gaussians visible in >= this many capture photos count
+    pitch_step_deg: float = 10.0      # replacement: pitch a failing direction down in these steps
+    max_pitch_drop_deg: float = 30.0  # ... by at most this much
+    yaw_steps: list = field(default_factory=lambda: [0.33, 0.67, 1.0])  # then move yaw this share towards the ROI
+    extra_locations: int = 8          # extra candidate locations tried for directions no location passes
+    match_capture_fov: bool = True    # forward/orbit layouts: FOV at most the capture photos' median FOV
+
+    def __post_init__(self) -> None:
+        if self.layout not in ("auto",) + geometry.LAYOUTS:
+            raise ValueError(f"views.layout must be 'auto' or one of {geometry.LAYOUTS}, got {self.layout!r}")
+        if not 0.0 <= self.min_coverage <= 1.0 or not 0.0 < self.coverage_alpha <= 1.0:
+            raise ValueError(f"views.min_coverage must be in [0, 1] and coverage_alpha in (0, 1], "
+                             f"got {self.min_coverage}, {self.coverage_alpha}")
+        if self.min_observations < 0 or self.extra_locations < 0:
+            raise ValueError("views.min_observations and views.extra_locations must be >= 0")
+        if self.pitch_step_deg <= 0 or self.max_pitch_drop_deg < 0:
+            raise ValueError("views.pitch_step_deg must be > 0 and max_pitch_drop_deg >= 0")
+        self.yaw_steps = [float(t) for t in self.yaw_steps]
+        if any(not 0.0 < t <= 1.0 for t in self.yaw_steps):
+            raise ValueError(f"views.yaw_steps must be in (0, 1], got {self.yaw_steps}")
+        if self.num_locations < 1:
+            raise ValueError(f"views.num_locations must be >= 1, got {self.num_locations}")
+        if not self.directions:
+            raise ValueError("views.directions must list at least one yaw")
+        self.directions = [float(d) for d in self.directions]
+        if self.width < 8 or self.height < 8:
+            raise ValueError(f"views: resolution {self.width}x{self.height} is too small (min 8x8)")
+        if self.up not in ("z", "auto"):
+            raise ValueError(f"views.up must be 'z' or 'auto', got {self.up!r}")
+        if self.forward not in ("best", "centroid", "camera"):
+            raise ValueError(f"views.forward must be 'best', 'centroid' or 'camera', got {self.forward!r}")
+        if self.jitter_copies < 0 or self.jitter_std < 0:
+            raise ValueError("views.jitter_copies and views.jitter_std must be >= 0")
+        if self.heading_step_deg <= 0:
+            raise ValueError(f"views.heading_step_deg must be > 0, got {self.heading_step_deg}")
+        VisibilityConfig(mode=self.visibility)  # validates the mode name
+
+    @staticmethod
+    def from_dict(d: dict | None) -> "ViewsConfig":
+        return from_dict(ViewsConfig, d, "views config")
+
+    def visibility_config(self) -> VisibilityConfig:
+        return VisibilityConfig(mode=self.visibility, rel_tol=self.rel_tol, scale_tol=self.scale_tol,
+                                min_weight=self.min_weight)
