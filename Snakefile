@@ -22,15 +22,19 @@ include: "workflow/rules/final.smk"
 include: "workflow/rules/eval.smk"
 
 
+# Named targets. A stage's rule carries the stage's name (static, views, masks, render_clip, refine,
+# update, final, export, eval; tables and tradeoff, which combine scenes, are targets
+# themselves: see anigs/stages/__init__.py); the targets that
+# build one stage for every scene and variant are all_<stage>.
 localrules:
     all,
-    static,
+    all_static,
     animate,
-    render,
-    export,
-    eval,
+    all_final,
+    all_export,
+    all_eval,
     tables,
-    tradeoff,
+    study,
 
 
 rule all:
@@ -39,7 +43,7 @@ rule all:
     default_target: True
 
 
-rule static:
+rule all_static:
     input:
         [f"{R}/{s}/static/canonical.ply" for s in SCENES],
 
@@ -49,26 +53,17 @@ rule animate:
         [model_path(s, v, plan(s, v).num_rounds) for s in SCENES for v in config["variants"]],
 
 
-rule render:
+rule all_final:
     input:
         [f"{R}/{s}/{v}/final/final.json" for s in SCENES for v in config["variants"]],
 
 
-rule export:
+rule all_export:
     input:
         [f"{R}/{s}/{v}/export/animated.json" for s in SCENES for v in config["variants"]],
 
 
-rule eval:
+rule all_eval:
     input:
         [f"{R}/{s}/{v}/eval/metrics.json" for s in SCENES for v in config["variants"]],
 
-
-rule tables:
-    input:
-        f"{R}/tables/tables.json",
-
-
-rule tradeoff:
-    input:
-        lambda wc: tradeoff_targets(),

@@ -10,7 +10,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 import torch
@@ -171,3 +171,50 @@ def load_cameras(path: str | Path) -> list[Camera]:
     data = json.loads(path.read_text())
     entries = data["cameras"] if isinstance(data, dict) else data
     return [Camera.from_dict(d) for d in entries]
+
+
+def _is_camera_dict(d: Any) -> bool:
+    return isinstance(d, dict) and "K" in d and "viewmat" in d
+
+
+def load_view_camera(path: str | Path, view_id: str) -> Camera:
+    """The camera of view ``view_id`` in a views JSON.
+
+    Accepted layouts: a list of entries, or a dict with the list under ``views`` (or
+    ``cameras``); an entry is ``{"id": ..., "camera": {Camera dict}}`` or a Camera dict whose
+    ``id``/``name`` is the view id.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"views file not found: {path}")
+    data = json.loads(path.read_text())
+    entries = data
+    if isinstance(data, dict):
+        entries = next((data[k] for k in ("views", "cameras") if k in data), None)
+        if entries is None:
+            raise KeyError(f"{path}: expected a list of views or a dict with 'views' or 'cameras'")
+    ids = []
+    for e in entries:
+        eid = str(e.get("id", e.get("name", "")))
+        ids.append(eid)
+        if eid == str(view_id):
+            cam = e.get("camera", e)
+            if not _is_camera_dict(cam):
+                raise KeyError(f"{path}: view {view_id!r} has no camera dict (K, viewmat, width, height)")
+            cam = dict(cam)
+            cam.setdefault("name", eid)
+            return Camera.from_dict(cam)
+    raise KeyError(f"{path}: no view with id {view_id!r}; views present: {ids}")
+
+
+def load_camera_json(path: str | Path) -> Camera:
+    """A single camera JSON (``Camera.to_dict()``; also accepts ``{"camera": {...}}``)."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"camera file not found: {path}")
+    d = json.loads(path.read_text())
+    if isinstance(d, dict) and "camera" in d and _is_camera_dict(d["camera"]):
+        d = d["camera"]
+    if not _is_camera_dict(d):
+        raise KeyError(f"{path}: not a camera dict (needs K, viewmat, width, height)")
+    return Camera.from_dict(d)

@@ -1,7 +1,8 @@
 """``anigs`` command line: one subcommand per workflow stage.
 
-Each subcommand lives in ``anigs/commands/<name>.py`` and exposes
-``add_arguments(parser)`` and ``run(args) -> int``. Stage parameters come as the config
+Each stage's command lives in its module ``anigs/stages/<name>.py`` (``add_arguments(parser)``
+and ``main(args) -> int``, which parses and calls the stage's ``run``); the command table
+derives from the stage registry :data:`anigs.stages.STAGES`. Stage parameters come as the config
 section in JSON (``--params '{...}'`` or ``--params @file.json``) so Snakemake can pass
 its ``params:`` verbatim; paths are explicit options.
 """
@@ -15,23 +16,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
-# subcommand -> (module, one-line help)
-COMMANDS: dict[str, tuple[str, str]] = {
-    "build-kernel": ("anigs.commands.build_kernel", "compile the CPU rasterizer kernel ahead of time"),
-    "capture": ("anigs.commands.capture", "render the synthetic demo capture or import user photos"),
-    "sfm": ("anigs.commands.sfm", "COLMAP structure from motion (pycolmap)"),
-    "static": ("anigs.commands.static", "fit the static canonical 3DGS"),
-    "views": ("anigs.commands.views", "incremental viewpoint expansion: the view queue"),
-    "masks": ("anigs.commands.masks", "dynamic-region masks per view"),
-    "render-clip": ("anigs.commands.render_clip", "render a camera-fixed clip of one view with a round's model"),
-    "refine": ("anigs.commands.refine", "ComposedV2V refinement of one rendered clip"),
-    "update": ("anigs.commands.update", "model update: train the deformation field on a round's targets"),
-    "render": ("anigs.commands.render", "final videos and space-time slices"),
-    "export": ("anigs.commands.export", "export the animated scene (PLY sequence, DCT PLY + JSON)"),
-    "eval": ("anigs.commands.eval", "evaluation metrics"),
-    "tables": ("anigs.commands.tables", "paper tables from metric files"),
-    "tradeoff": ("anigs.commands.tradeoff", "accuracy-versus-time report of a sweep (CSV + plots)"),
+# tools that are not pipeline stages: command -> (module, one-line help)
+TOOLS: dict[str, tuple[str, str]] = {
+    "build-kernel": ("anigs.render.build_kernel", "compile the CPU rasterizer kernel ahead of time"),
+    "study": ("anigs.study.cli", "2AFC user study (paper Table 4): build the page, serve it, tally the answers"),
 }
+
+
+def commands() -> dict[str, tuple[str, str]]:
+    """Every ``anigs`` command -> (module, help): the stages of :data:`anigs.stages.STAGES`, then the tools."""
+    from anigs.stages import STAGES
+
+    return {**{s.name: (s.module, s.help) for s in STAGES if s.command}, **TOOLS}
 
 
 def parse_params(value: str | None) -> dict[str, Any]:
@@ -57,8 +53,14 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     modules = {}
     argv = sys.argv[1:] if argv is None else argv
-    wanted = next((a for a in argv if a in COMMANDS), None)
-    for name, (mod, help_) in COMMANDS.items():
+    table = commands()
+    from anigs.stages import RENAMED
+
+    old = next((a for a in argv if a in RENAMED and a not in table), None)
+    if old is not None and not any(a in table for a in argv):
+        parser.error(f"command {old!r} is now called {RENAMED[old]!r}")
+    wanted = next((a for a in argv if a in table), None)
+    for name, (mod, help_) in table.items():
         p = sub.add_parser(name, help=help_)
         if name == wanted:  # import lazily: only the chosen stage's dependencies load
             try:
@@ -79,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
 
         torch.set_num_threads(max(1, args.threads))
     try:
-        return int(modules[args.command].run(args) or 0)
+        return int(modules[args.command].main(args) or 0)
     except (ValueError, FileNotFoundError, RuntimeError, KeyError) as exc:
         logging.getLogger("anigs").error("%s: %s", type(exc).__name__, exc)
         if args.verbose:

@@ -11,8 +11,9 @@ from typing import Any
 
 import yaml
 
-STAGE_SECTIONS = ("capture", "sfm", "static", "views", "masks", "animate", "render_clip", "refine", "update",
-                  "final", "export", "eval")
+from anigs.stages import sections as _stage_sections
+
+STAGE_SECTIONS = _stage_sections()  # from the stage registry (anigs/stages/__init__.py)
 SCENE_KEYS = {"name", "source", "synthetic", "photos", "colmap", "ply", "effects", "prompt", *STAGE_SECTIONS}
 SOURCES = ("synthetic", "photos")
 
@@ -28,15 +29,46 @@ def deep_merge(base: dict, override: dict | None) -> dict:
     return out
 
 
-def load_scene(scene_dir: str | Path, name: str) -> dict[str, Any]:
-    """Read and check ``{scene_dir}/{name}.yaml``."""
+def check_sections(d: dict, schema: dict | None, where: str) -> None:
+    """Validate the stage sections of ``d`` (a scene file or a variant's overrides) against the
+    config schema's section schemas: a misspelt or mistyped key fails here, naming it and ``where``."""
+    if not schema:
+        return
+    import jsonschema
+
+    props = schema.get("properties", {})
+    for name in STAGE_SECTIONS:
+        if name not in d or name not in props:
+            continue
+        value = d[name]
+        if value is None:
+            continue
+        for err in sorted(jsonschema.Draft202012Validator(props[name]).iter_errors(value), key=lambda e: list(e.path)):
+            key = ".".join([name, *map(str, err.path)])
+            raise ValueError(f"{where}: {key}: {err.message}")
+
+
+def _with_effects_section(scene: dict) -> dict:
+    """The scene with its ``effects`` shorthand (a list, or ``auto``) as the section it stands for."""
+    eff = scene.get("effects")
+    if isinstance(eff, (list, str)):
+        return {**scene, "effects": {"requested": eff}}
+    return scene
+
+
+def load_scene(scene_dir: str | Path, name: str, schema: dict | None = None) -> dict[str, Any]:
+    """Read and check ``{scene_dir}/{name}.yaml``; with the config ``schema``, its stage sections are
+    validated too (so a typo fails when the workflow is parsed, before any job)."""
     path = Path(scene_dir) / f"{name}.yaml"
     if not path.exists():
         raise FileNotFoundError(f"scene {name!r}: no scene file {path} (create it; see config/README.md)")
     scene = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(scene, dict):
+        raise ValueError(f"scene file {path}: expected a mapping of keys, got {type(scene).__name__}")
     unknown = sorted(set(scene) - SCENE_KEYS)
     if unknown:
         raise ValueError(f"scene file {path}: unknown key(s) {unknown}; allowed: {sorted(SCENE_KEYS)}")
+    check_sections(_with_effects_section(scene), schema, f"scene file {path}")
     scene.setdefault("name", name)
     src = scene.get("source")
     if src not in SOURCES:
@@ -50,8 +82,10 @@ def load_scene(scene_dir: str | Path, name: str) -> dict[str, Any]:
             raise FileNotFoundError(f"scene {name!r}: photo folder {p} does not exist")
         if not any(f.suffix.lower() in (".jpg", ".jpeg", ".png") for f in p.iterdir()):
             raise ValueError(f"scene {name!r}: photo folder {p} holds no .jpg/.jpeg/.png files")
-    if not scene.get("effects"):
-        scene["effects"] = []
+    # `effects: [..]` / `effects: auto` picks what may move: shorthand of the effects section's `requested`
+    eff = scene.get("effects")
+    if eff is None or isinstance(eff, (list, str)):
+        scene["effects"] = {"requested": "auto" if eff in (None, [], "auto") else eff}
     return scene
 
 

@@ -11,3 +11,39 @@ def reject_unknown_keys(cls: type, d: Mapping[str, Any], where: str, error: type
     unknown = sorted(set(d) - known)
     if unknown:
         raise error(f"{where}: unknown keys {unknown}; allowed: {sorted(known)}")
+
+
+def from_dict(cls: type, d: Mapping[str, Any] | None, where: str, error: type[Exception] = ValueError,
+              check_types: bool = False):
+    """Build dataclass ``cls`` from a config mapping; unknown keys raise ``error`` naming them.
+
+    ``check_types``: also check each value against the type of the field's default (bool, int,
+    float, fixed-length tuple; ints are accepted for floats) and raise ValueError naming the key."""
+    if d is not None and not isinstance(d, Mapping):
+        raise error(f"{where}: expected a mapping, got {type(d).__name__}")
+    d = dict(d or {})
+    reject_unknown_keys(cls, d, where, error)
+    if check_types:
+        defaults = cls()
+        for key, value in list(d.items()):
+            d[key] = _typed(getattr(defaults, key), value, f"{where}.{key}")
+    return cls(**d)
+
+
+def _typed(ref: Any, value: Any, where: str) -> Any:
+    """``value`` checked against (and coerced to) the type of the default ``ref``."""
+    if isinstance(ref, bool):
+        ok = isinstance(value, bool)
+    elif isinstance(ref, int):
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif isinstance(ref, float):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        value = float(value) if ok else value
+    elif isinstance(ref, tuple):
+        ok = isinstance(value, (list, tuple)) and len(value) == len(ref)
+        value = tuple(float(v) for v in value) if ok else value
+    else:
+        ok = True
+    if not ok:
+        raise ValueError(f"{where}: expected {type(ref).__name__} like {ref!r}, got {value!r}")
+    return value

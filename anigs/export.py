@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from anigs.deform import DCTDeformation
+from anigs.animate.deform import DCTDeformation
 from anigs.gaussians import Gaussians, load_ply, ply_property_names
 from anigs.io import atomic_path
 

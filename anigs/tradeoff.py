@@ -35,12 +35,16 @@ import numpy as np
 
 from anigs.config import deep_merge
 
+from anigs.stages import sections_of
+
 # config sections a variant may override (the others are shared by every variant of a scene)
-VARIANT_SECTIONS = ("animate", "render_clip", "refine", "update", "final", "export", "eval")
-SCENE_STAGES = ("static", "views", "masks")  # shared per-scene stages whose time every variant includes
+VARIANT_SECTIONS = sections_of("variant")
+# per-scene stages whose time every variant includes and that a knob may sweep (a derived scene
+# reuses the capture and SfM of its base scene as they are)
+SCENE_STAGES = tuple(s for s in sections_of("scene") if s not in ("capture", "sfm"))
 # per-scene stages in pipeline order: a derived scene shares every stage before its knob's
-SCENE_STAGE_ORDER = ("capture", "sfm", *SCENE_STAGES)
-EXCLUDED_BENCHMARKS = ("eval.tsv", "export.tsv")
+SCENE_STAGE_ORDER = sections_of("scene")
+EXCLUDED_BENCHMARKS = ("eval.tsv", "export.tsv", "view.tsv")
 DERIVED_SEP = "--"
 
 

@@ -77,16 +77,6 @@ def read_mp4(path: str | Path) -> np.ndarray:
     return np.stack([np.asarray(f) for f in imageio.mimread(str(path), memtest=False)]).astype(np.float32) / 255
 
 
-def xt_slice(clip, row: int) -> np.ndarray:
-    """x-t slice [T,W,3]: one image row over time."""
-    return check_clip(clip)[:, row]
-
-
-def yt_slice(clip, col: int) -> np.ndarray:
-    """y-t slice [T,H,3]: one image column over time."""
-    return check_clip(clip)[:, :, col]
-
-
 def save_png(path: str | Path, image) -> None:
     """Write an image [H,W,3] or [H,W] in [0,1] (or uint8) as PNG, atomically."""
     import imageio.v2 as imageio

@@ -66,9 +66,9 @@ def main(argv: list[str] | None = None) -> int:
     from anigs.cli import parse_params
     import dataclasses
 
-    from anigs.commands.masks import MasksConfig
+    from anigs.stages.masks import MasksConfig
     from anigs.masks.capture import capture_frames
-    from anigs.commands.views import roi_from_labels
+    from anigs.masks.labels import roi_from_labels
     from anigs.gaussians import load_ply
     from anigs.io import read_json
     from anigs.masks import compute_masks, get_mask_backend, mask_iou, render_frames

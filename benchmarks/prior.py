@@ -51,7 +51,7 @@ def scene(T: int, H: int, W: int, seed: int = 0):
 
 
 def bench_procedural(sizes, frames) -> None:
-    from anigs.compose import composed_v2v
+    from anigs.refine.compose import composed_v2v
     from anigs.prior import get_prior
 
     prior = get_prior("procedural", {"effects": ["foliage_sway", "leaf_flutter"]})
@@ -67,7 +67,7 @@ def bench_procedural(sizes, frames) -> None:
 
 
 def bench_strength() -> None:
-    from anigs.compose import composed_v2v
+    from anigs.refine.compose import composed_v2v
     from anigs.flow import clip_backward_flow
     from anigs.prior import get_prior
 

@@ -64,7 +64,7 @@ def main() -> None:
     ap.add_argument("--dilate", type=int, default=3, help="ComposedV2V dilate_px")
     args = ap.parse_args()
 
-    from anigs.compose import ComposeConfig, compose, composed_v2v, dilate_masks, soft_mask
+    from anigs.refine.compose import ComposeConfig, compose, composed_v2v, dilate_masks, soft_mask
     from anigs.prior import get_prior
     from anigs.prior.base import union_mask
     from anigs.synth import CaptureConfig, MotionParams, SceneConfig, build_scene, camera_path, gt_clip_offsets

@@ -29,7 +29,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
 
     from anigs.cli import parse_params
-    from anigs.sfm import SfmConfig, run_sfm
+    from anigs.sfm.colmap import SfmConfig, run_sfm
 
     capture = Path(args.capture)
     images = capture / "images"

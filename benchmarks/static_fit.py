@@ -1,6 +1,6 @@
 """Accuracy versus time of the static 3DGS fit: how long to train.
 
-Runs ``anigs.fit.fit_static`` and records held-out PSNR at checkpoints against wall seconds
+Runs ``anigs.static.fit.fit_static`` and records held-out PSNR at checkpoints against wall seconds
 (training time, evaluation excluded; also process CPU seconds, a contention-free proxy), for the
 default settings and for a sweep over image
 resolution (judged on full-resolution held-out views too) and Gaussian budget. Prints a table
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # see anigs/commands/static.py
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # see anigs/stages/static.py
 
 import argparse  # noqa: E402
 import csv  # noqa: E402
@@ -35,12 +35,13 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from anigs.cameras import Camera  # noqa: E402
-from anigs.fit import FitConfig, fit_static  # noqa: E402
+from anigs.static.fit import FitConfig, fit_static  # noqa: E402
 
 
 def load_scene(scene: Path | None):
     """(images [H,W,3] list, cameras, points [P,3], colours [P,3], background, description)."""
-    from anigs.commands.static import load_inputs, load_points
+    from anigs.images import load_inputs
+    from anigs.sfm.model import load_points
 
     if scene is not None and (scene / "sfm" / "cameras.json").exists():
         img_dir = scene / "sfm" / "images"
@@ -177,7 +178,7 @@ def main() -> int:
         wall = time.perf_counter() - t0
         full = m["test_psnr"]
         if s != 1.0:  # a lower training resolution is judged on the full-resolution held-out views
-            from anigs.fit import _to_params, evaluate, split_holdout
+            from anigs.static.fit import _to_params, evaluate, split_holdout
 
             _, test = split_holdout(len(imgs), cfg.holdout_every)
             bgt = torch.tensor(cfg.background, dtype=torch.float32)

@@ -14,8 +14,9 @@ VENV="${ANIGS_VENV:-.venv}"
 CONSTRAINTS="${ANIGS_CONSTRAINTS:-envs/constraints.txt}"
 # Optional extras (e.g. ANIGS_EXTRAS=ltx,gsplat). The test suite runs the real LTX code path
 # with tiny random weights and uses gsplat's pure-torch functions as an oracle, so 'test'
-# installs both by default (neither downloads weights; gsplat's CUDA kernels stay unused).
-if [ "$MODE" = "test" ]; then EXTRAS="${ANIGS_EXTRAS-ltx,gsplat,slurm}"; else EXTRAS="${ANIGS_EXTRAS:-}"; fi
+# installs both by default (neither downloads weights; gsplat's CUDA kernels stay unused),
+# plus the 'test' extra (plyfile, selenium) and Debian's chromium (envs/browser.sh).
+if [ "$MODE" = "test" ]; then EXTRAS="${ANIGS_EXTRAS-ltx,gsplat,slurm,test}"; else EXTRAS="${ANIGS_EXTRAS:-}"; fi
 
 if [ ! -x "$VENV/bin/python" ]; then
   echo "[anigs] creating virtual environment $VENV"
@@ -34,6 +35,8 @@ if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   echo "$WANT" > "$STAMP"
 fi
 "$VENV/bin/anigs" build-kernel --quiet
+# the browser tests (viewer, study page) drive Debian's chromium; installed as root where apt exists
+if [ "$MODE" = "test" ]; then ANIGS_VENV="$VENV" bash envs/browser.sh "$VENV"; fi
 export PATH="$(cd "$VENV/bin" && pwd):$PATH"
 
 case "$MODE" in

@@ -1,4 +1,6 @@
-"""Shared pytest options: ``--device`` (default cpu) and the ``gpu`` marker."""
+"""Shared pytest options (``--device``, default cpu; the ``gpu`` marker) and fixtures (``one_thread``).
+
+Shared scene builders live in ``tests/_scenes.py``."""
 from __future__ import annotations
 
 import pytest
@@ -22,3 +24,13 @@ def device(request) -> torch.device:
     from anigs.device import get_device
 
     return get_device(request.config.getoption("--device"))
+
+
+@pytest.fixture
+def one_thread():
+    """One torch/OpenMP thread for the test: the CPU kernel's threads stall on an oversubscribed
+    machine (use with ``pytestmark = pytest.mark.usefixtures("one_thread")``)."""
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.compose import ComposeConfig, compose, composed_v2v, soft_mask
+from anigs.refine.compose import ComposeConfig, compose, composed_v2v, soft_mask
 from anigs.prior.base import VideoPrior
 from anigs.prior.procedural import ProceduralPrior
 
@@ -130,7 +130,7 @@ def test_dilation_grows_the_dynamic_region():
 
 def test_refine_command_end_to_end(tmp_path):
     from anigs.cli import main
-    from anigs.commands.refine import view_seed
+    from anigs.stages.refine import view_seed
     from anigs.video import load_clip, save_clip, save_png
 
     frame = np.random.default_rng(0).random((H, W, 3)).astype(np.float32)

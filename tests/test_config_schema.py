@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from anigs.config import deep_merge, load_scene, section
+from anigs.config import load_scene, section
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -67,3 +67,125 @@ def test_config_docs_are_in_sync_with_the_schema():
     res = subprocess.run([sys.executable, str(ROOT / "workflow/scripts/make_config_docs.py"), "--check"],
                          capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
+
+
+def _schema() -> dict:
+    return yaml.safe_load((ROOT / "workflow/schemas/config.schema.yaml").read_text())
+
+
+def test_scene_file_typo_in_a_stage_section_names_the_key_and_the_file(tmp_path):
+    (tmp_path / "typo.yaml").write_text("source: synthetic\nstatic: {iteratons: 5}\n")
+    with pytest.raises(ValueError, match=r"typo\.yaml.*iteratons") as exc:
+        load_scene(tmp_path, "typo", _schema())
+    assert "static" in str(exc.value)
+    (tmp_path / "nested.yaml").write_text("source: synthetic\nmasks: {vegetation: {exgr_thresh: 0.1}}\n")
+    with pytest.raises(ValueError, match=r"masks\.vegetation.*exgr_thresh"):
+        load_scene(tmp_path, "nested", _schema())
+    (tmp_path / "wrongtype.yaml").write_text("source: synthetic\nupdate: {steps: many}\n")
+    with pytest.raises(ValueError, match=r"update\.steps"):
+        load_scene(tmp_path, "wrongtype", _schema())
+    (tmp_path / "ok.yaml").write_text("source: synthetic\nstatic: {iterations: 5}\n")
+    assert load_scene(tmp_path, "ok", _schema())["static"] == {"iterations": 5}
+
+
+def test_scene_file_typo_fails_when_the_workflow_is_parsed(tmp_path):
+    """A dry run stops before any job, naming the key and the scene file."""
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    (scenes / "typo.yaml").write_text("source: synthetic\nstatic: {iteratons: 5}\n")
+    exe = Path(sys.executable).with_name("snakemake")
+    res = subprocess.run([str(exe), "-n", "--cores", "1", "--config", f"scene_dir={scenes}", "scenes=[typo]",
+                          f"results={tmp_path / 'results'}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert res.returncode != 0
+    out = res.stdout + res.stderr
+    assert "iteratons" in out and "typo.yaml" in out, out[-3000:]
+    assert not (tmp_path / "results").exists()
+
+
+def test_variant_override_typo_names_the_variant():
+    from anigs.config import check_sections
+
+    with pytest.raises(ValueError, match=r"variant_overrides\.x.*update.*stepz"):
+        check_sections({"update": {"stepz": 3}}, _schema(), "config: variant_overrides.x")
+
+
+def test_the_stage_list_is_written_once():
+    """The CLI, the config sections, the sweep and the schema all derive from anigs.stages.STAGES."""
+    from anigs.cli import commands
+    from anigs.config import STAGE_SECTIONS
+    from anigs.stages import STAGES, get
+    from anigs.tradeoff import SCENE_STAGE_ORDER, VARIANT_SECTIONS
+
+    names = [s.name for s in STAGES]
+    assert STAGE_SECTIONS == tuple(s.name for s in STAGES if s.section)
+    assert set(VARIANT_SECTIONS) | set(SCENE_STAGE_ORDER) == set(STAGE_SECTIONS)
+    assert [c for c in commands() if c in names] == [s.name for s in STAGES if s.command]
+    schema = _schema()["properties"]
+    assert all(name in schema for name in STAGE_SECTIONS)
+    for s in STAGES:  # one name: module, config class, rule
+        mod = s.load()
+        if s.command:
+            assert callable(mod.main) and callable(mod.add_arguments)
+        if s.section:
+            assert mod.Config is s.config_class()
+    rules = "\n".join(p.read_text() for p in (ROOT / "workflow/rules").glob("*.smk"))
+    for s in STAGES:
+        if s.name not in ("capture", "animate"):  # capture: one rule per source; animate: a target
+            assert f"\nrule {s.name}:" in rules, s.name
+    with pytest.raises(KeyError, match="now called 'final'"):
+        get("render")
+
+
+def test_old_command_names_fail_naming_the_new_one(capsys):
+    from anigs.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["render-clip", "--help"])
+    assert "now called 'render_clip'" in capsys.readouterr().err
+
+
+def test_a_scene_sections_own_device_is_kept(tmp_path):
+    """The workflow fills in the global device, but an explicit device in a stage section wins."""
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    (scenes / "dev.yaml").write_text("source: synthetic\nsynthetic: {}\nstatic: {device: cpu}\n")
+    exe = Path(sys.executable).with_name("snakemake")
+    res = subprocess.run([str(exe), "-n", "-p", "--cores", "1", "--config", f"scene_dir={scenes}", "scenes=[dev]",
+                          "device=auto", f"results={tmp_path / 'results'}", "--", f"{tmp_path}/results/dev/static/canonical.ply"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr[-3000:]
+    static_cmd = next(line for line in res.stdout.splitlines() if " static --images" in line)
+    assert '"device": "cpu"' in static_cmd, static_cmd
+    sfm_cmd = next(line for line in res.stdout.splitlines() if " sfm --images" in line)
+    assert '"device": "auto"' in sfm_cmd
+
+
+def test_photo_scenes_pair_the_sfm_cameras_with_the_undistorted_images(tmp_path):
+    """sfm/cameras.json describes the undistorted sfm/images; capture/images are the distorted
+    originals. Every job that reads the cameras with images must read sfm/images."""
+    import cv2
+    import numpy as np
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for i in range(3):
+        cv2.imwrite(str(photos / f"p{i}.png"), np.full((8, 8, 3), 40 * i, np.uint8))
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    (scenes / "ph.yaml").write_text(f"source: photos\nphotos: {photos}\neffects: [foliage_sway]\n")
+    exe = Path(sys.executable).with_name("snakemake")
+    res = subprocess.run([str(exe), "-n", "-p", "--cores", "1", "--config", f"scene_dir={scenes}", "scenes=[ph]",
+                          f"results={tmp_path / 'results'}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr[-3000:]
+    cmds = [line for line in res.stdout.splitlines() if "--cameras" in line and "--images" in line]
+    def stage(cmd: str) -> str:  # the word after `anigs [--threads N]`
+        words = cmd.split("anigs ", 1)[1].split()
+        return words[2] if words[0] == "--threads" else words[0]
+
+    assert {stage(c) for c in cmds} >= {"effects", "masks", "eval", "static"}
+    for c in cmds:
+        images = c.split("--images ", 1)[1].split()[0]
+        assert images.endswith("/sfm/images"), c
+    # the region of interest is computed once, by the effects stage, and the views stage takes it
+    views = next(line for line in res.stdout.splitlines() if " views --canonical" in line)
+    assert "--dynamic " in views and "/effects/dynamic.npy" in views and "--images" not in views, views

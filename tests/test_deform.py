@@ -7,57 +7,14 @@ import math
 import pytest
 import torch
 
-from anigs.animated import render_clip, render_frame
-from anigs.cameras import Camera, intrinsics_from_fov, look_at
-from anigs.deform import (DCTDeformation, axis_angle_to_quat, dct_basis, dynamic_index_from_mask, load_model,
+from anigs.animate.frames import render_clip, render_frame
+from anigs.animate.deform import (DCTDeformation, axis_angle_to_quat, dct_basis, dynamic_index_from_mask, load_model,
                           quat_multiply, resolve_num_bases, save_model, soft_limit)
 from anigs.gaussians import Gaussians
-from anigs.render.projection import quat_to_rotmat
+from anigs.geometry.quaternion import quat_to_rotmat
+from tests._scenes import ring_cameras, sway_scene
 
-
-@pytest.fixture(autouse=True)
-def _one_thread():
-    """The CPU kernel's OpenMP threads spin badly on an oversubscribed machine: use one."""
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
-
-
-# ---- shared scene builders (also used by test_update.py) ----------------------------------
-def sway_scene(seed: int = 0, n_dyn: int = 200, grid: int = 15, anisotropic: bool = False):
-    """A textured ground grid (static, z = 0) and a 'shrub': n_dyn Gaussians on a sphere of
-    radius 0.4 centred 0.7 above the ground (dynamic). Returns (Gaussians, dynamic mask [N])."""
-    g = torch.Generator().manual_seed(seed)
-    i = torch.arange(n_dyn, dtype=torch.float64) + 0.5
-    phi = torch.acos(1 - 2 * i / n_dyn)
-    theta = math.pi * (1 + 5**0.5) * i
-    shrub = torch.stack([torch.cos(theta) * torch.sin(phi), torch.sin(theta) * torch.sin(phi), torch.cos(phi)], 1)
-    shrub = shrub.float() * 0.4
-    shrub[:, 2] += 0.7
-    xs = torch.linspace(-1.05, 1.05, grid)
-    gx, gy = torch.meshgrid(xs, xs, indexing="ij")
-    ground = torch.stack([gx.reshape(-1), gy.reshape(-1), torch.zeros(grid * grid)], 1)
-    pts = torch.cat([ground, shrub])
-    cols = torch.rand(pts.shape[0], 3, generator=g)
-    scales = torch.cat([torch.full((grid * grid,), 0.07), torch.full((n_dyn,), 0.04)])
-    G = Gaussians.from_points(pts, cols, scales, opacity=0.9)
-    if anisotropic:
-        G.log_scales[grid * grid:, 0] += 1.0
-        G.quats = torch.randn(G.num, 4, generator=g)
-    mask = torch.zeros(G.num, dtype=torch.bool)
-    mask[grid * grid:] = True
-    return G, mask
-
-
-def ring_cameras(n: int = 4, w: int = 96, h: int = 72) -> list[Camera]:
-    """n cameras on a ring around the shrub, looking slightly down."""
-    cams = []
-    for k in range(n):
-        a = math.radians(20 + 360 * k / n)
-        eye = (2.6 * math.cos(a), 2.6 * math.sin(a), 1.4)
-        cams.append(Camera(intrinsics_from_fov(55, w, h), look_at(eye, (0, 0, 0.5)), w, h, f"v{k}"))
-    return cams
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def random_field(idx: torch.Tensor, T: int, K: int, n: int, scale: float = 0.05, seed: int = 1,
@@ -215,7 +172,7 @@ def test_soft_limit_is_smooth_and_bounded():
 def test_amplitude_limits_bound_offsets_and_angles():
     G, mask = sway_scene(n_dyn=40, grid=3)
     idx = dynamic_index_from_mask(mask)
-    from anigs.deform import offset_limits
+    from anigs.animate.deform import offset_limits
 
     lim = offset_limits(G.means, idx, max_offset_frac=0.1)
     assert torch.allclose(lim, 0.1 * G.means[idx, 2])  # anchor = ground point: distance = height

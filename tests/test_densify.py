@@ -6,16 +6,10 @@ import math
 import pytest
 import torch
 
-from anigs.densify import (AllPrunedError, DensifyConfig, DensifyState, refine, reset_opacity,
+from anigs.static.densify import (AllPrunedError, DensifyConfig, DensifyState, refine, reset_opacity,
                            update_state)
 
-
-@pytest.fixture(autouse=True)
-def _one_thread():
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def make_params(n: int, scale: float = 0.01, opacity: float = 0.5, seed: int = 0):
@@ -218,7 +212,7 @@ def test_refine_resets_opacity_on_schedule():
 
 def test_schedule_ends_densification_before_the_fit_ends():
     """A fit shorter than densify.stop still ends with steps free of densification."""
-    from anigs.densify import DensifyConfig, schedule_for
+    from anigs.static.densify import DensifyConfig, schedule_for
 
     cfg = DensifyConfig(start=300, stop=1200, every=100)
     assert schedule_for(cfg, 500).stop == 400 and schedule_for(cfg, 1000).stop == 800

@@ -8,9 +8,9 @@ import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.cli import main as cli
-from anigs.deform import DCTDeformation, save_model
+from anigs.animate.deform import DCTDeformation, save_model
 from anigs.export import load_animated_ply, save_animated_ply
-from anigs.final import camera_path, most_animated_row_col, pingpong_times, slice_images, static_change
+from anigs.animate.playback import camera_path, most_animated_row_col, pingpong_times, slice_images, static_change
 from anigs.gaussians import Gaussians, load_ply
 
 
@@ -46,7 +46,7 @@ def test_export_cli(tmp_path):
     g.save_ply(tmp_path / "c.ply")
     save_model(tmp_path / "m.pt", d, g, {})
     assert cli(["export", "--canonical", str(tmp_path / "c.ply"), "--model", str(tmp_path / "m.pt"),
-                "--out", str(tmp_path / "exp"), "--params", '{"frame_step": 4}']) == 0
+                "--out", str(tmp_path / "exp"), "--params", '{"frames": true, "frame_step": 4}']) == 0
     meta = json.loads((tmp_path / "exp" / "animated.json").read_text())
     assert meta["frames"] == ["frames/frame_0000.ply", "frames/frame_0004.ply", "frames/frame_0008.ply"]
     f4 = load_ply(tmp_path / "exp" / meta["frames"][1])
@@ -54,6 +54,19 @@ def test_export_cli(tmp_path):
     static = torch.ones(40, dtype=torch.bool)
     static[d.dynamic_index] = False
     assert torch.equal(f4.means[static], g.means[static])
+    # the compact scene is always written and reproduces every frame exactly
+    from anigs.viewer.compact import load_compact
+
+    assert meta["compact"] == "scene.anigs"
+    scene = load_compact(tmp_path / "exp" / "scene.anigs")
+    assert torch.equal(scene.frame(4).means, d(g, 4).means)
+    # per-frame PLYs only on request (export.frames)
+    assert cli(["export", "--canonical", str(tmp_path / "c.ply"), "--model", str(tmp_path / "m.pt"),
+                "--out", str(tmp_path / "exp2")]) == 0
+    meta2 = json.loads((tmp_path / "exp2" / "animated.json").read_text())
+    assert meta2["frames"] == [] and not (tmp_path / "exp2" / "frames").exists()
+    assert (tmp_path / "exp2" / "scene.anigs").stat().st_size < sum(
+        p.stat().st_size for p in (tmp_path / "exp" / "frames").glob("*.ply"))
 
 
 def test_pingpong_is_continuous_and_in_range():

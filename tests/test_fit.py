@@ -9,18 +9,11 @@ import pytest
 import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
-from anigs.densify import AllPrunedError
-from anigs.fit import (FitConfig, FitDivergedError, fit_static, init_gaussians, scene_extent, split_holdout)
+from anigs.static.densify import AllPrunedError
+from anigs.static.fit import (FitConfig, FitDivergedError, fit_static, init_gaussians, scene_extent, split_holdout)
 from anigs.gaussians import Gaussians, load_ply
 
-
-@pytest.fixture(autouse=True)
-def _one_thread():
-    # The test machine is shared; one thread avoids OpenMP oversubscription stalls.
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def _texture(p: np.ndarray) -> np.ndarray:
@@ -156,7 +149,7 @@ def test_all_pruned_stops_with_clear_error(scene):
 
 
 def test_nan_loss_is_detected_and_last_checkpoint_kept(scene, tmp_path, monkeypatch):
-    import anigs.fit as fit_mod
+    import anigs.static.fit as fit_mod
 
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=6)
@@ -179,7 +172,7 @@ def test_nan_loss_is_detected_and_last_checkpoint_kept(scene, tmp_path, monkeypa
 
 
 def test_nan_gradient_is_detected(scene, monkeypatch):
-    import anigs.fit as fit_mod
+    import anigs.static.fit as fit_mod
 
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=6)
@@ -263,7 +256,7 @@ def test_cli_writes_ply_and_metrics(scene, tmp_path):
 
 
 def test_load_points_formats(tmp_path):
-    from anigs.commands.static import load_points
+    from anigs.sfm.model import load_points
 
     np.savez(tmp_path / "a.npz", points=np.zeros((4, 3)), colors=np.full((4, 3), 255, np.uint8))
     p, c = load_points(tmp_path / "a.npz")
@@ -277,18 +270,18 @@ def test_load_points_formats(tmp_path):
 
 def test_fit_ends_densification_before_its_last_steps(scene, monkeypatch):
     """densify.stop beyond the fit's length is cut to stop_fraction x iterations."""
-    import anigs.fit
+    import anigs.static.fit
 
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=4)
     seen = []
-    real = anigs.fit.refine
+    real = anigs.static.fit.refine
 
     def spy(params, optimizer, state, step, cfg, *a, **k):
         seen.append(cfg.stop)
         return real(params, optimizer, state, step, cfg, *a, **k)
 
-    monkeypatch.setattr(anigs.fit, "refine", spy)
+    monkeypatch.setattr(anigs.static.fit, "refine", spy)
     cfg = FitConfig.from_dict({**FAST, "densify": {"start": 10, "stop": 1000, "every": 10, "reset_every": 0}})
     fit_static(imgs, cams, p, c, cfg, progress=False)
     assert seen and set(seen) == {32}  # 0.8 x 40 iterations

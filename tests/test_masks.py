@@ -461,3 +461,31 @@ def test_cli_masks_lifts_over_capture_photos(tmp_path, lawn_scene):
     assert main(base + ["--out", str(tmp_path / "x"), "--images", str(tmp_path / "nope")]) == 1
     no_cams = base[:base.index("--gt-gaussians")] + ["--params", "{}"]
     assert main(no_cams + ["--out", str(tmp_path / "y"), "--images", str(tmp_path / "images")]) == 1
+
+
+def test_one_mask_reader_for_every_mask_format(tmp_path):
+    """read_mask: 0/255 and 0/1 PNGs, 16-bit PNGs, RGB PNGs and .npy arrays give the same soft mask."""
+    import cv2
+
+    from anigs.masks import read_mask, read_mask_png
+
+    m = np.zeros((6, 7), bool)
+    m[2:4, 1:5] = True
+    cv2.imwrite(str(tmp_path / "a.png"), m.astype(np.uint8) * 255)
+    cv2.imwrite(str(tmp_path / "b.png"), m.astype(np.uint8))
+    cv2.imwrite(str(tmp_path / "c.png"), m.astype(np.uint16) * 65535)
+    cv2.imwrite(str(tmp_path / "d.png"), np.repeat(m[..., None].astype(np.uint8) * 255, 3, 2))
+    np.save(tmp_path / "e.npy", m.astype(np.float32))
+    for name in ("a.png", "b.png", "c.png", "d.png", "e.npy"):
+        soft = read_mask(tmp_path / name)
+        assert soft.dtype == np.float32 and soft.shape == m.shape, name
+        np.testing.assert_array_equal(soft, m.astype(np.float32), err_msg=name)
+        np.testing.assert_array_equal(read_mask_png(tmp_path / name), m, err_msg=name)
+    half = np.full((2, 2), 128, np.uint8)
+    cv2.imwrite(str(tmp_path / "s.png"), half)
+    assert np.allclose(read_mask(tmp_path / "s.png"), 128 / 255)
+    with pytest.raises(FileNotFoundError, match="nope.png"):
+        read_mask(tmp_path / "nope.png")
+    (tmp_path / "bad.png").write_bytes(b"not a png")
+    with pytest.raises(ValueError, match="bad.png"):
+        read_mask(tmp_path / "bad.png")

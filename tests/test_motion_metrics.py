@@ -141,9 +141,9 @@ def test_eval_gt_glue_with_synthetic_truth_and_dct_model(tmp_path):
     """gt_metrics: GT offsets of anigs.synth vs a DCT model fitted to them (ratio ~1) or halved (~0.5)."""
     torch = pytest.importorskip("torch")
     motion = pytest.importorskip("anigs.synth.motion", reason="anigs.synth (GT motion) not in this checkout")
-    deform = pytest.importorskip("anigs.deform", reason="anigs.deform (DCT model) not in this checkout")
+    deform = pytest.importorskip("anigs.animate.deform", reason="anigs.animate.deform (DCT model) not in this checkout")
     from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
-    from anigs.commands.eval import gt_metrics
+    from anigs.metrics.suite import gt_metrics
     from anigs.gaussians import Gaussians
     from anigs.io import write_json
     from anigs.synth import LABEL_IDS

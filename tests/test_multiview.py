@@ -163,8 +163,8 @@ def test_discriminative_power_with_stand_in_fit():
 
 @pytest.mark.slow
 def test_discriminative_power_with_real_static_fit():
-    """Same claim with the project's static 3DGS fit (anigs.fit.fit_static)."""
-    pytest.importorskip("anigs.fit", reason="anigs.fit (static 3DGS fit) is not in this checkout")
+    """Same claim with the project's static 3DGS fit (anigs.static.fit.fit_static)."""
+    pytest.importorskip("anigs.static.fit", reason="anigs.static.fit (static 3DGS fit) is not in this checkout")
     from anigs.metrics.multiview import static_fit_fn
 
     # a short fit without densification: enough to separate the two cases, ~1 min of CPU per fit
@@ -175,7 +175,7 @@ def test_discriminative_power_with_real_static_fit():
         imgs, cams, pts, cols = views_at_novel_time(consistent)
         res[consistent] = multiview_consistency(imgs, cams, fit, pts, cols, background=background)
     good, bad = res[True], res[False]
-    print(f"anigs.fit.fit_static: consistent {good.psnr:.2f} dB / SSIM {good.ssim:.3f} ({good.fit_seconds:.1f} s); "
+    print(f"anigs.static.fit.fit_static: consistent {good.psnr:.2f} dB / SSIM {good.ssim:.3f} ({good.fit_seconds:.1f} s); "
           f"independent {bad.psnr:.2f} dB / SSIM {bad.ssim:.3f} ({bad.fit_seconds:.1f} s)")
     assert good.psnr > bad.psnr + 2.0
     assert good.ssim > bad.ssim

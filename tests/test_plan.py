@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from anigs.plan import RoundPlan
+from anigs.animate.plan import RoundPlan
 
 
 def test_full_model_adds_views_round_by_round():

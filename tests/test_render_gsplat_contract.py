@@ -12,7 +12,7 @@ import types
 import pytest
 import torch
 
-from anigs.densify import DensifyState, update_state
+from anigs.static.densify import DensifyState, update_state
 from anigs.render import gsplat_backend
 
 W, H = 24, 16

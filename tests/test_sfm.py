@@ -1,4 +1,4 @@
-"""Structure from motion (anigs.sfm, anigs.align) on small rendered textured scenes.
+"""Structure from motion (anigs.sfm.colmap, anigs.align) on small rendered textured scenes.
 
 The scene: flat textured Gaussians (random colours and brightness, 2-7 cm) on a ground
 plane and on the faces of four boxes, rendered with the project's rasterizer at 320x240.
@@ -17,13 +17,13 @@ import torch
 
 pycolmap = pytest.importorskip("pycolmap")
 
-from anigs import sfm as sfm_mod  # noqa: E402
+from anigs.sfm import colmap as sfm_mod  # noqa: E402
 from anigs.align import (Similarity, estimate_up, pose_errors, rotation_angle_deg, rotation_between,  # noqa: E402
                          umeyama)
 from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at, save_cameras  # noqa: E402
 from anigs.gaussians import Gaussians  # noqa: E402
 from anigs.render import render_gaussians  # noqa: E402
-from anigs.sfm import SfmConfig, SfmError, run_sfm  # noqa: E402
+from anigs.sfm.colmap import SfmConfig, SfmError, run_sfm  # noqa: E402
 from anigs.video import save_png  # noqa: E402
 
 W, H = 320, 240
@@ -200,7 +200,7 @@ def test_existing_project_sparse_folder(ring, tmp_path):
         run_sfm(ring["out"] / "images", tmp_path / "x", model_dir=tmp_path / "nothing")
 
 
-# ---- fine-scale refinement (anigs.sfm_refine) on the ring's database and raw model ---------------
+# ---- fine-scale refinement (anigs.sfm.bundle) on the ring's database and raw model ---------------
 
 def test_ring_refinement_report(ring):
     r = ring["res"].report
@@ -213,7 +213,7 @@ def test_ring_refinement_report(ring):
 
 
 def test_keypoint_scales_and_pruning(ring):
-    from anigs.sfm_refine import keypoint_scales, prune_coarse_observations
+    from anigs.sfm.bundle import keypoint_scales, prune_coarse_observations
 
     db = ring["out"] / "work" / "database.db"
     rec = pycolmap.Reconstruction(ring["out"] / "work" / "selected")
@@ -241,7 +241,7 @@ def test_keypoint_scales_and_pruning(ring):
 
 
 def test_refinement_undoes_a_camera_perturbation(ring):
-    from anigs.sfm_refine import refine_fine_scale
+    from anigs.sfm.bundle import refine_fine_scale
 
     rec = pycolmap.Reconstruction(ring["out"] / "work" / "selected")
     ids = sorted(rec.reg_image_ids())
@@ -301,7 +301,7 @@ def ring_model(ring):
 def test_several_models_keep_the_largest(ring, ring_model, tmp_path, monkeypatch, caplog):
     small = _partial(ring_model, 5)
     calls = _patch_colmap(monkeypatch, lambda angle: {0: small, 1: pycolmap.Reconstruction(ring_model)})
-    with caplog.at_level(logging.WARNING, logger="anigs.sfm"):
+    with caplog.at_level(logging.WARNING, logger="anigs.sfm.colmap"):
         res = run_sfm(ring["out"] / "images", tmp_path / "sfm", SfmConfig(camera_model="PINHOLE"))
     assert calls == [16.0]
     assert res.report["mapping"]["models_found"] == [20, 5]
@@ -331,7 +331,7 @@ def test_mapping_failure_retries_with_lower_angle(ring, ring_model, tmp_path, mo
         return RuntimeError("no good initial image pair found") if angle > 10 else {0: pycolmap.Reconstruction(ring_model)}
 
     calls = _patch_colmap(monkeypatch, models)
-    with caplog.at_level(logging.WARNING, logger="anigs.sfm"):
+    with caplog.at_level(logging.WARNING, logger="anigs.sfm.colmap"):
         res = run_sfm(ring["out"] / "images", tmp_path / "sfm", SfmConfig(camera_model="PINHOLE"))
     assert calls == [16.0, 4.0]
     attempts = res.report["mapping"]["attempts"]
@@ -547,3 +547,21 @@ def test_estimate_up_ignores_a_common_pitch():
     same = [cams[0]] * 5
     up1 = estimate_up(same)
     assert abs(up1 @ same[0].R[0]) < 1e-6 and up1 @ -same[0].R[1] > 0.999
+
+
+@pytest.mark.parametrize("deg", [0.0, 1e-9, 1e-6, 0.01, 45.0, 90.0, 179.999, 180.0])
+def test_rotation_angle_is_accurate_at_every_angle(deg):
+    """The pose-error metric: atan2 of the skew part against the trace, not acos of the trace alone
+    (which reads ~1e-6 degrees for identical rotations)."""
+    from scipy.spatial.transform import Rotation
+
+    from anigs.align import rotation_angle_deg
+
+    rng = np.random.default_rng(int(deg * 1000) % 2**32)
+    for _ in range(5):
+        Rb = Rotation.random(random_state=rng).as_matrix()
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        Rd = Rotation.from_rotvec(np.radians(deg) * axis).as_matrix()
+        got = rotation_angle_deg(Rd @ Rb, Rb)
+        assert abs(got - deg) <= 1e-9 * max(1.0, deg) + 1e-12, (deg, got)

@@ -13,9 +13,9 @@ import yaml
 from anigs.cameras import load_cameras
 from anigs.gaussians import load_ply
 from anigs.render import render_gaussians
-from anigs.synth import (EFFECT_TYPES, LABEL_EFFECTS, LABEL_IDS, LABELS, CaptureConfig, MotionParams, SceneConfig,
-                         SynthConfig, build_scene, camera_path, gt_clip_offsets, gt_offsets, render_image,
-                         write_capture)
+from anigs.synth import (EFFECT_TYPES, LABEL_EFFECTS, LABEL_IDS, LABELS, WATER_LABEL, CaptureConfig, MotionParams,
+                         SceneConfig, SynthConfig, build_scene, camera_path, gt_clip_offsets, gt_offsets,
+                         motion_tables, render_image, write_capture)
 
 ROOT = Path(__file__).resolve().parents[1]
 STATIC = [i for i, n in LABELS.items() if not LABEL_EFFECTS[n]]
@@ -268,3 +268,72 @@ def test_cli_capture_synthetic_and_photos(tmp_path, small_cfg):
     assert len(got) == 3 and max(imageio.imread(got[0]).shape[:2]) == 40
     assert main(["capture", "--source", "photos", "--photos", str(photos), "--params", '{"max_sid": 4}',
                  "--out", str(tmp_path / "p")]) == 1
+
+
+# ---- optional pond and bare courtyard ------------------------------------------------------
+def test_default_garden_has_no_water_and_unchanged_tables():
+    g = build_scene(SceneConfig(num_gaussians=6000), 3)
+    assert not bool((g.extras["label"] == WATER_LABEL).any())
+    tables = motion_tables()
+    assert "water" not in tables["label_effects"] and str(WATER_LABEL) not in tables["labels"]
+    assert "water_ripple" not in MotionParams().to_dict()["effects"]
+    assert tables["effect_types"] == list(EFFECT_TYPES)
+
+
+def test_pond_scene_labels_geometry_and_tables():
+    a = build_scene(SceneConfig(num_gaussians=6000, pond=True), 3)
+    b = build_scene(SceneConfig(num_gaussians=6000, pond=True), 3)
+    assert torch.equal(a.means, b.means) and torch.equal(a.extras["label"], b.extras["label"])
+    labels = a.extras["label"]
+    water = labels == WATER_LABEL
+    assert int(water.sum()) > 100
+    z = a.means[water, 2]
+    assert float(z.max()) < 0.0 and float(z.min()) > -0.05  # flat, just under the lawn
+    from anigs.synth.pond import RIM, in_pond
+    xy = a.means[:, :2].numpy()
+    assert bool(in_pond(xy[water.numpy()], 0.02).all())
+    ground = (labels == LABEL_IDS["ground"]).numpy()
+    assert not in_pond(xy[ground], RIM * 0.9).any()  # the lawn is carved out
+    for name in ("grass", "trunk", "foliage"):
+        assert not in_pond(xy[(labels == LABEL_IDS[name]).numpy()]).any(), name
+    tables = motion_tables(water=True)
+    assert tables["labels"][str(WATER_LABEL)] == "water" and tables["label_effects"]["water"] == ["water_ripple"]
+    assert WATER_LABEL in tables["movable_labels"] and "water_ripple" in tables["effect_types"]
+
+
+def test_pond_ripples_loop_and_stay_small():
+    g = build_scene(SceneConfig(num_gaussians=6000, pond=True), 3)
+    p = MotionParams()
+    labels, anchors = g.extras["label"], g.extras["anchor"]
+    off = gt_clip_offsets(p, g.means, anchors, labels)
+    water = labels == WATER_LABEL
+    assert float(off[0].abs().max()) == 0.0
+    w = off[:, water]
+    assert float(w[..., 2].abs().max()) > 0.005 and float(w.norm(dim=-1).max()) < 0.06
+    nxt = gt_offsets(p, g.means, anchors, labels, float(p.frames))
+    assert torch.allclose(nxt, off[0], atol=1e-5)
+    custom = MotionParams.from_dict({"effects": {"water_ripple": {"amplitude": 0.0}}})
+    assert float(gt_clip_offsets(custom, g.means, anchors, labels)[:, water].abs().max()) == 0.0
+
+
+def test_courtyard_is_bare_and_still():
+    a = build_scene(SceneConfig(num_gaussians=6000, layout="courtyard"), 4)
+    b = build_scene(SceneConfig(num_gaussians=6000, layout="courtyard"), 4)
+    assert torch.equal(a.means, b.means)
+    labels = a.extras["label"]
+    assert set(torch.unique(labels).tolist()) == {LABEL_IDS["ground"], LABEL_IDS["building"], LABEL_IDS["clutter"]}
+    assert 0.85 * 6000 <= a.num <= 1.2 * 6000
+    off = gt_clip_offsets(MotionParams(), a.means, a.extras["anchor"], labels)
+    assert float(off.abs().max()) == 0.0
+    cam = camera_path(CaptureConfig(num_images=4, width=64, height=48), 4)[0]
+    assert render_image(a, cam).std() > 0.02
+
+
+def test_scene_layout_options_are_checked():
+    with pytest.raises(ValueError, match="layout"):
+        SceneConfig(layout="jungle")
+    with pytest.raises(ValueError, match="pond"):
+        SceneConfig(layout="courtyard", pond=True)
+    assert SceneConfig.from_dict({"pond": True}).pond
+    with pytest.raises(ValueError, match="pond"):
+        SceneConfig.from_dict({"pond": "yes"})

@@ -162,7 +162,7 @@ def _tiny_inputs(tmp_path):
     import torch
 
     from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
-    from anigs.deform import DCTDeformation, save_model
+    from anigs.animate.deform import DCTDeformation, save_model
     from anigs.gaussians import Gaussians
     from anigs.io import write_npz
     from anigs.masks import write_mask_png
@@ -263,7 +263,7 @@ def test_eval_fid_reference_pools_paths(tmp_path):
     """--fid-reference PRIOR=PATH (repeated) pools clips for FID only; FVD keeps --reference."""
     import torch
 
-    from anigs.commands.eval import EvalConfig, evaluate
+    from anigs.metrics.suite import EvalConfig, evaluate
 
     d = _tiny_inputs(tmp_path)
 

@@ -9,37 +9,14 @@ import numpy as np
 import pytest
 import torch
 
-from anigs.animated import render_clip, render_frame
-from anigs.deform import DCTDeformation, dynamic_index_from_mask, load_model
-from anigs.losses import SDSContext, largest_4m1, photometric_loss, prior_sds_hook
-from anigs.update import UpdateConfig, UpdateDiverged, ViewData, run_update
-from tests.test_deform import ring_cameras, sway_scene
+from anigs.animate.frames import render_clip, render_frame
+from anigs.animate.deform import DCTDeformation, load_model
+from anigs.animate.losses import SDSContext, largest_4m1, photometric_loss, prior_sds_hook
+from anigs.animate.update import UpdateConfig, UpdateDiverged, ViewData, run_update
+from tests._scenes import ring_cameras, sway_motion, sway_scene
 
+pytestmark = pytest.mark.usefixtures("one_thread")
 
-@pytest.fixture(autouse=True)
-def _one_thread():
-    """The CPU kernel's OpenMP threads spin badly on an oversubscribed machine: use one."""
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
-
-
-def sway_motion(G, mask, T: int, K: int, amplitude: float) -> DCTDeformation:
-    """Ground-truth wind sway: the shrub leans along x (DCT k=1) and y (k=2), proportionally to
-    height, peak displacement ``amplitude`` at the top."""
-    idx = dynamic_index_from_mask(mask)
-    K = min(K, T - 1)
-    gt = DCTDeformation(idx, T, K, rotation=False, num_gaussians=G.num)
-    if K < 2:
-        return gt  # too few frames for a sway
-    h = G.means[idx, 2]
-    amp = amplitude * h / h.max()
-    b = gt.basis(torch.arange(T, dtype=torch.float64))
-    with torch.no_grad():
-        gt.pos_coeffs[:, 0, 0] = amp / b[:, 0].abs().max()
-        gt.pos_coeffs[:, 1, 1] = 0.6 * amp / b[:, 1].abs().max()
-    return gt
 
 
 def make_views(G, gt, cams, T):
@@ -138,7 +115,7 @@ def test_config_rejects_unknown_and_bad_values():
 # ---- hard cases --------------------------------------------------------------------------------
 def test_empty_dynamic_set_is_a_logged_noop(caplog):
     G, mask, views = _small_problem()
-    with caplog.at_level(logging.INFO, logger="anigs.update"):
+    with caplog.at_level(logging.INFO, logger="anigs.animate.update"):
         res = run_update(G, torch.zeros(G.num, dtype=torch.bool), views, UpdateConfig(steps=50), progress=False)
     assert "dynamic set is empty" in caplog.text and res.skipped and res.steps == 0
     assert res.deformation.num_dynamic == 0
@@ -148,12 +125,12 @@ def test_empty_dynamic_set_is_a_logged_noop(caplog):
 
 def test_single_frame_targets_and_k_clamped(caplog):
     G, mask, views = _small_problem(T=1)
-    with caplog.at_level(logging.INFO, logger="anigs.update"):
+    with caplog.at_level(logging.INFO, logger="anigs.animate.update"):
         res = run_update(G, mask, views, UpdateConfig(steps=10, num_bases=16), progress=False)
     assert "clamped to K=0" in caplog.text and "no-op" in caplog.text
     assert res.deformation.num_bases == 0
     G2, mask2, views2 = _small_problem(T=5)
-    with caplog.at_level(logging.WARNING, logger="anigs.update"):
+    with caplog.at_level(logging.WARNING, logger="anigs.animate.update"):
         res = run_update(G2, mask2, views2, UpdateConfig(steps=2, num_bases=16), progress=False)
     assert res.deformation.num_bases == 4 and "clamped to K=4" in caplog.text
 
@@ -266,7 +243,7 @@ def test_cli_render_clip_and_update_round_trip(tmp_path):
 
     # round 0: no model -> every frame is the static canonical render
     r0 = tmp_path / "round0" / "render" / "v0.npz"
-    assert main(["render-clip", "--canonical", str(ply), "--camera-json", str(tmp_path / "cam0.json"),
+    assert main(["render_clip", "--canonical", str(ply), "--camera-json", str(tmp_path / "cam0.json"),
                  "--out", str(r0), "--params", params]) == 0
     clip0, meta0 = load_clip(r0)
     assert clip0.shape == (T, 36, 48, 3) and all(np.array_equal(clip0[0], f) for f in clip0)
@@ -291,17 +268,17 @@ def test_cli_render_clip_and_update_round_trip(tmp_path):
     assert main(["update", "--canonical", str(ply), "--init-model", str(out), "--targets", *targets,
                  "--dynamic", str(tmp_path / "dyn.npy"), "--out", str(out2), "--params", upd]) == 0
     r2 = tmp_path / "round2" / "render" / "v1.npz"
-    assert main(["render-clip", "--canonical", str(ply), "--model", str(out2), "--view-json",
+    assert main(["render_clip", "--canonical", str(ply), "--model", str(out2), "--view-json",
                  str(tmp_path / "views.json"), "--view-id", "v1", "--out", str(r2), "--params", params]) == 0
     clip2, meta2 = load_clip(r2)
     assert clip2.shape == (T, 36, 48, 3) and not np.array_equal(clip2[0], clip2[T // 2])
     assert meta2["view_id"] == "v1"
 
     # clear errors: unknown view id, unknown config key, frame-count mismatch
-    assert main(["render-clip", "--canonical", str(ply), "--view-json", str(tmp_path / "views.json"),
+    assert main(["render_clip", "--canonical", str(ply), "--view-json", str(tmp_path / "views.json"),
                  "--view-id", "nope", "--out", str(tmp_path / "x.npz"), "--params", params]) == 1
     assert main(["update", "--canonical", str(ply), "--targets", *targets, "--dynamic", str(tmp_path / "dyn.npy"),
                  "--out", str(tmp_path / "y.pt"), "--params", json.dumps({"stepz": 1})]) == 1
-    assert main(["render-clip", "--canonical", str(ply), "--model", str(out2), "--camera-json",
+    assert main(["render_clip", "--canonical", str(ply), "--model", str(out2), "--camera-json",
                  str(tmp_path / "cam0.json"), "--out", str(tmp_path / "z.npz"), "--params", '{"num_frames": 5}']) == 1
     assert not (tmp_path / "x.npz").exists() and not (tmp_path / "y.pt").exists()

@@ -37,7 +37,7 @@ def run(tmp_path_factory):
 
 
 def test_artifacts_exist_and_are_sane(run):
-    from anigs.deform import load_model
+    from anigs.animate.deform import load_model
     from anigs.gaussians import load_ply
     from anigs.video import load_clip
 
@@ -61,7 +61,11 @@ def test_artifacts_exist_and_are_sane(run):
         assert (scene / "full" / "final" / "slices" / f"{v}_xt.png").exists()
     assert (scene / "full" / "final" / "path.mp4").stat().st_size > 0
     exp = json.loads((scene / "full" / "export" / "animated.json").read_text())
-    assert len(exp["frames"]) == 9 and (scene / "full" / "export" / "animated.ply").exists()
+    assert exp["frames"] == [] and (scene / "full" / "export" / "animated.ply").exists()
+    assert (scene / "full" / "export" / exp["compact"]).stat().st_size > 0
+    assert (scene / "full" / "viewer" / "index.html").is_file()
+    effects = json.loads((scene / "effects" / "effects.json").read_text())
+    assert set(effects["effects"]) == {"foliage_sway", "leaf_flutter", "grass_wave", "flower_bob", "water_ripple"}
     metrics = json.loads((scene / "full" / "eval" / "metrics.json").read_text())
     assert metrics
     for tsv in ("static.tsv", "sfm.tsv", "capture.tsv"):
@@ -74,7 +78,7 @@ def test_static_pixels_still_dynamic_regions_move(run):
     import imageio.v2 as imageio
     import torch
 
-    from anigs.deform import load_model
+    from anigs.animate.deform import load_model
     from anigs.render import render_gaussians
     from anigs.video import load_clip
     from anigs.views import cameras_from_views
@@ -117,7 +121,7 @@ def test_changing_one_key_reruns_only_affected_jobs(run, tmp_path):
     assert res.returncode == 0, out
     table = out.split("Job stats:")[1].split("total")[0]
     jobs = {line.split()[0] for line in table.splitlines()[3:] if line.strip()}
-    assert jobs == {"final_render", "eval_scene", "all"}, jobs
+    assert jobs == {"final", "eval", "all"}, jobs
 
 
 def test_misspelled_key_fails_before_any_job(tmp_path):

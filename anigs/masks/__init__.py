@@ -147,17 +147,31 @@ def write_mask_png(path: str | Path, mask: np.ndarray) -> None:
             raise RuntimeError(f"could not write mask {path}")
 
 
-def read_mask_png(path: str | Path) -> np.ndarray:
-    """Read a mask PNG (any non-zero pixel is True) as bool [H,W]."""
+def read_mask(path: str | Path) -> np.ndarray:
+    """The one mask reader: a PNG (8 or 16 bit, 0..255 / 0..65535 or 0/1; colour channels: their
+    maximum; alpha ignored) or an ``.npy`` array -> soft mask float32 [H,W] in [0,1]
+    (0/255 PNGs give exactly 0 and 1)."""
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"mask file not found: {path}")
+    if path.suffix == ".npy":
+        m = np.asarray(np.load(path), np.float32)
+        if m.ndim == 3:
+            m = m[..., :3].max(-1)
+        return m / 255.0 if m.max(initial=0) > 1.0 else m
     m = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if m is None:
         raise ValueError(f"could not read mask image {path}")
     if m.ndim == 3:
         m = m[..., :3].max(-1)
-    return m > 0
+    scale = 65535.0 if m.dtype == np.uint16 else 255.0
+    m = m.astype(np.float32)
+    return m / scale if m.max(initial=0) > 1.0 else m  # 0/1 PNGs are masks too
+
+
+def read_mask_png(path: str | Path) -> np.ndarray:
+    """Read a mask (see :func:`read_mask`) as bool [H,W]: any non-zero pixel is True."""
+    return read_mask(path) > 0
 
 
 def write_rgb_png(path: str | Path, image: np.ndarray) -> None:
@@ -169,17 +183,10 @@ def write_rgb_png(path: str | Path, image: np.ndarray) -> None:
 
 
 def read_rgb_png(path: str | Path) -> np.ndarray:
-    """Read an image file as RGB float32 [H,W,3] in [0,1] (8 or 16 bit; alpha dropped)."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"image not found: {path}")
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise ValueError(f"could not read image {path}")
-    scale = 65535.0 if img.dtype == np.uint16 else 255.0
-    if img.ndim == 2:
-        img = np.repeat(img[..., None], 3, 2)
-    return (img[..., :3][..., ::-1].astype(np.float32) / scale).copy()
+    """Read an image file as RGB float32 [H,W,3] in [0,1] (:func:`anigs.images.load_image`)."""
+    from anigs.images import load_image
+
+    return load_image(path)
 
 
 def render_frames(gaussians, cameras: Sequence[Camera], background: Sequence[float] | None = None) -> list[Frame]:

@@ -14,14 +14,16 @@ depicts in the training views, which a fitted model's floaters and thick ground 
 """
 from __future__ import annotations
 
+import logging
 from typing import Sequence
 
 import numpy as np
 import torch
 
 from anigs.align import Similarity, umeyama
-from anigs.cameras import Camera
-from anigs.gaussians import Gaussians
+from anigs.cameras import Camera, load_cameras
+from anigs.gaussians import Gaussians, load_ply
+from anigs.io import read_json
 from anigs.masks import Frame
 from anigs.masks.lift import render_inputs, frustum_subset
 from anigs.render import rasterize
@@ -255,3 +257,23 @@ def labels_for(means: np.ndarray, labels: np.ndarray, label_means: np.ndarray | 
         raise ValueError(f"{len(labels)} labels for {len(label_means)} labelled Gaussians")
     src = to_means_frame.apply(label_means) if to_means_frame is not None else np.asarray(label_means)
     return transfer_labels(src, labels, means)
+
+
+def roi_from_labels(g: Gaussians, labels_path: str, motion_path: str | None, dynamic_labels, gt_gaussians: str | None,
+                    gt_cameras: str | None, cameras: list[Camera]) -> np.ndarray:
+    """Dynamic flag [N] of the canonical Gaussians from ground-truth labels."""
+    labels = np.load(labels_path)
+    if motion_path:
+        ids = dynamic_label_ids(effects_from_motion(read_json(motion_path)))
+    elif dynamic_labels:
+        ids = [int(i) for i in dynamic_labels]
+    else:
+        raise ValueError("--labels needs --motion motion.json or params dynamic_labels [ids] to know what moves")
+    label_means, sim = None, None
+    if gt_gaussians:
+        label_means = load_ply(gt_gaussians).means.detach().double().numpy()
+        if gt_cameras:
+            sim, rms = align_cameras(load_cameras(gt_cameras), cameras)
+            logging.getLogger("anigs.views").info("views: ground-truth frame -> camera frame: scale %.4g, camera centre RMS %.3g", sim.scale, rms)
+    lab = labels_for(g.means.detach().double().numpy(), labels, label_means, sim)
+    return np.isin(lab, ids)

@@ -50,9 +50,9 @@ class Sam2Config:
 
     @staticmethod
     def from_dict(d: dict | None) -> "Sam2Config":
-        from anigs.views import config_from_dict
+        from anigs.configs import from_dict
 
-        return config_from_dict(Sam2Config, d, "masks.sam2 config")
+        return from_dict(Sam2Config, d, "masks.sam2 config")
 
 
 def import_sam2():

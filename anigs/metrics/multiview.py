@@ -10,7 +10,7 @@ capture images.
 
 The static fit is a callable ``fit_fn(images, cameras, init_points, init_colors) -> Gaussians``
 (``images``: list of float32 [H,W,3] in [0,1]; ``init_points`` [P,3], ``init_colors`` [P,3]
-in [0,1], numpy), e.g. ``anigs.fit.fit_static`` wrapped with its config; it is passed in so
+in [0,1], numpy), e.g. ``anigs.static.fit.fit_static`` wrapped with its config; it is passed in so
 this module does not depend on the fitting code and tests can pass a cheap stand-in.
 """
 from __future__ import annotations
@@ -123,12 +123,12 @@ def multiview_consistency(images: Sequence[np.ndarray], cameras: Sequence[Camera
 
 
 def static_fit_fn(fit_params: dict[str, Any] | None = None) -> tuple[FitFn, tuple[float, float, float]]:
-    """``anigs.fit.fit_static`` as a :data:`FitFn` (no internal hold-out: this protocol splits).
+    """``anigs.static.fit.fit_static`` as a :data:`FitFn` (no internal hold-out: this protocol splits).
 
     Returns (fit_fn, background used by the fit). Raises ModuleNotFoundError naming
-    ``anigs.fit`` when the static-fit module is missing.
+    ``anigs.static.fit`` when the static-fit module is missing.
     """
-    from anigs.fit import FitConfig, fit_static
+    from anigs.static.fit import FitConfig, fit_static
 
     params = dict(fit_params or {})
     params.setdefault("holdout_every", 0)

@@ -5,31 +5,16 @@ Conventions: OpenCV camera (x right, y down, z forward), pixel centres at +0.5.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import torch
-import torch.nn.functional as F
+
+from anigs.geometry.quaternion import quat_to_rotmat
 
 ALPHA_MIN = 1.0 / 255.0  # contributions below this are skipped
 ALPHA_MAX = 0.99  # alpha clamp: one splat never makes a pixel fully opaque
 T_MIN = 1e-4  # transmittance floor: stop compositing below this
 EPS_2D = 0.3  # screen-space dilation of the 2D covariance (pixels^2)
-
-
-def quat_to_rotmat(quats: torch.Tensor) -> torch.Tensor:
-    """Rotation matrices [N,3,3] from quaternions [N,4] (w,x,y,z, any norm).
-
-    A zero quaternion maps to the identity, with a finite (zero) gradient.
-    """
-    q = F.normalize(quats, dim=-1, eps=1e-12)
-    w, x, y, z = q.unbind(-1)
-    R = torch.stack([
-        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
-    ], dim=-1)
-    return R.reshape(quats.shape[:-1] + (3, 3))
 
 
 def covariance_3d(quats: torch.Tensor, scales: torch.Tensor) -> torch.Tensor:
@@ -105,8 +90,3 @@ def project_gaussians(
         rects = torch.where(valid[:, None], rects, torch.zeros_like(rects))
         radii = torch.where(valid, torch.ceil(torch.maximum(ex, ey)), torch.zeros_like(ex)).to(torch.int32)
     return Projected(means2d, cov2, conics, z, rects, radii, valid)
-
-
-def fov_limits_ok(K: torch.Tensor, width: int, height: int) -> bool:
-    """True when the intrinsics describe a usable camera (positive focal lengths)."""
-    return bool(K[0, 0] > 0 and K[1, 1] > 0 and math.isfinite(float(K[0, 2])) and math.isfinite(float(K[1, 2])))

@@ -16,17 +16,25 @@ Effect types (``EFFECT_TYPES``) and which labels carry them (``LABEL_EFFECTS``):
 - ``grass_wave``: grass blades bend about their tuft root; a wave rolls over the lawn.
 - ``flower_bob``: flower stems sway about the stem base and heads bob vertically.
 
+- ``water_ripple`` (only with the optional pond, label ``water``): two travelling waves, one
+  downwind and one across it (relative amplitude ``cross``), lift and lower the surface
+  (``amplitude``, ``wavelength``, ``cycles``) with a small orbital motion along each wave
+  (``vertical`` times the amplitude, a quarter period ahead). Its parameters and tables appear
+  in ``motion.json`` only when the scene has a pond, so the default garden's stay as they were.
+
 A bending offset also drops the point on an arc (``dz = -|d_xy|^2 / 2(h + 5 cm)``), so
 swaying parts do not stretch. Static labels get exactly zero.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import asdict, dataclass, field
 
 import torch
 
-from anigs.synth.scene import LABEL_IDS, LABELS, dataclass_from_dict
+from anigs.configs import from_dict
+from anigs.synth.scene import LABEL_IDS, LABELS, WATER_LABEL
 
 EFFECT_TYPES: tuple[str, ...] = ("foliage_sway", "leaf_flutter", "grass_wave", "flower_bob")
 LABEL_EFFECTS: dict[str, tuple[str, ...]] = {
@@ -35,9 +43,14 @@ LABEL_EFFECTS: dict[str, tuple[str, ...]] = {
 }
 
 
+WATER_EFFECT = "water_ripple"
+ALL_EFFECT_TYPES: tuple[str, ...] = EFFECT_TYPES + (WATER_EFFECT,)
+WATER_LABEL_EFFECTS: dict[str, tuple[str, ...]] = {"water": (WATER_EFFECT,)}
+
+
 def motion_class(label_name: str) -> str:
     """``"static"`` or the '+'-joined effect types of a label (e.g. ``foliage_sway+leaf_flutter``)."""
-    eff = LABEL_EFFECTS[label_name]
+    eff = {**LABEL_EFFECTS, **WATER_LABEL_EFFECTS}[label_name]
     return "+".join(eff) if eff else "static"
 
 
@@ -73,6 +86,11 @@ def _default_effects() -> dict[str, EffectParams]:
     }
 
 
+def water_default() -> EffectParams:
+    """Default ``water_ripple`` parameters: 1.5 cm waves of 0.6 m, 3 cycles per clip."""
+    return EffectParams(0.015, 1.0, 1.0, 3, 0.6, 0.6, 0.3)
+
+
 @dataclass
 class MotionParams:
     """Wind motion parameters (config section ``synthetic.motion``)."""
@@ -89,17 +107,17 @@ class MotionParams:
             raise ValueError(f"motion.fps must be > 0, got {self.fps}")
         eff = dict(_default_effects())
         for name, val in self.effects.items():
-            if name not in EFFECT_TYPES:
-                raise ValueError(f"synthetic.motion.effects: unknown effect {name!r}; known: {list(EFFECT_TYPES)}")
-            eff[name] = val if isinstance(val, EffectParams) else dataclass_from_dict(
-                EffectParams, val, f"synthetic.motion.effects.{name}")
+            if name not in ALL_EFFECT_TYPES:
+                raise ValueError(f"synthetic.motion.effects: unknown effect {name!r}; known: {list(ALL_EFFECT_TYPES)}")
+            eff[name] = val if isinstance(val, EffectParams) else from_dict(
+                EffectParams, val, f"synthetic.motion.effects.{name}", check_types=True)
         self.effects = eff
 
     @staticmethod
     def from_dict(d: dict | None) -> "MotionParams":
         d = dict(d or {})
         effects = d.pop("effects", {}) or {}
-        p = dataclass_from_dict(MotionParams, d, "synthetic.motion")
+        p = from_dict(MotionParams, d, "synthetic.motion", check_types=True)
         return MotionParams(p.wind_dir_deg, p.frames, p.fps, effects)
 
     def to_dict(self) -> dict:
@@ -138,6 +156,19 @@ def _sway(p: EffectParams, means, anchors, t, T, wind: torch.Tensor, flutter: bo
     return torch.cat([dxy, dz[..., None]], -1)
 
 
+def _ripple(p: EffectParams, means: torch.Tensor, t: torch.Tensor, T: int, wind: torch.Tensor) -> torch.Tensor:
+    """Water offsets [F,M,3]: a wave downwind and one across it (``cross``), vertical + orbital."""
+    out = torch.zeros(t.shape[0], means.shape[0], 3)
+    perp = torch.stack([-wind[1], wind[0]])
+    for d, amp, cyc in ((wind, 1.0, p.cycles), (perp, p.cross, p.cycles + 1)):
+        q = dataclasses.replace(p, cycles=cyc)
+        ph = 2 * math.pi * (means[:, :2] @ d) / p.wavelength
+        a = p.amplitude * amp
+        out[..., 2] += a * _wave(q, t, T, ph)
+        out[..., :2] += (p.vertical * a * _wave(q, t, T, ph, shift=0.5 * math.pi))[..., None] * d
+    return out
+
+
 def gt_offsets(params: MotionParams, means: torch.Tensor, anchors: torch.Tensor, labels: torch.Tensor,
                t: float | torch.Tensor, T: int | None = None) -> torch.Tensor:
     """Ground-truth displacement of every Gaussian at time ``t`` (frames).
@@ -171,6 +202,10 @@ def gt_offsets(params: MotionParams, means: torch.Tensor, anchors: torch.Tensor,
         for eff in effects:
             out[:, idx] += _sway(params.effects[eff], means[idx], anchors[idx], tt, T, wind,
                                  flutter=(eff == "leaf_flutter"))
+    water = torch.nonzero(labels == WATER_LABEL).squeeze(1)
+    if water.numel():
+        p = params.effects.get(WATER_EFFECT) or water_default()
+        out[:, water] += _ripple(p, means[water], tt, T, wind)
     return out[0] if scalar else out
 
 
@@ -180,14 +215,20 @@ def gt_clip_offsets(params: MotionParams, means, anchors, labels, T: int | None 
     return gt_offsets(params, means, anchors, labels, torch.arange(T, dtype=torch.float32), T)
 
 
-def motion_tables() -> dict:
-    """Label and effect tables written next to the parameters in ``motion.json``."""
+def motion_tables(water: bool = False) -> dict:
+    """Label and effect tables written next to the parameters in ``motion.json``.
+
+    ``water``: the scene has the pond (``SceneConfig.pond``): adds the ``water`` label and
+    ``water_ripple`` (without it the tables are exactly those of the default garden).
+    """
+    labels = {**LABELS, WATER_LABEL: "water"} if water else dict(LABELS)
+    effects = {**LABEL_EFFECTS, **WATER_LABEL_EFFECTS} if water else LABEL_EFFECTS
     return {
-        "labels": {str(i): name for i, name in LABELS.items()},
-        "label_effects": {name: list(eff) for name, eff in LABEL_EFFECTS.items()},
-        "label_motion_class": {name: motion_class(name) for name in LABELS.values()},
-        "effect_types": list(EFFECT_TYPES),
-        "movable_labels": [i for i, name in LABELS.items() if LABEL_EFFECTS[name]],
-        "static_labels": [i for i, name in LABELS.items() if not LABEL_EFFECTS[name]],
+        "labels": {str(i): name for i, name in labels.items()},
+        "label_effects": {name: list(eff) for name, eff in effects.items()},
+        "label_motion_class": {name: motion_class(name) for name in labels.values()},
+        "effect_types": list(ALL_EFFECT_TYPES if water else EFFECT_TYPES),
+        "movable_labels": [i for i, name in labels.items() if effects[name]],
+        "static_labels": [i for i, name in labels.items() if not effects[name]],
         "time_unit": "frames; offsets periodic with period `frames`, zero at t=0 (canonical = captured state)",
     }

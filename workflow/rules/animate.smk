@@ -1,4 +1,4 @@
-# Stages 6-8, unrolled into rounds (see anigs/plan.py): round r renders every view of its
+# Stages 6-8, unrolled into rounds (see anigs/animate/plan.py): round r renders every view of its
 # dataset with the model of round r-1 (round 0 = static canonical), refines each view in its
 # own job (fan-out: independent GPU jobs on a cluster), then trains one model (fan-in).
 
@@ -15,9 +15,9 @@ rule render_clip:
         model=lambda wc, input: f"--model {input.model[0]}" if input.model else "",
         version=ANIGS_VERSION,
     log:
-        f"{VARIANT_DIR}/logs/round{{round}}/render_{{view}}.log",
+        f"{VARIANT_DIR}/logs/round{{round}}/render_clip_{{view}}.log",
     benchmark:
-        f"{VARIANT_DIR}/benchmarks/round{{round}}/render_{{view}}.tsv"
+        f"{VARIANT_DIR}/benchmarks/round{{round}}/render_clip_{{view}}.tsv"
     threads: 1
     resources:
         mem_mb=3000,
@@ -25,7 +25,7 @@ rule render_clip:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} render-clip --canonical {input.ply:q} {params.model} --view-json {input.views:q} "
+        "anigs --threads {threads} render_clip --canonical {input.ply:q} {params.model} --view-json {input.views:q} "
         "--view-id {wildcards.view} --out {output:q} --params {params.p:q} > {log} 2>&1"
 
 
@@ -33,10 +33,12 @@ rule refine:
     input:
         clip=f"{VARIANT_DIR}/round{{round}}/render/{{view}}.npz",
         masks=stage_path("masks"),
+        effects=_effects_json,
     output:
         f"{VARIANT_DIR}/round{{round}}/target/{{view}}.npz",
     params:
         p=jparams("refine", _refine_extra),
+        effects=lambda wc, input: f"--effects-json {input.effects}" if input.effects else "",
         version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/refine_{{view}}.log",
@@ -51,7 +53,7 @@ rule refine:
         "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} refine --clip {input.clip:q} --mask {input.masks}/{wildcards.view}.png "
-        "--round {wildcards.round} --view {wildcards.view} --out {output:q} --params {params.p:q} > {log} 2>&1"
+        "--round {wildcards.round} --view {wildcards.view} {params.effects} --out {output:q} --params {params.p:q} > {log} 2>&1"
 
 
 rule update:
@@ -67,6 +69,7 @@ rule update:
     params:
         p=jparams("update", _update_extra),
         init=lambda wc, input: f"--init-model {input.init[0]}" if input.init else "",
+        method=_method_args,
         version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/update.log",
@@ -82,4 +85,4 @@ rule update:
     shell:
         "anigs --threads {threads} update --canonical {input.ply:q} {params.init} --targets {input.targets} "
         "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy --out {output.model:q} "
-        "--log-json {output.log_json:q} --params {params.p:q} > {log} 2>&1"
+        "--log-json {output.log_json:q} --params {params.p:q} {params.method} > {log} 2>&1"

@@ -2,11 +2,14 @@
 import json
 import os
 import re
+import shlex
 
 import anigs
-from anigs.config import deep_merge, load_scene, section
+import yaml
+
+from anigs.config import check_sections, deep_merge, load_scene, section
 from anigs.tradeoff import DERIVED_SEP, get_dotted, knob_filename, stage_owner, sweep_points as _sweep_points
-from anigs.plan import RoundPlan
+from anigs.animate.plan import METHODS, AnimateConfig, RoundPlan
 
 ANIGS_VERSION = anigs.__version__
 R = config["results"]
@@ -14,7 +17,13 @@ R = config["results"]
 _scene_dir = config["scene_dir"]
 if not os.path.isabs(_scene_dir) and not os.path.isdir(_scene_dir):
     _scene_dir = os.path.join(workflow.basedir, _scene_dir)
-SCENES = {name: load_scene(_scene_dir, name) for name in config["scenes"]}  # the scenes config names
+# scene files and variant overrides are validated against the config schema's sections here, so a
+# typo fails when the workflow is parsed, naming the key and the file, before any job runs
+with open(os.path.join(workflow.basedir, "workflow", "schemas", "config.schema.yaml")) as _f:
+    CONFIG_SCHEMA = yaml.safe_load(_f)
+SCENES = {name: load_scene(_scene_dir, name, CONFIG_SCHEMA) for name in config["scenes"]}  # the scenes config names
+for _v, _o in config["variant_overrides"].items():
+    check_sections(_o, CONFIG_SCHEMA, f"config: variant_overrides.{_v}")
 ALL_SCENES = dict(SCENES)  # and the accuracy-versus-time sweep's derived scenes (added below)
 for _s in SCENES:
     if DERIVED_SEP in _s:
@@ -46,13 +55,24 @@ def sec(scene, name, variant="full"):
     return section(config, ALL_SCENES[scene], variant, name)
 
 
+def with_globals(section_dict, globals_):
+    """The section with the workflow's global settings (device, seed, ...) filled in. A section's own
+    explicit device (anything but auto) wins over the global one, so `static: {device: cpu}` in a scene
+    file is kept rather than silently replaced."""
+    out = {**section_dict, **globals_}
+    own = section_dict.get("device")
+    if "device" in globals_ and own not in (None, "auto"):
+        out["device"] = own
+    return out
+
+
 def jparams(name, extra=None):
     """params: the section as canonical JSON (a change re-runs exactly the affected jobs)."""
 
     def fn(wc):
         d = sec(wc.scene, name, getattr(wc, "variant", "full"))
         if extra is not None:
-            d = {**d, **extra(wc)}
+            d = with_globals(d, extra(wc))
         return json.dumps(d, sort_keys=True)
 
     return fn
@@ -72,9 +92,12 @@ def view_ids(scene):
 
 
 def plan(scene, variant):
-    a = sec(scene, "animate", variant)
-    return RoundPlan(num_views(scene), a["views_per_round"], a["extra_rounds"], a["view_expansion"],
-                     a["dataset_update"])
+    return AnimateConfig.from_dict(sec(scene, "animate", variant)).plan(num_views(scene))
+
+
+def method_of(scene, variant):
+    """The variant's animation method (animate.method): anigs, or a baseline."""
+    return sec(scene, "animate", variant)["method"]
 
 
 def model_path(scene, variant, r):
@@ -107,7 +130,8 @@ def final_targets():
     for s in SCENES:
         for v in config["variants"]:
             out += [f"{R}/{s}/{v}/final/final.json", f"{R}/{s}/{v}/export/animated.json",
-                    f"{R}/{s}/{v}/eval/metrics.json"]
+                    f"{R}/{s}/{v}/eval/metrics.json", f"{R}/{s}/{v}/viewer"]
+        out.append(f"{R}/{s}/effects/effects.json")
     return out
 
 
@@ -126,11 +150,16 @@ VARIANT_DIR = f"{R}/{{scene}}/{{variant}}"
 
 
 def _roi_args(wc):
-    """Regions of interest: ground-truth labels on synthetic scenes, else vegetation masks lifted to 3D."""
+    """Regions of interest: ground-truth labels on synthetic scenes, else the effects stage's
+    dynamic set (the effects the scene contains, found in the undistorted photos)."""
     if is_synthetic(wc.scene):
         return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
                 f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')}")
-    return f"--images {stage_dir(wc.scene, 'capture')}/images"
+    return f"--dynamic {stage_dir(wc.scene, 'effects')}/dynamic.npy"
+
+
+def _roi_inputs(wc):
+    return [] if is_synthetic(wc.scene) else [f"{stage_dir(wc.scene, 'effects')}/dynamic.npy"]
 
 
 def _gt_inputs(wc):
@@ -156,8 +185,16 @@ def _frames(wc):
 
 
 def _refine_extra(wc):
+    """The scene's prompt and effects: a synthetic scene's listed effects are its ground truth; a
+    photo scene's come from the effects stage at run time (--effects-json)."""
     s = ALL_SCENES[wc.scene]
-    return {"prompt": s.get("prompt", ""), "effects": s["effects"], "seed": config["seed"]}
+    requested = sec(wc.scene, "effects")["requested"]
+    effects = list(requested) if is_synthetic(wc.scene) and requested != "auto" else []
+    return {"prompt": s.get("prompt", ""), "effects": effects, "seed": config["seed"]}
+
+
+def _effects_json(wc):
+    return [] if is_synthetic(wc.scene) else [f"{stage_dir(wc.scene, 'effects')}/effects.json"]
 
 
 def _targets(wc):
@@ -175,8 +212,25 @@ def _update_extra(wc):
     return {"device": config["device"], "seed": config["seed"] + 1000 * int(wc.round)}
 
 
+def _method_args(wc):
+    """A baseline variant's update job fits the baseline (its config: animate.<method>) instead of ours."""
+    a = sec(wc.scene, "animate", wc.variant)
+    if a["method"] == "anigs":
+        return ""
+    params = {"num_bases": sec(wc.scene, "update", wc.variant)["num_bases"], **a[a["method"]]}
+    return f"--method {a['method']} --method-params {shlex.quote(json.dumps(params, sort_keys=True))}"
+
+
 def final_model(wc):
     return model_path(wc.scene, wc.variant, plan(wc.scene, wc.variant).num_rounds)
+
+
+def _eval_method(wc):
+    """The table row: ours under its variant (Table 5), a baseline under its method name (Tables 1-3)."""
+    m = method_of(wc.scene, wc.variant)
+    if m == "anigs":
+        return f"--method Ours --variant {wc.variant}"
+    return f"--method {METHODS[m]} --variant full"
 
 
 def _eval_gt(wc):
@@ -197,8 +251,8 @@ for _s in SCENES:
             ALL_SCENES[_p.scene(_s)] = deep_merge(SCENES[_s], _p.scene_overrides)
 
 
-def tradeoff_targets():
-    """results/tradeoff/{scene}.csv of every scene (`snakemake tradeoff`)."""
+def tradeoff_points():
+    """Every scene's sweep points (`snakemake tradeoff`); an empty sweep is an error naming the key."""
     if not any(v for v in config.get("tradeoff", {}).get("knobs", {}).values()):
         raise ValueError("config: tradeoff.knobs is empty; name the knobs to sweep (see config/README.md)")
-    return [f"{R}/tradeoff/{s}.csv" for s in SCENES]
+    return TRADEOFF

@@ -1,7 +1,7 @@
 # Stage 10: evaluation per (scene, variant) and the paper's tables.
 
 
-rule eval_scene:
+rule eval:
     input:
         final=f"{R}/{{scene}}/{{variant}}/final/final.json",
         masks=stage_path("masks"),
@@ -9,7 +9,7 @@ rule eval_scene:
         model=final_model,
         cameras=stage_path("sfm", "cameras.json"),
         points=stage_path("sfm", "points.npz"),
-        images=stage_path("capture", "images"),
+        images=stage_path("sfm", "images"),  # undistorted: the images sfm/cameras.json describes
     output:
         report(f"{R}/{{scene}}/{{variant}}/eval/metrics.json", caption="../report/metrics.rst", category="Metrics",
                subcategory="{scene} {variant}"),
@@ -17,6 +17,7 @@ rule eval_scene:
         p=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
         final=lambda wc: f"{R}/{wc.scene}/{wc.variant}/final/clips",
         gt=_eval_gt,
+        method=_eval_method,
         version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/{{variant}}/logs/eval.log",
@@ -31,11 +32,11 @@ rule eval_scene:
     shell:
         "anigs --threads {threads} eval --final-dir {params.final:q} --masks {input.masks:q} --model {input.model:q} "
         "--canonical {input.ply:q} --cameras {input.cameras:q} --images {input.images:q} --points {input.points:q} "
-        "{params.gt} --scene {wildcards.scene} --variant {wildcards.variant} --out {output:q} "
+        "{params.gt} --scene {wildcards.scene} {params.method} --out {output:q} "
         "--params {params.p:q} > {log} 2>&1"
 
 
-rule tables_build:
+rule tables:
     input:
         [f"{R}/{s}/{v}/eval/metrics.json" for s in SCENES for v in config["table_variants"]],
     output:
@@ -52,29 +53,63 @@ rule tables_build:
 
 
 def _tradeoff_metrics(wc):
-    return [f"{R}/{p.scene(wc.scene)}/{p.variant}/eval/metrics.json" for p in TRADEOFF[wc.scene]]
+    return [f"{R}/{p.scene(s)}/{p.variant}/eval/metrics.json" for s, pts in tradeoff_points().items() for p in pts]
 
 
 def _tradeoff_points(wc):
-    return json.dumps([{"variant": p.variant, "knob": p.knob, "value": p.value, "scene_tag": p.scene_tag}
-                       for p in TRADEOFF[wc.scene]])
+    return json.dumps({s: [{"variant": p.variant, "knob": p.knob, "value": p.value, "scene_tag": p.scene_tag}
+                           for p in TRADEOFF[s]] for s in SCENES})
 
 
-rule tradeoff_report:
+def _tradeoff_plots():
+    knobs = [k for k, v in config.get("tradeoff", {}).get("knobs", {}).items() if v]
+    return [report(f"{R}/tradeoff/{s}_{knob_filename(k)}.png", caption="../report/tradeoff.rst",
+                   category="Accuracy versus time") for s in SCENES for k in knobs]
+
+
+# one job for every scene's report, so that `snakemake tradeoff` names it
+rule tradeoff:
     input:
         _tradeoff_metrics,
     output:
-        csv=report(f"{R}/tradeoff/{{scene}}.csv", caption="../report/tradeoff.rst", category="Accuracy versus time"),
-        plots=[report(f"{R}/tradeoff/{{scene}}_{knob_filename(k)}.png", caption="../report/tradeoff.rst",
-                      category="Accuracy versus time") for k, v in config.get("tradeoff", {}).get("knobs", {}).items() if v],
+        csv=[report(f"{R}/tradeoff/{s}.csv", caption="../report/tradeoff.rst", category="Accuracy versus time")
+             for s in SCENES],
+        plots=_tradeoff_plots(),
     params:
         points=_tradeoff_points,
         metrics=lambda wc: " ".join(config.get("tradeoff", {}).get("plot_metrics", [])),
         version=ANIGS_VERSION,
     log:
-        f"{R}/logs/tradeoff_{{scene}}.log",
+        f"{R}/logs/tradeoff.log",
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs tradeoff --scene {wildcards.scene} --results {R:q} --points {params.points:q} "
-        "--out-csv {output.csv:q} --plot-metrics {params.metrics} > {log} 2>&1"
+        "anigs tradeoff --results {R:q} --points {params.points:q} --out {R:q}/tradeoff "
+        "--plot-metrics {params.metrics} > {log} 2>&1"
+
+
+def _study_variants():
+    """The compared variants of the 2AFC study: the baselines among table_variants (paper Table 4)."""
+    return [v for v in config["table_variants"] if v != "full" and method_of(next(iter(SCENES)), v) != "anigs"]
+
+
+# The 2AFC user study page (paper Table 4): ours against each baseline, same scene and view, side by
+# side. Collect answers with `anigs study serve --dir results/study`; `anigs study tally` makes Table 4.
+rule study:
+    input:
+        [f"{R}/{s}/{v}/final/final.json" for s in SCENES for v in ["full", *_study_variants()]],
+    output:
+        f"{R}/study/manifest.json",
+    params:
+        scenes=" ".join(SCENES),
+        others=lambda wc: " ".join(_study_variants()),
+        labels=lambda wc: " ".join(f"--label {v}={METHODS[method_of(next(iter(SCENES)), v)]}" for v in _study_variants()),
+        seed=config["seed"],
+        version=ANIGS_VERSION,
+    log:
+        f"{R}/logs/study.log",
+    conda:
+        "../../envs/anigs.yaml"
+    shell:
+        "anigs study build --results {R:q} --scenes {params.scenes} --ours full --others {params.others} "
+        "{params.labels} --catch-trials 2 --seed {params.seed} --out {R:q}/study > {log} 2>&1"

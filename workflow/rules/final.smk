@@ -1,7 +1,7 @@
 # Stage 9: final renders (videos, slices) and exports of the last round's model.
 
 
-rule final_render:
+rule final:
     input:
         ply=stage_path("static", "canonical.ply"),
         model=final_model,
@@ -19,9 +19,9 @@ rule final_render:
         out=lambda wc: f"{R}/{wc.scene}/{wc.variant}/final",
         version=ANIGS_VERSION,
     log:
-        f"{R}/{{scene}}/{{variant}}/logs/final_render.log",
+        f"{R}/{{scene}}/{{variant}}/logs/final.log",
     benchmark:
-        f"{R}/{{scene}}/{{variant}}/benchmarks/final_render.tsv"
+        f"{R}/{{scene}}/{{variant}}/benchmarks/final.tsv"
     threads: 2
     resources:
         mem_mb=4000,
@@ -29,17 +29,18 @@ rule final_render:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} render --canonical {input.ply:q} --model {input.model:q} --views {input.views:q} "
+        "anigs --threads {threads} final --canonical {input.ply:q} --model {input.model:q} --views {input.views:q} "
         "--cameras {input.cameras:q} --masks {input.masks:q} --out {params.out:q} --params {params.p:q} > {log} 2>&1"
 
 
-rule export_scene:
+rule export:
     input:
         ply=stage_path("static", "canonical.ply"),
         model=final_model,
     output:
         sidecar=f"{R}/{{scene}}/{{variant}}/export/animated.json",
         ply=f"{R}/{{scene}}/{{variant}}/export/animated.ply",
+        compact=f"{R}/{{scene}}/{{variant}}/export/scene.anigs",
     params:
         p=jparams("export"),
         out=lambda wc: f"{R}/{wc.scene}/{wc.variant}/export",
@@ -56,4 +57,30 @@ rule export_scene:
         "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} export --canonical {input.ply:q} --model {input.model:q} --out {params.out:q} "
+        "--params {params.p:q} > {log} 2>&1"
+
+
+rule view:
+    input:
+        ply=stage_path("static", "canonical.ply"),
+        model=final_model,
+        views=stage_path("views", "views.json"),
+    output:
+        report(directory(f"{R}/{{scene}}/{{variant}}/viewer"), htmlindex="index.html", caption="../report/viewer.rst",
+               category="Viewer", subcategory="{scene} {variant}"),
+    params:
+        p=jparams("view"),
+        version=ANIGS_VERSION,
+    log:
+        f"{R}/{{scene}}/{{variant}}/logs/view.log",
+    benchmark:
+        f"{R}/{{scene}}/{{variant}}/benchmarks/view.tsv"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=20,
+    conda:
+        "../../envs/anigs.yaml"
+    shell:
+        "anigs view --model {input.model:q} --canonical {input.ply:q} --views {input.views:q} --out {output:q} "
         "--params {params.p:q} > {log} 2>&1"

@@ -32,7 +32,7 @@ rule sfm:
         "--params {params.p:q} > {log} 2>&1"
 
 
-rule static_fit:
+rule static:
     input:
         images=stage_path("sfm", "images"),
         cameras=stage_path("sfm", "cameras.json"),

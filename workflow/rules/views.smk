@@ -1,11 +1,41 @@
-# Stages 4-5: the view queue (incremental viewpoint expansion) and dynamic masks per view.
+# Stages 4-6: the effects the scene contains (its region of interest), the view queue
+# (incremental viewpoint expansion) and dynamic masks per view.
+
+
+rule effects:
+    input:
+        ply=stage_path("static", "canonical.ply"),
+        cameras=stage_path("sfm", "cameras.json"),
+        images=stage_path("sfm", "images"),  # undistorted: the images sfm/cameras.json describes
+    output:
+        effects=f"{R}/{{scene}}/effects/effects.json",
+        regions=f"{R}/{{scene}}/effects/regions.npy",
+        dynamic=f"{R}/{{scene}}/effects/dynamic.npy",
+        overview=report(f"{R}/{{scene}}/effects/overview.png", caption="../report/effects.rst", category="Effects"),
+    params:
+        p=jparams("effects"),
+        out=lambda wc: f"{R}/{wc.scene}/effects",
+        version=ANIGS_VERSION,
+    log:
+        f"{R}/{{scene}}/logs/effects.log",
+    benchmark:
+        f"{R}/{{scene}}/benchmarks/effects.tsv"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=30,
+    conda:
+        "../../envs/anigs.yaml"
+    shell:
+        "anigs --threads {threads} effects --canonical {input.ply:q} --cameras {input.cameras:q} "
+        "--images {input.images:q} --out {params.out:q} --params {params.p:q} > {log} 2>&1"
 
 
 rule views:
     input:
         ply=stage_path("static", "canonical.ply"),
         cameras=stage_path("sfm", "cameras.json"),
-        images=stage_path("capture", "images"),
+        roi=_roi_inputs,
         gt=_gt_inputs,
     output:
         views=f"{R}/{{scene}}/views/views.json",
@@ -37,6 +67,7 @@ rule masks:
         # the capture photos are segmented too: the lift to 3D votes over them and the queued views
         images=stage_path("sfm", "images"),
         cameras=stage_path("sfm", "cameras.json"),
+        effects=stage_path("effects", "effects.json"),
         gt=_gt_inputs,
     output:
         # {view}.png, {view}_overlay.png (+ per-effect masks), dynamic.npy, masks.json
@@ -44,6 +75,7 @@ rule masks:
                      caption="../report/masks.rst", category="Masks", subcategory="{scene}"),
     params:
         p=jparams("masks"),
+        effects=lambda wc: stage_dir(wc.scene, "effects"),
         gt=_mask_gt_args,
         out=lambda wc: f"{R}/{wc.scene}/masks",
         version=ANIGS_VERSION,
@@ -59,5 +91,5 @@ rule masks:
         "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} masks --canonical {input.ply:q} --views {input.views:q} "
-        "--images {input.images:q} --cameras {input.cameras:q} {params.gt} "
+        "--images {input.images:q} --cameras {input.cameras:q} --effects {params.effects:q} {params.gt} "
         "--out {params.out:q} --params {params.p:q} > {log} 2>&1"

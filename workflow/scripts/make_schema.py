@@ -22,45 +22,28 @@ ROOT = Path(__file__).resolve().parents[2]
 SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
 sys.path.insert(0, str(ROOT))
 
+from anigs.stages import sections_of  # noqa: E402
+from anigs.tradeoff import SCENE_STAGES, VARIANT_SECTIONS  # noqa: E402
+
 
 def sections():
-    from anigs.commands.capture import PhotosConfig
-    from anigs.commands.eval import EvalConfig
-    from anigs.commands.export import ExportConfig
-    from anigs.commands.masks import MasksConfig
-    from anigs.commands.refine import RefineConfig
-    from anigs.commands.render_clip import RenderClipConfig
-    from anigs.final import FinalConfig
-    from anigs.fit import FitConfig
-    from anigs.plan import AnimateConfig
-    from anigs.sfm import SfmConfig
-    from anigs.update import UpdateConfig
-    from anigs.views import ViewsConfig
+    """Config section -> (dataclass, description), from the stage registry."""
+    from anigs.stages import STAGES
 
-    return {
-        "capture": (PhotosConfig, "importing user photos (photo scenes)"),
-        "sfm": (SfmConfig, "COLMAP structure from motion"),
-        "static": (FitConfig, "static (canonical) 3DGS fit"),
-        "views": (ViewsConfig, "incremental viewpoint expansion: the view queue"),
-        "masks": (MasksConfig, "dynamic-region masks per view and their lifting to 3D"),
-        "animate": (AnimateConfig, "the dataset-model loop unrolled into rounds"),
-        "render_clip": (RenderClipConfig, "camera-fixed clip rendering in each round"),
-        "refine": (RefineConfig, "ComposedV2V refinement with a video prior"),
-        "update": (UpdateConfig, "model update (deformation field training)"),
-        "final": (FinalConfig, "final videos and space-time slices"),
-        "export": (ExportConfig, "export of the animated scene"),
-        "eval": (EvalConfig, "evaluation metrics"),
-    }
+    return {s.name: (s.config_class(), s.help) for s in STAGES if s.section}
 
 
 def nested():
+    from anigs.baselines.lifting import LiftingConfig
+    from anigs.baselines.physics import PhysicsConfig
     from anigs.masks.lift import LiftConfig
     from anigs.masks.sam2 import Sam2Config
     from anigs.masks.vegetation import VegetationConfig
     from anigs.prior.ltx import LTXConfig
     from anigs.prior.procedural import ProceduralConfig
 
-    return {("masks", "vegetation"): VegetationConfig, ("masks", "lift"): LiftConfig, ("masks", "sam2"): Sam2Config,
+    return {("animate", "lifting"): LiftingConfig, ("animate", "physics"): PhysicsConfig,
+            ("masks", "vegetation"): VegetationConfig, ("masks", "lift"): LiftConfig, ("masks", "sam2"): Sam2Config,
             ("refine", "procedural"): ProceduralConfig, ("refine", "ltx"): LTXConfig}
 
 
@@ -110,6 +93,15 @@ EXTRA = {
 
 
 def _comments(cls) -> dict[str, str]:
+    """Field -> its trailing (or preceding) comment, from the class's source and its dataclass bases'."""
+    out: dict[str, str] = {}
+    for base in reversed([c for c in cls.__mro__[1:] if dataclasses.is_dataclass(c)]):
+        out.update(_own_comments(base))
+    out.update(_own_comments(cls))
+    return out
+
+
+def _own_comments(cls) -> dict[str, str]:
     out = {}
     try:
         src = inspect.getsource(cls)
@@ -220,8 +212,7 @@ TOP = {
     "variant_overrides": {
         "type": "object",
         "additionalProperties": {"type": "object", "additionalProperties": False,
-                                 "properties": {k: {"type": "object"} for k in
-                                                ("animate", "render_clip", "refine", "update", "final", "export", "eval")}},
+                                 "properties": {k: {"type": "object"} for k in sections_of("variant")}},
         "default": {},
         "description": "per-variant overrides of the animate/refine/update/final/export/eval sections "
                        "(the paper's ablations are just config)"},
@@ -231,7 +222,7 @@ TOP = {
         "properties": {
             "base": {"type": "string", "default": "full", "description": "variant the sweep varies"},
             "knobs": {"type": "object", "default": {},
-                      "propertyNames": {"pattern": r"^((animate|render_clip|refine|update|final|export|eval|static|views|masks)"
+                      "propertyNames": {"pattern": rf"^(({'|'.join(VARIANT_SECTIONS + SCENE_STAGES)})"
                                                    r"(\.[A-Za-z0-9_.]+)?)$"},
                       "additionalProperties": {"type": ["array", "null"], "minItems": 1},
                       "description": "section.key -> values, or section -> mappings of its keys; a per-variant section's "

@@ -1,0 +1,78 @@
+"""Reading the capture's images.
+
+``find_image`` maps a camera name to its file; ``load_image`` (the one image reader) reads
+RGB float32 [H,W,3] in [0,1]; ``load_inputs`` pairs a cameras JSON with its image folder, rescaling intrinsics to
+the image size.
+"""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+log = logging.getLogger("anigs.images")
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".PNG", ".JPG", ".JPEG")
+
+
+def find_image(image_dir: Path, name: str) -> Path:
+    """The image file for camera ``name`` (exact file name, or stem + a known suffix)."""
+    cand = image_dir / name
+    if cand.is_file():
+        return cand
+    stem = Path(name).stem
+    for suf in IMAGE_SUFFIXES:
+        if (image_dir / (stem + suf)).is_file():
+            return image_dir / (stem + suf)
+    raise FileNotFoundError(f"no image for camera {name!r} in {image_dir}")
+
+
+def load_image(path: str | Path) -> np.ndarray:
+    """The one image reader: RGB float32 [H,W,3] in [0,1] from an 8- or 16-bit image file (grey is
+    repeated to RGB, alpha dropped). EXIF orientation is applied once, when photos are imported
+    (:mod:`anigs.photos`): every image a stage reads afterwards is an upright PNG."""
+    import cv2
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"image not found: {path}")
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise ValueError(f"cannot read image {path}")
+    scale = 65535.0 if img.dtype == np.uint16 else 255.0
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, 2)
+    return (img[..., :3][..., ::-1].astype(np.float32) / scale).copy()
+
+
+def load_inputs(images: str | Path, cameras: str | Path):
+    """Images (torch [H,W,3]) and cameras in camera-file order; cameras are rescaled to the image size."""
+    import torch
+
+    from anigs.cameras import load_cameras
+
+    image_dir = Path(images)
+    if not image_dir.is_dir():
+        raise FileNotFoundError(f"image folder not found: {image_dir}")
+    cams = load_cameras(cameras)
+    if not cams:
+        raise ValueError(f"{cameras}: no cameras")
+    missing, imgs, out_cams = [], [], []
+    for cam in cams:
+        try:
+            p = find_image(image_dir, cam.name)
+        except FileNotFoundError:
+            missing.append(cam.name)
+            continue
+        arr = load_image(p)
+        h, w = arr.shape[:2]
+        if (w, h) != (cam.width, cam.height):
+            log.info("camera %s is %dx%d, image %dx%d: scaling intrinsics", cam.name, cam.width, cam.height, w, h)
+            cam = cam.scaled(w, h)
+        imgs.append(torch.from_numpy(arr))
+        out_cams.append(cam)
+    if missing:
+        raise FileNotFoundError(f"{len(missing)} of {len(cams)} cameras in {cameras} have no image in {image_dir}: "
+                                f"{missing[:10]}{' ...' if len(missing) > 10 else ''}")
+    return imgs, out_cams

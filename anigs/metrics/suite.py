@@ -1,0 +1,304 @@
+"""The evaluation suite: every metric of one (scene, method, variant), as the ``eval`` stage writes it.
+
+Inputs (all optional except ``--out``; a metric whose inputs are missing is written as not
+available with the reason):
+
+- ``--final-dir DIR`` / ``--clips PATH ...``: the method's camera-fixed clips (``.npz`` from
+  :mod:`anigs.video`, or ``.mp4``); directories are searched recursively.
+- ``--masks DIR``: dynamic masks ``<view>.png`` (or ``.npy``) matched to clips by file stem.
+- ``--reference PRIOR=PATH`` (repeatable; paths of one prior pool): the prior's ``generate``
+  clips (FVD-PRIOR and FID-PRIOR); ``--fid-reference PRIOR=PATH`` gives FID its own reference
+  (the paper pools the generated frames of all scenes for FID).
+- ``--model model.pt --canonical canonical.ply``: the animated model (multiview protocol and
+  ground-truth motion comparison).
+- ``--cameras cameras.json --images DIR --points points.npz``: the training cameras, the
+  capture images (named by camera) and the SfM points (``xyz``, ``rgb``): multiview protocol.
+- ``--gt-dir results/{scene}/capture/gt``: synthetic ground truth (motion statistics).
+
+The schema of the output is documented in :mod:`anigs.tables`.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from anigs.configs import reject_unknown_keys
+from anigs.metrics import metric_record, not_available
+
+from anigs.metrics.model_metrics import gt_metrics, multiview_metrics  # noqa: E402
+
+log = logging.getLogger("anigs.eval")
+
+
+@dataclass
+class EvalConfig:
+    """The ``eval`` config section."""
+
+    device: str = "auto"  # torch device for the feature networks and the multiview fit
+    i3d_path: str = ""  # local I3D TorchScript (StyleGAN-V i3d_torchscript.pt); "" = FVD not available
+    inception_path: str = ""  # local Inception TorchScript (inception-2015-12-05.pt); "" = FID not available
+    fvd_crop_size: int = 256  # clips resized (short side) and centre-cropped to this square
+    fvd_clip_frames: int = 16  # frames per FVD sample window (0 = whole clips)
+    fvd_window_stride: int = 8  # stride between windows of one clip
+    fvd_max_clips: int = 250  # windows per side at most (paper: 250 clips)
+    fvd_min_frames: int = 10  # shorter windows are padded by repeating the last frame
+    fvd_detector_resize: bool = False  # let the I3D file resize to 224 itself (StyleGAN-V flavour)
+    fid_size: int = 299  # Inception input size
+    fid_max_frames: int = 2000  # frames per side at most (evenly subsampled)
+    batch_size: int = 4  # network batch size
+    flow_preset: str = "medium"  # OpenCV DIS preset: ultrafast | fast | medium
+    mask_margin_px: int = 2  # dynamic mask dilated by this before taking the static region
+    mask_threshold: float = 0.5  # soft / resized masks: dynamic where >= threshold
+    multiview: bool = True  # run the Table-3 protocol when its inputs are given
+    multiview_capture: bool = True  # also the reference row on the original capture images
+    multiview_t: int | None = None  # novel timestep (None = the paper's 21/120 of the clip)
+    multiview_train_fraction: float = 0.5  # cameras used for the fit; the rest evaluate
+    multiview_split: str = "alternate"  # alternate | random
+    multiview_max_cameras: int = 0  # evenly subsample the cameras to at most this many (0 = all)
+    multiview_scale: float = 1.0  # image/camera scale for the protocol (speed)
+    multiview_fit: dict[str, Any] = field(default_factory=dict)  # anigs.static.fit.FitConfig keys for the fresh fit
+    seed: int = 0
+
+    @staticmethod
+    def from_dict(d: dict[str, Any] | None) -> "EvalConfig":
+        d = dict(d or {})
+        reject_unknown_keys(EvalConfig, d, "eval config", ValueError)
+        cfg = EvalConfig(**d)
+        cfg.validate()
+        return cfg
+
+    def validate(self) -> None:
+        from anigs.metrics.motion import FLOW_PRESETS
+
+        if self.flow_preset not in FLOW_PRESETS:
+            raise ValueError(f"eval.flow_preset must be one of {FLOW_PRESETS}, got {self.flow_preset!r}")
+        for k in ("fvd_crop_size", "fid_size", "batch_size", "fvd_window_stride"):
+            if getattr(self, k) < 1:
+                raise ValueError(f"eval.{k} must be >= 1, got {getattr(self, k)}")
+        for k in ("fvd_clip_frames", "fvd_max_clips", "fvd_min_frames", "fid_max_frames", "mask_margin_px",
+                  "multiview_max_cameras"):
+            if getattr(self, k) < 0:
+                raise ValueError(f"eval.{k} must be >= 0, got {getattr(self, k)}")
+        if not 0 < self.multiview_train_fraction < 1:
+            raise ValueError(f"eval.multiview_train_fraction must be in (0,1), got {self.multiview_train_fraction}")
+        if self.multiview_split not in ("alternate", "random"):
+            raise ValueError(f"eval.multiview_split must be 'alternate' or 'random', got {self.multiview_split!r}")
+        if not 0 < self.multiview_scale <= 1:
+            raise ValueError(f"eval.multiview_scale must be in (0,1], got {self.multiview_scale}")
+        if not 0 < self.mask_threshold <= 1:
+            raise ValueError(f"eval.mask_threshold must be in (0,1], got {self.mask_threshold}")
+
+
+# ----------------------------------------------------------------------------- inputs
+
+def find_clip_files(paths: list[str | Path]) -> list[Path]:
+    """Clip files from files and directories (recursive): ``.npz`` clips (with ``frames``), and
+    ``.mp4`` files that have no ``.npz`` of the same stem next to them."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            files = sorted(p.rglob("*.npz")) + sorted(p.rglob("*.mp4"))
+        elif p.exists():
+            files = [p]
+        else:
+            raise FileNotFoundError(f"clip path not found: {p}")
+        for f in files:
+            if f.suffix == ".npz":
+                with np.load(f, allow_pickle=False) as z:
+                    if "frames" not in z.files:
+                        continue  # not a clip (e.g. points.npz)
+            elif f.suffix == ".mp4" and f.with_suffix(".npz") in out:
+                continue
+            out.append(f)
+    return out
+
+
+def find_clips(paths: list[str | Path]) -> dict[str, Path]:
+    """Clip files by view name (file stem); two different clips with one stem are an error."""
+    found: dict[str, Path] = {}
+    for f in find_clip_files(paths):
+        if f.stem in found:
+            raise ValueError(f"two clips for view {f.stem!r}: {found[f.stem]} and {f}; "
+                             "pass the folders of one method's camera-fixed clips only")
+        found[f.stem] = f
+    return dict(sorted(found.items()))
+
+
+def load_any_clip(path: Path) -> np.ndarray:
+    from anigs.video import check_clip, load_clip, read_mp4
+
+    if path.suffix == ".mp4":
+        return check_clip(read_mp4(path), str(path))
+    return load_clip(path)[0]
+
+
+def load_mask_for(view: str, mask_dir: Path | None, height: int, width: int, threshold: float) -> np.ndarray | None:
+    from anigs.metrics.motion import resize_mask
+
+    if mask_dir is None:
+        return None
+    for ext in (".png", ".npy"):
+        p = mask_dir / f"{view}{ext}"
+        if p.exists():
+            from anigs.masks import read_mask
+
+            return resize_mask(read_mask(p), height, width, threshold)
+    return None
+
+
+# ----------------------------------------------------------------------------- metric groups
+
+def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg: EvalConfig) -> dict[str, Any]:
+    """Per-view weight-free metrics, averaged over views with a mask."""
+    from anigs.metrics.motion import clip_motion_metrics
+
+    names = {"static_abs_diff": (False, "intensity/frame"), "static_drift": (False, "intensity"),
+             "static_flow": (False, "px/frame"), "dynamic_abs_diff": (True, "intensity/frame"),
+             "dynamic_flow": (True, "px/frame"), "dominant_freq": (True, "cycles/frame"),
+             "spectral_centroid": (True, "cycles/frame")}
+    protocol = {"flow": f"OpenCV DIS {cfg.flow_preset}, grey, consecutive frames", "mask_margin_px": cfg.mask_margin_px,
+                "spectrum": "Hann window, per-pixel mean removed, DC excluded, mean power over dynamic pixels",
+                "aggregate": "mean over views"}
+    if not clips:
+        return {k: not_available("no rendered clips given (--final-dir / --clips)", hib, u, protocol)
+                for k, (hib, u) in names.items()}
+    if mask_dir is None:
+        return {k: not_available("no dynamic masks given (--masks)", hib, u, protocol) for k, (hib, u) in names.items()}
+    per_view: dict[str, dict[str, Any]] = {}
+    missing = []
+    for view, clip in clips.items():
+        mask = load_mask_for(view, mask_dir, clip.shape[1], clip.shape[2], cfg.mask_threshold)
+        if mask is None:
+            missing.append(view)
+            continue
+        per_view[view] = clip_motion_metrics(clip, mask, cfg.mask_margin_px, cfg.flow_preset).to_dict()
+    out = {}
+    warn = [f"no mask for views {missing} in {mask_dir}"] if missing else []
+    for k, (hib, unit) in names.items():
+        vals = [v[k] for v in per_view.values() if np.isfinite(v[k])]
+        samples = {"views": len(vals), "frames": int(sum(v["frames"] for v in per_view.values()))}
+        if not per_view:
+            out[k] = not_available(f"no mask in {mask_dir} matches any clip ({sorted(clips)})", hib, unit, protocol)
+        elif not vals:
+            out[k] = not_available("region empty or clips too short in every view", hib, unit, protocol, samples)
+        else:
+            out[k] = metric_record(float(np.mean(vals)), hib, unit, protocol, samples, warn,
+                                   per_view={v: d[k] for v, d in per_view.items()})
+    return out
+
+
+def frechet_metrics(kind: str, clips: dict[str, np.ndarray], references: dict[str, list[np.ndarray]],
+                    cfg: EvalConfig, device) -> dict[str, Any]:
+    """FVD-<prior> or FID-<prior> records for every reference prior."""
+    from anigs.metrics.features import (
+        I3D_HINT,
+        INCEPTION_HINT,
+        Unavailable,
+        i3d_features,
+        inception_features,
+        load_detector,
+        pool_frames,
+        sample_windows,
+    )
+    from anigs.metrics.frechet import frechet_distance
+
+    if kind == "fvd":
+        path, hint, what = cfg.i3d_path, I3D_HINT, "FVD (I3D)"
+        protocol = {"network": "I3D TorchScript (Kinetics-400), return_features=True, rescale=False",
+                    "input": f"short side resized to {cfg.fvd_crop_size}, centre crop {cfg.fvd_crop_size}^2, [-1,1]",
+                    "detector_resize": cfg.fvd_detector_resize, "window_frames": cfg.fvd_clip_frames,
+                    "window_stride": cfg.fvd_window_stride, "max_clips": cfg.fvd_max_clips,
+                    "min_frames": cfg.fvd_min_frames, "weights": str(path)}
+    else:
+        path, hint, what = cfg.inception_path, INCEPTION_HINT, "FID (Inception)"
+        protocol = {"network": "Inception-v3 TorchScript pool features, return_features=True",
+                    "input": f"frames resized to {cfg.fid_size}^2 (bicubic), [0,255]", "max_frames": cfg.fid_max_frames,
+                    "weights": str(path)}
+    if not references:
+        return {}
+    out: dict[str, Any] = {}
+    if not clips:
+        return {f"{kind}/{p}": not_available("no rendered clips given", False, "", protocol) for p in references}
+    det = load_detector(path, what, hint, device)
+    if isinstance(det, Unavailable):
+        return {f"{kind}/{p}": not_available(det.reason, False, "", protocol, expected_path=det.expected_path)
+                for p in references}
+
+    def feats(cl: list[np.ndarray]) -> np.ndarray:
+        if kind == "fvd":
+            wins = sample_windows(cl, cfg.fvd_clip_frames, cfg.fvd_window_stride, cfg.fvd_max_clips)
+            f, _ = i3d_features(det, wins, cfg.fvd_crop_size, cfg.fvd_min_frames, cfg.fvd_detector_resize,
+                                cfg.batch_size, device)
+            return f
+        return inception_features(det, pool_frames(cl, cfg.fid_max_frames), cfg.fid_size, cfg.batch_size * 4, device)
+
+    t0 = time.perf_counter()
+    test = feats(list(clips.values()))
+    for prior, ref_clips in references.items():
+        t1 = time.perf_counter()
+        try:
+            ref = feats(ref_clips)
+            res = frechet_distance(test, ref)
+        except ValueError as exc:  # e.g. fewer than 2 samples on a side
+            out[f"{kind}/{prior}"] = not_available(str(exc), False, "", protocol,
+                                                   {"test": len(test), "reference": len(ref_clips)})
+            continue
+        out[f"{kind}/{prior}"] = metric_record(
+            res.value, False, "", dict(protocol, eps_used=res.eps_used,
+                                       seconds=round(time.perf_counter() - t1 + (t1 - t0), 3)),
+            {"test": res.n1, "reference": res.n2}, res.warnings, feature_dim=res.dim, undersampled=res.undersampled)
+    return out
+
+
+def _load_references(references: dict[str, list[str | Path]] | None) -> dict[str, list[np.ndarray]]:
+    refs: dict[str, list[np.ndarray]] = {}
+    for prior, paths in (references or {}).items():
+        paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
+        files = find_clip_files(paths)
+        if not files:
+            raise FileNotFoundError(f"no reference clips for prior {prior!r} in {[str(p) for p in paths]}")
+        refs[prior] = [load_any_clip(f) for f in files]
+    return refs
+
+
+def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path | None = None,
+             references: dict[str, list[str | Path]] | None = None, model: str | Path | None = None,
+             canonical: str | Path | None = None, cameras: str | Path | None = None,
+             images: str | Path | None = None, points: str | Path | None = None,
+             gt_dir: str | Path | None = None,
+             fid_references: dict[str, list[str | Path]] | None = None) -> dict[str, Any]:
+    """Compute every metric whose inputs are given; returns the ``metrics`` mapping of metrics.json.
+
+    ``references``: prior -> clip files/folders (FVD-prior, and FID-prior unless
+    ``fid_references`` names other clips for that prior, e.g. frames pooled over all scenes
+    as in the paper).
+    """
+    from anigs.device import get_device, seed_everything
+
+    seed_everything(cfg.seed)
+    device = get_device(cfg.device)
+    P = (lambda p: None if p in (None, "") else Path(p))
+    clip_files = find_clips(clip_paths) if clip_paths else {}
+    clips = {v: load_any_clip(p) for v, p in clip_files.items()}
+    log.info("eval: %d clips %s", len(clips), list(clips))
+    refs = _load_references(references)
+    fid_refs = dict(refs)
+    fid_refs.update(_load_references(fid_references))
+    metrics: dict[str, Any] = {}
+    t0 = time.perf_counter()
+    metrics.update(weightfree_metrics(clips, P(mask_dir), cfg))
+    log.info("eval: weight-free metrics %.1f s", time.perf_counter() - t0)
+    for kind, r in (("fvd", refs), ("fid", fid_refs)):
+        t0 = time.perf_counter()
+        metrics.update(frechet_metrics(kind, clips, r, cfg, device))
+        log.info("eval: %s %.1f s", kind, time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    metrics.update(gt_metrics(P(model), P(canonical), P(gt_dir), P(cameras)))
+    metrics.update(multiview_metrics(cfg, P(model), P(canonical), P(cameras), P(images), P(points), device))
+    log.info("eval: model-based metrics %.1f s", time.perf_counter() - t0)
+    return metrics

@@ -1,0 +1,392 @@
+"""Structure from motion with pycolmap 4.x: images -> cameras + sparse points.
+
+Pipeline (:func:`run_sfm`): check the images (unreadable files, fewer than 3) before COLMAP
+runs -> SIFT extraction (GPU when available) -> matching (exhaustive, sequential or
+spatial, from config) -> incremental mapping (or global mapping) with the failure
+handling below -> fine-scale refinement (:mod:`anigs.sfm.bundle`: bundle adjustment of the
+cameras on the finest, best-localised keypoints, robust loss; every point is kept) ->
+undistortion to PINHOLE when the camera model has distortion -> frame normalisation -> outputs.
+
+Parameters live in :mod:`anigs.sfm.config`, model conversion in :mod:`anigs.sfm.model`.
+
+Failure handling:
+- several models: the one with most registered images is kept, the others are reported;
+- a mapping failure, or a best model under ``min_registered_fraction`` of the images, is
+  retried once with ``init_min_tri_angle = retry_init_min_tri_angle`` (4 degrees
+  reconstructs forward-facing captures); still too few is an error naming registered/total.
+
+Frame normalisation (downstream works in a z-up world, ground near z=0): without ground
+truth, up is estimated from the cameras held upright (:func:`anigs.align.estimate_up`) and rotated onto
++z; the camera centroid moves to x=y=0, a low percentile of the point heights to z=0, and
+the scale makes the mean camera height ``camera_height`` (eye height: roughly metric). With ground-truth cameras the reconstruction is instead mapped onto
+them with a similarity (Umeyama on camera centres) and the pose errors are reported.
+
+Output folder (laid out like a COLMAP project, so 3DGS tools open it directly):
+``sparse/0/`` (COLMAP binary model in the output frame, PINHOLE cameras after
+undistortion), ``images/`` (the images the cameras describe: undistorted, or copies),
+``cameras.json`` (project convention, one camera per registered image, ``name`` = file
+name), ``points.npz`` (``xyz`` [P,3] float32, ``rgb`` [P,3] float32 in [0,1], ``error``
+[P] float32 reprojection error in px, ``track_length`` [P] int32), ``report.json``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+import shutil
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from anigs.align import pose_errors, umeyama, upright_similarity
+from anigs.cameras import Camera, load_cameras, save_cameras
+from anigs.io import write_json, write_npz
+from anigs.photos import check_images, image_headers, list_images, report_unreadable, require_min_images
+from anigs.sfm.config import MAPPERS, MATCHERS, UNDISTORTED_MODELS, SfmConfig
+from anigs.sfm.model import (find_model_dir, reconstruction_cameras, reconstruction_points, replace_dir,
+                             to_sim3d)
+from anigs.sfm.bundle import refine_fine_scale
+
+__all__ = ["MAPPERS", "MATCHERS", "UNDISTORTED_MODELS", "SfmConfig", "SfmError", "SfmResult", "extract_and_match",
+           "map_with_retries", "reconstruction_cameras", "reconstruction_points", "refine_model", "run_mapper",
+           "run_sfm", "select_model"]
+
+log = logging.getLogger(__name__)
+
+
+class SfmError(RuntimeError):
+    """Structure from motion did not produce a usable reconstruction."""
+
+
+@dataclass
+class SfmResult:
+    """What :func:`run_sfm` produced (also written to ``out_dir``)."""
+
+    cameras: list[Camera]
+    xyz: np.ndarray  # [P,3] float32
+    rgb: np.ndarray  # [P,3] float32 in [0,1]
+    report: dict = field(default_factory=dict)
+
+
+# ---- COLMAP steps (module-level so tests can replace one) ---------------------------------
+
+def _device(cfg: SfmConfig):
+    import pycolmap
+
+    has_cuda = bool(pycolmap.has_cuda)
+    if cfg.device == "cuda" and not has_cuda:
+        raise RuntimeError("sfm.device is 'cuda' but this pycolmap build has no CUDA support")
+    return pycolmap.Device.cuda if (cfg.device != "cpu" and has_cuda) else pycolmap.Device.cpu
+
+
+def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: SfmConfig) -> dict:
+    """SIFT extraction and matching into ``database``; returns statistics and timings."""
+    import pycolmap
+
+    device = _device(cfg)
+    pycolmap.set_random_seed(cfg.seed)
+    reader = pycolmap.ImageReaderOptions(camera_model=cfg.camera_model)
+    if cfg.camera_params is not None:
+        reader.camera_params = ",".join(str(float(v)) for v in cfg.camera_params)
+    ext = pycolmap.FeatureExtractionOptions()
+    ext.num_threads = cfg.num_threads
+    ext.max_image_size = cfg.max_image_size
+    ext.sift.max_num_features = cfg.max_num_features
+    ext.sift.peak_threshold = cfg.sift_peak_threshold
+    ext.use_gpu = device == pycolmap.Device.cuda
+    mode = pycolmap.CameraMode.SINGLE if cfg.single_camera else pycolmap.CameraMode.PER_IMAGE
+    t0 = time.perf_counter()
+    pycolmap.extract_features(database, image_dir, image_names=names, camera_mode=mode,
+                              reader_options=reader, extraction_options=ext, device=device)
+    t1 = time.perf_counter()
+    match = pycolmap.FeatureMatchingOptions()
+    match.num_threads = cfg.num_threads
+    match.use_gpu = device == pycolmap.Device.cuda
+    verify = pycolmap.TwoViewGeometryOptions()
+    verify.ransac.random_seed = cfg.seed
+    kw = {"matching_options": match, "verification_options": verify, "device": device}
+    if cfg.matcher == "exhaustive":
+        pycolmap.match_exhaustive(database, **kw)
+    elif cfg.matcher == "sequential":
+        pairing = pycolmap.SequentialPairingOptions()
+        pairing.overlap = cfg.sequential_overlap
+        pycolmap.match_sequential(database, pairing_options=pairing, **kw)
+    else:
+        db = pycolmap.Database.open(database)
+        try:
+            n_priors = db.num_pose_priors()
+        finally:
+            db.close()
+        if n_priors == 0:
+            raise ValueError("sfm.matcher 'spatial' needs location priors (EXIF GPS), but none of the "
+                             f"{len(names)} images has one; use 'sequential' or 'exhaustive'")
+        pairing = pycolmap.SpatialPairingOptions()
+        pairing.max_num_neighbors = cfg.spatial_max_neighbors
+        pycolmap.match_spatial(database, pairing_options=pairing, **kw)
+    t2 = time.perf_counter()
+    db = pycolmap.Database.open(database)
+    try:
+        stats = {"keypoints_per_image": db.num_keypoints() / max(db.num_images(), 1),
+                 "verified_pairs": db.num_verified_image_pairs(), "inlier_matches": db.num_inlier_matches()}
+    finally:
+        db.close()
+    stats.update(extract_s=t1 - t0, match_s=t2 - t1, device=str(device).split(".")[-1])
+    return stats
+
+
+def run_mapper(database: Path, image_dir: Path, out_dir: Path, cfg: SfmConfig, names: list[str],
+               mapper: str, init_min_tri_angle: float) -> dict:
+    """One COLMAP mapping run -> ``{model index: pycolmap.Reconstruction}`` (may be empty)."""
+    import pycolmap
+
+    pycolmap.set_random_seed(cfg.seed)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if mapper == "global":
+        opts = pycolmap.GlobalPipelineOptions()
+        opts.random_seed = cfg.seed
+        opts.num_threads = cfg.num_threads
+        opts.min_model_size = 3
+        opts.image_names = names
+        cuda = _device(cfg) == pycolmap.Device.cuda
+        opts.mapper.global_positioning.use_gpu = cuda
+        opts.mapper.bundle_adjustment.ceres.use_gpu = cuda
+        return dict(pycolmap.global_mapping(database, image_dir, out_dir, options=opts))
+    opts = pycolmap.IncrementalPipelineOptions()
+    opts.random_seed = cfg.seed
+    opts.num_threads = cfg.num_threads
+    opts.min_model_size = 3
+    opts.image_names = names
+    opts.mapper.init_min_tri_angle = float(init_min_tri_angle)
+    opts.mapper.random_seed = cfg.seed
+    opts.triangulation.random_seed = cfg.seed
+    return dict(pycolmap.incremental_mapping(database, image_dir, out_dir, options=opts))
+
+
+# ---- model selection -----------------------------------------------------------------------
+
+def select_model(models: dict) -> tuple[Any, list[int]]:
+    """Pick the model with most registered images; returns it and all models' sizes (descending)."""
+    if not models:
+        return None, []
+    ranked = sorted(models.values(), key=lambda r: r.num_reg_images(), reverse=True)
+    return ranked[0], [int(r.num_reg_images()) for r in ranked]
+
+
+def map_with_retries(database: Path, image_dir: Path, work: Path, cfg: SfmConfig,
+                     names: list[str]) -> tuple[Any, dict]:
+    """Mapping with the retry policy of the module docstring.
+
+    Returns the chosen ``pycolmap.Reconstruction`` and a report with every attempt.
+    Raises :class:`SfmError` naming registered/total when no attempt registers enough.
+    """
+    total = len(names)
+    need = cfg.min_registered_fraction * total
+    attempts = [(cfg.mapper, cfg.init_min_tri_angle)]
+    if cfg.retry_init_min_tri_angle is not None:
+        attempts.append(("incremental", cfg.retry_init_min_tri_angle))
+    tried, best, best_sizes = [], None, []
+    for i, (mapper, angle) in enumerate(attempts):
+        if i > 0:
+            log.warning("retrying mapping with init_min_tri_angle=%g degrees (was %s)", angle,
+                        tried[-1]["result"])
+        t0 = time.perf_counter()
+        entry = {"mapper": mapper, "init_min_tri_angle": angle if mapper == "incremental" else None}
+        try:
+            models = run_mapper(database, image_dir, work / f"mapping{i}", cfg, names, mapper, angle)
+            error = None
+        except Exception as exc:  # COLMAP raises RuntimeError / ValueError on failures
+            models, error = {}, f"{type(exc).__name__}: {exc}"
+        chosen, sizes = select_model(models)
+        reg = sizes[0] if sizes else 0
+        entry.update(seconds=time.perf_counter() - t0, models=sizes, registered=reg,
+                     result=error or ("no model" if not sizes else f"registered {reg}/{total}"))
+        tried.append(entry)
+        log.info("mapping attempt %d (%s, init_min_tri_angle=%s): %s, models %s", i + 1, mapper,
+                 entry["init_min_tri_angle"], entry["result"], sizes)
+        if chosen is not None and (best is None or reg > best.num_reg_images()):
+            best, best_sizes = chosen, sizes
+        if chosen is not None and reg >= need:
+            break
+    report = {"attempts": tried, "retries": len(tried) - 1}
+    reg = int(best.num_reg_images()) if best is not None else 0
+    if best is None or reg < need:
+        detail = "; ".join(f"attempt {k + 1} ({a['mapper']}, init_min_tri_angle={a['init_min_tri_angle']}): "
+                           f"{a['result']} (models {a['models']})" for k, a in enumerate(tried))
+        raise SfmError(f"structure from motion registered {reg}/{total} images, below "
+                       f"min_registered_fraction={cfg.min_registered_fraction} "
+                       f"(need {int(np.ceil(need))}); {detail}")
+    report["models_found"] = best_sizes
+    if len(best_sizes) > 1:
+        log.warning("mapping produced %d models with %s registered images; keeping the largest (%d/%d)",
+                    len(best_sizes), best_sizes, reg, total)
+    report["other_models"] = best_sizes[1:]
+    return best, report
+
+
+# ---- refinement ------------------------------------------------------------------------------
+
+def refine_model(rec, database: Path, cfg: SfmConfig) -> dict:
+    """Fine-scale refinement of the mapped model in place (:mod:`anigs.sfm.bundle`); returns its report.
+
+    Skipped (with the reason in the report) when ``cfg.refine`` is off or the database with
+    the keypoints is missing or does not match the model.
+    """
+    if not cfg.refine:
+        return {"applied": False, "reason": "sfm.refine is false"}
+    if not database.exists():
+        return {"applied": False, "reason": "no feature database (model not mapped here)"}
+    try:
+        report = refine_fine_scale(rec, database, max_keypoint_scale=cfg.refine_max_keypoint_scale,
+                                   min_observations=cfg.refine_min_observations, loss_scale=cfg.refine_loss_scale,
+                                   num_threads=cfg.num_threads, max_image_size=cfg.max_image_size)
+    except ValueError as exc:
+        log.warning("fine-scale refinement skipped: %s", exc)
+        return {"applied": False, "reason": str(exc)}
+    return {"applied": True, **report}
+
+
+# ---- the stage -----------------------------------------------------------------------------------
+
+def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = None,
+            gt_cameras: str | Path | None = None, model_dir: str | Path | None = None,
+            keep_work: bool = False) -> SfmResult:
+    """Run the whole stage; see the module docstring for steps, failures and outputs.
+
+    Args:
+        image_dir: folder of JPEG/PNG images.
+        out_dir: output folder (created).
+        cfg: parameters (defaults when None).
+        gt_cameras: ground-truth cameras JSON (synthetic capture): align to them and report errors.
+        model_dir: an existing COLMAP sparse model of these images: skips extraction, matching
+            and mapping (registration is still checked against the images in ``image_dir``).
+        keep_work: keep the COLMAP database and raw models in ``out_dir/work``.
+    """
+    import pycolmap
+
+    cfg = cfg or SfmConfig()
+    t_start = time.perf_counter()
+    image_dir, out_dir = Path(image_dir), Path(out_dir)
+    files = list_images(image_dir)
+    good, bad = check_images(files)
+    report_unreadable(bad, image_dir, cfg.skip_unreadable)
+    require_min_images(len(good), image_dir)
+    names = [p.name for p in good]
+    total = len(names)
+    headers = image_headers(good)
+    rotated = sorted(n for n, (_, _, o) in headers.items() if o != 1)
+    if rotated:
+        log.warning("%d image(s) carry an EXIF rotation that COLMAP ignores (import them with "
+                    "`anigs capture --source photos` to make them upright): %s", len(rotated), ", ".join(rotated[:10]))
+    sizes = sorted({(w, h) for w, h, _ in headers.values()})
+    if cfg.single_camera and len(sizes) > 1 and model_dir is None:
+        raise ValueError(f"sfm.single_camera is true but the images in {image_dir} have {len(sizes)} sizes "
+                         f"{sizes[:5]}; set single_camera to false or import them at one size")
+    gt = load_cameras(gt_cameras) if gt_cameras else None
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    work = out_dir / "work" if keep_work else Path(tempfile.mkdtemp(prefix=".sfm_work.", dir=out_dir))
+    if keep_work and work.exists():
+        shutil.rmtree(work)
+    work.mkdir(parents=True, exist_ok=True)
+    report: dict[str, Any] = {"images": total, "skipped_unreadable": bad, "config": dataclasses.asdict(cfg),
+                              "pycolmap_version": pycolmap.__version__, "timings_s": {}}
+    try:
+        if model_dir is not None:
+            model_dir = find_model_dir(Path(model_dir))
+            rec = pycolmap.Reconstruction(str(model_dir))
+            unknown = sorted({rec.images[i].name for i in rec.reg_image_ids()} - set(names))
+            if unknown:
+                raise ValueError(f"COLMAP model {model_dir} registers images missing from {image_dir}: {unknown[:5]}")
+            reg = rec.num_reg_images()
+            if reg < cfg.min_registered_fraction * total:
+                raise SfmError(f"COLMAP model {model_dir} registers {reg}/{total} images, below "
+                               f"min_registered_fraction={cfg.min_registered_fraction}")
+            report["mapping"] = {"source": str(model_dir), "models_found": [reg], "other_models": [], "retries": 0}
+            report["refine"] = {"applied": False, "reason": "existing model (no feature database)"}
+        else:
+            stats = extract_and_match(work / "database.db", image_dir, names, cfg)
+            report["timings_s"].update(extract=stats.pop("extract_s"), match=stats.pop("match_s"))
+            report["features"] = stats
+            t0 = time.perf_counter()
+            rec, report["mapping"] = map_with_retries(work / "database.db", image_dir, work, cfg, names)
+            report["timings_s"]["mapping"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            report["refine"] = refine_model(rec, work / "database.db", cfg)
+            report["timings_s"]["refine"] = time.perf_counter() - t0
+        report["registered"] = int(rec.num_reg_images())
+        report["registered_fraction"] = report["registered"] / total
+        registered = sorted(rec.images[i].name for i in rec.reg_image_ids())
+        report["unregistered_images"] = sorted(set(names) - set(registered))
+
+        # undistortion: every camera the stage writes is PINHOLE / SIMPLE_PINHOLE
+        t0 = time.perf_counter()
+        models = {rec.cameras[rec.images[i].camera_id].model.name for i in rec.reg_image_ids()}
+        raw_dir = work / "selected"
+        raw_dir.mkdir(exist_ok=True)
+        rec.write(raw_dir)
+        images_tmp = Path(tempfile.mkdtemp(prefix=".images.", dir=out_dir))
+        if not models <= set(UNDISTORTED_MODELS):
+            if not cfg.undistort:
+                raise ValueError(f"camera model(s) {sorted(models)} have distortion and sfm.undistort is false; "
+                                 "the project's cameras are pinhole: enable undistort or use PINHOLE/SIMPLE_PINHOLE")
+            und = work / "undistorted"
+            pycolmap.undistort_images(und, raw_dir, image_dir, image_names=registered, output_type="COLMAP",
+                                      num_threads=cfg.num_threads)
+            rec = pycolmap.Reconstruction(und / "sparse")
+            for n in registered:
+                shutil.copy2(und / "images" / n, images_tmp / n)
+            report["undistorted"] = True
+        else:
+            for n in registered:
+                shutil.copy2(image_dir / n, images_tmp / n)
+            report["undistorted"] = False
+        report["camera_models"] = sorted(models)
+        report["timings_s"]["undistort"] = time.perf_counter() - t0
+
+        # frame normalisation
+        cams = reconstruction_cameras(rec)
+        pts = reconstruction_points(rec)
+        if gt is not None:
+            by_name = {c.name: c for c in gt}
+            missing = [c.name for c in cams if c.name not in by_name]
+            if missing:
+                raise KeyError(f"ground-truth cameras {gt_cameras} have no entry for image(s) {missing[:5]}")
+            sim = umeyama(np.stack([c.center for c in cams]), np.stack([by_name[c.name].center for c in cams]))
+            frame = {"mode": "similarity_to_ground_truth", "gt_cameras": str(gt_cameras)}
+        else:
+            sim, frame = upright_similarity(cams, pts["xyz"], cfg.ground_percentile, cfg.camera_height)
+        frame.update(scale=sim.scale, matrix=sim.matrix())
+        rec.transform(to_sim3d(sim))
+        cams = reconstruction_cameras(rec)
+        pts = reconstruction_points(rec)
+        report["frame"] = frame
+        if gt is not None:
+            report["gt_errors"] = pose_errors(cams, gt)
+        report["num_points"] = int(len(pts["xyz"]))
+        report["mean_reprojection_error_px"] = float(rec.compute_mean_reprojection_error())
+        c0 = cams[0]
+        report["intrinsics_first_camera"] = {"name": c0.name, "fx": c0.K[0, 0], "fy": c0.K[1, 1], "cx": c0.K[0, 2],
+                                             "cy": c0.K[1, 2], "width": c0.width, "height": c0.height}
+
+        # outputs: folders built under temporary names and renamed; files written atomically
+        sparse_tmp = Path(tempfile.mkdtemp(prefix=".sparse.", dir=out_dir))
+        (sparse_tmp / "0").mkdir()
+        rec.write(sparse_tmp / "0")
+        replace_dir(sparse_tmp, out_dir / "sparse")
+        replace_dir(images_tmp, out_dir / "images")
+        save_cameras(out_dir / "cameras.json", cams, extra={"source": "colmap", "frame": frame["mode"]})
+        write_npz(out_dir / "points.npz", **pts)
+        report["timings_s"]["total"] = time.perf_counter() - t_start
+        write_json(out_dir / "report.json", report)
+    finally:
+        if not keep_work:
+            shutil.rmtree(work, ignore_errors=True)
+        for pattern in (".images.*", ".sparse.*"):
+            for leftover in out_dir.glob(pattern):
+                shutil.rmtree(leftover, ignore_errors=True)
+    log.info("sfm: registered %d/%d images, %d points, %.1f s", report["registered"], total,
+             report["num_points"], report["timings_s"]["total"])
+    return SfmResult(cams, pts["xyz"], pts["rgb"], report)

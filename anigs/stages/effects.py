@@ -1,0 +1,110 @@
+"""Stage ``effects``: which effects the scene contains, and where (its one region of interest).
+
+Analyses the capture photos the SfM cameras describe (the undistorted ``sfm/images``) with the
+fitted static model (:func:`anigs.effects.detect_effects`: colour indices, height above the
+fitted ground, planarity, texture, multi-view consistency; no downloaded weights) and decides,
+per effect, whether the scene contains it.
+
+The scene's ``effects:`` list picks what may move: ``auto`` (or an empty list) takes every
+detected effect; an explicit list restricts the effects to those listed, and a listed effect the
+scene does not contain is reported (``requested_not_found``) and skipped, not simulated on an
+empty region. The union of the chosen effects' Gaussians is the region of interest
+(``dynamic.npy``) that the views stage places the views around.
+
+    anigs effects --canonical static/canonical.ply --cameras sfm/cameras.json --images sfm/images \\
+        --out effects/ [--requested foliage_sway flower_bob] --params '{...effects section...}'
+
+Writes ``OUT/effects.json`` (per effect: detected, pixel_fraction, gaussian_fraction, confidence,
+reason; plus the requested, chosen and skipped effects), ``OUT/regions.npy`` (int8 [N] region of
+each Gaussian, -1 none), ``OUT/dynamic.npy`` (bool [N]) and ``OUT/overview.png``.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from anigs.effects.config import Config
+
+log = logging.getLogger("anigs.effects")
+
+
+def choose(detected: Sequence[str], requested: Sequence[str] | str | None) -> tuple[list[str], list[str]]:
+    """(effects to simulate, requested effects the scene does not contain).
+
+    ``requested``: ``"auto"``, ``None`` or ``[]`` = every detected effect; a list = those of it that
+    were detected, in the list's order."""
+    if requested in (None, "auto") or (not isinstance(requested, str) and len(requested) == 0):
+        return list(detected), []
+    if isinstance(requested, str):
+        raise ValueError(f"effects: the scene's effects must be 'auto' or a list of effect names, got {requested!r}")
+    from anigs.effects.config import EFFECTS
+
+    unknown = [e for e in requested if e not in EFFECTS]
+    if unknown:
+        raise ValueError(f"effects: unknown effect(s) {unknown} in the scene's effects list; known: {list(EFFECTS)}")
+    chosen = [e for e in requested if e in detected]
+    return chosen, [e for e in requested if e not in detected]
+
+
+def run(canonical: str | Path, cameras: str | Path, images: str | Path, out: str | Path, cfg: Config,
+        requested: Sequence[str] | str | None = "auto") -> dict:
+    """Detect the scene's effects and write the stage's outputs to ``out``; returns ``effects.json``."""
+    from anigs.cameras import load_cameras
+    from anigs.effects import detect_effects, save_overview
+    from anigs.gaussians import load_ply
+    from anigs.images import find_image, load_image
+    from anigs.io import atomic_path, write_json
+
+    g = load_ply(canonical)
+    cams = load_cameras(cameras)
+    if not cams:
+        raise ValueError(f"{cameras}: no cameras")
+    photos = [load_image(find_image(Path(images), c.name)) for c in cams]
+    res = detect_effects(photos, cams, g, cfg)
+    chosen, missing = choose(res.detected, requested)
+    for e in missing:
+        log.warning("effects: %s was asked for but the scene does not contain it: skipped (%s)", e,
+                    res.effects[e].reason)
+    dynamic = res.dynamic(chosen)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    payload = res.to_json()
+    payload.update({"requested": "auto" if requested in (None, "auto") or len(requested) == 0 else list(requested),
+                    "chosen": chosen, "requested_not_found": missing,
+                    "num_dynamic": int(dynamic.sum()), "dynamic_fraction": float(dynamic.mean()) if len(dynamic) else 0.0})
+    with atomic_path(out / "regions.npy") as tmp, open(tmp, "wb") as fh:
+        np.save(fh, res.region_of.astype(np.int8))
+    with atomic_path(out / "dynamic.npy") as tmp, open(tmp, "wb") as fh:
+        np.save(fh, dynamic)
+    save_overview(out / "overview.png", res)
+    write_json(out / "effects.json", payload)
+    log.info("effects: detected %s; simulating %s (%d of %d Gaussians)%s", res.detected or "nothing",
+             chosen or "nothing", int(dynamic.sum()), g.num,
+             f"; asked for but not found: {missing}" if missing else "")
+    return payload
+
+
+# ---- command line: anigs effects ----
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--canonical", required=True, help="canonical 3DGS PLY (static/canonical.ply)")
+    p.add_argument("--cameras", required=True, help="cameras of the photos (sfm/cameras.json)")
+    p.add_argument("--images", required=True, help="the undistorted photos the cameras describe (sfm/images)")
+    p.add_argument("--out", required=True, help="output folder (effects.json, regions.npy, dynamic.npy, overview.png)")
+    p.add_argument("--requested", nargs="*", default=None,
+                   help="the scene's effects list (omit or 'auto': every detected effect)")
+    p.add_argument("--params", default=None, help="effects config section as JSON or @file")
+
+
+def main(args: argparse.Namespace) -> int:
+    from anigs.cli import parse_params
+
+    requested = args.requested
+    if requested in ([], ["auto"]):
+        requested = "auto"
+    run(args.canonical, args.cameras, args.images, args.out, Config.from_dict(parse_params(args.params)), requested)
+    return 0

@@ -1,0 +1,51 @@
+"""Stage ``sfm``: COLMAP structure from motion on a folder of images.
+
+    anigs sfm --images results/demo/capture/images --out results/demo/sfm \\
+        [--gt-cameras results/demo/capture/gt/cameras.json] [--model DIR] --params '{"camera_model": "PINHOLE"}'
+
+Writes ``sparse/0/``, ``images/``, ``cameras.json``, ``points.npz`` and ``report.json`` into ``--out``
+(see :mod:`anigs.sfm.colmap`).
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from anigs.sfm.config import SfmConfig
+
+Config = SfmConfig  # the `sfm` config section
+
+
+def run(images: str | Path, out: str | Path, cfg: SfmConfig, gt_cameras: str | Path | None = None,
+        model_dir: str | Path | None = None, keep_work: bool = False) -> dict:
+    """Structure from motion of the images in ``images`` into ``out``; returns ``report.json``'s content."""
+    from anigs.sfm.colmap import run_sfm
+
+    return run_sfm(images, out, cfg, gt_cameras=gt_cameras, model_dir=model_dir, keep_work=keep_work).report
+
+
+# ---- command line: anigs sfm ----
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--images", required=True, help="folder of JPEG/PNG images")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--gt-cameras", default=None,
+                   help="ground-truth cameras JSON (synthetic capture): align to them and report pose errors")
+    p.add_argument("--model", default=None,
+                   help="existing COLMAP sparse model of these images (skips extraction, matching, mapping)")
+    p.add_argument("--params", default=None, help="sfm config section as JSON, or @file.json/@file.yaml")
+    p.add_argument("--keep-work", action="store_true", help="keep the COLMAP database and raw models in OUT/work")
+
+
+def main(args: argparse.Namespace) -> int:
+    from anigs.cli import parse_params
+
+    r = run(args.images, args.out, SfmConfig.from_dict(parse_params(args.params)), gt_cameras=args.gt_cameras,
+            model_dir=args.model, keep_work=args.keep_work)
+    line = f"registered {r['registered']}/{r['images']} images, {r['num_points']} points"
+    if "gt_errors" in r:
+        e = r["gt_errors"]
+        line += (f"; rotation error mean {e['rotation_error_deg']['mean']:.3f} max "
+                 f"{e['rotation_error_deg']['max']:.3f} deg; centre error mean "
+                 f"{e['center_error_pct_extent']['mean']:.3f}% max {e['center_error_pct_extent']['max']:.3f}% of extent")
+    print(line)
+    return 0

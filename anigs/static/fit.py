@@ -1,0 +1,375 @@
+"""Static 3DGS fit: SfM points + posed images -> canonical Gaussians.
+
+Adam with the usual 3DGS per-parameter learning rates (position lr decaying exponentially and
+scaled by the scene extent), loss ``(1-w) L1 + w (1 - SSIM)``, SH degree raised progressively,
+densification by :mod:`anigs.static.densify`, every ``holdout_every``-th image held out for evaluation.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import torch
+
+from anigs.cameras import Camera
+from anigs.configs import reject_unknown_keys
+from anigs.static.densify import DensifyConfig, DensifyState, refine, schedule_for, update_state
+from anigs.device import get_device, seed_everything
+from anigs.gaussians import Gaussians
+from anigs.render import rasterize
+from anigs.ssim import psnr, ssim
+
+log = logging.getLogger(__name__)
+
+
+class FitDivergedError(RuntimeError):
+    """The loss or a gradient became non-finite during the fit."""
+
+
+@dataclass
+class FitConfig:
+    """Static fit hyperparameters (the ``static`` config section)."""
+
+    iterations: int = 1500  # optimisation steps
+    seed: int = 0  # seeds view order, split sampling and everything else
+    sh_degree: int = 3  # final SH degree (0..3)
+    sh_increase_every: int = 300  # raise the active SH degree by one every this many steps
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)  # RGB in [0,1]
+    holdout_every: int = 8  # images i with i % holdout_every == 0 are held out (0 = none)
+    lr_means: float = 1.6e-4  # initial position lr, times the scene extent
+    lr_means_final: float = 1.6e-6  # final position lr, times the scene extent
+    lr_sh_dc: float = 2.5e-3
+    lr_sh_rest: float = 2.5e-3 / 20
+    lr_opacity: float = 5e-2
+    lr_scales: float = 5e-3
+    lr_quats: float = 1e-3
+    ssim_weight: float = 0.2  # loss = (1-w) L1 + w (1 - SSIM)
+    init_opacity: float = 0.1
+    eval_every: int = 250  # held-out PSNR checkpoints for the accuracy-versus-time curve (0 = end only)
+    checkpoint_every: int = 500  # write the last good PLY every this many steps (with checkpoint_path)
+    device: str = "auto"
+    backend: str = "auto"  # rasterizer backend
+    densify: DensifyConfig = field(default_factory=DensifyConfig)
+
+    @staticmethod
+    def from_dict(d: dict[str, Any] | None) -> "FitConfig":
+        d = dict(d or {})
+        reject_unknown_keys(FitConfig, d, "static config", ValueError)
+        if "densify" in d and not isinstance(d["densify"], DensifyConfig):
+            d["densify"] = DensifyConfig.from_dict(d["densify"])
+        if "background" in d:
+            d["background"] = tuple(float(x) for x in d["background"])
+        cfg = FitConfig(**d)
+        cfg.validate()
+        return cfg
+
+    def validate(self) -> None:
+        if self.iterations < 0:
+            raise ValueError(f"static.iterations must be >= 0, got {self.iterations}")
+        if not 0 <= self.sh_degree <= 3:
+            raise ValueError(f"static.sh_degree must be in 0..3, got {self.sh_degree}")
+        if self.sh_increase_every < 1:
+            raise ValueError(f"static.sh_increase_every must be >= 1, got {self.sh_increase_every}")
+        if len(self.background) != 3 or not all(0 <= x <= 1 for x in self.background):
+            raise ValueError(f"static.background must be 3 values in [0,1], got {self.background}")
+        if self.holdout_every < 0 or self.holdout_every == 1:
+            raise ValueError(f"static.holdout_every must be 0 (no holdout) or >= 2, got {self.holdout_every}")
+        if not 0 <= self.ssim_weight <= 1:
+            raise ValueError(f"static.ssim_weight must be in [0,1], got {self.ssim_weight}")
+        if not 0 < self.init_opacity < 1:
+            raise ValueError(f"static.init_opacity must be in (0,1), got {self.init_opacity}")
+        self.densify.validate()
+
+
+# ---------------------------------------------------------------------------- helpers
+def split_holdout(n: int, every: int) -> tuple[list[int], list[int]]:
+    """Indices (train, test): image i is held out when ``every > 0`` and ``i % every == 0``."""
+    test = [i for i in range(n) if every > 0 and i % every == 0]
+    train = [i for i in range(n) if i not in set(test)]
+    if not train:
+        raise ValueError(f"no training images left: {n} images with holdout_every={every}")
+    return train, test
+
+
+def scene_extent(cameras: Sequence[Camera], points: np.ndarray | None = None) -> float:
+    """3DGS scene radius: 1.1 x the largest camera distance from the mean camera centre.
+
+    Falls back to the point cloud's radius (then 1.0) when the cameras all coincide.
+    """
+    centers = np.stack([c.center for c in cameras])
+    r = float(np.linalg.norm(centers - centers.mean(0), axis=1).max()) * 1.1
+    if r < 1e-6 and points is not None and len(points) > 1:
+        r = float(np.linalg.norm(points - points.mean(0), axis=1).max())
+    return r if r > 1e-6 else 1.0
+
+
+def init_gaussians(points: np.ndarray, colors: np.ndarray, extent: float, sh_degree: int = 3,
+                   opacity: float = 0.1) -> Gaussians:
+    """Isotropic Gaussians at SfM ``points`` [P,3] with ``colors`` [P,3] in [0,1].
+
+    Exact duplicate points are merged (colours averaged). Scale = root mean square distance to
+    the 3 nearest neighbours (scipy cKDTree), clamped to [1e-4, 1] x extent; a single point gets
+    0.01 x extent.
+    """
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
+    if len(points) == 0:
+        raise ValueError("static fit: the SfM point cloud is empty; nothing to initialise from")
+    if len(colors) != len(points):
+        raise ValueError(f"static fit: {len(points)} points but {len(colors)} colours")
+    finite = np.isfinite(points).all(1)
+    if not finite.all():
+        log.warning("dropping %d non-finite SfM points", int((~finite).sum()))
+        points, colors = points[finite], colors[finite]
+        if len(points) == 0:
+            raise ValueError("static fit: every SfM point is non-finite")
+    uniq, inverse = np.unique(points, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    if len(uniq) < len(points):
+        log.info("merged %d duplicate SfM points", len(points) - len(uniq))
+        summed = np.zeros((len(uniq), 3))
+        np.add.at(summed, inverse, colors)
+        colors = summed / np.bincount(inverse, minlength=len(uniq))[:, None]
+        points = uniq
+    n = len(points)
+    if n == 1:
+        dist = np.full(1, 0.01 * extent)
+    else:
+        k = min(3, n - 1)
+        d, _ = cKDTree(points).query(points, k=k + 1)
+        dist = np.sqrt((d[:, 1:] ** 2).mean(1))
+    dist = np.clip(dist, 1e-4 * extent, extent)
+    return Gaussians.from_points(torch.from_numpy(points).float(), torch.from_numpy(np.clip(colors, 0, 1)).float(),
+                                 torch.from_numpy(dist).float(), opacity=opacity, sh_degree=sh_degree)
+
+
+def _to_params(g: Gaussians, device: torch.device) -> dict[str, torch.nn.Parameter]:
+    P = lambda t: torch.nn.Parameter(t.detach().to(device).contiguous())
+    return {"means": P(g.means), "quats": P(g.quats), "log_scales": P(g.log_scales),
+            "opacity_logits": P(g.opacity_logits), "sh_dc": P(g.sh[:, :1]), "sh_rest": P(g.sh[:, 1:])}
+
+
+def params_to_gaussians(params: dict[str, torch.Tensor]) -> Gaussians:
+    """Detached CPU :class:`Gaussians` from the training parameter dict."""
+    sh = torch.cat([params["sh_dc"], params["sh_rest"]], 1)
+    g = Gaussians(params["means"], params["quats"], params["log_scales"], params["opacity_logits"], sh)
+    return g.detach().to("cpu")
+
+
+def _render(params: dict[str, torch.Tensor], cam: Camera, sh_degree: int, bg: torch.Tensor, backend: str):
+    dev = params["means"].device
+    sh = torch.cat([params["sh_dc"], params["sh_rest"]], 1)
+    return rasterize(params["means"], params["quats"], params["log_scales"].exp(),
+                     torch.sigmoid(params["opacity_logits"]), sh, cam.torch_viewmat(dev), cam.torch_K(dev),
+                     cam.width, cam.height, sh_degree=sh_degree, background=bg, backend=backend)
+
+
+def loss_fn(pred: torch.Tensor, target: torch.Tensor, ssim_weight: float) -> torch.Tensor:
+    """``(1-w) L1 + w (1 - SSIM)`` for images [H,W,3]."""
+    l1 = (pred - target).abs().mean()
+    if ssim_weight == 0:
+        return l1
+    return (1 - ssim_weight) * l1 + ssim_weight * (1 - ssim(pred, target))
+
+
+@torch.no_grad()
+def evaluate(params: dict[str, torch.Tensor], images: Sequence[torch.Tensor], cameras: Sequence[Camera],
+             sh_degree: int, bg: torch.Tensor, backend: str) -> dict[str, float]:
+    """Mean PSNR (dB) and SSIM over the given views (NaN when there are none)."""
+    if not images:
+        return {"psnr": float("nan"), "ssim": float("nan"), "views": 0}
+    ps, ss = [], []
+    for img, cam in zip(images, cameras):
+        rgb, _, _ = _render(params, cam, sh_degree, bg, backend)
+        rgb = rgb.clamp(0, 1)
+        ps.append(psnr(rgb, img))
+        ss.append(float(ssim(rgb, img)))
+    return {"psnr": float(np.mean(ps)), "ssim": float(np.mean(ss)), "views": len(images)}
+
+
+def _lr_means(step: int, total: int, lr0: float, lr1: float) -> float:
+    t = min(max(step / max(total, 1), 0.0), 1.0)
+    return math.exp((1 - t) * math.log(lr0) + t * math.log(lr1))
+
+
+def _check_inputs(images: Sequence[torch.Tensor], cameras: Sequence[Camera]) -> None:
+    if len(images) != len(cameras):
+        raise ValueError(f"static fit: {len(images)} images but {len(cameras)} cameras")
+    if not images:
+        raise ValueError("static fit: no images")
+    for i, (img, cam) in enumerate(zip(images, cameras)):
+        if img.ndim != 3 or img.shape[2] != 3:
+            raise ValueError(f"static fit: image {i} ({cam.name!r}) must be [H,W,3], got {tuple(img.shape)}")
+        if (img.shape[0], img.shape[1]) != (cam.height, cam.width):
+            raise ValueError(f"static fit: image {i} ({cam.name!r}) is {img.shape[1]}x{img.shape[0]} but its "
+                             f"camera is {cam.width}x{cam.height}")
+
+
+# ---------------------------------------------------------------------------- the fit
+def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, init_colors, cfg: FitConfig,
+               progress: bool = True, checkpoint_path: str | Path | None = None) -> tuple[Gaussians, dict[str, Any]]:
+    """Fit 3D Gaussians to posed images.
+
+    Args:
+        images: float images [H,W,3] in [0,1], one per camera.
+        cameras: the matching :class:`Camera` list (image ``i`` seen by ``cameras[i]``).
+        init_points [P,3], init_colors [P,3] in [0,1]: the SfM point cloud.
+        cfg: :class:`FitConfig`.
+        progress: show a tqdm bar with loss and PSNR.
+        checkpoint_path: where to keep the last good PLY (written atomically every
+            ``cfg.checkpoint_every`` steps and kept when the fit diverges).
+    Returns:
+        (Gaussians on CPU at SH degree ``cfg.sh_degree``, metrics dict).
+    Raises:
+        FitDivergedError when the loss or a gradient turns non-finite (names the iteration and
+        the last good checkpoint); anigs.static.densify.AllPrunedError when every Gaussian is pruned.
+    """
+    cfg.validate()
+    _check_inputs(images, cameras)
+    device = get_device(cfg.device)
+    gen = seed_everything(cfg.seed)
+    t_start, c_start = time.perf_counter(), time.process_time()
+    train_idx, test_idx = split_holdout(len(images), cfg.holdout_every)
+    imgs = [im.detach().float().clamp(0, 1).to(device) for im in images]
+    train_imgs, train_cams = [imgs[i] for i in train_idx], [cameras[i] for i in train_idx]
+    test_imgs, test_cams = [imgs[i] for i in test_idx], [cameras[i] for i in test_idx]
+
+    pts = init_points.detach().cpu().numpy() if torch.is_tensor(init_points) else np.asarray(init_points)
+    cols = init_colors.detach().cpu().numpy() if torch.is_tensor(init_colors) else np.asarray(init_colors)
+    extent = scene_extent(cameras, np.asarray(pts, dtype=np.float64).reshape(-1, 3))
+    g0 = init_gaussians(pts, cols, extent, cfg.sh_degree, cfg.init_opacity)
+    params = _to_params(g0, device)
+    bg = torch.tensor(cfg.background, dtype=torch.float32, device=device)
+    lr = {"means": cfg.lr_means * extent, "quats": cfg.lr_quats, "log_scales": cfg.lr_scales,
+          "opacity_logits": cfg.lr_opacity, "sh_dc": cfg.lr_sh_dc, "sh_rest": cfg.lr_sh_rest}
+    optimizer = torch.optim.Adam([{"params": [params[k]], "lr": lr[k], "name": k} for k in params],
+                                 lr=0.0, eps=1e-15)
+    dstate = DensifyState.empty(g0.num, device)
+    log.info("static fit: %d train / %d held-out views, %d initial Gaussians, scene extent %.3f, %d iterations",
+             len(train_idx), len(test_idx), g0.num, extent, cfg.iterations)
+
+    eval_seconds = eval_cpu = 0.0
+
+    def checkpoint(step: int, deg: int) -> dict[str, Any]:
+        nonlocal eval_seconds, eval_cpu
+        t0, c0 = time.perf_counter(), time.process_time()
+        ev = evaluate(params, test_imgs, test_cams, deg, bg, cfg.backend)
+        eval_seconds += time.perf_counter() - t0
+        eval_cpu += time.process_time() - c0
+        row = {"iteration": step, "train_seconds": time.perf_counter() - t_start - eval_seconds,
+               "train_cpu_seconds": time.process_time() - c_start - eval_cpu,
+               "test_psnr": ev["psnr"], "test_ssim": ev["ssim"], "num_gaussians": int(params["means"].shape[0])}
+        log.info("iteration %d: held-out PSNR %.2f dB, SSIM %.3f, %d Gaussians, %.1f s (cpu %.1f s)", step,
+                 row["test_psnr"], row["test_ssim"], row["num_gaussians"], row["train_seconds"],
+                 row["train_cpu_seconds"])
+        return row
+
+    curve = [checkpoint(0, 0)]
+    last_good: dict[str, Any] = {"iteration": None, "path": None}
+
+    def save_checkpoint(step: int) -> None:
+        if checkpoint_path is None:
+            return
+        g = params_to_gaussians(params)
+        try:
+            g.check_finite(f"parameters at iteration {step}")
+        except ValueError as exc:  # keep the previous (good) checkpoint
+            _diverged(str(exc), step, last_good, bar)
+        g.save_ply(checkpoint_path)
+        last_good.update(iteration=step, path=str(checkpoint_path))
+
+    bar = None
+    save_checkpoint(0)
+    order: list[int] = []
+    if progress:
+        import sys
+
+        from tqdm import tqdm
+
+        # in a log file (no terminal) refresh rarely, so Snakemake logs stay readable
+        bar = tqdm(total=cfg.iterations, desc="static fit", unit="it", dynamic_ncols=True,
+                   mininterval=0.1 if sys.stderr.isatty() else 10.0)
+    ema_loss = ema_psnr = None
+    deg = 0
+    densify_cfg = schedule_for(cfg.densify, cfg.iterations)
+    for step in range(1, cfg.iterations + 1):
+        deg = min(cfg.sh_degree, (step - 1) // cfg.sh_increase_every)
+        for group in optimizer.param_groups:
+            if group["name"] == "means":
+                group["lr"] = _lr_means(step - 1, cfg.iterations, cfg.lr_means * extent, cfg.lr_means_final * extent)
+        if not order:
+            order = torch.randperm(len(train_idx), generator=gen).tolist()
+        v = order.pop()
+        cam, target = train_cams[v], train_imgs[v]
+        if params["means"].shape[0] == 0:
+            raise RuntimeError(f"static fit: no Gaussians left at iteration {step}")
+        rgb, _, meta = _render(params, cam, deg, bg, cfg.backend)
+        meta["means2d"].retain_grad()
+        loss = loss_fn(rgb, target, cfg.ssim_weight)
+        if not torch.isfinite(loss):
+            _diverged(f"loss is {float(loss.detach())}", step, last_good, bar)
+        loss.backward()
+        bad = [k for k, p in params.items() if p.grad is not None and not torch.isfinite(p.grad).all()]
+        if bad:
+            _diverged(f"non-finite gradient of {bad}", step, last_good, bar)
+        update_state(dstate, meta, cam.width, cam.height)
+        optimizer.step()
+        optimizer.zero_grad(set_to_none=True)
+
+        lv = float(loss.detach())
+        pv = psnr(rgb.detach().clamp(0, 1), target)
+        ema_loss = lv if ema_loss is None else 0.9 * ema_loss + 0.1 * lv
+        ema_psnr = pv if ema_psnr is None else 0.9 * ema_psnr + 0.1 * pv
+        if cfg.checkpoint_every > 0 and step % cfg.checkpoint_every == 0:
+            save_checkpoint(step)
+        if cfg.eval_every > 0 and step % cfg.eval_every == 0 and step != cfg.iterations:
+            curve.append(checkpoint(step, deg))  # before refinement: an opacity reset would hide the progress
+        params = refine(params, optimizer, dstate, step, densify_cfg, extent, gen)
+        if bar is not None:
+            bar.update(1)
+            if step % 10 == 0 or step == cfg.iterations:
+                bar.set_postfix(loss=f"{ema_loss:.4f}", psnr=f"{ema_psnr:.2f}", n=int(params["means"].shape[0]))
+    if bar is not None:
+        bar.close()
+
+    final_deg = min(cfg.sh_degree, max(deg, 0))
+    if cfg.iterations > 0:
+        curve.append(checkpoint(cfg.iterations, final_deg))
+    train_seconds = curve[-1]["train_seconds"]
+    tr = evaluate(params, train_imgs, train_cams, final_deg, bg, cfg.backend)
+    te = curve[-1]
+    gaussians = params_to_gaussians(params)
+    gaussians.check_finite("static fit result")
+    if final_deg < cfg.sh_degree:  # SH bands above the active degree were never trained
+        gaussians = gaussians.with_sh_degree(final_deg).with_sh_degree(cfg.sh_degree)
+    metrics = {
+        "train_psnr": tr["psnr"], "train_ssim": tr["ssim"], "train_views": tr["views"],
+        "test_psnr": te["test_psnr"], "test_ssim": te["test_ssim"], "test_views": len(test_idx),
+        "init_test_psnr": curve[0]["test_psnr"],
+        "num_gaussians": gaussians.num, "init_gaussians": g0.num, "iterations": cfg.iterations,
+        "seconds": time.perf_counter() - t_start, "train_seconds": train_seconds, "eval_seconds": eval_seconds,
+        "train_cpu_seconds": curve[-1]["train_cpu_seconds"], "torch_threads": torch.get_num_threads(),
+        "scene_extent": extent, "sh_degree": cfg.sh_degree, "active_sh_degree": final_deg,
+        "holdout": [cameras[i].name for i in test_idx], "curve": curve,
+    }
+    log.info("static fit done: %d Gaussians, held-out PSNR %.2f dB, train PSNR %.2f dB, %.1f s",
+             gaussians.num, te["test_psnr"], tr["psnr"], metrics["seconds"])
+    return gaussians, metrics
+
+
+def _diverged(what: str, step: int, last_good: dict[str, Any], bar) -> None:
+    if bar is not None:
+        bar.close()
+    if last_good["path"] is not None:
+        where = f"last good checkpoint (iteration {last_good['iteration']}) kept at {last_good['path']}"
+    else:
+        where = "no checkpoint was written (pass checkpoint_path to keep one)"
+    raise FitDivergedError(f"static fit diverged at iteration {step}: {what}; {where}. "
+                           "Lower the learning rates or check the input images for invalid values")
