@@ -30,6 +30,22 @@ def commands() -> dict[str, tuple[str, str]]:
     return {**{s.name: (s.module, s.help) for s in STAGES if s.command}, **TOOLS}
 
 
+def add_params(p: argparse.ArgumentParser, section: str) -> None:
+    """``--params``: the stage's config section as JSON, or ``@file.json`` / ``@file.yaml``."""
+    p.add_argument("--params", default=None, help=f"the {section} config section as JSON, or @file.json / @file.yaml")
+
+
+def add_canonical(p: argparse.ArgumentParser, required: bool = True, help: str = "") -> None:
+    """``--canonical``: the canonical 3DGS PLY of the static stage."""
+    p.add_argument("--canonical", required=required, default=None,
+                   help=help or "canonical 3DGS PLY (static/canonical.ply)")
+
+
+def add_out(p: argparse.ArgumentParser, what: str) -> None:
+    """``--out`` (required): where the stage writes ``what``."""
+    p.add_argument("--out", required=True, help=what)
+
+
 def parse_params(value: str | None) -> dict[str, Any]:
     """Parse ``--params``: inline JSON, or ``@path`` to a JSON/YAML file; empty -> {}."""
     if not value:

@@ -367,8 +367,9 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
     assert lv["precision"] >= 0.7 and lv["recall"] >= 0.9, lv  # one location only: 3 views
     dyn = np.load(out / "dynamic.npy")
     assert dyn.shape == (gs.num,) and dyn.dtype == bool
-    # the default vegetation backend on the same views, compared with the labels
-    assert main(args + ["--out", str(tmp_path / "veg"), "--params", "{}"]) == 0
+    # the vegetation backend on the same views, compared with the labels
+    veg_params = json.dumps({"backend": "vegetation"})
+    assert main(args + ["--out", str(tmp_path / "veg"), "--params", veg_params]) == 0
     veg = json.loads((tmp_path / "veg" / "masks.json").read_text())
     assert veg["backend"] == "vegetation"
     assert veg["views"][0]["iou_vs_labels"] >= 0.5, veg["views"][0]  # the view facing the blobs
@@ -379,10 +380,10 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
 
     for v in views:
         write_rgb_png(tmp_path / "frames" / f"{v['id']}.png", np.full((60, 80, 3), 0.5, np.float32))
-    assert main(args + ["--out", str(tmp_path / "grey"), "--frames", str(tmp_path / "frames"), "--params", "{}"]) == 0
+    assert main(args + ["--out", str(tmp_path / "grey"), "--frames", str(tmp_path / "frames"), "--params", veg_params]) == 0
     assert not read_mask_png(tmp_path / "grey" / "v00.png").any()  # an all-grey frame: empty mask, no crash
     (tmp_path / "frames" / "v01.png").unlink()
-    assert main(args + ["--out", str(tmp_path / "grey2"), "--frames", str(tmp_path / "frames"), "--params", "{}"]) == 1
+    assert main(args + ["--out", str(tmp_path / "grey2"), "--frames", str(tmp_path / "frames"), "--params", veg_params]) == 1
 
 
 def test_labels_across_frames_and_transfer(lawn_scene):
@@ -435,7 +436,7 @@ def test_cli_masks_lifts_over_capture_photos(tmp_path, lawn_scene):
     base = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
             "--labels", str(tmp_path / "labels.npy"), "--motion", str(tmp_path / "motion.json"),
             "--gt-gaussians", str(tmp_path / "canonical.ply"), "--gt-cameras", str(tmp_path / "cameras.json"),
-            "--cameras", str(tmp_path / "cameras.json"), "--params", "{}"]
+            "--cameras", str(tmp_path / "cameras.json"), "--params", json.dumps({"backend": "vegetation"})]
     assert main(base + ["--out", str(tmp_path / "views_only")]) == 0
     assert main(base + ["--out", str(tmp_path / "capture"), "--images", str(tmp_path / "images")]) == 0
     before = json.loads((tmp_path / "views_only" / "masks.json").read_text())
@@ -459,7 +460,7 @@ def test_cli_masks_lifts_over_capture_photos(tmp_path, lawn_scene):
     assert len(after["completed_fraction"]) == len(views)
     # photos missing: an error naming the folder; --images without --cameras: an error
     assert main(base + ["--out", str(tmp_path / "x"), "--images", str(tmp_path / "nope")]) == 1
-    no_cams = base[:base.index("--gt-gaussians")] + ["--params", "{}"]
+    no_cams = base[:base.index("--gt-gaussians")] + ["--params", json.dumps({"backend": "vegetation"})]
     assert main(no_cams + ["--out", str(tmp_path / "y"), "--images", str(tmp_path / "images")]) == 1
 
 
@@ -489,3 +490,44 @@ def test_one_mask_reader_for_every_mask_format(tmp_path):
     (tmp_path / "bad.png").write_bytes(b"not a png")
     with pytest.raises(ValueError, match="bad.png"):
         read_mask(tmp_path / "bad.png")
+
+
+def test_cli_masks_effects_backend_renders_the_effects_stage_sets(tmp_path, lawn_scene):
+    """The default backend: each chosen effect's Gaussians (effects stage) rendered per view; the
+    dynamic set is the effects stage's own (not lifted again); nothing chosen, nothing masked."""
+    from anigs.cli import main
+    from anigs.effects.config import REGIONS
+    from anigs.masks.labels import dynamic_masks
+    from anigs.views import ViewsConfig, azimuth_deg, location_cameras
+
+    gs, lab, cams, _ = lawn_scene
+    gs.save_ply(tmp_path / "canonical.ply")
+    pos = cams[3].center
+    heading = float(azimuth_deg(-pos, np.array([0, 0, 1.0])))
+    vcams = location_cameras(pos, heading, np.array([0, 0, 1.0]), ViewsConfig(width=80, height=60))
+    views = [{"id": f"v{i:02d}", "camera": c.to_dict()} for i, c in enumerate(vcams)]
+    (tmp_path / "views.json").write_text(json.dumps({"views": views, "up": [0, 0, 1]}))
+    eff = tmp_path / "effects"
+    eff.mkdir()
+    regions = np.where(lab == 4, REGIONS.index("foliage"), -1).astype(np.int8)  # the blobs are foliage
+    np.save(eff / "regions.npy", regions)
+    np.save(eff / "dynamic.npy", regions >= 0)
+    (eff / "effects.json").write_text(json.dumps({"chosen": ["foliage_sway", "leaf_flutter"]}))
+    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
+            "--effects", str(eff), "--params", "{}"]
+    assert main(args + ["--out", str(tmp_path / "m")]) == 0
+    info = json.loads((tmp_path / "m" / "masks.json").read_text())
+    assert info["backend"] == "effects" and info["lift"]["source"].startswith("effects:")
+    np.testing.assert_array_equal(np.load(tmp_path / "m" / "dynamic.npy"), regions >= 0)
+    want = dynamic_masks(gs, regions >= 0, vcams)
+    for v, w in zip(views, want):
+        got = read_mask_png(tmp_path / "m" / f"{v['id']}.png")
+        assert got.any() == w.any() and (got & w).sum() >= 0.9 * w.sum(), v["id"]
+        for e in ("foliage_sway", "leaf_flutter"):  # one mask per chosen effect
+            assert (tmp_path / "m" / f"{v['id']}_{e}.png").is_file()
+    (eff / "effects.json").write_text(json.dumps({"chosen": []}))
+    np.save(eff / "dynamic.npy", np.zeros(gs.num, bool))
+    assert main(args + ["--out", str(tmp_path / "none")]) == 0
+    assert not any(read_mask_png(tmp_path / "none" / f"{v['id']}.png").any() for v in views)
+    assert not np.load(tmp_path / "none" / "dynamic.npy").any()
+    assert main(args[:-4] + ["--params", "{}", "--out", str(tmp_path / "x")]) == 1  # no --effects: an error

@@ -28,7 +28,7 @@ import torch
 
 from anigs.animate.frames import render_frame
 from anigs.cameras import Camera
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, offset_limits, resolve_num_bases, save_model
 from anigs.device import get_device, seed_everything
 from anigs.gaussians import Gaussians
@@ -75,9 +75,7 @@ class UpdateConfig:
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "UpdateConfig":
-        d = dict(d or {})
-        reject_unknown_keys(UpdateConfig, d, "update config", KeyError)
-        cfg = UpdateConfig(**d)
+        cfg = from_dict(UpdateConfig, d, "update config", KeyError)
         cfg.validate()
         return cfg
 

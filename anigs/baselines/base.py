@@ -33,7 +33,7 @@ import torch
 
 from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, resolve_num_bases, save_model
 from anigs.animate.update import ViewData
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 from anigs.gaussians import Gaussians
 
 log = logging.getLogger("anigs.baselines")
@@ -59,9 +59,7 @@ class CommonConfig:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None):
-        d = dict(d or {})
-        reject_unknown_keys(cls, d, f"{cls.__name__}", KeyError)
-        cfg = cls(**d)
+        cfg = from_dict(cls, d, f"{cls.__name__}", KeyError)
         cfg.validate()
         return cfg
 

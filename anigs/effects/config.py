@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 
 REGIONS: tuple[str, ...] = ("foliage", "grass", "flowers", "water")
 REGION_EFFECTS: dict[str, tuple[str, ...]] = {
@@ -95,9 +95,7 @@ class Config:
     @staticmethod
     def from_dict(d: dict | None) -> "Config":
         """Build from a config section; unknown keys are an error naming them."""
-        d = dict(d or {})
-        reject_unknown_keys(Config, d, "effects config", ValueError)
-        return Config(**d)
+        return from_dict(Config, d, "effects config", ValueError)
 
     def to_dict(self) -> dict:
         out = asdict(self)

@@ -25,7 +25,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 from anigs.gaussians import Gaussians
 from anigs.render import rasterize
 
@@ -78,9 +78,7 @@ class LiftConfig:
     @staticmethod
     def from_dict(d: dict | None) -> "LiftConfig":
 
-        d = dict(d or {})
-        reject_unknown_keys(LiftConfig, d, "lift config", ValueError)
-        return LiftConfig(**d)
+        return from_dict(LiftConfig, d, "lift config", ValueError)
 
     def visibility_config(self) -> "VisibilityConfig":
         return VisibilityConfig(mode=self.visibility, rel_tol=self.rel_tol, scale_tol=self.scale_tol,

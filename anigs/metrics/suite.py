@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 from anigs.metrics import metric_record, not_available
 
 from anigs.metrics.model_metrics import gt_metrics, multiview_metrics  # noqa: E402
@@ -66,9 +66,7 @@ class EvalConfig:
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "EvalConfig":
-        d = dict(d or {})
-        reject_unknown_keys(EvalConfig, d, "eval config", ValueError)
-        cfg = EvalConfig(**d)
+        cfg = from_dict(EvalConfig, d, "eval config", ValueError)
         cfg.validate()
         return cfg
 

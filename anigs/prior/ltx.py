@@ -40,7 +40,7 @@ from typing import Any, Mapping
 import numpy as np
 import torch
 
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 from anigs.device import get_device
 from anigs.prior.base import MaskLike, VideoPrior, check_strength
 from anigs.video import check_clip
@@ -79,9 +79,7 @@ class LTXConfig:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "LTXConfig":
-        d = dict(d or {})
-        reject_unknown_keys(cls, d, "ltx prior config", ValueError)
-        cfg = cls(**d)
+        cfg = from_dict(cls, d, "ltx prior config", ValueError)
         if cfg.steps < 1:
             raise ValueError(f"ltx.steps must be >= 1, got {cfg.steps}")
         if not (0.0 <= cfg.sds_tau_min <= cfg.sds_tau_max <= 1.0):

@@ -49,7 +49,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 from anigs.flow import clip_backward_flow, identity_grid, warp
 from anigs.prior.base import MaskLike, VideoPrior, check_mask, check_strength
 from anigs.prior.spectral import (EFFECTS, MotionField, effect_spec, effects_from_prompt, prompt_gain, smooth_noise,
@@ -80,9 +80,7 @@ class ProceduralConfig:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "ProceduralConfig":
-        d = dict(d or {})
-        reject_unknown_keys(cls, d, "procedural prior config", ValueError)
-        cfg = cls(**d)
+        cfg = from_dict(cls, d, "procedural prior config", ValueError)
         cfg.effects = list(cfg.effects)
         for name in cfg.effects:
             effect_spec(name, cfg.effect_params.get(name))  # validates names and overrides

@@ -29,7 +29,7 @@ from typing import Any, Mapping
 import cv2
 import numpy as np
 
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 from anigs.prior.base import MaskLike, VideoPrior, check_strength, union_mask
 from anigs.video import check_clip
 
@@ -47,9 +47,7 @@ class ComposeConfig:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "ComposeConfig":
-        d = dict(d or {})
-        reject_unknown_keys(cls, d, "compose config", ValueError)
-        cfg = cls(**d)
+        cfg = from_dict(cls, d, "compose config", ValueError)
         if cfg.feather_px < 0:
             raise ValueError(f"feather_px must be >= 0, got {cfg.feather_px}")
         if int(cfg.dilate_px) != cfg.dilate_px or cfg.dilate_px < 0:

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Optional
 
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 
 MATCHERS = ("exhaustive", "sequential", "spatial")
 MAPPERS = ("incremental", "global")
@@ -42,9 +42,7 @@ class SfmConfig:
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "SfmConfig":
-        d = dict(d or {})
-        reject_unknown_keys(SfmConfig, d, "sfm config", KeyError)
-        cfg = SfmConfig(**d)
+        cfg = from_dict(SfmConfig, d, "sfm config", KeyError)
         cfg.validate()
         return cfg
 

@@ -91,13 +91,15 @@ def run(canonical: str | Path, cameras: str | Path, images: str | Path, out: str
 # ---- command line: anigs effects ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--canonical", required=True, help="canonical 3DGS PLY (static/canonical.ply)")
+    from anigs.cli import add_params, add_canonical, add_out
+
+    add_canonical(p)
     p.add_argument("--cameras", required=True, help="cameras of the photos (sfm/cameras.json)")
     p.add_argument("--images", required=True, help="the undistorted photos the cameras describe (sfm/images)")
-    p.add_argument("--out", required=True, help="output folder (effects.json, regions.npy, dynamic.npy, overview.png)")
+    add_out(p, "output folder (effects.json, regions.npy, dynamic.npy, overview.png)")
     p.add_argument("--requested", nargs="*", default=None,
                    help="the scene's effects list (omit or 'auto': every detected effect)")
-    p.add_argument("--params", default=None, help="effects config section as JSON or @file")
+    add_params(p, "effects")
 
 
 def main(args: argparse.Namespace) -> int:

@@ -69,6 +69,8 @@ def run(inputs: EvalInputs, cfg: EvalConfig, out: str | Path, scene: str, method
 # ---- command line: anigs eval ----
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from anigs.cli import add_params, add_canonical, add_out
+
     parser.add_argument("--final-dir", help="folder with the method's camera-fixed clips (.npz/.mp4, recursive)")
     parser.add_argument("--clips", nargs="*", default=[], help="more clip files or folders")
     parser.add_argument("--masks", help="folder of dynamic masks <view>.png")
@@ -77,7 +79,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fid-reference", action="append", default=[], metavar="PRIOR=PATH",
                         help="FID reference clips instead of --reference for that prior (e.g. pooled over scenes)")
     parser.add_argument("--model", help="animated model.pt (multiview protocol, GT motion comparison)")
-    parser.add_argument("--canonical", help="canonical.ply the model animates")
+    add_canonical(parser, required=False, help="canonical.ply the model animates")
     parser.add_argument("--cameras", help="training cameras.json (multiview protocol, learned scene extent)")
     parser.add_argument("--images", help="capture images named by camera (multiview reference row)")
     parser.add_argument("--points", help="SfM points.npz (xyz, rgb) initialising the multiview fits")
@@ -86,8 +88,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", default="Ours", help="method name (table row)")
     parser.add_argument("--variant", default="full", help="ablation variant id (Table 5)")
     parser.add_argument("--dataset", default="anigs", help="scene group (one FVD table per dataset)")
-    parser.add_argument("--out", required=True, help="metrics.json to write")
-    parser.add_argument("--params", help="eval config section as JSON or @file")
+    add_out(parser, "metrics.json to write")
+    add_params(parser, "eval")
 
 
 def _pairs(items: list[str], opt: str) -> dict[str, list[str]]:

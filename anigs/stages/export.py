@@ -63,10 +63,12 @@ def run(canonical_path: str | Path, model_path: str | Path, out: str | Path, cfg
 # ---- command line: anigs export ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--canonical", required=True, help="canonical 3DGS PLY")
+    from anigs.cli import add_params, add_canonical, add_out
+
+    add_canonical(p, help="canonical 3DGS PLY")
     p.add_argument("--model", required=True, help="trained model.pt")
-    p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--params", default=None, help="export config section as JSON")
+    add_out(p, "output folder")
+    add_params(p, "export")
 
 
 def main(args: argparse.Namespace) -> int:

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 
 log = logging.getLogger("anigs.final")
 
@@ -40,9 +40,7 @@ class FinalConfig:
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "FinalConfig":
-        d = dict(d or {})
-        reject_unknown_keys(FinalConfig, d, "final", KeyError)
-        return FinalConfig(**d)
+        return from_dict(FinalConfig, d, "final", KeyError)
 
 
 Config = FinalConfig  # the `final` config section
@@ -120,13 +118,15 @@ def run(canonical_path: str | Path, views_path: str | Path, out: str | Path, cfg
 # ---- command line: anigs final ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--canonical", required=True, help="canonical 3DGS PLY")
+    from anigs.cli import add_params, add_canonical, add_out
+
+    add_canonical(p, help="canonical 3DGS PLY")
     p.add_argument("--model", default=None, help="trained model.pt (omit: the static scene)")
     p.add_argument("--views", required=True, help="views.json (camera-fixed videos of every queued view)")
     p.add_argument("--cameras", default=None, help="cameras.json for the moving-camera path (sfm/cameras.json)")
     p.add_argument("--masks", default=None, help="masks folder ({view}.png): slices inside, stillness outside")
-    p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--params", default=None, help="final config section as JSON")
+    add_out(p, "output folder")
+    add_params(p, "final")
 
 
 def main(args: argparse.Namespace) -> int:

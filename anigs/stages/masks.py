@@ -295,10 +295,12 @@ def run(inputs: MasksInputs, cfg: MasksConfig) -> dict:
 # ---- command line: anigs masks ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--canonical", required=True, help="canonical 3DGS PLY (static/canonical.ply)")
+    from anigs.cli import add_params, add_canonical, add_out
+
+    add_canonical(p)
     p.add_argument("--views", required=True, help="views.json from `anigs views`")
-    p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--params", default=None, help="masks config section as JSON or @file")
+    add_out(p, "output folder")
+    add_params(p, "masks")
     p.add_argument("--frames", help="folder with the first frames ({id}.png or {id}.npz clips); "
                                     "default: render the canonical model")
     p.add_argument("--labels", help="per-Gaussian labels .npy: labels backend and/or ground-truth comparison")

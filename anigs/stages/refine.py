@@ -21,7 +21,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 
 log = logging.getLogger("anigs.refine")
 
@@ -45,9 +45,7 @@ class RefineConfig:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "RefineConfig":
-        d = dict(d or {})
-        reject_unknown_keys(cls, d, "refine params", ValueError)
-        cfg = cls(**d)
+        cfg = from_dict(cls, d, "refine params", ValueError)
         if "effects" in cfg.procedural:
             raise ValueError("set `effects` at the top level of the refine params, not in `procedural`")
         if "steps" in cfg.ltx:
@@ -135,11 +133,13 @@ def run(clip_path: str | Path, masks: np.ndarray | dict[str, np.ndarray], out: s
 # ---- command line: anigs refine ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from anigs.cli import add_params, add_out
+
     p.add_argument("--clip", required=True, help="rendered clip (.npz), e.g. round1/render/v003.npz")
     p.add_argument("--mask", action="append", default=[], metavar="[EFFECT=]PATH",
                    help="dynamic mask PNG/.npy; repeat as EFFECT=PATH for per-effect masks")
-    p.add_argument("--out", required=True, help="refined target clip (.npz)")
-    p.add_argument("--params", default=None, help="refine config section as JSON (or @file)")
+    add_out(p, "refined target clip (.npz)")
+    add_params(p, "refine")
     p.add_argument("--round", type=int, default=None, help="round number (default: from the clip path roundR/)")
     p.add_argument("--view", default=None, help="view id (default: the clip file's stem)")
     p.add_argument("--info", default=None, help="optional JSON file with what was done (sigmas, seed, timing)")

@@ -19,7 +19,7 @@ from typing import Any
 import torch
 
 from anigs.cameras import Camera
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 
 log = logging.getLogger("anigs.render_clip")
 
@@ -35,9 +35,7 @@ class RenderClipConfig:
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "RenderClipConfig":
-        d = dict(d or {})
-        reject_unknown_keys(RenderClipConfig, d, "render_clip config", KeyError)
-        cfg = RenderClipConfig(**d)
+        cfg = from_dict(RenderClipConfig, d, "render_clip config", KeyError)
         if cfg.num_frames < 1:
             raise ValueError(f"render_clip config: num_frames must be >= 1, got {cfg.num_frames}")
         if len(cfg.background) != 3:
@@ -83,13 +81,15 @@ def run(canonical_path: str | Path, camera: Camera, out: str | Path, cfg: Render
 # ---- command line: anigs render_clip ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--canonical", required=True, help="canonical 3DGS PLY (static/canonical.ply)")
+    from anigs.cli import add_params, add_canonical, add_out
+
+    add_canonical(p)
     p.add_argument("--model", default=None, help="model.pt of the previous round (omit for round 0: static)")
     p.add_argument("--view-json", default=None, help="views JSON (with --view-id)")
     p.add_argument("--view-id", default=None, help="id of the view in --view-json")
     p.add_argument("--camera-json", default=None, help="a single camera JSON instead of --view-json/--view-id")
-    p.add_argument("--out", required=True, help="output clip .npz")
-    p.add_argument("--params", default=None, help="render_clip config section as JSON (or @file)")
+    add_out(p, "output clip .npz")
+    add_params(p, "render_clip")
 
 
 def main(args: argparse.Namespace) -> int:

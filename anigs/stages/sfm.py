@@ -26,13 +26,15 @@ def run(images: str | Path, out: str | Path, cfg: SfmConfig, gt_cameras: str | P
 # ---- command line: anigs sfm ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from anigs.cli import add_params, add_out
+
     p.add_argument("--images", required=True, help="folder of JPEG/PNG images")
-    p.add_argument("--out", required=True, help="output folder")
+    add_out(p, "output folder")
     p.add_argument("--gt-cameras", default=None,
                    help="ground-truth cameras JSON (synthetic capture): align to them and report pose errors")
     p.add_argument("--model", default=None,
                    help="existing COLMAP sparse model of these images (skips extraction, matching, mapping)")
-    p.add_argument("--params", default=None, help="sfm config section as JSON, or @file.json/@file.yaml")
+    add_params(p, "sfm")
     p.add_argument("--keep-work", action="store_true", help="keep the COLMAP database and raw models in OUT/work")
 
 

@@ -61,11 +61,13 @@ def _config_dict(cfg) -> dict:
 # ---- command line: anigs static ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from anigs.cli import add_params, add_out
+
     p.add_argument("--images", required=True, help="folder of the input images")
     p.add_argument("--cameras", required=True, help="cameras.json (anigs convention), one entry per used image")
     p.add_argument("--points", required=True, help="points.npz with xyz [P,3] and rgb [P,3] (SfM points)")
-    p.add_argument("--out", required=True, help="output folder (canonical.ply, metrics.json)")
-    p.add_argument("--params", default=None, help="static config section as JSON or @file.json")
+    add_out(p, "output folder (canonical.ply, metrics.json)")
+    add_params(p, "static")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 
 log = logging.getLogger("anigs.tables")
 
@@ -20,9 +20,7 @@ class TablesConfig:
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "TablesConfig":
-        d = dict(d or {})
-        reject_unknown_keys(TablesConfig, d, "tables config", ValueError)
-        return TablesConfig(**d)
+        return from_dict(TablesConfig, d, "tables config", ValueError)
 
 
 Config = TablesConfig  # the `tables` config section
@@ -44,9 +42,11 @@ def run(metrics: list[str | Path], out: str | Path, cfg: TablesConfig) -> list[P
 # ---- command line: anigs tables ----
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from anigs.cli import add_params, add_out
+
     parser.add_argument("--metrics", nargs="+", required=True, help="metrics.json files (one per scene/method/variant)")
-    parser.add_argument("--out", required=True, help="output folder (e.g. results/tables)")
-    parser.add_argument("--params", help="tables config section as JSON or @file")
+    add_out(parser, "output folder (e.g. results/tables)")
+    add_params(parser, "tables")
 
 
 def main(args: argparse.Namespace) -> int:

@@ -44,10 +44,12 @@ def run(scene: str, points: list, results: str | Path, out_csv: str | Path, plot
 # ---- command line: anigs tradeoff ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from anigs.cli import add_out
+
     p.add_argument("--results", required=True, help="results folder (holds {scene}/{variant}/...)")
     p.add_argument("--points", required=True,
                    help="sweep points as JSON or @file: {scene: [{variant, knob, value, scene_tag}]}")
-    p.add_argument("--out", required=True, help="report folder (results/tradeoff): {scene}.csv and plots")
+    add_out(p, "report folder (results/tradeoff): {scene}.csv and plots")
     p.add_argument("--plot-metrics", nargs="*", default=[], help="metrics plotted against seconds")
 
 

@@ -133,7 +133,9 @@ def run(canonical_path: str | Path, targets: list[str], dynamic_path: str | Path
 # ---- command line: anigs update ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--canonical", required=True, help="canonical 3DGS PLY")
+    from anigs.cli import add_params, add_canonical, add_out
+
+    add_canonical(p, help="canonical 3DGS PLY")
     p.add_argument("--init-model", default=None, help="model.pt of the previous round (omit: start from zero)")
     p.add_argument("--targets", nargs="+", required=True, help="target clips (.npz), one per training view")
     p.add_argument("--view-json", default=None, help="views JSON holding the cameras of the targets")
@@ -141,9 +143,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--camera-json", nargs="+", default=None, help="one camera JSON per target")
     p.add_argument("--static-refs", nargs="+", default=None, help="static reference images, one per target")
     p.add_argument("--dynamic", required=True, help=".npy [N] bool (or int labels) selecting dynamic Gaussians")
-    p.add_argument("--out", required=True, help="output model.pt")
+    add_out(p, "output model.pt")
     p.add_argument("--log-json", default=None, help="write the loss history and timing here")
-    p.add_argument("--params", default=None, help="update config section as JSON (or @file)")
+    add_params(p, "update")
     p.add_argument("--prior", default=None, help="video prior name for the SDS term (lambda_sds > 0)")
     p.add_argument("--prior-params", default=None, help="that prior's config section as JSON (or @file)")
     p.add_argument("--prompt", default="", help="text prompt for the SDS term")

@@ -51,11 +51,13 @@ def run(model: str | Path, out: str | Path, cfg: ViewConfig, canonical: str | Pa
 # ---- command line: anigs view ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from anigs.cli import add_params, add_canonical, add_out
+
     p.add_argument("--model", required=True, help="trained model.pt, or a compact .anigs file")
-    p.add_argument("--canonical", default=None, help="canonical 3DGS PLY the model was trained on")
+    add_canonical(p, required=False, help="canonical 3DGS PLY the model was trained on")
     p.add_argument("--views", default=None, help="views.json of the views stage (start camera, view list)")
-    p.add_argument("--out", required=True, help="viewer folder to write")
-    p.add_argument("--params", default=None, help="view config section as JSON: background, fps, embed, title")
+    add_out(p, "viewer folder to write")
+    add_params(p, "view")
     p.add_argument("--serve", action="store_true", help="then serve the folder on 127.0.0.1 until Ctrl-C")
     p.add_argument("--port", type=int, default=8000, help="port for --serve (0: any free port)")
     p.add_argument("--serve-seconds", type=float, default=None, help="stop serving after this many seconds")

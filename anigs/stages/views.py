@@ -149,7 +149,9 @@ def run(inputs: ViewsInputs, cfg: ViewsConfig, stage: dict | None = None) -> dic
 # ---- command line: anigs views ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--canonical", required=True, help="canonical 3DGS PLY (static/canonical.ply)")
+    from anigs.cli import add_params, add_canonical, add_out
+
+    add_canonical(p)
     p.add_argument("--cameras", required=True, help="candidate cameras JSON (sfm/cameras.json)")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--dynamic", help="bool/int .npy [N]: dynamic flag per canonical Gaussian")
@@ -160,8 +162,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gt-gaussians", help="PLY the --labels belong to when it is not the canonical set")
     p.add_argument("--gt-cameras", help="cameras in the frame of --gt-gaussians, matched by name to --cameras "
                                         "to align the frames (default: same frame)")
-    p.add_argument("--out", required=True, help="output folder (views.json, topdown.png, dynamic.npy)")
-    p.add_argument("--params", default=None, help="views config section as JSON or @file")
+    add_out(p, "output folder (views.json, topdown.png, dynamic.npy)")
+    add_params(p, "views")
 
 
 def main(args: argparse.Namespace) -> int:

@@ -27,7 +27,7 @@ from typing import Any
 
 import torch
 
-from anigs.configs import reject_unknown_keys
+from anigs.configs import from_dict
 from anigs.geometry.quaternion import quat_to_rotmat
 
 log = logging.getLogger(__name__)
@@ -60,9 +60,7 @@ class DensifyConfig:
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "DensifyConfig":
-        d = dict(d or {})
-        reject_unknown_keys(DensifyConfig, d, "densify config", ValueError)
-        cfg = DensifyConfig(**d)
+        cfg = from_dict(DensifyConfig, d, "densify config", ValueError)
         cfg.validate()
         return cfg
 
