@@ -14,7 +14,12 @@ import yaml
 from anigs.stages import sections as _stage_sections
 
 STAGE_SECTIONS = _stage_sections()  # from the stage registry (anigs/stages/__init__.py)
-SCENE_KEYS = {"name", "source", "synthetic", "photos", "colmap", "ply", "effects", "prompt", *STAGE_SECTIONS}
+SCENE_KEYS = {"name", "source", "synthetic", "photos", "colmap", "ply", "effects", "prompt", "background",
+              *STAGE_SECTIONS}
+# Where a scene's `background` (the sky colour every rendering stage composites onto) goes: the
+# stage sections with a `background` key (tests check this against the schema), the multiview
+# fits of eval, and the synthetic capture.
+BACKGROUND_SECTIONS = ("static", "masks", "render_clip", "update", "final", "view")
 SOURCES = ("synthetic", "photos")
 
 
@@ -82,6 +87,14 @@ def load_scene(scene_dir: str | Path, name: str, schema: dict | None = None) -> 
             raise FileNotFoundError(f"scene {name!r}: photo folder {p} does not exist")
         if not any(f.suffix.lower() in (".jpg", ".jpeg", ".png") for f in p.iterdir()):
             raise ValueError(f"scene {name!r}: photo folder {p} holds no .jpg/.jpeg/.png files")
+    bg = scene.get("background")
+    if bg is not None:
+        if not (isinstance(bg, list) and len(bg) == 3 and all(isinstance(x, (int, float)) and 0 <= x <= 1 for x in bg)):
+            raise ValueError(f"scene file {path}: background must be [r, g, b] in [0, 1], got {bg!r}")
+        if src == "synthetic":  # the synthetic capture is rendered onto it too
+            syn = scene.get("synthetic") or {}
+            syn.setdefault("capture", {}).setdefault("background", list(bg))
+            scene["synthetic"] = syn
     # `effects: [..]` / `effects: auto` picks what may move: shorthand of the effects section's `requested`
     eff = scene.get("effects")
     if eff is None or isinstance(eff, (list, str)):
@@ -96,5 +109,11 @@ def section(config: dict, scene: dict, variant: str, name: str) -> dict[str, Any
     variants = config.get("variant_overrides", {})
     if variant not in variants:
         raise KeyError(f"variant {variant!r} is not defined under variant_overrides (have {sorted(variants)})")
-    merged = deep_merge(config.get(name, {}), scene.get(name))
+    base = config.get(name, {})
+    if "background" in scene:  # the scene's sky colour, unless its own section sets one
+        if name in BACKGROUND_SECTIONS:
+            base = deep_merge(base, {"background": scene["background"]})
+        elif name == "eval":
+            base = deep_merge(base, {"multiview_fit": {"background": scene["background"]}})
+    merged = deep_merge(base, scene.get(name))
     return deep_merge(merged, variants[variant].get(name))

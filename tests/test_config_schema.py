@@ -189,3 +189,27 @@ def test_photo_scenes_pair_the_sfm_cameras_with_the_undistorted_images(tmp_path)
     # the region of interest is computed once, by the effects stage, and the views stage takes it
     views = next(line for line in res.stdout.splitlines() if " views --canonical" in line)
     assert "--dynamic " in views and "/effects/dynamic.npy" in views and "--images" not in views, views
+
+
+def test_one_scene_background_reaches_every_rendering_stage(tmp_path):
+    """A scene's `background` sets the sky colour of every section with a background key (the list
+    is checked against the schema), eval's multiview fits and the synthetic capture; a section's
+    own value wins."""
+    from anigs.config import BACKGROUND_SECTIONS
+
+    schema = _schema()["properties"]
+    with_bg = {name for name, sec in schema.items() if isinstance(sec, dict) and "background" in sec.get("properties", {})}
+    assert set(BACKGROUND_SECTIONS) == with_bg
+    (tmp_path / "s.yaml").write_text("source: synthetic\nsynthetic: {}\nbackground: [0.1, 0.2, 0.3]\n"
+                                     "final: {background: [1, 1, 1]}\n")
+    scene = load_scene(tmp_path, "s", _schema())
+    cfg = {name: {} for name in schema if isinstance(schema[name], dict) and "properties" in schema[name]}
+    cfg["variant_overrides"] = {"full": {}}
+    for name in BACKGROUND_SECTIONS:
+        want = [1, 1, 1] if name == "final" else [0.1, 0.2, 0.3]
+        assert section(cfg, scene, "full", name)["background"] == want, name
+    assert section(cfg, scene, "full", "eval")["multiview_fit"]["background"] == [0.1, 0.2, 0.3]
+    assert scene["synthetic"]["capture"]["background"] == [0.1, 0.2, 0.3]
+    (tmp_path / "bad.yaml").write_text("source: synthetic\nbackground: [0.1, 0.2]\n")
+    with pytest.raises(ValueError, match="background"):
+        load_scene(tmp_path, "bad", _schema())

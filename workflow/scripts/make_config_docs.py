@@ -34,7 +34,8 @@ Each scene is a file `config/scenes/NAME.yaml` listed under `scenes:`. Keys:
 | `source` | `synthetic` (the embedded demo generator) or `photos` (a folder of your photos) |
 | `synthetic` | parameters of the synthetic generator (see `config/scenes/demo.yaml`) |
 | `photos` | folder of JPEG/PNG photos (for `source: photos`) |
-| `effects` | effect types to animate: `foliage_sway`, `leaf_flutter`, `grass_wave`, `flower_bob`, `water_ripple`; nothing else moves |
+| `effects` | `auto` (the default: every effect the `effects` stage finds) or a list of `foliage_sway`, `leaf_flutter`, `grass_wave`, `flower_bob`, `water_ripple` (only those, where found; a listed effect the scene lacks is reported and skipped); nothing else moves. Shorthand of `effects: {requested: ...}` |
+| `background` | `[r, g, b]` in [0, 1]: the sky colour every rendering stage composites onto (static, masks, render_clip, update, final, view, eval's multiview fits) and the synthetic capture is rendered onto; a stage's own `background` wins |
 | `prompt` | text prompt for the video prior |
 | any stage section | overrides of that section for this scene (e.g. `static: {iterations: 7000}`) |
 
@@ -48,13 +49,16 @@ user's photo folder with LTX-Video weights on a GPU.
 results/{scene}/capture/         images/ (+ gt/ for synthetic scenes), capture.json
 results/{scene}/sfm/             sparse/ (COLMAP), images/ (undistorted), cameras.json, points.npz, report.json
 results/{scene}/static/          canonical.ply (standard 3DGS layout), metrics.json
-results/{scene}/views/           views.json (the queue), topdown.png
+results/{scene}/effects/         effects.json (per effect: detected, fractions, confidence, reason), overview.png, regions.npy, dynamic.npy
+results/{scene}/views/           views.json (the queue, with each view's coverage), topdown.png
 results/{scene}/masks/           {view}.png, {view}_overlay.png, dynamic.npy, masks.json
 results/{scene}/{variant}/roundR/  render/{view}.npz, target/{view}.npz, model.pt, update.json
 results/{scene}/{variant}/final/   {view}.mp4, path.mp4, clips/, slices/, final.json
-results/{scene}/{variant}/export/  frames/frame_TTTT.ply, animated.ply, animated.json
+results/{scene}/{variant}/export/  scene.anigs (compact), animated.ply, animated.json (+ frames/ with export.frames)
+results/{scene}/{variant}/viewer/  index.html and the viewer's scripts and data (open offline)
 results/{scene}/{variant}/eval/    metrics.json
 results/tables/                    the paper's tables (csv, md, tex)
+results/study/                     the 2AFC study page (snakemake study)
 ```
 Logs and Snakemake benchmark TSVs (time and memory per job) sit beside them in `logs/` and
 `benchmarks/` folders.
