@@ -216,15 +216,15 @@ def test_regions_of_interest_lifted_from_capture_photos(tmp_path, scene):
     gs, lab, cams = scene
     for fr in render_frames(gs, cams):
         write_rgb_png(tmp_path / "images" / f"{fr.name}.png", fr.image)
-    roi, info = roi_from_masks(gs, cams, None, str(tmp_path / "images"), {}, tmp_path)
+    roi, info = roi_from_masks(gs, cams, None, str(tmp_path / "images"), tmp_path)
     truth = lab == 4
     tp = int((roi & truth).sum())
     assert tp / max(int(roi.sum()), 1) >= 0.9 and tp / int(truth.sum()) >= 0.8, info
     with pytest.raises(FileNotFoundError, match="nope"):
-        roi_from_masks(gs, cams, None, str(tmp_path / "nope"), {}, tmp_path)
+        roi_from_masks(gs, cams, None, str(tmp_path / "nope"), tmp_path)
     (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match="has a photo"):
-        roi_from_masks(gs, cams, None, str(tmp_path / "empty"), {}, tmp_path)
+        roi_from_masks(gs, cams, None, str(tmp_path / "empty"), tmp_path)
 
 
 # ---- layouts and the scene-coverage test ----------------------------------------------------
@@ -326,3 +326,16 @@ def test_topdown_shows_rejected(garden_gs):
     assert plan.rejected
     img = draw_topdown(plan, g.means.numpy(), lab == 6, size=300)
     assert (np.abs(img.astype(int) - [40, 40, 140]).sum(-1) == 0).sum() > 5   # rejected rays drawn
+
+
+def test_views_command_accepts_only_the_views_section(tmp_path, caplog):
+    """The command takes exactly the keys the schema allows in `views` (it used to accept extra ones)."""
+    from anigs.cli import main
+    from anigs.views import ViewsConfig
+
+    with pytest.raises(ValueError, match="lift"):
+        ViewsConfig.from_dict({"lift": {}})
+    assert main(["views", "--canonical", str(tmp_path / "c.ply"), "--cameras", str(tmp_path / "c.json"),
+                 "--dynamic", str(tmp_path / "d.npy"), "--out", str(tmp_path / "v"),
+                 "--params", '{"vegetation": {}}']) == 1
+    assert "unknown keys ['vegetation']" in caplog.text

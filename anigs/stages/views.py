@@ -33,8 +33,6 @@ Config = ViewsConfig  # the `views` config section
 
 log = logging.getLogger("anigs.views")
 
-# params keys handled here; every other key belongs to ViewsConfig
-STAGE_KEYS = ("lift", "vegetation", "dynamic_labels", "topdown_size")
 
 
 @dataclass
@@ -54,11 +52,6 @@ class ViewsInputs:
     gt_cameras: str | None = None
 
 
-def split_params(params: dict) -> tuple[dict, dict]:
-    """(ViewsConfig keys, stage keys)."""
-    return {k: v for k, v in params.items() if k not in STAGE_KEYS}, {k: params[k] for k in STAGE_KEYS if k in params}
-
-
 def find_mask(masks_dir: Path, cam: Camera) -> Path | None:
     for name in (cam.name, Path(cam.name).stem + ".png", Path(cam.name).name):
         if name and (masks_dir / name).is_file():
@@ -67,15 +60,14 @@ def find_mask(masks_dir: Path, cam: Camera) -> Path | None:
 
 
 def roi_from_masks(g: Gaussians, cameras: list[Camera], masks_dir: str | None, images_dir: str | None,
-                   stage: dict, out: Path) -> tuple[np.ndarray, dict]:
+                   out: Path) -> tuple[np.ndarray, dict]:
     """Dynamic flag [N] lifted from 2D masks of the candidate cameras (read, or computed from photos)."""
     from anigs.masks import compute_masks, read_mask_png
     from anigs.masks.capture import camera_for_size, capture_frames
     from anigs.masks.lift import LiftConfig, lift_masks_report
     from anigs.masks.vegetation import VegetationConfig, estimate_ground
 
-    lift_cfg = LiftConfig.from_dict(stage.get("lift"))
-    veg_cfg = VegetationConfig.from_dict(stage.get("vegetation"))
+    lift_cfg, veg_cfg = LiftConfig(), VegetationConfig()
     up = np.array([0.0, 0.0, 1.0])
     ground = estimate_ground(g.means.detach().double().numpy(), up, cameras, veg_cfg.ground_margin) \
         if veg_cfg.ground else None
@@ -103,14 +95,13 @@ def roi_from_masks(g: Gaussians, cameras: list[Camera], masks_dir: str | None, i
     return roi, info
 
 
-def run(inputs: ViewsInputs, cfg: ViewsConfig, stage: dict | None = None) -> dict:
+def run(inputs: ViewsInputs, cfg: ViewsConfig, dynamic_labels: list[int] | None = None) -> dict:
     """Place the view queue; writes ``views.json``, ``topdown.png`` and ``dynamic.npy`` and returns
-    the ``views.json`` content. ``stage``: the ROI options (``lift``, ``vegetation``,
-    ``dynamic_labels``, ``topdown_size``)."""
+    the ``views.json`` content. ``dynamic_labels``: with ``inputs.labels`` and no motion file,
+    the label ids that move."""
     from anigs.views.topdown import save_topdown
     from anigs.views import plan_views
 
-    stage = stage or {}
     g = load_ply(inputs.canonical)
     cameras = load_cameras(inputs.cameras)
     out = Path(inputs.out)
@@ -124,11 +115,11 @@ def run(inputs: ViewsInputs, cfg: ViewsConfig, stage: dict | None = None) -> dic
     elif inputs.labels:
         from anigs.masks.labels import roi_from_labels
 
-        roi = roi_from_labels(g, inputs.labels, inputs.motion, stage.get("dynamic_labels"), inputs.gt_gaussians,
+        roi = roi_from_labels(g, inputs.labels, inputs.motion, dynamic_labels, inputs.gt_gaussians,
                               inputs.gt_cameras, cameras)
         source = f"labels:{inputs.labels}"
     else:
-        roi, lift_info = roi_from_masks(g, cameras, inputs.masks_dir, inputs.images, stage, out)
+        roi, lift_info = roi_from_masks(g, cameras, inputs.masks_dir, inputs.images, out)
         source = f"masks:{inputs.masks_dir or inputs.images}"
     log.info("views: %d of %d canonical Gaussians are regions of interest (%s)", int(roi.sum()), g.num, source)
     plan = plan_views(g, roi, cameras, cfg)
@@ -140,7 +131,7 @@ def run(inputs: ViewsInputs, cfg: ViewsConfig, stage: dict | None = None) -> dic
         with open(tmp, "wb") as fh:
             np.save(fh, roi)
     save_topdown(out / "topdown.png", plan, g.means.detach().double().numpy(), roi,
-                 size=int(stage.get("topdown_size", 720)))
+                 size=cfg.topdown_size)
     write_json(out / "views.json", payload)
     log.info("views: wrote %s (%d views), topdown.png, dynamic.npy", out / "views.json", len(plan.views))
     return payload
@@ -159,6 +150,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     src.add_argument("--masks-dir", help="folder of 2D dynamic masks named after the cameras, lifted to 3D")
     src.add_argument("--images", help="capture images folder: vegetation masks are computed and lifted to 3D")
     p.add_argument("--motion", help="motion.json naming the moving labels (with --labels)")
+    p.add_argument("--dynamic-labels", type=int, nargs="+", default=None,
+                   help="label ids that move (with --labels, instead of --motion)")
     p.add_argument("--gt-gaussians", help="PLY the --labels belong to when it is not the canonical set")
     p.add_argument("--gt-cameras", help="cameras in the frame of --gt-gaussians, matched by name to --cameras "
                                         "to align the frames (default: same frame)")
@@ -169,7 +162,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
-    view_keys, stage = split_params(parse_params(args.params))
+    cfg = ViewsConfig.from_dict(parse_params(args.params))  # the views section: nothing else
     inputs = ViewsInputs(**{f.name: getattr(args, f.name) for f in dataclasses.fields(ViewsInputs)})
-    run(inputs, ViewsConfig.from_dict(view_keys), stage)
+    run(inputs, cfg, args.dynamic_labels)
     return 0

@@ -45,6 +45,7 @@ class ViewsConfig:
     yaw_steps: list = field(default_factory=lambda: [0.33, 0.67, 1.0])  # then move yaw this share towards the ROI
     extra_locations: int = 8          # extra candidate locations tried for directions no location passes
     match_capture_fov: bool = True    # forward/orbit layouts: FOV at most the capture photos' median FOV
+    topdown_size: int = 720         # pixels of the top-down map (views/topdown.png)
 
     def __post_init__(self) -> None:
         if self.layout not in ("auto",) + geometry.LAYOUTS:
