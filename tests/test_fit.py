@@ -10,7 +10,8 @@ import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
 from anigs.static.densify import AllPrunedError
-from anigs.static.fit import (FitConfig, FitDivergedError, fit_static, init_gaussians, scene_extent, split_holdout)
+from anigs.geometry.extent import scene_extent
+from anigs.static.fit import FitConfig, FitDivergedError, fit_static, init_gaussians, split_holdout
 from anigs.gaussians import Gaussians, load_ply
 
 pytestmark = pytest.mark.usefixtures("one_thread")

@@ -169,9 +169,17 @@ def test_estimate_ground_unchanged_where_it_worked(garden):
     assert abs(gr.offset) < 0.03 and gr.camera_height == pytest.approx(1.6, abs=0.1)
 
 
-def test_scene_extent(garden):
+def test_scene_extents(garden):
+    """The two length scales: the 3DGS camera radius (static fit) and the robust box diagonal (update)."""
+    import torch
+
     pts, _ = garden
     cams = capture("walk")
-    ext = geometry.scene_extent(cams, pts)
-    assert 5.0 < ext.radius < 9.0 and ext.camera_diameter > 5.0
-    assert np.allclose(geometry.scene_extent(cams).center, np.median([c.center for c in cams], 0))
+    centres = np.stack([c.center for c in cams])
+    want = 1.1 * np.linalg.norm(centres - centres.mean(0), axis=1).max()
+    assert geometry.scene_extent(cams, pts) == pytest.approx(want)
+    one = [cams[0]] * 3  # coinciding cameras: the points' radius
+    assert geometry.scene_extent(one, pts) == pytest.approx(np.linalg.norm(pts - pts.mean(0), axis=1).max())
+    box = torch.tensor([[0.0, 0, 0], [3.0, 4.0, 0.0]]).repeat(50, 1)
+    assert geometry.box_diagonal(box) == pytest.approx(5.0, rel=1e-5)
+    assert geometry.box_diagonal(torch.zeros(1, 3)) == 1.0

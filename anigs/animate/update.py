@@ -31,6 +31,7 @@ from anigs.cameras import Camera
 from anigs.configs import from_dict
 from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, offset_limits, resolve_num_bases, save_model
 from anigs.device import get_device, seed_everything
+from anigs.geometry.extent import box_diagonal
 from anigs.gaussians import Gaussians
 from anigs.animate.losses import SDSContext, SDSHook, animation_loss, canonical_loss
 
@@ -174,16 +175,6 @@ def limits_from_config(canonical_means: torch.Tensor, mask: torch.Tensor, cfg: U
     return (off if any_off else None), (ang if any_ang else None)
 
 
-def _scene_extent(means: torch.Tensor) -> float:
-    """Robust size of the scene: diagonal of the 1-99 percentile box of the positions."""
-    if means.shape[0] < 2:
-        return 1.0
-    m = means.detach().float().cpu()
-    lo, hi = torch.quantile(m, 0.01, dim=0), torch.quantile(m, 0.99, dim=0)
-    ext = float((hi - lo).norm())
-    return ext if math.isfinite(ext) and ext > 0 else 1.0
-
-
 class _Trainable:
     """The trainable canonical state for a parameter group; builds G^0 each step."""
 
@@ -296,7 +287,7 @@ def run_update(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[Vie
     cams = [v.camera for v in views]
 
     tr = _Trainable(canonical, idx.to(dev), cfg.param_groups)
-    spatial = cfg.spatial_lr_scale if cfg.spatial_lr_scale is not None else _scene_extent(canonical.means)
+    spatial = cfg.spatial_lr_scale if cfg.spatial_lr_scale is not None else box_diagonal(canonical.means)
     opt = torch.optim.Adam(_param_groups(cfg, deformation, tr, spatial), eps=1e-15)
     gamma = cfg.lr_final_factor ** (1.0 / max(cfg.steps, 1))
     sched = torch.optim.lr_scheduler.ExponentialLR(opt, gamma)

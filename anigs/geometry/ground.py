@@ -1,4 +1,4 @@
-"""Ground plane (:func:`estimate_ground`) and scene extent (:func:`scene_extent`)."""
+"""Ground plane (:func:`estimate_ground`)."""
 from __future__ import annotations
 
 import logging
@@ -95,24 +95,3 @@ def estimate_ground(means: np.ndarray, up: np.ndarray, cameras: Sequence[Camera]
     below = depth_below[(depth_below > 0) & (depth_below <= layer_band * ref)]
     layer = float(np.quantile(below, layer_quantile)) if len(below) >= 10 else 0.0
     return Ground(up, offset, layer, cam_h, ref, method, fallback)
-
-
-# ---- extent -------------------------------------------------------------------------------
-@dataclass
-class Extent:
-    """Size of a scene: ``center`` [3], ``radius`` (robust, of the content), ``camera_diameter``."""
-
-    center: np.ndarray
-    radius: float
-    camera_diameter: float
-
-
-def scene_extent(cameras: Sequence[Camera], points: np.ndarray | None = None, quantile: float = 0.95) -> Extent:
-    """Centre and radius of the content (``quantile`` of distances to the median point) and the
-    largest distance between two camera centres. Without points the cameras stand in."""
-    cc = np.stack([c.center for c in cameras]) if len(cameras) else np.zeros((1, 3))
-    P = np.asarray(points, np.float64) if points is not None and len(points) else cc
-    center = np.median(P, 0)
-    radius = float(np.quantile(np.linalg.norm(P - center, axis=1), quantile))
-    diam = float(np.max(np.linalg.norm(cc[:, None] - cc[None], axis=-1))) if len(cc) > 1 else 0.0
-    return Extent(center, max(radius, 1e-9), diam)

@@ -40,7 +40,7 @@ def gt_metrics(model: Path | None, canonical: Path | None, gt_dir: Path | None, 
         return na("needs --model and --canonical (the learned animation)")
     from anigs.cameras import load_cameras
     from anigs.animate.deform import load_model
-    from anigs.static.fit import scene_extent
+    from anigs.geometry.extent import scene_extent
     from anigs.gaussians import Gaussians
     from anigs.io import read_json
     from anigs.synth.motion import MotionParams, gt_clip_offsets

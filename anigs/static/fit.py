@@ -20,6 +20,7 @@ from anigs.cameras import Camera
 from anigs.configs import reject_unknown_keys
 from anigs.static.densify import DensifyConfig, DensifyState, refine, schedule_for, update_state
 from anigs.device import get_device, seed_everything
+from anigs.geometry.extent import scene_extent
 from anigs.gaussians import Gaussians
 from anigs.render import rasterize
 from anigs.ssim import psnr, ssim
@@ -94,18 +95,6 @@ def split_holdout(n: int, every: int) -> tuple[list[int], list[int]]:
     if not train:
         raise ValueError(f"no training images left: {n} images with holdout_every={every}")
     return train, test
-
-
-def scene_extent(cameras: Sequence[Camera], points: np.ndarray | None = None) -> float:
-    """3DGS scene radius: 1.1 x the largest camera distance from the mean camera centre.
-
-    Falls back to the point cloud's radius (then 1.0) when the cameras all coincide.
-    """
-    centers = np.stack([c.center for c in cameras])
-    r = float(np.linalg.norm(centers - centers.mean(0), axis=1).max()) * 1.1
-    if r < 1e-6 and points is not None and len(points) > 1:
-        r = float(np.linalg.norm(points - points.mean(0), axis=1).max())
-    return r if r > 1e-6 else 1.0
 
 
 def init_gaussians(points: np.ndarray, colors: np.ndarray, extent: float, sh_degree: int = 3,
