@@ -339,7 +339,7 @@ def test_serve_command_runs_on_a_free_port_and_stops_on_sigterm(study, tmp_path)
             "cli.add_arguments(p); sys.exit(cli.main(p.parse_args(sys.argv[1:])))")
     proc = subprocess.Popen([sys.executable, "-c", code, "serve", "--dir", str(out), "--port", "0", "--answers",
                              str(tmp_path / "a.jsonl"), "--seconds", "120"], stdout=subprocess.PIPE, text=True,
-                            cwd=Path(__file__).resolve().parents[1])
+                            cwd=Path(__file__).resolve().parents[2])
     try:
         line = proc.stdout.readline()
         url = line.split(" at ")[1].split(" ")[0]

@@ -14,7 +14,7 @@ import pytest
 import torch
 
 from tests._browser import chrome, needs_browser
-from tests.test_viewer_compact import _views_json, animated_scene
+from tests.viewer.test_viewer_compact import _views_json, animated_scene
 
 pytestmark = needs_browser
 

@@ -15,7 +15,7 @@ from anigs.study.build import StudyOptions, build_study, find_final_videos
 from anigs.study.serve import StudyServer
 from anigs.study.tally import TallyOptions, tally
 from tests._browser import chrome as _chrome, needs_browser
-from tests.test_study import make_videos
+from tests.study.test_study import make_videos
 
 pytestmark = needs_browser
 

@@ -10,7 +10,7 @@ import yaml
 
 from anigs.config import load_scene, section
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_schema_is_in_sync_with_the_code():

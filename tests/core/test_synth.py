@@ -17,7 +17,7 @@ from anigs.synth import (EFFECT_TYPES, LABEL_EFFECTS, LABEL_IDS, LABELS, WATER_L
                          SceneConfig, SynthConfig, build_scene, camera_path, gt_clip_offsets, gt_offsets,
                          motion_tables, render_image, write_capture)
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STATIC = [i for i, n in LABELS.items() if not LABEL_EFFECTS[n]]
 MOVABLE = [i for i, n in LABELS.items() if LABEL_EFFECTS[n]]
 

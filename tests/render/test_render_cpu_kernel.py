@@ -16,7 +16,7 @@ import torch
 from anigs.render import rasterize
 from tests._scenes import random_scene
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _grads(scene, W, H, deg, backend, loss_fn, background=None):

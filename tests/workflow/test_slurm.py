@@ -37,7 +37,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SCRIPT = REPO / "workflow" / "scripts" / "slurm_cluster.sh"
 PROFILE = REPO / "workflow" / "profiles" / "slurm" / "config.yaml"
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
