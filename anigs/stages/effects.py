@@ -98,15 +98,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--images", required=True, help="the undistorted photos the cameras describe (sfm/images)")
     add_out(p, "output folder (effects.json, regions.npy, dynamic.npy, overview.png)")
     p.add_argument("--requested", nargs="*", default=None,
-                   help="the scene's effects list (omit or 'auto': every detected effect)")
+                   help="effects to simulate, instead of the section's `requested` ('auto': every detected effect)")
     add_params(p, "effects")
 
 
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
-    requested = args.requested
+    cfg = Config.from_dict(parse_params(args.params))
+    requested = cfg.requested if args.requested is None else args.requested  # the section, unless given here
     if requested in ([], ["auto"]):
         requested = "auto"
-    run(args.canonical, args.cameras, args.images, args.out, Config.from_dict(parse_params(args.params)), requested)
+    run(args.canonical, args.cameras, args.images, args.out, cfg, requested)
     return 0

@@ -14,7 +14,7 @@ import pytest
 import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
-from anigs.effects import EFFECTS, Config, detect_effects, save_overview
+from anigs.effects import EFFECTS, REGIONS, Config, detect_effects, save_overview
 from anigs.effects import cues
 from anigs.gaussians import Gaussians, rgb_to_sh0
 from anigs.masks import read_rgb_png
@@ -198,3 +198,40 @@ def test_green_picture_on_a_wall_is_not_foliage():
     assert not res.effects["foliage_sway"].detected, res.effects["foliage_sway"].reason
     assert foliage[labels == 1].mean() < 0.05
     assert "flat vertical" in res.effects["foliage_sway"].reason
+
+
+def test_stage_effects_list_restricts_and_reports_what_the_scene_lacks(tmp_path):
+    """`anigs effects`: `requested: auto` simulates every detected effect; a list restricts it, and
+    a listed effect that was not found is reported (requested_not_found), not simulated."""
+    from anigs.cameras import save_cameras
+    from anigs.cli import main
+    from anigs.masks import write_rgb_png
+    from anigs.stages.effects import choose
+
+    assert choose(["foliage_sway", "flower_bob"], "auto") == (["foliage_sway", "flower_bob"], [])
+    assert choose(["foliage_sway"], ["flower_bob", "foliage_sway"]) == (["foliage_sway"], ["flower_bob"])
+    with pytest.raises(ValueError, match="unknown effect"):
+        choose([], ["wind_chimes"])
+    g, cams, imgs = _capture(SceneConfig(num_gaussians=6000, pond=True), images=8, width=128)
+    g.save_ply(tmp_path / "canonical.ply")
+    save_cameras(tmp_path / "cameras.json", cams)
+    for cam, img in zip(cams, imgs):
+        write_rgb_png(tmp_path / "images" / cam.name, img)
+    base = ["effects", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+            "--images", str(tmp_path / "images")]
+    assert main(base + ["--out", str(tmp_path / "auto"), "--params", "{}"]) == 0
+    auto = json.loads((tmp_path / "auto" / "effects.json").read_text())
+    assert auto["requested"] == "auto" and auto["chosen"] == auto["detected"] and "water_ripple" in auto["chosen"]
+    listed = json.dumps({"requested": ["water_ripple", "grass_wave", "flower_bob"]})
+    assert main(base + ["--out", str(tmp_path / "list"), "--params", listed]) == 0
+    doc = json.loads((tmp_path / "list" / "effects.json").read_text())
+    want = [e for e in ("water_ripple", "grass_wave", "flower_bob") if e in auto["detected"]]
+    assert doc["chosen"] == want and doc["requested_not_found"] == [e for e in ("water_ripple", "grass_wave",
+                                                                                "flower_bob") if e not in want]
+    regions = np.load(tmp_path / "list" / "regions.npy")
+    dyn = np.load(tmp_path / "list" / "dynamic.npy")
+    assert dyn.shape == (g.num,) and dyn.sum() == doc["num_dynamic"]
+    assert dyn.sum() < np.load(tmp_path / "auto" / "dynamic.npy").sum()
+    foliage = regions == REGIONS.index("foliage")
+    assert not (dyn & foliage).any()  # foliage was not asked for: it stays still
+    assert (tmp_path / "list" / "overview.png").stat().st_size > 0
