@@ -231,7 +231,7 @@ def test_tradeoff_sweep_reports_accuracy_against_time(run, tmp_path):
         ("update.steps", "30", "full", "tiny/full"),
         ("static.iterations", "100", "full", f"{derived}/full"),
         ("static.iterations", "300", "full", "tiny/full")]
-    from anigs.tradeoff import benchmark_seconds
+    from anigs.tradeoff import SCENE_STAGES, benchmark_seconds
 
     update = json.loads((run / "tiny" / "tradeoff-update-steps-10" / "round1" / "update.json").read_text())
     assert update["steps"] == 10
@@ -243,7 +243,8 @@ def test_tradeoff_sweep_reports_accuracy_against_time(run, tmp_path):
         assert r["static_abs_diff"] not in ("", "n/a")
     by_run = {r["run"]: r for r in rows}
     for name, scene in (("tiny/full", "tiny"), (f"{derived}/full", derived)):  # each point pays its own stages
-        stages = benchmark_seconds(run / scene / "benchmarks" / f"{s}.tsv" for s in ("static", "views", "masks"))
+        assert set(SCENE_STAGES) == {"static", "effects", "views", "masks"}
+        stages = benchmark_seconds(run / scene / "benchmarks" / f"{s}.tsv" for s in SCENE_STAGES)
         r = by_run[name]
         assert float(r["seconds"]) - float(r["variant_seconds"]) == pytest.approx(stages, abs=0.01)
     for knob in ("update-steps", "static-iterations"):
