@@ -40,7 +40,7 @@ def timed(fn, repeats: int = 2):
 
 def scene(T: int, H: int, W: int, seed: int = 0):
     """Textured frame with an animated 'tree' blob (smooth sway) and a 30% mask."""
-    from anigs.prior.procedural import ProceduralPrior
+    from anigs.refine.prior.procedural import ProceduralPrior
 
     rng = np.random.default_rng(seed)
     frame = cv2.GaussianBlur(rng.random((H, W, 3)).astype(np.float32), (0, 0), 1.0)
@@ -52,7 +52,7 @@ def scene(T: int, H: int, W: int, seed: int = 0):
 
 def bench_procedural(sizes, frames) -> None:
     from anigs.refine.compose import composed_v2v
-    from anigs.prior import get_prior
+    from anigs.refine.prior import get_prior
 
     prior = get_prior("procedural", {"effects": ["foliage_sway", "leaf_flutter"]})
     print("\n[1] procedural ComposedV2V refine, seconds per clip (mask 30%)")
@@ -69,7 +69,7 @@ def bench_procedural(sizes, frames) -> None:
 def bench_strength() -> None:
     from anigs.refine.compose import composed_v2v
     from anigs.flow import clip_backward_flow
-    from anigs.prior import get_prior
+    from anigs.refine.prior import get_prior
 
     T, H, W = 49, 192, 256
     clip, mask = scene(T, H, W)
@@ -88,7 +88,7 @@ def bench_strength() -> None:
 def bench_ltx(sizes, frames) -> None:
     import torch
 
-    from anigs.prior.ltx import LTXPrior, save_tiny_random_stack
+    from anigs.refine.prior.ltx import LTXPrior, save_tiny_random_stack
 
     tmp = tempfile.mkdtemp(prefix="anigs_ltx_bench_")
     path = save_tiny_random_stack(tmp)
@@ -100,7 +100,7 @@ def bench_ltx(sizes, frames) -> None:
         for W, H in sizes:
             clip, _ = scene(T, H, W)
             _, dt = timed(lambda: prior.refine(clip, None, "trees sway", 0, 0.6))
-            from anigs.prior.ltx import padded_shape
+            from anigs.refine.prior.ltx import padded_shape
             print(f"{T:>6} {W:>4}x{H:<4} {str(padded_shape(T, H, W)):>14} {dt:>8.2f}")
 
     T, H, W = 17, 96, 128
@@ -108,7 +108,7 @@ def bench_ltx(sizes, frames) -> None:
     video, _ = prior._to_video(clip)
     z0 = prior._encode(video)
     noise = torch.randn(z0.shape, generator=torch.Generator().manual_seed(0))
-    from anigs.prior.ltx import sigma_schedule
+    from anigs.refine.prior.ltx import sigma_schedule
 
     def solve(steps: int, strength: float = 0.8):
         sig = sigma_schedule(strength, steps)

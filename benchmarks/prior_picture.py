@@ -65,8 +65,8 @@ def main() -> None:
     args = ap.parse_args()
 
     from anigs.refine.compose import ComposeConfig, compose, composed_v2v, dilate_masks, soft_mask
-    from anigs.prior import get_prior
-    from anigs.prior.base import union_mask
+    from anigs.refine.prior import get_prior
+    from anigs.refine.prior.base import union_mask
     from anigs.synth import CaptureConfig, MotionParams, SceneConfig, build_scene, camera_path, gt_clip_offsets
     from anigs.video import save_png, write_mp4
 

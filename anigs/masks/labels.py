@@ -6,7 +6,7 @@ is the blending weight of that effect's Gaussians. A pixel is in the effect's ma
 weight is >= ``threshold`` of the pixel's alpha and the alpha is >= ``min_alpha``.
 
 Also: a similarity alignment between two camera sets (Umeyama on camera centres, via
-:mod:`anigs.align`) so labels
+:mod:`anigs.sfm.align`) so labels
 of ground-truth Gaussians can be rendered from cameras of a reconstruction in another frame,
 and two label transfers between Gaussian sets: nearest neighbour (:func:`transfer_labels`)
 and by appearance (:func:`appearance_labels`: each fitted Gaussian takes the label of what it
@@ -20,7 +20,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from anigs.align import Similarity, umeyama
+from anigs.sfm.align import Similarity, umeyama
 from anigs.cameras import Camera, load_cameras
 from anigs.gaussians import Gaussians, load_ply
 from anigs.io import read_json

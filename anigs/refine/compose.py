@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 
 from anigs.configs import from_dict
-from anigs.prior.base import MaskLike, VideoPrior, check_strength, union_mask
+from anigs.refine.prior.base import MaskLike, VideoPrior, check_strength, union_mask
 from anigs.video import check_clip
 
 log = logging.getLogger(__name__)

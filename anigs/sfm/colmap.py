@@ -16,7 +16,7 @@ Failure handling:
   reconstructs forward-facing captures); still too few is an error naming registered/total.
 
 Frame normalisation (downstream works in a z-up world, ground near z=0): without ground
-truth, up is estimated from the cameras held upright (:func:`anigs.align.estimate_up`) and rotated onto
+truth, up is estimated from the cameras held upright (:func:`anigs.sfm.align.estimate_up`) and rotated onto
 +z; the camera centroid moves to x=y=0, a low percentile of the point heights to z=0, and
 the scale makes the mean camera height ``camera_height`` (eye height: roughly metric). With ground-truth cameras the reconstruction is instead mapped onto
 them with a similarity (Umeyama on camera centres) and the pose errors are reported.
@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from anigs.align import pose_errors, umeyama, upright_similarity
+from anigs.sfm.align import pose_errors, umeyama, upright_similarity
 from anigs.cameras import Camera, load_cameras, save_cameras
 from anigs.io import write_json, write_npz
 from anigs.photos import check_images, image_headers, list_images, report_unreadable, require_min_images

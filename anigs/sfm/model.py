@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.align import Similarity
+from anigs.sfm.align import Similarity
 from anigs.cameras import Camera
 from anigs.sfm.config import UNDISTORTED_MODELS
 
@@ -41,7 +41,7 @@ def reconstruction_points(rec) -> dict[str, np.ndarray]:
 
 
 def to_sim3d(s: Similarity):
-    """A :class:`anigs.align.Similarity` as a ``pycolmap.Sim3d`` (for ``Reconstruction.transform``)."""
+    """A :class:`anigs.sfm.align.Similarity` as a ``pycolmap.Sim3d`` (for ``Reconstruction.transform``)."""
     import pycolmap
 
     return pycolmap.Sim3d(float(s.scale), pycolmap.Rotation3d(s.R), s.t.reshape(3, 1))

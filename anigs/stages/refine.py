@@ -100,7 +100,7 @@ def run(clip_path: str | Path, masks: np.ndarray | dict[str, np.ndarray], out: s
         round_: int | None = None, view: str | None = None) -> dict:
     """ComposedV2V refinement of the clip at ``clip_path`` (``masks``: one [H,W] mask or one per
     effect) into ``out``; returns what was done (seed, sigmas, seconds)."""
-    from anigs.prior import get_prior
+    from anigs.refine.prior import get_prior
     from anigs.refine.compose import ComposeConfig, composed_v2v
     from anigs.video import load_clip, save_clip
 

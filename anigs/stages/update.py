@@ -113,7 +113,7 @@ def run(canonical_path: str | Path, targets: list[str], dynamic_path: str | Path
     if cfg.lambda_sds > 0:
         if not sds_prior:
             raise ValueError("update: lambda_sds > 0 needs --prior (a video prior with a score, e.g. ltx)")
-        from anigs.prior import get_prior
+        from anigs.refine.prior import get_prior
 
         sds = prior_sds_hook(get_prior(sds_prior, sds_prior_params or {}), prompt, cfg.sds_frames)
     out = Path(out)

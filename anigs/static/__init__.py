@@ -1,1 +1,1 @@
-"""static."""
+"""The static canonical 3DGS fit and its densification strategy."""

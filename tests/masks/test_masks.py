@@ -388,7 +388,7 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
 
 def test_labels_across_frames_and_transfer(lawn_scene):
     """Labels of ground-truth Gaussians rendered from cameras of another (similarity) frame."""
-    from anigs.align import Similarity
+    from anigs.sfm.align import Similarity
     from anigs.masks.labels import LabelsBackend, align_cameras, labels_for
     from scipy.spatial.transform import Rotation
 

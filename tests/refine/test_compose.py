@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from anigs.refine.compose import ComposeConfig, compose, composed_v2v, soft_mask
-from anigs.prior.base import VideoPrior
-from anigs.prior.procedural import ProceduralPrior
+from anigs.refine.prior.base import VideoPrior
+from anigs.refine.prior.procedural import ProceduralPrior
 
 T, H, W = 7, 32, 40
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from anigs.prior.ltx import LTXConfig, LTXPrior, check_model_folder, padded_shape, sigma_schedule
+from anigs.refine.prior.ltx import LTXConfig, LTXPrior, check_model_folder, padded_shape, sigma_schedule
 
 DISTILLED = [1.0, 0.994, 0.988, 0.981, 0.975, 0.909, 0.725, 0.422]
 
@@ -43,7 +43,7 @@ def tiny_ltx(tmp_path_factory):
     """A tiny LTXConditionPipeline (random weights, tiny T5, sentencepiece tokenizer) saved to disk."""
     for mod in ("diffusers", "transformers", "sentencepiece"):
         pytest.importorskip(mod, reason=f"{mod} not installed (extra: anigs[ltx])")
-    from anigs.prior.ltx import save_tiny_random_stack
+    from anigs.refine.prior.ltx import save_tiny_random_stack
 
     return save_tiny_random_stack(tmp_path_factory.mktemp("ltx"))
 
@@ -62,7 +62,7 @@ def test_refine_shapes_sigmas_timesteps(tiny_ltx, caplog):
     prior.load().transformer.register_forward_pre_hook(
         lambda mod, args, kwargs: seen.append(kwargs["timestep"].detach().clone()), with_kwargs=True)
     clip = small_clip()
-    with caplog.at_level(logging.INFO, logger="anigs.prior.ltx"):
+    with caplog.at_level(logging.INFO, logger="anigs.refine.prior.ltx"):
         out = prior.refine(clip, None, "trees sway", seed=3, strength=0.6)
     assert out.shape == clip.shape and out.dtype == np.float32
     assert np.isfinite(out).all() and out.min() >= 0 and out.max() <= 1

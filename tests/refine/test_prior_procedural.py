@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from anigs.flow import backward_flow, field_gradient_max, warp
-from anigs.prior import get_prior
-from anigs.prior.procedural import ProceduralConfig, ProceduralPrior
-from anigs.prior.spectral import EFFECTS, effect_spec
+from anigs.refine.prior import get_prior
+from anigs.refine.prior.procedural import ProceduralConfig, ProceduralPrior
+from anigs.refine.prior.spectral import EFFECTS, effect_spec
 
 H, W = 64, 80
 
@@ -178,7 +178,7 @@ def grey_textured(h=H, w=W, seed=0):
 
 
 def test_flaws_are_off_by_default_and_validated():
-    from anigs.prior.procedural import FLAW_KEYS
+    from anigs.refine.prior.procedural import FLAW_KEYS
 
     cfg = ProceduralConfig()
     assert not cfg.flaws_on and all(getattr(cfg, k) == 0 for k in FLAW_KEYS)
@@ -243,7 +243,7 @@ def test_per_view_gain_and_direction_of_the_kept_motion():
 
 
 def test_time_shift_of_the_kept_motion():
-    from anigs.prior.procedural import time_shifted
+    from anigs.refine.prior.procedural import time_shifted
 
     T = 7
     est = np.zeros((T, 2, 3, 2), np.float32)

@@ -1,4 +1,4 @@
-"""Structure from motion (anigs.sfm.colmap, anigs.align) on small rendered textured scenes.
+"""Structure from motion (anigs.sfm.colmap, anigs.sfm.align) on small rendered textured scenes.
 
 The scene: flat textured Gaussians (random colours and brightness, 2-7 cm) on a ground
 plane and on the faces of four boxes, rendered with the project's rasterizer at 320x240.
@@ -18,7 +18,7 @@ import torch
 pycolmap = pytest.importorskip("pycolmap")
 
 from anigs.sfm import colmap as sfm_mod  # noqa: E402
-from anigs.align import (Similarity, estimate_up, pose_errors, rotation_angle_deg, rotation_between,  # noqa: E402
+from anigs.sfm.align import (Similarity, estimate_up, pose_errors, rotation_angle_deg, rotation_between,  # noqa: E402
                          umeyama)
 from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at, save_cameras  # noqa: E402
 from anigs.gaussians import Gaussians  # noqa: E402
@@ -555,7 +555,7 @@ def test_rotation_angle_is_accurate_at_every_angle(deg):
     (which reads ~1e-6 degrees for identical rotations)."""
     from scipy.spatial.transform import Rotation
 
-    from anigs.align import rotation_angle_deg
+    from anigs.sfm.align import rotation_angle_deg
 
     rng = np.random.default_rng(int(deg * 1000) % 2**32)
     for _ in range(5):

@@ -39,8 +39,8 @@ def nested():
     from anigs.masks.lift import LiftConfig
     from anigs.masks.sam2 import Sam2Config
     from anigs.masks.vegetation import VegetationConfig
-    from anigs.prior.ltx import LTXConfig
-    from anigs.prior.procedural import ProceduralConfig
+    from anigs.refine.prior.ltx import LTXConfig
+    from anigs.refine.prior.procedural import ProceduralConfig
 
     return {("animate", "lifting"): LiftingConfig, ("animate", "physics"): PhysicsConfig,
             ("masks", "vegetation"): VegetationConfig, ("masks", "lift"): LiftConfig, ("masks", "sam2"): Sam2Config,

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from anigs.prior.base import MaskLike, VideoPrior
+from anigs.refine.prior.base import MaskLike, VideoPrior
 
 PRIORS = ("procedural", "ltx")
 
@@ -15,11 +15,11 @@ PRIORS = ("procedural", "ltx")
 def get_prior(name: str, cfg: Mapping[str, Any] | None = None) -> VideoPrior:
     """Build the prior ``name`` from its config section (a dict; unknown keys are rejected)."""
     if name == "procedural":
-        from anigs.prior.procedural import ProceduralPrior
+        from anigs.refine.prior.procedural import ProceduralPrior
 
         return ProceduralPrior(cfg)
     if name == "ltx":
-        from anigs.prior.ltx import LTXPrior
+        from anigs.refine.prior.ltx import LTXPrior
 
         return LTXPrior(cfg)
     raise ValueError(f"unknown video prior {name!r}; available: {list(PRIORS)}")

@@ -42,7 +42,7 @@ import torch
 
 from anigs.configs import from_dict
 from anigs.device import get_device
-from anigs.prior.base import MaskLike, VideoPrior, check_strength
+from anigs.refine.prior.base import MaskLike, VideoPrior, check_strength
 from anigs.video import check_clip
 
 log = logging.getLogger(__name__)

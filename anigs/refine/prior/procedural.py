@@ -2,7 +2,7 @@
 
 ``refine`` estimates the motion already present in the clip (DIS optical flow, backward
 convention of :mod:`anigs.flow`: ``clip[t](p) ≈ clip[0](p + d_t(p))``) inside the dynamic
-region, blends it with a freshly sampled stochastic motion texture (:mod:`anigs.prior.spectral`)
+region, blends it with a freshly sampled stochastic motion texture (:mod:`anigs.refine.prior.spectral`)
 by ``strength`` s (0 = keep the clip's motion, 1 = new motion) and re-synthesises every frame
 by warping frame 0 with the blended field ``(1 - s) d_clip + sqrt(s (2 - s)) d_new``: the
 weights' squares sum to 1, so blending two independent fields of equal energy keeps the
@@ -51,8 +51,8 @@ import numpy as np
 
 from anigs.configs import from_dict
 from anigs.flow import clip_backward_flow, identity_grid, warp
-from anigs.prior.base import MaskLike, VideoPrior, check_mask, check_strength
-from anigs.prior.spectral import (EFFECTS, MotionField, effect_spec, effects_from_prompt, prompt_gain, smooth_noise,
+from anigs.refine.prior.base import MaskLike, VideoPrior, check_mask, check_strength
+from anigs.refine.prior.spectral import (EFFECTS, MotionField, effect_spec, effects_from_prompt, prompt_gain, smooth_noise,
                                   synthesize_effect)
 from anigs.video import check_clip
 
