@@ -162,9 +162,8 @@ def main(args: argparse.Namespace) -> int:
     if args.method != "anigs":
         from anigs.baselines import run_baseline
 
-        ids = args.view_ids or ([Path(t).stem for t in args.targets] if args.view_json else None)
         run_baseline(args.method, args.canonical, args.dynamic, args.targets, args.out,
-                     parse_params(args.method_params), view_json=args.view_json, view_ids=ids,
+                     parse_params(args.method_params), view_json=args.view_json, view_ids=args.view_ids,
                      log_json=args.log_json)
         return 0
     info = run(args.canonical, args.targets, args.dynamic, args.out, UpdateConfig.from_dict(parse_params(args.params)),

@@ -274,6 +274,14 @@ def test_cli_render_clip_and_update_round_trip(tmp_path):
     assert clip2.shape == (T, 36, 48, 3) and not np.array_equal(clip2[0], clip2[T // 2])
     assert meta2["view_id"] == "v1"
 
+    # a baseline variant's update job fits the baseline instead (same inputs, same model.pt format)
+    out_b = tmp_path / "baseline" / "model.pt"
+    assert main(["update", "--canonical", str(ply), "--targets", *targets, "--view-json", str(tmp_path / "views.json"),
+                 "--dynamic", str(tmp_path / "dyn.npy"), "--out", str(out_b), "--params", upd,
+                 "--method", "lifting", "--method-params", json.dumps({"num_bases": 3})]) == 0
+    _, db, _ = load_model(out_b, ply)
+    assert db.num_dynamic == int(mask.sum()) and db.num_bases == 3 and db.pos_coeffs.abs().sum() > 0
+
     # clear errors: unknown view id, unknown config key, frame-count mismatch
     assert main(["render_clip", "--canonical", str(ply), "--view-json", str(tmp_path / "views.json"),
                  "--view-id", "nope", "--out", str(tmp_path / "x.npz"), "--params", params]) == 1
