@@ -1,4 +1,4 @@
-"""User photos: find them, check they decode, import them as upright PNGs.
+"""User photos: find them, check they decode and can form a capture, import them as upright PNGs.
 
 ``import_photos`` is the "folder of photos" input form: JPEG/PNG files are decoded,
 rotated according to their EXIF orientation (COLMAP ignores that tag), optionally
@@ -76,13 +76,74 @@ def report_unreadable(bad: list[str], folder: Path, skip: bool) -> None:
     log.warning("skipping %d unreadable or corrupt image file(s) in %s:\n  %s", len(bad), folder, listing)
 
 
+def screen_photos(paths: list[Path], folder: Path, skip: bool = False) -> list[Path]:
+    """Photos that can take part in a capture, from readable ``paths``.
+
+    - blank ones (black, white or one colour: luminance std below 2 levels of 255) are an error
+      listing them (``skip``: a warning, and they are left out);
+    - exact copies of an earlier photo (the same pixels at 64 px) are left out with a warning;
+      fewer than :data:`MIN_IMAGES` distinct photos left is an error naming the copies;
+    - a photo whose aspect ratio (orientation aside) differs by more than 5% from the capture's
+      median (a panorama, a crop, a screenshot, a 10,000 px wide stitch) is an error naming it and
+      its size, since one camera cannot describe it.
+    """
+    import numpy as np
+    from PIL import Image, ImageOps
+
+    thumbs, aspects, blank = {}, {}, []
+    for p in paths:
+        im = ImageOps.exif_transpose(_decode(p)).convert("L")
+        aspects[p] = max(im.size) / max(min(im.size), 1)
+        im.thumbnail((64, 64), Image.Resampling.BILINEAR)
+        arr = np.asarray(im, np.float32)
+        if arr.std() < 2.0:
+            blank.append(p)
+        thumbs[p] = arr
+    if blank:
+        listing = ", ".join(q.name for q in blank)
+        if not skip:
+            raise ValueError(f"{len(blank)} blank photo(s) in {folder} (black, white or one colour; set "
+                             f"skip_unreadable to leave them out): {listing}")
+        log.warning("leaving out %d blank photo(s) in %s: %s", len(blank), folder, listing)
+    keep, copies, seen = [], [], {}
+    for p in paths:
+        if p in blank:
+            continue
+        key = (thumbs[p].shape, thumbs[p].tobytes())
+        if key in seen:
+            copies.append(f"{p.name} = {seen[key].name}")
+            continue
+        seen[key] = p
+        keep.append(p)
+    if copies:
+        log.warning("leaving out %d copies of other photos in %s: %s", len(copies), folder, ", ".join(copies))
+    if len(keep) < MIN_IMAGES:
+        raise ValueError(f"only {len(keep)} distinct photo(s) in {folder} (a capture needs at least {MIN_IMAGES} "
+                         f"photos from different viewpoints); copies: {', '.join(copies) or 'none'}")
+    median = float(np.median([aspects[p] for p in keep]))
+    odd = [p for p in keep if abs(aspects[p] / median - 1) > 0.05]
+    if odd:
+        sizes = ", ".join(f"{p.name} ({_size(p)})" for p in odd)
+        raise ValueError(f"{len(odd)} photo(s) in {folder} have another shape than the capture's (aspect "
+                         f"{median:.3f}): {sizes}; a panorama, crop or screenshot cannot share the photos' "
+                         "camera: remove it")
+    return keep
+
+
+def _size(path: Path) -> str:
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return f"{im.width}x{im.height}"
+
+
 def require_min_images(n: int, folder: Path, what: str = "readable images") -> None:
     if n < MIN_IMAGES:
         raise ValueError(f"need at least {MIN_IMAGES} {what} in {folder}, found {n}")
 
 
 def import_photos(src_dir: str | Path, dst_dir: str | Path, max_side: int | None = None,
-                  skip_unreadable: bool = False) -> list[str]:
+                  skip_unreadable: bool = False, screen: bool = True) -> list[str]:
     """Copy JPEG/PNG photos from ``src_dir`` to ``dst_dir`` as upright RGB PNGs.
 
     Args:
@@ -92,7 +153,9 @@ def import_photos(src_dir: str | Path, dst_dir: str | Path, max_side: int | None
             so a later stage never sees stale photos.
         max_side: if given, photos whose longest side exceeds it are downscaled
             (Lanczos, aspect ratio kept) so the longest side equals ``max_side``.
-        skip_unreadable: skip corrupt files with a warning listing them instead of failing.
+        skip_unreadable: skip corrupt (and blank) files with a warning listing them instead of failing.
+        screen: check that the photos can form a capture (:func:`screen_photos`: blank photos,
+            copies, odd shapes); off only to convert single images.
 
     Returns:
         The written file names, sorted.
@@ -113,6 +176,8 @@ def import_photos(src_dir: str | Path, dst_dir: str | Path, max_side: int | None
     good, bad = check_images(files)  # decode everything first: fail before writing anything
     report_unreadable(bad, src_dir, skip_unreadable)
     require_min_images(len(good), src_dir, "readable photos")
+    if screen:
+        good = screen_photos(good, src_dir, skip_unreadable)
 
     dst_dir.mkdir(parents=True, exist_ok=True)
     written = []

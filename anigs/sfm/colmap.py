@@ -82,8 +82,27 @@ def _device(cfg: SfmConfig):
     return pycolmap.Device.cuda if (cfg.device != "cpu" and has_cuda) else pycolmap.Device.cpu
 
 
-def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: SfmConfig) -> dict:
-    """SIFT extraction and matching into ``database``; returns statistics and timings."""
+def camera_mode(cfg: SfmConfig, sizes: list[tuple[int, int]]) -> str:
+    """COLMAP camera mode for images of ``sizes`` (distinct (width, height)): ``SINGLE`` for one
+    shared camera, ``AUTO`` (one camera per size) when the sizes differ only by a 90-degree turn
+    (portrait and landscape photos of one camera), ``PER_IMAGE`` with ``single_camera: false``;
+    any other mix of sizes is an error naming them."""
+    if not cfg.single_camera:
+        return "PER_IMAGE"
+    if len(sizes) <= 1:
+        return "SINGLE"
+    if len(sizes) == 2 and sizes[0] == sizes[1][::-1]:
+        log.info("sfm: portrait and landscape photos (%dx%d and %dx%d): one camera per orientation",
+                 *sizes[0], *sizes[1])
+        return "AUTO"
+    raise ValueError(f"sfm.single_camera is true but the images have {len(sizes)} sizes {sizes[:5]} that are "
+                     "not one size turned by 90 degrees; set single_camera to false or import them at one size")
+
+
+def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: SfmConfig,
+                      mode: str | None = None) -> dict:
+    """SIFT extraction and matching into ``database`` (``mode``: a :func:`camera_mode`); returns
+    statistics and timings."""
     import pycolmap
 
     device = _device(cfg)
@@ -97,7 +116,7 @@ def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: Sf
     ext.sift.max_num_features = cfg.max_num_features
     ext.sift.peak_threshold = cfg.sift_peak_threshold
     ext.use_gpu = device == pycolmap.Device.cuda
-    mode = pycolmap.CameraMode.SINGLE if cfg.single_camera else pycolmap.CameraMode.PER_IMAGE
+    mode = getattr(pycolmap.CameraMode, mode or ("SINGLE" if cfg.single_camera else "PER_IMAGE"))
     t0 = time.perf_counter()
     pycolmap.extract_features(database, image_dir, image_names=names, camera_mode=mode,
                               reader_options=reader, extraction_options=ext, device=device)
@@ -281,9 +300,10 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
         log.warning("%d image(s) carry an EXIF rotation that COLMAP ignores (import them with "
                     "`anigs capture --source photos` to make them upright): %s", len(rotated), ", ".join(rotated[:10]))
     sizes = sorted({(w, h) for w, h, _ in headers.values()})
-    if cfg.single_camera and len(sizes) > 1 and model_dir is None:
-        raise ValueError(f"sfm.single_camera is true but the images in {image_dir} have {len(sizes)} sizes "
-                         f"{sizes[:5]}; set single_camera to false or import them at one size")
+    try:
+        mode = camera_mode(cfg, sizes) if model_dir is None else None
+    except ValueError as exc:
+        raise ValueError(f"{image_dir}: {exc}") from None
     gt = load_cameras(gt_cameras) if gt_cameras else None
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -307,7 +327,8 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
             report["mapping"] = {"source": str(model_dir), "models_found": [reg], "other_models": [], "retries": 0}
             report["refine"] = {"applied": False, "reason": "existing model (no feature database)"}
         else:
-            stats = extract_and_match(work / "database.db", image_dir, names, cfg)
+            stats = extract_and_match(work / "database.db", image_dir, names, cfg, mode)
+            report["camera_mode"] = mode
             report["timings_s"].update(extract=stats.pop("extract_s"), match=stats.pop("match_s"))
             report["features"] = stats
             t0 = time.perf_counter()

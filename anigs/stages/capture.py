@@ -26,7 +26,7 @@ class PhotosConfig:
     """Photo import parameters (``--params`` in photos mode)."""
 
     max_side: int = 1600  # downscale so the longest side is at most this (0 = keep the original size)
-    skip_unreadable: bool = False  # skip corrupt/unreadable files with a warning instead of failing
+    skip_unreadable: bool = False  # leave out corrupt, unreadable or blank photos with a warning instead of failing
 
     def __post_init__(self) -> None:
         if self.max_side < 0:

@@ -61,7 +61,7 @@ def test_downscale_to_max_side(tmp_path):
     _save(src / "wide.png", _pattern(300, 200))
     _save(src / "tall.png", _pattern(90, 240))
     _save(src / "small.png", _pattern(40, 30))
-    import_photos(src, dst, max_side=120)
+    import_photos(src, dst, max_side=120, screen=False)  # three shapes: conversion only, not a capture
     assert Image.open(dst / "wide.png").size == (120, 80)
     assert Image.open(dst / "tall.png").size == (45, 120)
     assert Image.open(dst / "small.png").size == (40, 30)  # never upscaled
@@ -79,7 +79,7 @@ def test_modes_are_converted_to_rgb(tmp_path):
     Image.fromarray(rgba, "RGBA").save(src / "rgba.png")
     Image.fromarray(np.full((20, 30), 70, np.uint8), "L").save(src / "gray.png")
     Image.fromarray(np.full((20, 30), 40000, np.uint16)).save(src / "deep.png")
-    import_photos(src, dst)
+    import_photos(src, dst, screen=False)  # one-colour images: conversion only, not a capture
     out = _read(dst / "rgba.png")
     assert tuple(out[5, 20]) == (200, 0, 0) and tuple(out[5, 2]) == (255, 255, 255)
     assert tuple(_read(dst / "gray.png")[0, 0]) == (70, 70, 70)
@@ -137,3 +137,43 @@ def test_name_collision_and_stale_files(tmp_path):
     _save(src / "p0.jpg", _pattern(16, 16))
     with pytest.raises(ValueError, match="p0.jpg.*p0.png|p0.png.*p0.jpg"):
         import_photos(src, dst)
+
+
+def test_bad_captures_fail_early_naming_the_cause(tmp_path):
+    """Blank photos, copies of one photo and an odd shape (a panorama among photos) stop the import
+    before anything is written, each with an error that names the files; copies among enough
+    distinct photos are left out with a warning."""
+    def folder(name: str, arrays: dict) -> tuple:
+        src = tmp_path / name / "src"
+        src.mkdir(parents=True)
+        for n, a in arrays.items():
+            _save(src / n, a)
+        return src, tmp_path / name / "dst"
+
+    good = {f"p{i}.png": _pattern(64, 48, seed=i) for i in range(4)}
+    src, dst = folder("blank", {**good, "black.png": np.zeros((48, 64, 3), np.uint8),
+                                "white.png": np.full((48, 64, 3), 255, np.uint8)})
+    with pytest.raises(ValueError, match=r"2 blank photo\(s\).*black.png, white.png"):
+        import_photos(src, dst)
+    assert not dst.exists()
+    assert sorted(import_photos(src, dst, skip_unreadable=True)) == sorted(good)  # left out on request
+    src, dst = folder("copies", {f"c{i:02d}.png": _pattern(64, 48, seed=7) for i in range(20)})
+    with pytest.raises(ValueError, match=r"only 1 distinct photo.*c01.png = c00.png"):
+        import_photos(src, dst)
+    assert not dst.exists()
+    src, dst = folder("some-copies", {**good, "again.png": _pattern(64, 48, seed=2)})
+    names = import_photos(src, dst)  # the later of the two copies (by name) is left out
+    assert len(names) == 4 and ("again.png" in names) != ("p2.png" in names)
+    src, dst = folder("panorama", {**good, "pano.png": _pattern(640, 48, seed=9)})
+    with pytest.raises(ValueError, match=r"pano.png \(640x48\).*remove it"):
+        import_photos(src, dst)
+    assert not dst.exists()
+    src, dst = folder("two", {"a.png": _pattern(64, 48, 1), "b.png": _pattern(64, 48, 2)})
+    with pytest.raises(ValueError, match="at least 3"):
+        import_photos(src, dst)
+    src, dst = folder("junk", {**good})
+    (src / "notes.jpg").write_text("not a photo")
+    (src / "cut.jpg").write_bytes((src / "p0.png").read_bytes()[:200])
+    with pytest.raises(ValueError, match=r"(?s)2 unreadable.*cut.jpg: OSError.*notes.jpg"):
+        import_photos(src, dst)
+

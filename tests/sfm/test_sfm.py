@@ -565,3 +565,29 @@ def test_rotation_angle_is_accurate_at_every_angle(deg):
         Rd = Rotation.from_rotvec(np.radians(deg) * axis).as_matrix()
         got = rotation_angle_deg(Rd @ Rb, Rb)
         assert abs(got - deg) <= 1e-9 * max(1.0, deg) + 1e-12, (deg, got)
+
+
+def test_portrait_and_landscape_photos_need_no_config(ring, tmp_path):
+    """Phone photos of mixed orientation: the sizes differ only by a 90-degree turn, so each
+    orientation gets its own camera (COLMAP AUTO) instead of an error asking to edit config."""
+    import cv2
+
+    from anigs.sfm.colmap import camera_mode
+
+    assert camera_mode(SfmConfig(), [(W, H)]) == "SINGLE"
+    assert camera_mode(SfmConfig(), sorted([(W, H), (H, W)])) == "AUTO"
+    assert camera_mode(SfmConfig(single_camera=False), [(W, H), (7, 5)]) == "PER_IMAGE"
+    with pytest.raises(ValueError, match="not one size turned by 90 degrees"):
+        camera_mode(SfmConfig(), [(W, H), (W // 2, H // 2)])
+    folder = tmp_path / "imgs"
+    folder.mkdir()
+    srcs = sorted(ring["images"].iterdir())
+    for i, p in enumerate(srcs):
+        img = cv2.imread(str(p))
+        cv2.imwrite(str(folder / p.name), np.ascontiguousarray(np.rot90(img)) if i % 3 == 0 else img)
+    res = run_sfm(folder, tmp_path / "sfm")
+    assert res.report["camera_mode"] == "AUTO"
+    assert res.report["registered"] == len(srcs), res.report["registered"]
+    cams = load_cameras(tmp_path / "sfm" / "cameras.json")  # undistorted: sizes within a few pixels
+    assert sum(c.width < c.height for c in cams) == sum(i % 3 == 0 for i in range(len(srcs)))
+    assert all(abs(max(c.width, c.height) - W) <= 8 and abs(min(c.width, c.height) - H) <= 8 for c in cams)
