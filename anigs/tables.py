@@ -75,6 +75,7 @@ WEIGHTFREE_COLUMNS: list[tuple[str, str]] = [
     ("dynamic_abs_diff", "dynamic |dI/dt|"),
     ("dynamic_flow", "dynamic flow (px)"),
     ("dominant_freq", "dom. freq (c/f)"),
+    ("static_outside_mask_still", "still outside mask"),
     ("gt/rms_amplitude_ratio", "GT amp. ratio"),
     ("gt/amplitude_w1", "GT amp. W1"),
     ("gt/frequency_w1", "GT freq. W1"),

@@ -166,6 +166,18 @@ def clip_motion_metrics(clip: np.ndarray, dynamic_mask: np.ndarray, margin: int 
                       dynamic_pixels=int(dyn.sum()), frames=int(clip.shape[0]))
 
 
+def outside_mask_still(clip: np.ndarray, dynamic_mask: np.ndarray, margin: int = 5, tolerance: float = 1 / 255) -> float:
+    """Fraction of the pixels outside the dynamic mask (dilated by ``margin`` px) whose value never
+    changes from frame 0 by more than ``tolerance`` (any channel, any frame) over the clip
+    [T,H,W,3] in [0,1]: 1.0 when everything that should stand still does; NaN without such pixels."""
+    clip, dyn = _check(clip, dynamic_mask)
+    outside = ~dilate(dyn, margin)
+    if not outside.any():
+        return float("nan")
+    change = np.abs(clip - clip[:1]).max(axis=(0, 3))  # [H,W]
+    return float((change[outside] <= tolerance + 1e-6).mean())
+
+
 # ----------------------------------------------------------------- ground-truth motion statistics
 
 def trajectory_stats(positions: np.ndarray, extent: float = 1.0) -> tuple[np.ndarray, np.ndarray]:

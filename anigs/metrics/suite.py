@@ -54,6 +54,8 @@ class EvalConfig:
     flow_preset: str = "medium"  # OpenCV DIS preset: ultrafast | fast | medium
     mask_margin_px: int = 2  # dynamic mask dilated by this before taking the static region
     mask_threshold: float = 0.5  # soft / resized masks: dynamic where >= threshold
+    still_margin_px: int = 5  # static_outside_mask_still: dynamic mask dilated by this first
+    still_tolerance: float = 0.00392156862745098  # static_outside_mask_still: largest change that counts as still (1/255)
     multiview: bool = True  # run the Table-3 protocol when its inputs are given
     multiview_capture: bool = True  # also the reference row on the original capture images
     multiview_t: int | None = None  # novel timestep (None = the paper's 21/120 of the clip)
@@ -153,15 +155,16 @@ def load_mask_for(view: str, mask_dir: Path | None, height: int, width: int, thr
 
 def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg: EvalConfig) -> dict[str, Any]:
     """Per-view weight-free metrics, averaged over views with a mask."""
-    from anigs.metrics.motion import clip_motion_metrics
+    from anigs.metrics.motion import clip_motion_metrics, outside_mask_still
 
     names = {"static_abs_diff": (False, "intensity/frame"), "static_drift": (False, "intensity"),
              "static_flow": (False, "px/frame"), "dynamic_abs_diff": (True, "intensity/frame"),
              "dynamic_flow": (True, "px/frame"), "dominant_freq": (True, "cycles/frame"),
-             "spectral_centroid": (True, "cycles/frame")}
+             "spectral_centroid": (True, "cycles/frame"), "static_outside_mask_still": (True, "fraction")}
     protocol = {"flow": f"OpenCV DIS {cfg.flow_preset}, grey, consecutive frames", "mask_margin_px": cfg.mask_margin_px,
                 "spectrum": "Hann window, per-pixel mean removed, DC excluded, mean power over dynamic pixels",
-                "aggregate": "mean over views"}
+                "still": f"pixels outside the mask dilated by {cfg.still_margin_px} px whose change from frame 0 "
+                         f"stays <= {cfg.still_tolerance:.5f} over the clip", "aggregate": "mean over views"}
     if not clips:
         return {k: not_available("no rendered clips given (--final-dir / --clips)", hib, u, protocol)
                 for k, (hib, u) in names.items()}
@@ -175,6 +178,8 @@ def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg:
             missing.append(view)
             continue
         per_view[view] = clip_motion_metrics(clip, mask, cfg.mask_margin_px, cfg.flow_preset).to_dict()
+        per_view[view]["static_outside_mask_still"] = outside_mask_still(clip, mask, cfg.still_margin_px,
+                                                                         cfg.still_tolerance)
     out = {}
     warn = [f"no mask for views {missing} in {mask_dir}"] if missing else []
     for k, (hib, unit) in names.items():

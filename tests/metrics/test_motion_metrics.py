@@ -191,3 +191,24 @@ def test_eval_gt_glue_with_synthetic_truth_and_dct_model(tmp_path):
     # inputs missing -> not available, with the reason
     na = gt_metrics(None, None, gt, None)
     assert not na["gt/amplitude_w1"]["available"] and "--model" in na["gt/amplitude_w1"]["reason"]
+
+
+def test_outside_mask_still_counts_pixels_that_never_change():
+    """The issue's stillness measure: outside the dynamic mask dilated by 5 px, the share of pixels
+    whose change from frame 0 stays within 1/255 over the whole clip."""
+    from anigs.metrics.motion import outside_mask_still
+
+    T, H, W = 6, 40, 50
+    rng = np.random.default_rng(0)
+    clip = np.repeat(rng.uniform(0.2, 0.8, (1, H, W, 3)).astype(np.float32), T, 0)
+    mask = np.zeros((H, W), bool)
+    mask[10:20, 10:20] = True
+    clip[:, 10:20, 10:20] += np.linspace(0, 0.2, T)[:, None, None, None]  # the dynamic region moves
+    clip[:, 12:18, 21:24] += np.linspace(0, 0.1, T)[:, None, None, None]  # a halo within the 5 px margin
+    assert outside_mask_still(clip, mask) == 1.0
+    outside = (~np.pad(np.ones((20, 20), bool), ((5, 15), (5, 25)))).sum()  # pixels beyond the dilated mask
+    clip[3, 35, 40, 1] += 2 / 255  # one pixel flickers by 2 levels in one frame
+    clip[:, 0, 0, :] += np.array([0, 1, 0, 1, 0, 1], np.float32)[:, None] / 255  # one by exactly 1 level: still
+    assert outside_mask_still(clip, mask) == pytest.approx(1 - 1 / outside)
+    assert outside_mask_still(clip, mask, tolerance=3 / 255) == 1.0
+    assert np.isnan(outside_mask_still(clip, np.ones((H, W), bool)))
