@@ -30,7 +30,8 @@ metrics.json schema (``"schema": "anigs-metrics/1"``), one file per (scene, meth
 
 Metric names: ``fvd/<prior>``, ``fid/<prior>`` (Fréchet, lower is better); weight-free
 ``static_abs_diff``, ``static_drift``, ``static_flow`` (lower better), ``dynamic_abs_diff``,
-``dynamic_flow`` (motion energy), ``dominant_freq``, ``spectral_centroid`` (cycles/frame);
+``dynamic_flow`` (motion energy), ``dominant_freq``, ``spectral_centroid`` (cycles/frame),
+``static_outside_mask_still`` (share of still pixels outside the dilated mask; higher better);
 synthetic scene ``gt/rms_amplitude_ratio``, ``gt/amplitude_w1``, ``gt/frequency_w1``,
 ``gt/dominant_freq_learned``, ``gt/dominant_freq_gt``; Table 3 ``multiview/psnr_capture``,
 ``multiview/psnr_novel`` (and ``multiview/ssim_*``).
