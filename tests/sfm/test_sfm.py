@@ -271,7 +271,7 @@ def _patch_colmap(monkeypatch, models_for_angle):
     """Skip extraction/matching; the mapper returns models_for_angle(angle) or raises it."""
     calls = []
 
-    def fake_extract(database, image_dir, names, cfg):
+    def fake_extract(database, image_dir, names, cfg, mode=None):
         return {"extract_s": 0.0, "match_s": 0.0}
 
     def fake_mapper(database, image_dir, out_dir, cfg, names, mapper, angle):
@@ -370,7 +370,7 @@ def test_corrupt_images_listed_or_skipped(ring, tmp_path, monkeypatch, caplog):
 
     seen = {}
 
-    def record(database, image_dir, names, cfg):
+    def record(database, image_dir, names, cfg, mode=None):
         seen["names"] = names
         raise RuntimeError("stop here")
 
