@@ -95,6 +95,19 @@ class BaselineResult:
     seconds: float = 0.0
 
 
+def prepare(cls: type, config: Any, canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData],
+            what: str) -> tuple[Any, torch.Tensor, int, Gaussians, Gaussians]:
+    """The shared start of every baseline fit: (config of ``cls``, validated; dynamic index [D];
+    T; the canonical scene on the CPU; a copy on the configured device for the visibility renders)."""
+    from anigs.device import get_device
+
+    cfg = config if isinstance(config, cls) else cls.from_dict(config)
+    cfg.validate()
+    idx, T = check_inputs(canonical, dynamic_mask, views, what)
+    canonical = canonical.detach().to("cpu")
+    return cfg, idx, T, canonical, canonical.to(get_device(cfg.device))
+
+
 def check_inputs(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData], what: str
                  ) -> tuple[torch.Tensor, int]:
     """Validate the shared inputs; returns (dynamic index [D] long, T)."""

@@ -47,9 +47,8 @@ import numpy as np
 import torch
 
 from anigs.animate.update import ViewData
-from anigs.baselines.base import BaselineResult, CommonConfig, check_inputs, finish
+from anigs.baselines.base import BaselineResult, CommonConfig, finish, prepare
 from anigs.baselines.tracks import observe_view
-from anigs.device import get_device
 from anigs.gaussians import Gaussians
 
 log = logging.getLogger("anigs.baselines.lifting")
@@ -132,12 +131,8 @@ def fit(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData],
         :class:`BaselineResult` (trajectories [T,D,3] float64; info: per-view visible counts,
         observed fraction, seconds).
     """
-    cfg = config if isinstance(config, LiftingConfig) else LiftingConfig.from_dict(config)
-    cfg.validate()
     t0 = time.perf_counter()
-    idx, T = check_inputs(canonical, dynamic_mask, views, "lifting baseline")
-    canonical = canonical.detach().to("cpu")
-    shown = canonical.to(get_device(cfg.device))  # the visibility renders run on the configured device
+    cfg, idx, T, canonical, shown = prepare(LiftingConfig, config, canonical, dynamic_mask, views, "lifting baseline")
     pts = canonical.means.double().numpy()[idx.numpy()]
     info: dict[str, Any] = {"method": "lifting", "views": [v.camera.name for v in views]}
     if idx.numel() == 0:

@@ -53,11 +53,10 @@ import numpy as np
 import torch
 
 from anigs.animate.update import ViewData
-from anigs.baselines.base import BaselineResult, CommonConfig, check_inputs, finish
+from anigs.baselines.base import BaselineResult, CommonConfig, finish, prepare
 from anigs.baselines.material import MaterialFit, WindResponse, fit_material, material_regions
 from anigs.baselines.springs import build_graph
 from anigs.baselines.tracks import observe_view, visibility
-from anigs.device import get_device
 from anigs.gaussians import Gaussians
 
 __all__ = ["MaterialFit", "PhysicsConfig", "WindResponse", "fit", "fit_material", "material_regions", "pick_view"]
@@ -147,12 +146,8 @@ def fit(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData],
         :class:`BaselineResult`; info holds the fit view, the per-region stiffness/damping, the
         wind amplitudes and the relative residual before/after the material fit.
     """
-    cfg = config if isinstance(config, PhysicsConfig) else PhysicsConfig.from_dict(config)
-    cfg.validate()
     t0 = time.perf_counter()
-    idx, T = check_inputs(canonical, dynamic_mask, views, "physics baseline")
-    canonical = canonical.detach().to("cpu")
-    shown = canonical.to(get_device(cfg.device))  # the visibility renders run on the configured device
+    cfg, idx, T, canonical, shown = prepare(PhysicsConfig, config, canonical, dynamic_mask, views, "physics baseline")
     mask = torch.as_tensor(dynamic_mask)
     info: dict[str, Any] = {"method": "physics"}
     if idx.numel() == 0 or T < 2:
