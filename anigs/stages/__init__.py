@@ -32,7 +32,8 @@ class Stage:
     stages run per (scene, variant); ``global`` stages combine scenes. ``section``: whether the
     stage has a config section (``config.yaml`` key of the same name). ``command``: whether
     ``anigs <name>`` runs it (``animate`` is the round plan: a section and a Snakemake target,
-    but its jobs are the ``render_clip``, ``refine`` and ``update`` stages).
+    but its jobs are the ``render_clip``, ``refine`` and ``update`` stages, or ``round`` in place of
+    the first two).
     """
 
     name: str
@@ -64,6 +65,8 @@ STAGES: tuple[Stage, ...] = (
     Stage("animate", "the dataset-model loop unrolled into rounds", "variant", command=False),
     Stage("render_clip", "render a camera-fixed clip of one view with a round's model", "variant"),
     Stage("refine", "ComposedV2V refinement of one rendered clip with the video prior", "variant"),
+    Stage("round", "render and refine every view of a round in one process (round_jobs: round)", "variant",
+          section=False),
     Stage("update", "model update: train the deformation field on a round's targets", "variant"),
     Stage("final", "final videos, moving-camera video and space-time slices", "variant"),
     Stage("export", "export the animated scene (compact .anigs file, DCT PLY + JSON, optional PLY frames)", "variant"),

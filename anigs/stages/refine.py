@@ -52,6 +52,14 @@ class RefineConfig:
             raise ValueError("set `steps` at the top level of the refine params, not in `ltx`")
         return cfg
 
+    def with_effects_json(self, path: str | Path | None) -> "RefineConfig":
+        """With the effects stage's chosen effects (its ``effects.json``) instead of the listed ones."""
+        if path:
+            from anigs.io import read_json
+
+            self.effects = list(read_json(path)["chosen"])
+        return self
+
     def prior_config(self) -> dict[str, Any]:
         if self.prior == "procedural":
             return {**self.procedural, "effects": list(self.effects)}
@@ -97,9 +105,12 @@ def parse_masks(values: list[str]) -> np.ndarray | dict[str, np.ndarray]:
 
 
 def run(clip_path: str | Path, masks: np.ndarray | dict[str, np.ndarray], out: str | Path, cfg: RefineConfig,
-        round_: int | None = None, view: str | None = None) -> dict:
+        round_: int | None = None, view: str | None = None, priors: dict | None = None) -> dict:
     """ComposedV2V refinement of the clip at ``clip_path`` (``masks``: one [H,W] mask or one per
-    effect) into ``out``; returns what was done (seed, sigmas, seconds)."""
+    effect) into ``out``; returns what was done (seed, sigmas, seconds). ``priors``: a dict kept
+    across calls, so that a process refining several clips builds (loads) each prior once."""
+    import json
+
     from anigs.refine.prior import get_prior
     from anigs.refine.compose import ComposeConfig, composed_v2v
     from anigs.video import load_clip, save_clip
@@ -114,7 +125,12 @@ def run(clip_path: str | Path, masks: np.ndarray | dict[str, np.ndarray], out: s
     prior_cfg = cfg.prior_config()
     if cfg.prior == "procedural" and "fps" in meta and "fps" not in prior_cfg:
         prior_cfg["fps"] = float(meta["fps"])
-    prior = get_prior(cfg.prior, prior_cfg)
+    key = json.dumps([cfg.prior, prior_cfg], sort_keys=True, default=str)
+    prior = priors.get(key) if priors is not None else None
+    if prior is None:
+        prior = get_prior(cfg.prior, prior_cfg)
+        if priors is not None:
+            priors[key] = prior
     t0 = time.perf_counter()
     refined, info = composed_v2v(prior, clip, masks, cfg.prompt, seed, cfg.strength,
                                  ComposeConfig(compose=cfg.compose, feather_px=cfg.feather_px,
@@ -151,11 +167,7 @@ def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
     from anigs.io import write_json
 
-    cfg = RefineConfig.from_dict(parse_params(args.params))
-    if args.effects_json:
-        from anigs.io import read_json
-
-        cfg.effects = list(read_json(args.effects_json)["chosen"])
+    cfg = RefineConfig.from_dict(parse_params(args.params)).with_effects_json(args.effects_json)
     info = run(args.clip, parse_masks(args.mask), args.out, cfg, round_=args.round, view=args.view)
     if args.info:
         write_json(args.info, info)

@@ -46,29 +46,36 @@ class RenderClipConfig:
 Config = RenderClipConfig  # the `render_clip` config section
 
 
-def run(canonical_path: str | Path, camera: Camera, out: str | Path, cfg: RenderClipConfig,
-        model_path: str | Path | None = None, view_id: str | None = None) -> dict:
-    """Render ``camera``'s clip with the model at ``model_path`` (none: the static canonical scene)
-    and save it to ``out``; returns the clip's metadata."""
+def load_scene(canonical_path: str | Path, cfg: RenderClipConfig, model_path: str | Path | None = None):
+    """The canonical scene and the model's deformation (None: static) on the config's device
+    -> (canonical, deformation | None, background [3])."""
     from anigs.animate.deform import load_model
-    from anigs.animate.frames import render_clip
     from anigs.device import get_device
     from anigs.gaussians import Gaussians
-    from anigs.video import save_clip
 
     canonical = Gaussians.load_ply(canonical_path)
     deformation = None
-    T = cfg.num_frames
     if model_path:
         canonical, deformation, _ = load_model(model_path, canonical)
-        if deformation.num_frames != T:
+        if deformation.num_frames != cfg.num_frames:
             raise ValueError(f"render_clip: model {model_path} has T={deformation.num_frames} frames but "
-                             f"render_clip.num_frames={T}; use the same frame count in every round")
+                             f"render_clip.num_frames={cfg.num_frames}; use the same frame count in every round")
     dev = get_device(cfg.device)
     canonical = canonical.to(dev)
     if deformation is not None:
         deformation = deformation.to(dev)
-    bg = torch.tensor(cfg.background, dtype=torch.float32, device=dev)
+    return canonical, deformation, torch.tensor(cfg.background, dtype=torch.float32, device=dev)
+
+
+def render_view(scene: tuple, camera: Camera, out: str | Path, cfg: RenderClipConfig, canonical_path: str | Path,
+                model_path: str | Path | None = None, view_id: str | None = None) -> dict:
+    """Render ``camera``'s clip of a :func:`load_scene` scene to ``out``; returns the clip's metadata
+    (the paths are recorded as given)."""
+    from anigs.animate.frames import render_clip
+    from anigs.video import save_clip
+
+    canonical, deformation, bg = scene
+    T = cfg.num_frames
     clip = render_clip(canonical, deformation, camera, T, bg, cfg.backend)
     meta = {"camera": camera.to_dict(), "view_id": view_id if view_id is not None else camera.name,
             "num_frames": T, "model": str(model_path) if model_path else None, "canonical": str(canonical_path),
@@ -76,6 +83,14 @@ def run(canonical_path: str | Path, camera: Camera, out: str | Path, cfg: Render
     save_clip(out, clip.cpu(), meta)
     log.info("rendered %d frames %dx%d of view %s -> %s", T, camera.width, camera.height, meta["view_id"], out)
     return meta
+
+
+def run(canonical_path: str | Path, camera: Camera, out: str | Path, cfg: RenderClipConfig,
+        model_path: str | Path | None = None, view_id: str | None = None) -> dict:
+    """Render ``camera``'s clip with the model at ``model_path`` (none: the static canonical scene)
+    and save it to ``out``; returns the clip's metadata."""
+    scene = load_scene(canonical_path, cfg, model_path)
+    return render_view(scene, camera, out, cfg, canonical_path, model_path, view_id)
 
 
 # ---- command line: anigs render_clip ----

@@ -185,6 +185,30 @@ def _artifacts(results: Path) -> dict[str, object]:
     return out
 
 
+def test_round_jobs_and_view_jobs_give_the_same_artifacts(run, tmp_path):
+    """round_jobs: round (the local default: one job per round) and view (render_clip and refine jobs
+    per view, as on a cluster) write the same files, and each leaves its benchmark TSVs."""
+    results = tmp_path / "results"
+    shutil.copytree(run, results, copy_function=shutil.copy2)  # upstream stages kept, with their mtimes
+    variant = results / "tiny" / "full"
+    for d in variant.glob("round*"):
+        shutil.rmtree(d)
+    res = _snakemake(results, "--rerun-triggers", "mtime", "--config", f"results={results}", "round_jobs=view", "animate")
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "rule round:" not in res.stdout + res.stderr
+    bench = variant / "benchmarks" / "round1"
+    assert (bench / "refine_v00.tsv").is_file() and (bench / "render_clip_v00.tsv").is_file()
+    assert (run / "tiny" / "full" / "benchmarks" / "round1" / "round.tsv").is_file()
+    a = {k: v for k, v in _artifacts(run).items() if "/round" in k}
+    b = {k: v for k, v in _artifacts(results).items() if "/round" in k}
+    assert a and a.keys() == b.keys()
+    assert [k for k in a if a[k] != b[k]] == []
+    for clip in sorted((run / "tiny" / "full").glob("round*/*/*.npz")):  # metadata too, paths aside
+        other = results / clip.relative_to(run)
+        with np.load(clip) as za, np.load(other) as zb:
+            assert str(za["meta"]).replace(str(run), "R") == str(zb["meta"]).replace(str(results), "R"), clip
+
+
 def test_interrupted_run_resumes_to_the_same_artifacts(run, tmp_path):
     """SIGINT during a round, then --rerun-incomplete: same artifacts as the uninterrupted run."""
     import signal

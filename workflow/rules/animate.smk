@@ -1,6 +1,8 @@
 # Stages 6-8, unrolled into rounds (see anigs/animate/plan.py): round r renders every view of its
-# dataset with the model of round r-1 (round 0 = static canonical), refines each view in its
-# own job (fan-out: independent GPU jobs on a cluster), then trains one model (fan-in).
+# dataset with the model of round r-1 (round 0 = static canonical), refines each view, then trains
+# one model (fan-in). round_jobs (common.smk) picks how the render and refine work is split:
+# - view: render_clip and refine jobs per view (fan-out: independent GPU jobs on a cluster);
+# - round: one `round` job per round writes the same files into round{r}/render and round{r}/target.
 
 
 rule render_clip:
@@ -56,6 +58,41 @@ rule refine:
         "--round {wildcards.round} --view {wildcards.view} {params.effects} --out {output:q} --params {params.p:q} > {log} 2>&1"
 
 
+rule round:
+    input:
+        ply=stage_path("static", "canonical.ply"),
+        views=stage_path("views", "views.json"),
+        model=_render_model,
+        masks=stage_path("masks"),
+        effects=_effects_json,
+    output:
+        render=directory(f"{VARIANT_DIR}/round{{round}}/render"),
+        target=directory(f"{VARIANT_DIR}/round{{round}}/target"),
+    params:
+        views=lambda wc: ",".join(round_views(wc.scene, wc.variant, int(wc.round))),
+        render=jparams("render_clip", _frames),
+        refine=jparams("refine", _refine_extra),
+        model=lambda wc, input: f"--model {input.model[0]}" if input.model else "",
+        effects=lambda wc, input: f"--effects-json {input.effects}" if input.effects else "",
+        version=ANIGS_VERSION,
+    log:
+        f"{VARIANT_DIR}/logs/round{{round}}/round.log",
+    benchmark:
+        f"{VARIANT_DIR}/benchmarks/round{{round}}/round.tsv"
+    threads: 1
+    resources:
+        mem_mb=6000,
+        runtime=120,
+        gpu=lambda wc: wants_gpu(wc.scene, wc.variant),
+    conda:
+        "../../envs/anigs.yaml"
+    shell:
+        "anigs --threads {threads} round --canonical {input.ply:q} {params.model} --view-json {input.views:q} "
+        "--views {params.views} --masks-dir {input.masks:q} --round {wildcards.round} {params.effects} "
+        "--render-dir {output.render:q} --target-dir {output.target:q} "
+        "--render-params {params.render:q} --refine-params {params.refine:q} > {log} 2>&1"
+
+
 rule update:
     input:
         ply=stage_path("static", "canonical.ply"),
@@ -70,6 +107,7 @@ rule update:
         p=jparams("update", _update_extra),
         init=lambda wc, input: f"--init-model {input.init[0]}" if input.init else "",
         method=_method_args,
+        targets=_target_files,
         version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/update.log",
@@ -83,6 +121,6 @@ rule update:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} update --canonical {input.ply:q} {params.init} --targets {input.targets} "
+        "anigs --threads {threads} update --canonical {input.ply:q} {params.init} --targets {params.targets} "
         "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy --out {output.model:q} "
         "--log-json {output.log_json:q} --params {params.p:q} {params.method} > {log} 2>&1"

@@ -197,10 +197,34 @@ def _effects_json(wc):
     return [] if is_synthetic(wc.scene) else [f"{stage_dir(wc.scene, 'effects')}/effects.json"]
 
 
+# A round's render and refine work: one job per round (one Python start-up) for local runs, one
+# job per view under a cluster executor (also inside its jobs, which parse this file again).
+ROUND_JOBS = config["round_jobs"] if config["round_jobs"] != "auto" else ("round" if workflow.local_exec else "view")
+
+
+def round_views(scene, variant, r):
+    """Views whose clip round r renders and refines (the views whose target trains round r
+    that no earlier round made)."""
+    p = plan(scene, variant)
+    return [v for v in p.dataset(r) if p.target_round(r, v) == r]
+
+
 def _targets(wc):
+    """Target clips of round r's update: files of per-view refine jobs, or round jobs' folders."""
     p = plan(wc.scene, wc.variant)
     r = int(wc.round)
-    return [f"{R}/{wc.scene}/{wc.variant}/round{p.target_round(r, v)}/target/{v}.npz" for v in p.dataset(r)]
+    base = f"{R}/{wc.scene}/{wc.variant}"
+    if ROUND_JOBS == "round":
+        return sorted({f"{base}/round{p.target_round(r, v)}/target" for v in p.dataset(r)})
+    return [f"{base}/round{p.target_round(r, v)}/target/{v}.npz" for v in p.dataset(r)]
+
+
+def _target_files(wc):
+    """The update's --targets: one clip per view of round r's dataset."""
+    p = plan(wc.scene, wc.variant)
+    r = int(wc.round)
+    return " ".join(shlex.quote(f"{R}/{wc.scene}/{wc.variant}/round{p.target_round(r, v)}/target/{v}.npz")
+                    for v in p.dataset(r))
 
 
 def _init_model(wc):
