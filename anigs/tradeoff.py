@@ -29,12 +29,12 @@ import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
+from anigs.benchmark_tsv import benchmark_seconds
 from anigs.config import deep_merge
-
 from anigs.stages import sections_of
 
 # config sections a variant may override (the others are shared by every variant of a scene)
@@ -168,22 +168,6 @@ def sweep_points(knobs: dict[str, list], base: str, variant_overrides: dict[str,
     return points
 
 
-def benchmark_seconds(paths: Iterable[str | Path], column: str = "s") -> float | None:
-    """Sum over Snakemake benchmark TSVs of ``column`` (mean over --benchmark-repeats): ``s`` wall
-    seconds, ``cpu_time`` CPU seconds of the job's process tree. None when a TSV lacks ``column``
-    (older Snakemake versions write no cpu_time); a TSV without ``s`` is an error."""
-    total = 0.0
-    for p in paths:
-        with open(p, newline="") as f:
-            rows = list(csv.DictReader(f, delimiter="\t"))
-        if not rows or "s" not in rows[0]:
-            raise ValueError(f"{p}: not a Snakemake benchmark TSV (no 's' column)")
-        if column not in rows[0]:
-            return None
-        total += sum(float(r[column]) for r in rows) / len(rows)
-    return total
-
-
 def point_benchmarks(results: str | Path, scene: str, variant: str) -> tuple[list[Path], list[Path]]:
     """(per-scene stage TSVs, the variant's own TSVs) that a point's seconds add up.
 
@@ -226,6 +210,110 @@ def report_rows(points: Sequence[SweepPoint], results: str | Path, scene: str,
     return rows
 
 
+# ---- the Pareto front: the settings no other is both faster and better than ----
+
+def pareto_front(times: Sequence[float | None], values: Sequence[float | None], lower_is_better: bool) -> list[int]:
+    """Indices of the points on the time-versus-metric Pareto front, fastest first.
+
+    A point is on the front when no other is at least as fast and at least as good, and strictly
+    one of the two. Equal points (the same time and value) are all on it; of points with equal
+    times only the best value is. Points whose time or value is None or NaN are left out.
+    """
+    def ok(x) -> bool:
+        return x is not None and not np.isnan(float(x))
+
+    idx = [i for i in range(len(times)) if ok(times[i]) and ok(values[i])]
+    t = {i: float(times[i]) for i in idx}
+    v = {i: float(values[i]) if lower_is_better else -float(values[i]) for i in idx}  # lower is better
+    front = [i for i in idx if not any(t[j] <= t[i] and v[j] <= v[i] and (t[j] < t[i] or v[j] < v[i])
+                                       for j in idx)]
+    return sorted(front, key=lambda i: (t[i], v[i], i))
+
+
+def metric_directions(metrics: dict[str, dict]) -> dict[str, bool | None]:
+    """Metric name -> higher_is_better (True / False; None for a metric without a direction, such as
+    a ratio to the ground truth) from metrics.json contents ({run: content}); the first run that
+    states one wins."""
+    out: dict[str, bool | None] = {}
+    for content in metrics.values():
+        for name, rec in content.get("metrics", {}).items():
+            if out.get(name) is None:
+                hib = rec.get("higher_is_better")
+                out[name] = None if hib is None else bool(hib)
+    return out
+
+
+def report_fronts(rows: Sequence[dict[str, Any]], metric_names: Sequence[str], directions: dict[str, bool | None],
+                  time_key: str = "seconds") -> dict[str, list[int]]:
+    """Metric -> indices into ``rows`` of its Pareto front over every point (:func:`pareto_front`
+    of ``time_key`` against the metric), for the metrics with a direction and at least one value."""
+    fronts = {}
+    for m in metric_names:
+        if directions.get(m) is None or not any(r.get(m) is not None for r in rows):
+            continue
+        fronts[m] = pareto_front([r.get(time_key) for r in rows], [r.get(m) for r in rows], not directions[m])
+    return fronts
+
+
+def mark_fronts(rows: Sequence[dict[str, Any]], fronts: dict[str, list[int]]) -> None:
+    """Set each row's ``front``: the metrics on whose front it lies, separated by "; " ("" for none)."""
+    for i, r in enumerate(rows):
+        r["front"] = "; ".join(m for m, idx in fronts.items() if i in idx)
+
+
+def _fmt(x: Any, seconds: bool = False) -> str:
+    if x is None:
+        return "n/a"
+    if isinstance(x, float):
+        return f"{x:.0f}" if seconds and abs(x) >= 100 else f"{x:.4g}"
+    return str(x)
+
+
+def front_section(rows: Sequence[dict[str, Any]], fronts: dict[str, list[int]],
+                  directions: dict[str, bool | None], metric_names: Sequence[str] = (),
+                  time_key: str = "seconds") -> str:
+    """Markdown "On the front": per metric, the settings on its front, fastest first (knob = value,
+    run, seconds, the metric); a point that stands for several knob values (the base) names them
+    all. Metrics of ``metric_names`` without a direction or a value are named as such."""
+    lines = ["## On the front", "",
+             f"Per metric, the settings that no other beats in both {time_key} and the metric, fastest "
+             "first: under a time budget, run the last one that fits.", ""]
+    for m, idx in fronts.items():
+        lines += [f"### {m} ({'higher' if directions[m] else 'lower'} is better)", ""]
+        runs: dict[str, list[int]] = {}
+        for i in idx:
+            runs.setdefault(rows[i]["run"], []).append(i)
+        for run, ii in runs.items():
+            r = rows[ii[0]]
+            setting = ", ".join(f"{rows[i]['knob']} = {rows[i]['value']}" for i in ii)
+            cpu = (f" (CPU {_fmt(r['cpu_seconds'], True)} s)" if time_key != "cpu_seconds"
+                   and r.get("cpu_seconds") is not None else "")
+            lines.append(f"- {setting} (`{run}`): {_fmt(r.get(time_key), True)} s{cpu}, {m} {_fmt(r.get(m))}")
+        lines.append("")
+    for m in metric_names:
+        if m in fronts:
+            continue
+        why = ("it has no direction (closeness to a reference matters)" if directions.get(m) is None
+               and any(r.get(m) is not None for r in rows) else "no point has a value")
+        lines += [f"### {m}: no front, {why}", ""]
+    return "\n".join(lines)
+
+
+def markdown_report(rows: Sequence[dict[str, Any]], metric_names: Sequence[str], fronts: dict[str, list[int]],
+                    directions: dict[str, bool | None], title: str = "Accuracy versus time") -> str:
+    """Markdown of the report: one table row per point (knob, value, run, seconds, CPU seconds and
+    the metrics, a ✓ after a value on its metric's front), then :func:`front_section`."""
+    shown = [m for m in metric_names if any(r.get(m) is not None for r in rows)]
+    head = ["knob", "value", "run", "seconds", "cpu_seconds", *shown]
+    lines = [f"# {title}", "", "✓: on the metric's Pareto front (time against the metric, over every point).", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for i, r in enumerate(rows):
+        cells = [_fmt(r.get(k), k.endswith("seconds")) for k in head[:5]]
+        cells += [_fmt(r.get(m)) + (" ✓" if i in fronts.get(m, ()) else "") for m in shown]
+        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return "\n".join(lines) + "\n\n" + front_section(rows, fronts, directions, metric_names) + "\n"
+
+
 def write_csv(rows: Sequence[dict[str, Any]], path: str | Path) -> Path:
     from anigs.io import atomic_path
 
@@ -242,8 +330,13 @@ def write_csv(rows: Sequence[dict[str, Any]], path: str | Path) -> Path:
 
 
 def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[str], path: str | Path,
-              panel: tuple[int, int] = (360, 260)) -> Path:
-    """PNG with one panel per metric: metric (y) against seconds (x), points labelled by value."""
+              panel: tuple[int, int] = (360, 260), fronts: dict[str, list[int]] | None = None) -> Path:
+    """PNG with one panel per metric: metric (y) against seconds (x), points labelled by value.
+
+    ``fronts`` (:func:`report_fronts`: metric -> indices into ``rows``): each panel also draws its
+    metric's Pareto front over every point as a green line, rings this knob's points on it, and
+    marks the other knobs' front points with small hollow squares.
+    """
     import cv2
 
     from anigs.io import atomic_path
@@ -256,11 +349,15 @@ def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[
     for i, m in enumerate(names):
         x0 = i * pw
         pts = [(r["seconds"], r.get(m), r["value"]) for r in sel if r.get(m) is not None]
+        front = [rows[j] for j in (fronts or {}).get(m, [])]
+        on_front = {id(r) for r in front}
+        fpts = [(r["seconds"], r[m]) for r in front]
         cv2.putText(img, f"{m} vs seconds", (x0 + 8, 18), font, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
         cv2.rectangle(img, (x0 + L, T), (x0 + pw - Rm, ph - B), (0, 0, 0), 1)
         if not pts:
             continue
-        xs, ys = np.array([p[0] for p in pts], float), np.array([p[1] for p in pts], float)
+        xs = np.array([p[0] for p in pts] + [p[0] for p in fpts], float)
+        ys = np.array([p[1] for p in pts] + [p[1] for p in fpts], float)
         xlo, xhi = xs.min(), xs.max()
         ylo, yhi = ys.min(), ys.max()
         xpad = (xhi - xlo) * 0.1 or max(abs(xhi) * 0.1, 1.0)
@@ -277,11 +374,23 @@ def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[
             cv2.putText(img, f"{xv:.0f}", (to_px(xv, ylo)[0] - 10, ph - B + 14), font, 0.35, (60, 60, 60), 1)
             cv2.putText(img, f"{yv:.3g}", (x0 + 2, to_px(xlo, yv)[1] + 4), font, 0.33, (60, 60, 60), 1)
         cv2.putText(img, "seconds", (x0 + pw // 2 - 20, ph - 8), font, 0.38, (0, 0, 0), 1, cv2.LINE_AA)
-        px = [to_px(x, y) for x, y in zip(xs, ys)]
+        green = (40, 150, 40)
+        fpx = [to_px(x, y) for x, y in fpts]
+        if fpx:
+            cv2.putText(img, "front", (x0 + pw - Rm - 40, ph - 8), font, 0.38, green, 1, cv2.LINE_AA)
+        for a, b in zip(fpx[:-1], fpx[1:]):
+            cv2.line(img, a, b, green, 2, cv2.LINE_AA)
+        for r, (u, v) in zip(front, fpx):
+            if r["knob"] != knob:
+                cv2.rectangle(img, (u - 3, v - 3), (u + 3, v + 3), green, 1, cv2.LINE_AA)
+        px = [to_px(x, y) for x, y, _ in pts]
         for a, b in zip(px[:-1], px[1:]):
             cv2.line(img, a, b, (180, 120, 40), 1, cv2.LINE_AA)
-        for (u, v), (_, _, val) in zip(px, pts):
+        mine = [r for r in sel if r.get(m) is not None]
+        for (u, v), (_, _, val), r in zip(px, pts, mine):
             cv2.circle(img, (u, v), 4, (180, 80, 20), -1, cv2.LINE_AA)
+            if id(r) in on_front:
+                cv2.circle(img, (u, v), 7, green, 2, cv2.LINE_AA)
             cv2.putText(img, str(val), (u + 5, v - 5), font, 0.35, (20, 20, 160), 1, cv2.LINE_AA)
     with atomic_path(path) as tmp:
         if not cv2.imwrite(str(tmp), img):

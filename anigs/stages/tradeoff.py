@@ -2,8 +2,14 @@
 
 Reads the sweep points (``--points``: JSON {scene: [{variant, knob, value, scene_tag}]}), each
 point's ``metrics.json`` and the benchmark TSVs under ``--results``, and writes
-``OUT/{scene}.csv`` (scene, knob, value, variant, seconds, variant_seconds, jobs, every metric)
-plus one PNG per knob (``OUT/{scene}_{knob}.png``: the ``--plot-metrics`` against seconds).
+``OUT/{scene}.csv`` (scene, knob, value, variant, seconds, variant_seconds, jobs, every metric,
+front), one PNG per knob (``OUT/{scene}_{knob}.png``: the ``--plot-metrics`` against seconds) and
+``OUT/{scene}.md`` (the table and "On the front").
+
+The Pareto front of each plotted metric (in its direction, ``higher_is_better`` of its
+metrics.json record) runs over every point of the scene, whatever its knob: the CSV's ``front``
+names the metrics on whose front a point lies, the plots draw it, and "On the front" (in the
+Markdown and the log) lists its settings fastest first.
 """
 from __future__ import annotations
 
@@ -16,8 +22,9 @@ log = logging.getLogger("anigs.tradeoff")
 
 def run(scene: str, points: list, results: str | Path, out_csv: str | Path, plot_metrics: list[str]) -> Path:
     """Write the report of one scene's sweep ``points`` (:class:`anigs.tradeoff.SweepPoint`); returns the CSV."""
-    from anigs.io import read_json
-    from anigs.tradeoff import knob_filename, plot_knob, report_rows, write_csv
+    from anigs.io import atomic_path, read_json
+    from anigs.tradeoff import (front_section, knob_filename, mark_fronts, markdown_report, metric_directions,
+                                plot_knob, report_fronts, report_rows, write_csv)
 
     if not points:
         raise ValueError(f"tradeoff: scene {scene!r} has no sweep points")
@@ -29,15 +36,25 @@ def run(scene: str, points: list, results: str | Path, out_csv: str | Path, plot
             raise FileNotFoundError(f"{path}: metrics of sweep point {p.knob}={p.value} missing (run the eval rule)")
         metrics[run_dir] = read_json(path)
     rows = report_rows(points, results, scene, metrics)
+    directions = metric_directions(metrics)
+    fronts = report_fronts(rows, plot_metrics, directions)
+    mark_fronts(rows, fronts)
     out = write_csv(rows, out_csv)
     log.info("tradeoff: wrote %s (%d points)", out, len(rows))
+    md = out.with_suffix(".md")
+    with atomic_path(md) as tmp:
+        Path(tmp).write_text(markdown_report(rows, plot_metrics, fronts, directions,
+                                             title=f"Accuracy versus time: {scene}"), encoding="utf-8")
+    log.info("tradeoff: wrote %s", md)
     for knob in dict.fromkeys(p.knob for p in points):
         png = out.parent / f"{scene}_{knob_filename(knob)}.png"
-        plot_knob(rows, knob, plot_metrics, png)
+        plot_knob(rows, knob, plot_metrics, png, fronts=fronts)
         log.info("tradeoff: wrote %s", png)
     for r in rows:
         shown = ", ".join(f"{m} {r[m]:.4g}" for m in plot_metrics if isinstance(r.get(m), float))
         log.info("tradeoff: %s=%s (%s)  %.0f s  %s", r["knob"], r["value"], r["run"], r["seconds"], shown)
+    for line in front_section(rows, fronts, directions, plot_metrics).splitlines():
+        log.info("tradeoff: %s", line)
     return out
 
 

@@ -74,6 +74,7 @@ rule tradeoff:
     output:
         csv=[report(f"{R}/tradeoff/{s}.csv", caption="../report/tradeoff.rst", category="Accuracy versus time")
              for s in SCENES],
+        md=[f"{R}/tradeoff/{s}.md" for s in SCENES],
         plots=_tradeoff_plots(),
     params:
         points=_tradeoff_points,
