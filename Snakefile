@@ -50,7 +50,7 @@ rule all_static:
 
 rule animate:
     input:
-        [model_path(s, v, plan(s, v).num_rounds) for s in SCENES for v in config["variants"]],
+        lambda wc: [final_model_of(s, v) for s in SCENES for v in config["variants"]],
 
 
 rule all_final:

@@ -63,8 +63,12 @@ def run(canonical_path: str | Path, views_path: str | Path, out: str | Path, cfg
 
     dev = get_device(cfg.device)
     t0 = time.perf_counter()
+    still = None  # why nothing moves, when the model says so (anigs.animate.still)
     if model_path:
-        canonical, deformation, _ = load_model(model_path, canonical_path)
+        canonical, deformation, payload = load_model(model_path, canonical_path)
+        if payload.get("extra", {}).get("still"):
+            still = payload["extra"]["reason"]
+            log.info("final: nothing moves: %s", still)
     else:
         canonical, deformation = Gaussians.load_ply(canonical_path), None
     canonical = canonical.to(dev)
@@ -76,6 +80,8 @@ def run(canonical_path: str | Path, views_path: str | Path, out: str | Path, cfg
     bg = torch.tensor(cfg.background, dtype=torch.float32, device=dev)
     out = Path(out)
     summary: dict = {"config": dataclasses.asdict(cfg), "frames": T, "views": {}}
+    if still:
+        summary["nothing_moves"] = still
     for cam in cameras_from_views(read_json(views_path)):
         if cfg.scale != 1.0:
             cam = cam.scaled(max(1, round(cam.width * cfg.scale)), max(1, round(cam.height * cfg.scale)))

@@ -137,12 +137,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
     add_canonical(p, help="canonical 3DGS PLY")
     p.add_argument("--init-model", default=None, help="model.pt of the previous round (omit: start from zero)")
-    p.add_argument("--targets", nargs="+", required=True, help="target clips (.npz), one per training view")
+    p.add_argument("--targets", nargs="+", default=None, help="target clips (.npz), one per training view")
     p.add_argument("--view-json", default=None, help="views JSON holding the cameras of the targets")
     p.add_argument("--view-ids", nargs="+", default=None, help="view ids of the targets (default: file stems)")
     p.add_argument("--camera-json", nargs="+", default=None, help="one camera JSON per target")
     p.add_argument("--static-refs", nargs="+", default=None, help="static reference images, one per target")
-    p.add_argument("--dynamic", required=True, help=".npy [N] bool (or int labels) selecting dynamic Gaussians")
+    p.add_argument("--dynamic", default=None, help=".npy [N] bool (or int labels) selecting dynamic Gaussians")
     add_out(p, "output model.pt")
     p.add_argument("--log-json", default=None, help="write the loss history and timing here")
     add_params(p, "update")
@@ -153,12 +153,29 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="anigs: train our deformation field; lifting / physics: fit that baseline instead "
                         "(anigs.baselines; same inputs, same model.pt format)")
     p.add_argument("--method-params", default=None, help="the baseline's config (animate.<method>) as JSON")
+    p.add_argument("--still", default=None, metavar="REASON",
+                   help="nothing to animate: write a model in which nothing moves (no targets; REASON is stored)")
+    p.add_argument("--frames", type=int, default=None, help="with --still: frames T of the model (animate.frames)")
 
 
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
     from anigs.io import write_json
 
+    if args.still:
+        from anigs.animate.still import write_still_model
+        from anigs.animate.deform import resolve_num_bases
+
+        if not args.frames:
+            raise ValueError("update --still: give --frames T (animate.frames)")
+        cfg = UpdateConfig.from_dict(parse_params(args.params))
+        K = resolve_num_bases(cfg.num_bases, args.frames, log)
+        info = write_still_model(args.canonical, args.out, args.frames, K, args.still)
+        if args.log_json:
+            write_json(args.log_json, info)
+        return 0
+    if not args.targets or not args.dynamic:
+        raise ValueError("update: --targets and --dynamic are required (or --still REASON when nothing moves)")
     if args.method != "anigs":
         from anigs.baselines import run_baseline
 

@@ -122,11 +122,16 @@ def run(inputs: ViewsInputs, cfg: ViewsConfig, dynamic_labels: list[int] | None 
         roi, lift_info = roi_from_masks(g, cameras, inputs.masks_dir, inputs.images, out)
         source = f"masks:{inputs.masks_dir or inputs.images}"
     log.info("views: %d of %d canonical Gaussians are regions of interest (%s)", int(roi.sum()), g.num, source)
-    plan = plan_views(g, roi, cameras, cfg)
+    fallback = None
+    if not roi.any():  # nothing moves: the views (for the still final renders) look at the whole scene
+        fallback = (f"no region of interest ({source} marks none of the {g.num} Gaussians dynamic): "
+                    "the views look at the whole scene, and nothing will move")
+        log.warning("views: %s", fallback)
+    plan = plan_views(g, roi if roi.any() else np.ones_like(roi), cameras, cfg)
     out.mkdir(parents=True, exist_ok=True)
     payload = plan.to_json()
     payload.update({"roi_source": source, "num_gaussians": g.num, "num_roi": int(roi.sum()),
-                    "config": {**cfg.__dict__}, "lift": lift_info})
+                    "roi_fallback": fallback, "config": {**cfg.__dict__}, "lift": lift_info})
     with atomic_path(out / "dynamic.npy") as tmp:
         with open(tmp, "wb") as fh:
             np.save(fh, roi)

@@ -10,7 +10,7 @@ from anigs.masks import (Frame, check_image, compute_masks, get_mask_backend, ma
                          render_frames, write_mask_png)
 from anigs.masks.vegetation import (GroundPlane, VegetationConfig, estimate_ground, otsu_threshold, pixel_heights,
                                     vegetation_mask)
-from test_lift import SKY, toy_scene
+from tests.masks.test_lift import SKY, toy_scene
 
 
 def _synthetic_frame(seed: int = 0, h: int = 96, w: int = 128):

@@ -12,7 +12,7 @@ import pytest
 from anigs.cameras import save_cameras
 from anigs.views import (ViewsConfig, azimuth_deg, ccw_order, farthest_point_order, in_wedges, plan_views,
                          view_camera)
-from test_lift import toy_scene
+from tests.masks.test_lift import toy_scene
 
 # the queue mechanics (order, yaws, overlap) on the toy ring, whose level views see mostly sky:
 # the paper's schedule as is (layout and coverage are tested with the garden layouts below)
@@ -174,12 +174,30 @@ def test_cli_views(tmp_path, scene):
                  "--params", '{"bogus": 1}']) == 1
 
 
+def test_nothing_dynamic_gives_views_of_the_whole_scene(tmp_path, scene):
+    """No region of interest (nothing to animate) is not a crash: the views look at the whole scene
+    (for the still final renders), views.json says so, and dynamic.npy stays empty."""
+    from anigs.cli import main
+
+    gs, lab, cams = scene
+    gs.save_ply(tmp_path / "canonical.ply")
+    save_cameras(tmp_path / "cameras.json", cams)
+    np.save(tmp_path / "none.npy", np.zeros(gs.num, bool))
+    out = tmp_path / "views"
+    assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+                 "--dynamic", str(tmp_path / "none.npy"), "--out", str(out),
+                 "--params", json.dumps({**SMALL, "num_locations": 2, "topdown_size": 200})]) == 0
+    data = json.loads((out / "views.json").read_text())
+    assert data["num_roi"] == 0 and "nothing will move" in data["roi_fallback"]
+    assert len(data["views"]) >= 1 and not np.load(out / "dynamic.npy").any()
+
+
 @pytest.mark.parametrize("route", ["images", "masks-dir"])
 def test_cli_views_from_2d(tmp_path, route):
     """Real-scene routes: ROI lifted from vegetation masks of the photos, or from given masks."""
     from anigs.cli import main
     from anigs.masks import compute_masks, render_frames, write_mask_png, write_rgb_png
-    from test_lift import SKY
+    from tests.masks.test_lift import SKY
 
     gs, lab, cams = toy_scene(ring=6, lawn=True)
     gs.save_ply(tmp_path / "canonical.ply")

@@ -79,7 +79,7 @@ rule round:
         f"{VARIANT_DIR}/logs/round{{round}}/round.log",
     benchmark:
         f"{VARIANT_DIR}/benchmarks/round{{round}}/round.tsv"
-    threads: 1
+    threads: 2  # the round's views one after another, each with both threads (same files as 1 thread)
     resources:
         mem_mb=6000,
         runtime=120,
@@ -124,3 +124,28 @@ rule update:
         "anigs --threads {threads} update --canonical {input.ply:q} {params.init} --targets {params.targets} "
         "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy --out {output.model:q} "
         "--log-json {output.log_json:q} --params {params.p:q} {params.method} > {log} 2>&1"
+
+
+# Nothing to animate (the effects stage chose no effect): one cheap job writes a model in which
+# nothing moves, and the final renders, export, viewer and evaluation use it; no round runs.
+rule still:
+    input:
+        ply=stage_path("static", "canonical.ply"),
+        effects=stage_path("effects", "effects.json"),
+    output:
+        f"{VARIANT_DIR}/still/model.pt",
+    params:
+        p=jparams("update", lambda wc: {"device": config["device"], "seed": config["seed"]}),
+        frames=lambda wc: sec(wc.scene, "animate", wc.variant)["frames"],
+        reason=_still_reason,
+        version=ANIGS_VERSION,
+    log:
+        f"{VARIANT_DIR}/logs/still.log",
+    benchmark:
+        f"{VARIANT_DIR}/benchmarks/still.tsv"
+    threads: 1
+    conda:
+        "../../envs/anigs.yaml"
+    shell:
+        "anigs --threads {threads} update --canonical {input.ply:q} --still {params.reason:q} --frames {params.frames} "
+        "--out {output:q} --params {params.p:q} > {log} 2>&1"

@@ -245,8 +245,35 @@ def _method_args(wc):
     return f"--method {a['method']} --method-params {shlex.quote(json.dumps(params, sort_keys=True))}"
 
 
+def _chosen_effects(scene):
+    """The effects the effects stage chose for ``scene`` (read once that checkpoint has run: the DAG
+    below it depends on what the scene contains)."""
+    path = checkpoints.effects.get(scene=stage_owner(scene, "effects")).output.effects
+    with open(path) as f:
+        return json.load(f)
+
+
+def animates(scene):
+    """False when the effects stage chose no effect: no round runs, the model is a still one."""
+    return bool(_chosen_effects(scene)["chosen"])
+
+
+def final_model_of(scene, variant):
+    """The model the final stages use: the last round's, or the still model when nothing moves."""
+    if not animates(scene):
+        return f"{R}/{scene}/{variant}/still/model.pt"
+    return model_path(scene, variant, plan(scene, variant).num_rounds)
+
+
 def final_model(wc):
-    return model_path(wc.scene, wc.variant, plan(wc.scene, wc.variant).num_rounds)
+    return final_model_of(wc.scene, wc.variant)
+
+
+def _still_reason(wc):
+    e = _chosen_effects(wc.scene)
+    req = e.get("requested")
+    return (f"the effects stage chose no effect (requested: {req if isinstance(req, str) else ', '.join(req) or 'none'}; "
+            f"detected: {', '.join(e.get('detected') or []) or 'none'}), so nothing moves and no round ran")
 
 
 def _eval_method(wc):

@@ -2,7 +2,7 @@
 # (incremental viewpoint expansion) and dynamic masks per view.
 
 
-rule effects:
+checkpoint effects:
     input:
         ply=stage_path("static", "canonical.ply"),
         cameras=stage_path("sfm", "cameras.json"),
