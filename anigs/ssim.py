@@ -4,7 +4,7 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
-_C1, _C2 = 0.01**2, 0.03**2
+C1, C2 = 0.01**2, 0.03**2  # stabilising constants for data range 1 (K1 = 0.01, K2 = 0.03)
 
 
 def _window(size: int, sigma: float, channels: int, dtype, device) -> torch.Tensor:
@@ -20,7 +20,9 @@ def ssim(a: torch.Tensor, b: torch.Tensor, window: int = 11, sigma: float = 1.5,
 
     Uses zero-padded 'same' convolution (the 3DGS training loss convention). For the
     evaluation metric use :func:`skimage.metrics.structural_similarity` semantics via
-    ``anigs.metrics`` (valid window, explicit data range).
+    ``anigs.metrics`` (valid window, explicit data range). This is the readable reference;
+    the training loop uses :func:`anigs.fused_ssim.fused_ssim` (same value, hand-written
+    backward, a fraction of the time).
     """
     if a.shape != b.shape:
         raise ValueError(f"ssim: shapes differ: {tuple(a.shape)} vs {tuple(b.shape)}")
@@ -35,7 +37,7 @@ def ssim(a: torch.Tensor, b: torch.Tensor, window: int = 11, sigma: float = 1.5,
     sxx = F.conv2d(x * x, w, padding=pad, groups=C) - mu_x**2
     syy = F.conv2d(y * y, w, padding=pad, groups=C) - mu_y**2
     sxy = F.conv2d(x * y, w, padding=pad, groups=C) - mu_x * mu_y
-    c1, c2 = _C1 * data_range**2, _C2 * data_range**2
+    c1, c2 = C1 * data_range**2, C2 * data_range**2
     m = ((2 * mu_x * mu_y + c1) * (2 * sxy + c2)) / ((mu_x**2 + mu_y**2 + c1) * (sxx + syy + c2))
     return m.mean() if reduce else m.permute(0, 2, 3, 1)
 

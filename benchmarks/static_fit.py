@@ -14,10 +14,20 @@ Inputs, in order of preference:
     cameras are used with pseudo-SfM points (every 6th ground-truth mean + 2 cm noise), so the
     benchmark needs neither COLMAP nor a previous workflow run.
 
+The step against the rasterizer (after the default run, on its fitted Gaussians): the fit's
+own step time over its last evaluation interval at a constant Gaussian count (from the curve;
+works with any version of the library), and, interleaved view by view, the median of the fit's
+training step (``anigs.static.fit.train_step``: render, fused SSIM loss, backward, divergence
+record, fused Adam) against the median of the rasterizer's forward+backward alone at the same
+Gaussians, SH degree, resolution and views; wall and process CPU medians and their ratios. Also
+per-part medians (loss forward+backward with the fused and with the reference SSIM, the
+optimiser step). Written to ``static_fit_step.csv``.
+
 Examples::
 
     python benchmarks/static_fit.py --scene results/demo --out benchmarks/out
     python benchmarks/static_fit.py --quick            # shorter runs, small sweep
+    python benchmarks/static_fit.py --scene results/demo --iterations 1000 --no-sweep --threads 1
 """
 from __future__ import annotations
 
@@ -78,6 +88,13 @@ def _capture_background(scene: Path, cams_json: Path | None = None) -> list[floa
     return None
 
 
+def _load() -> str:
+    try:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:
+        return "n/a"
+
+
 def rescale(imgs: list[torch.Tensor], cams: list[Camera], factor: float):
     if factor == 1.0:
         return imgs, cams
@@ -133,6 +150,108 @@ def draw_plot(path: Path, series: dict[str, list[tuple[float, float]]], title: s
     img.save(path)
 
 
+def _median_ms(xs: list[float]) -> float:
+    return float(np.median(xs)) * 1e3
+
+
+def step_vs_raster(g, imgs: list[torch.Tensor], cams: list[Camera], cfg: FitConfig, curve: list[dict],
+                   repeat: int) -> list[dict]:
+    """Rows (what, wall ms, CPU ms, ratio to the rasterizer) comparing the fit's step with the
+    rasterizer's forward+backward at the fitted Gaussians (see the module docstring)."""
+    import anigs.static.fit as F
+    from anigs.render import rasterize
+
+    dev = torch.device("cpu")
+    _, test = F.split_holdout(len(imgs), cfg.holdout_every)
+    train = [i for i in range(len(imgs)) if i not in set(test)]
+    deg = g.sh_degree
+    bg = torch.tensor(cfg.background, dtype=torch.float32)
+    mats = {i: (cams[i].torch_viewmat(dev), cams[i].torch_K(dev)) for i in train}
+    leaves = [t.detach().clone().requires_grad_(True) for t in (g.means, g.quats, g.scales, g.opacities, g.sh)]
+    gen = torch.Generator().manual_seed(0)
+    H, W = imgs[train[0]].shape[:2]
+    upstream = torch.rand(H, W, 3, generator=gen) * 1e-3  # a fixed image gradient
+
+    def raster(i: int) -> None:
+        rgb, _, _ = rasterize(*leaves, *mats[i], cams[i].width, cams[i].height, sh_degree=deg, background=bg,
+                              backend=cfg.backend)
+        rgb.backward(upstream)
+        for t in leaves:
+            t.grad = None
+
+    fns = {"rasterizer forward+backward": raster}
+    has_step = hasattr(F, "train_step")
+    if has_step:
+        params = F._to_params(g.detach(), dev)
+        params = {k: torch.nn.Parameter(v.detach().clone()) for k, v in params.items()}  # trained in place
+        lr = {"means": cfg.lr_means_final, "quats": cfg.lr_quats, "log_scales": cfg.lr_scales,
+              "opacity_logits": cfg.lr_opacity, "sh_dc": cfg.lr_sh_dc, "sh_rest": cfg.lr_sh_rest}
+        opt = F.make_optimizer(params, lr)
+        guard = F.DivergenceGuard(opt, list(params), dev)
+
+        def step(i: int) -> None:
+            F.train_step(params, opt, cams[i], imgs[i], deg, bg, cfg.backend, cfg.ssim_weight, mats=mats[i],
+                         guard=guard, step=1)
+
+        from anigs.fused_ssim import fused_ssim
+        from anigs.ssim import ssim
+
+        pred = {i: (imgs[i] + 0.05 * torch.randn(imgs[i].shape, generator=gen)).clamp(0, 1) for i in train}
+
+        def loss_with(ssim_fn):
+            def run(i: int) -> None:
+                x = pred[i].clone().requires_grad_(True)
+                w = cfg.ssim_weight
+                ((1 - w) * (x - imgs[i]).abs().mean() + w * (1 - ssim_fn(x, imgs[i]))).backward()
+            return run
+
+        for p in params.values():
+            p.grad = torch.zeros_like(p)
+
+        def adam(i: int) -> None:
+            opt.step()
+
+        fns = {"training step (train_step)": step, **fns, "loss fwd+bwd, fused SSIM": loss_with(fused_ssim),
+               "loss fwd+bwd, reference SSIM": loss_with(ssim)}
+    wall: dict[str, list[float]] = {k: [] for k in fns}
+    cpu: dict[str, list[float]] = {k: [] for k in fns}
+    for r in range(repeat + 2):  # two warm-up rounds
+        i = train[r % len(train)]
+        for name, fn in fns.items():
+            t0, c0 = time.perf_counter(), time.process_time()
+            fn(i)
+            if r >= 2:
+                wall[name].append(time.perf_counter() - t0)
+                cpu[name].append(time.process_time() - c0)
+    if has_step:  # the optimiser on its own, after the others (it needs gradients in place)
+        for p in params.values():
+            p.grad = torch.zeros_like(p)
+        wall["Adam step"], cpu["Adam step"] = [], []
+        for r in range(repeat + 2):
+            t0, c0 = time.perf_counter(), time.process_time()
+            opt.step()
+            if r >= 2:
+                wall["Adam step"].append(time.perf_counter() - t0)
+                cpu["Adam step"].append(time.process_time() - c0)
+    rw = _median_ms(wall["rasterizer forward+backward"])
+    rc = _median_ms(cpu["rasterizer forward+backward"])
+    rows = []
+    # the fit's own steps over the last evaluation interval (constant Gaussian count)
+    a, b = (curve[-2], curve[-1]) if len(curve) >= 2 else (None, None)
+    if a is not None and a["num_gaussians"] == b["num_gaussians"] == g.num and b["iteration"] > a["iteration"]:
+        n = b["iteration"] - a["iteration"]
+        fw = (b["train_seconds"] - a["train_seconds"]) / n * 1e3
+        fc = (b["train_cpu_seconds"] - a["train_cpu_seconds"]) / n * 1e3
+        rows.append({"what": f"fit, mean step over iterations {a['iteration']}-{b['iteration']}",
+                     "wall_ms": fw, "cpu_ms": fc, "wall_ratio": fw / rw, "cpu_ratio": fc / rc})
+    for name in wall:
+        w, c = _median_ms(wall[name]), _median_ms(cpu[name])
+        rows.append({"what": name, "wall_ms": w, "cpu_ms": c, "wall_ratio": w / rw, "cpu_ratio": c / rc})
+    for r in rows:
+        r.update(num_gaussians=g.num, size=f"{W}x{H}", sh_degree=deg, repeat=repeat)
+    return rows
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", type=Path, default=None, help="workflow results folder of a scene (has sfm/)")
@@ -144,6 +263,9 @@ def main() -> int:
     ap.add_argument("--budgets", default="15000,30000,60000", help="max_gaussians values for the sweep")
     ap.add_argument("--quick", action="store_true", help="1000 iterations, scales 0.5,1.0, budgets 15000,30000")
     ap.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
+    ap.add_argument("--no-sweep", action="store_true", help="the default run only (and the step comparison)")
+    ap.add_argument("--step-repeat", type=int, default=30,
+                    help="interleaved repetitions of the step-versus-rasterizer comparison (0 = skip it)")
     args = ap.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -162,13 +284,14 @@ def main() -> int:
         scales, budgets = [0.5, 1.0], [15000, 30000]
     default_budget = FitConfig.from_dict(base).densify.max_gaussians
     runs = [("default", 1.0, default_budget)]
-    runs += [(f"res x{s:g}", s, default_budget) for s in scales if s != 1.0]
-    runs += [(f"budget {b // 1000}k", 1.0, b) for b in budgets if b != default_budget]
+    if not args.no_sweep:
+        runs += [(f"res x{s:g}", s, default_budget) for s in scales if s != 1.0]
+        runs += [(f"budget {b // 1000}k", 1.0, b) for b in budgets if b != default_budget]
 
     print(f"scene: {what}; {len(imgs)} images {cams[0].width}x{cams[0].height}, {len(pts)} points; "
-          f"torch threads {torch.get_num_threads()}, cpus {os.cpu_count()}")
+          f"torch threads {torch.get_num_threads()}, cpus {os.cpu_count()}; load average {_load()}")
     args.out.mkdir(parents=True, exist_ok=True)
-    rows, series, summary = [], {}, []
+    rows, series, summary, step_rows = [], {}, [], []
     for name, s, budget in runs:
         cfg_d = {**base, "densify": {**base.get("densify", {}), "max_gaussians": budget}}
         cfg = FitConfig.from_dict(cfg_d)
@@ -195,6 +318,11 @@ def main() -> int:
                          "test_psnr": round(r["test_psnr"], 3), "test_ssim": round(r["test_ssim"], 4),
                          "num_gaussians": r["num_gaussians"]})
         series[f"{name} ({cm[0].width}x{cm[0].height})"] = [(r["train_seconds"], r["test_psnr"]) for r in m["curve"]]
+        if name == "default" and args.step_repeat > 0:
+            step_rows = step_vs_raster(g, im, cm, cfg, m["curve"], args.step_repeat)
+            if m.get("step_ms_median_final") is not None:
+                print(f"fit: median step {m['step_ms_median']:.1f} ms, {m['step_ms_median_final']:.1f} ms from "
+                      f"iteration {m['final_steps_from']} (constant Gaussian count)")
         print(f"{name:>12}: {cm[0].width}x{cm[0].height}, budget {budget}: held-out PSNR {m['test_psnr']:.2f} dB "
               f"({full:.2f} dB at full resolution), "
               f"train PSNR {m['train_psnr']:.2f} dB, {m['num_gaussians']} Gaussians, train {m['train_seconds']:.0f} s "
@@ -204,11 +332,24 @@ def main() -> int:
     for r in rows:
         print(f"{r['run']:>12} {r['width']:>4}x{r['height']:<3} {r['max_gaussians']:>7} {r['iteration']:>6} "
               f"{r['train_seconds']:>8.1f} {r['test_psnr']:>7.2f} {r['test_ssim']:>6.3f} {r['num_gaussians']:>7}")
+    if step_rows:
+        r0 = step_rows[0]
+        print(f"\nstep versus rasterizer: {r0['num_gaussians']} Gaussians, {r0['size']}, SH degree {r0['sh_degree']}, "
+              f"{r0['repeat']} interleaved repetitions, torch threads {torch.get_num_threads()}, "
+              f"load average {_load()}")
+        print(f"{'':>42} {'wall ms':>8} {'CPU ms':>8} {'x raster (wall)':>16} {'x raster (CPU)':>15}")
+        for r in step_rows:
+            print(f"{r['what']:>42} {r['wall_ms']:>8.2f} {r['cpu_ms']:>8.2f} {r['wall_ratio']:>16.2f} "
+                  f"{r['cpu_ratio']:>15.2f}")
     csv_path, png_path = args.out / "static_fit.csv", args.out / "static_fit.png"
     sum_path = args.out / "static_fit_summary.csv"
     from anigs.io import atomic_path
 
-    for path, table in ((csv_path, rows), (sum_path, summary)):
+    tables = [(csv_path, rows), (sum_path, summary)]
+    if step_rows:
+        tables.append((args.out / "static_fit_step.csv", [{k: (round(v, 3) if isinstance(v, float) else v)
+                                                            for k, v in r.items()} for r in step_rows]))
+    for path, table in tables:
         with atomic_path(path) as tmp:
             with open(tmp, "w", newline="") as fh:
                 w = csv.DictWriter(fh, fieldnames=list(table[0]))
@@ -216,7 +357,7 @@ def main() -> int:
                 w.writerows(table)
     with atomic_path(png_path) as tmp:
         draw_plot(tmp, series, f"static fit: held-out PSNR vs training time ({os.cpu_count()} cpus, shared)")
-    print(f"\nwrote {csv_path}, {sum_path} and {png_path}")
+    print(f"\nwrote {', '.join(str(p) for p, _ in tables)} and {png_path}")
     return 0
 
 

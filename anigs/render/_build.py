@@ -92,7 +92,13 @@ def library_path() -> Path:
 
 def build(verbose: bool = False) -> Path:
     """Compile the kernel if it is not cached; return the library path."""
-    out = library_path()
+    return compile_cached(SRC, library_path(), "the cpu rasterizer", verbose)
+
+
+def compile_cached(src: Path, out: Path, what: str, verbose: bool = False) -> Path:
+    """Compile ``src`` into the shared library ``out`` unless it exists (atomically: a temporary name,
+    then a rename, so parallel jobs never load a half-written file). Tries the instruction-set level
+    and OpenMP first, then without each; all failing raises :class:`KernelBuildError` naming ``what``."""
     if out.exists():
         return out
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -106,7 +112,7 @@ def build(verbose: bool = False) -> Path:
         # instruction set if the compiler does not know the -march level
         variants = [(m, o) for m in ([arch, []] if arch else [[]]) for o in ([omp, []] if omp else [[]])]
         for march, o in variants:
-            cmd = [cxx, *_FLAGS, *march, *o, str(SRC), "-o", tmp]
+            cmd = [cxx, *_FLAGS, *march, *o, str(src), "-o", tmp]
             res = subprocess.run(cmd, capture_output=True, text=True)
             if res.returncode == 0:
                 if verbose:
@@ -117,7 +123,7 @@ def build(verbose: bool = False) -> Path:
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-    raise KernelBuildError("building the cpu rasterizer failed:\n" + "\n".join(errors))
+    raise KernelBuildError(f"building {what} failed:\n" + "\n".join(errors))
 
 
 def load() -> ctypes.CDLL:

@@ -1,4 +1,5 @@
-"""``anigs build-kernel``: compile the CPU rasterizer now (the set-up script calls this)."""
+"""``anigs build-kernel``: compile the CPU kernels now, the rasterizer and the fused SSIM (the set-up
+script calls this; otherwise each builds on first use)."""
 from __future__ import annotations
 
 import argparse
@@ -11,8 +12,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from anigs.render import _build
 
+    from anigs import ssim_kernel
+
     path = _build.build(verbose=not args.quiet)
     _build.load()
+    ssim = ssim_kernel.build(verbose=not args.quiet)
+    ssim_kernel.load()
     if not args.quiet:
-        print(f"cpu rasterizer ready: {path}")
+        print(f"cpu rasterizer ready: {path}\nfused SSIM kernel ready: {ssim}")
     return 0

@@ -9,11 +9,17 @@ whose param groups carry a ``"name"`` equal to the dict key. ``means``, ``quats`
 Usage, per training step::
 
     rgb, alpha, meta = rasterize(...)
-    meta["means2d"].retain_grad()
+    if stats_needed(cfg, step):           # False after the last scheduled densification
+        meta["means2d"].retain_grad()
     loss.backward()
-    update_state(state, meta, width, height)
+    if stats_needed(cfg, step):
+        update_state(state, meta, width, height)
     optimizer.step(); optimizer.zero_grad()
     params = refine(params, optimizer, state, step, cfg, scene_extent, generator)
+
+The optimizer may be fused (``torch.optim.Adam(fused=True)``): refinement moves each
+parameter's state (moments and step count) to the new tensor, rows gathered like the
+parameter's own.
 
 Gradient threshold units follow the original 3DGS: the screen-space gradient is measured in
 NDC units, i.e. the pixel-space gradient of ``means2d`` times ``(width/2, height/2)``.
@@ -126,15 +132,34 @@ def update_state(state: DensifyState, meta: dict[str, Any], width: int, height: 
     n = grad.shape[0]
     if n != state.num:
         raise ValueError(f"densify.update_state: state has {state.num} rows but the render has {n} Gaussians")
+    # one pass per statistic, no copy of the gradient: NDC norm, visible and finite -> sum,
+    # visible -> count, radius fraction -> running max (all in place)
+    norms = torch.linalg.vector_norm(grad * grad.new_tensor([width / 2.0, height / 2.0]), dim=-1)
     vis = radii > 0
-    g = grad.detach().clone()
-    g[:, 0] *= width / 2.0
-    g[:, 1] *= height / 2.0
-    norms = g.norm(dim=-1)
-    norms = torch.where(torch.isfinite(norms), norms, torch.zeros_like(norms))
-    state.grad_sum += torch.where(vis, norms, torch.zeros_like(norms))
-    state.count += vis.float()
-    state.max_radii = torch.maximum(state.max_radii, radii.float() / float(max(width, height)))
+    state.grad_sum.add_(torch.where(vis & torch.isfinite(norms), norms, 0.0))
+    state.count.add_(vis)
+    torch.maximum(state.max_radii, radii / float(max(width, height)), out=state.max_radii)
+
+
+def stats_needed(cfg: DensifyConfig, step: int) -> bool:
+    """Whether :func:`update_state` at ``step`` can still matter: some densification step
+    ``s >= step`` is scheduled (start <= s < stop, s a multiple of every). After the last one
+    the statistics are never read, so the fit skips them (and ``retain_grad``)."""
+    last = ((cfg.stop - 1) // cfg.every) * cfg.every
+    return cfg.start <= last and step <= last
+
+
+def _densify_due(cfg: DensifyConfig, step: int) -> bool:
+    return cfg.start <= step < cfg.stop and step % cfg.every == 0
+
+
+def _reset_due(cfg: DensifyConfig, step: int) -> bool:
+    return cfg.reset_every > 0 and step < cfg.stop and step % cfg.reset_every == 0
+
+
+def refine_due(cfg: DensifyConfig, step: int) -> bool:
+    """Whether :func:`refine` changes anything at ``step`` (a densification or an opacity reset)."""
+    return _densify_due(cfg, step) or _reset_due(cfg, step)
 
 
 def _replace_rows(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimizer,
@@ -157,7 +182,7 @@ def _replace_rows(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimi
         if st:
             for key in ("exp_avg", "exp_avg_sq", "max_exp_avg_sq"):
                 if key in st and torch.is_tensor(st[key]) and st[key].shape[:1] == old.shape[:1]:
-                    m = st[key][src].clone()
+                    m = st[key][src]  # advanced indexing: already a copy
                     m[is_new] = 0
                     st[key] = m
             optimizer.state[new] = st
@@ -200,9 +225,9 @@ def refine(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimizer, st
     missing = [k for k in REQUIRED if k not in params]
     if missing:
         raise KeyError(f"densify.refine: params lack {missing}")
-    if cfg.start <= step < cfg.stop and step % cfg.every == 0:
+    if _densify_due(cfg, step):
         params = _densify_and_prune(params, optimizer, state, step, cfg, scene_extent, generator)
-    if cfg.reset_every > 0 and step < cfg.stop and step % cfg.reset_every == 0:
+    if _reset_due(cfg, step):
         reset_opacity(params, optimizer, cfg.reset_opacity)
         state.last["opacity_reset"] = 1
     return params

@@ -3,6 +3,13 @@
 Adam with the usual 3DGS per-parameter learning rates (position lr decaying exponentially and
 scaled by the scene extent), loss ``(1-w) L1 + w (1 - SSIM)``, SH degree raised progressively,
 densification by :mod:`anigs.static.densify`, every ``holdout_every``-th image held out for evaluation.
+
+A step is the rasterizer plus as little as possible around it: the fused SSIM
+(:mod:`anigs.fused_ssim`), a fused Adam, densification statistics only while a densification
+is still to come, and no host reads except every ``LOG_EVERY`` steps and before checkpoints,
+evaluations and refinements (a non-finite step is recorded on the device and skipped by the
+optimizer, then reported with its iteration at the next read). ``benchmarks/static_fit.py``
+compares the step with the rasterizer's own forward+backward.
 """
 from __future__ import annotations
 
@@ -11,21 +18,25 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 import torch
 
 from anigs.cameras import Camera
 from anigs.configs import reject_unknown_keys
-from anigs.static.densify import DensifyConfig, DensifyState, refine, schedule_for, update_state
+from anigs.static.densify import (DensifyConfig, DensifyState, refine, refine_due, schedule_for, stats_needed,
+                                  update_state)
 from anigs.device import get_device, seed_everything
+from anigs.fused_ssim import fused_ssim
 from anigs.geometry.extent import scene_extent
 from anigs.gaussians import Gaussians
 from anigs.render import rasterize
-from anigs.ssim import psnr, ssim
+from anigs.ssim import psnr
 
 log = logging.getLogger(__name__)
+
+LOG_EVERY = 10  # steps between host reads of the loss (progress) and of the divergence record
 
 
 class FitDivergedError(RuntimeError):
@@ -152,20 +163,25 @@ def params_to_gaussians(params: dict[str, torch.Tensor]) -> Gaussians:
     return g.detach().to("cpu")
 
 
-def _render(params: dict[str, torch.Tensor], cam: Camera, sh_degree: int, bg: torch.Tensor, backend: str):
+def _render(params: dict[str, torch.Tensor], cam: Camera, sh_degree: int, bg: torch.Tensor, backend: str,
+            mats: tuple[torch.Tensor, torch.Tensor] | None = None):
+    """Render the parameter dict; only the SH bands up to ``sh_degree`` are passed on (the others
+    get zero gradients, as when the rasterizer ignores them). ``mats``: cached (viewmat, K)."""
     dev = params["means"].device
-    sh = torch.cat([params["sh_dc"], params["sh_rest"]], 1)
+    k = (sh_degree + 1) ** 2
+    sh = torch.cat([params["sh_dc"], params["sh_rest"][:, :k - 1]], 1)
+    viewmat, K = mats if mats is not None else (cam.torch_viewmat(dev), cam.torch_K(dev))
     return rasterize(params["means"], params["quats"], params["log_scales"].exp(),
-                     torch.sigmoid(params["opacity_logits"]), sh, cam.torch_viewmat(dev), cam.torch_K(dev),
+                     torch.sigmoid(params["opacity_logits"]), sh, viewmat, K,
                      cam.width, cam.height, sh_degree=sh_degree, background=bg, backend=backend)
 
 
 def loss_fn(pred: torch.Tensor, target: torch.Tensor, ssim_weight: float) -> torch.Tensor:
-    """``(1-w) L1 + w (1 - SSIM)`` for images [H,W,3]."""
+    """``(1-w) L1 + w (1 - SSIM)`` for images [H,W,3] (SSIM: :func:`anigs.fused_ssim.fused_ssim`)."""
     l1 = (pred - target).abs().mean()
     if ssim_weight == 0:
         return l1
-    return (1 - ssim_weight) * l1 + ssim_weight * (1 - ssim(pred, target))
+    return (1 - ssim_weight) * l1 + ssim_weight * (1 - fused_ssim(pred, target))
 
 
 @torch.no_grad()
@@ -179,8 +195,104 @@ def evaluate(params: dict[str, torch.Tensor], images: Sequence[torch.Tensor], ca
         rgb, _, _ = _render(params, cam, sh_degree, bg, backend)
         rgb = rgb.clamp(0, 1)
         ps.append(psnr(rgb, img))
-        ss.append(float(ssim(rgb, img)))
+        ss.append(float(fused_ssim(rgb, img)))
     return {"psnr": float(np.mean(ps)), "ssim": float(np.mean(ss)), "views": len(images)}
+
+
+def make_optimizer(params: dict[str, torch.nn.Parameter], lr: dict[str, float]) -> torch.optim.Adam:
+    """Adam with one group per parameter (``"name"`` = its key, learning rate ``lr[key]``), eps 1e-15.
+
+    Fused (one kernel for all groups) where torch has it for the device, else foreach.
+    """
+    groups = [{"params": [params[k]], "lr": lr[k], "name": k} for k in params]
+    dev = next(iter(params.values())).device
+    if dev.type in ("cpu", "cuda"):
+        try:
+            return torch.optim.Adam(groups, lr=0.0, eps=1e-15, fused=True)
+        except (RuntimeError, ValueError):  # an older torch or an unsupported dtype
+            groups = [{"params": [params[k]], "lr": lr[k], "name": k} for k in params]
+    return torch.optim.Adam(groups, lr=0.0, eps=1e-15, foreach=True)
+
+
+class DivergenceGuard:
+    """Non-finite loss or gradient detection without a host read per step.
+
+    :meth:`record` (after ``loss.backward()``) sums every gradient (a non-finite entry makes
+    its sum non-finite; so does a sum beyond float range, itself a divergence) and keeps, on
+    the device, the first iteration where the loss or a sum was not finite, which of them, and
+    the loss. With a fused Adam that step is skipped by the optimizer itself (``found_inf``),
+    so the parameters stay finite until :meth:`check` reads the record and raises; with any
+    other optimizer :meth:`record` checks at once (a host read per step).
+    """
+
+    def __init__(self, optimizer: torch.optim.Optimizer, names: Sequence[str], device: torch.device,
+                 on_failure: Callable[[int, str], None] | None = None):
+        self.names = list(names)
+        self.on_failure = on_failure  # (iteration, what) -> raises; default FitDivergedError
+        self.deferred = bool(optimizer.defaults.get("fused"))
+        self.found_inf = torch.zeros((), device=device)
+        self.first_bad = torch.zeros((), dtype=torch.long, device=device)  # 0: none yet
+        self.bad = torch.zeros(len(self.names) + 1, dtype=torch.bool, device=device)  # [loss, *params]
+        self.loss = torch.zeros((), device=device)
+        if self.deferred:
+            optimizer.found_inf = self.found_inf  # read by Adam.step: skip the update when 1
+
+    def record(self, step: int, loss: torch.Tensor, params: dict[str, torch.Tensor]) -> None:
+        """Record step ``step`` (loss scalar, gradients of ``params`` in ``names`` order)."""
+        sums = [loss.detach().reshape(())]
+        sums += [p.grad.sum() if p.grad is not None else torch.zeros((), device=loss.device)
+                 for p in (params[k] for k in self.names)]
+        bad = ~torch.isfinite(torch.stack(sums))
+        any_bad = bad.any()
+        self.found_inf.copy_(any_bad)
+        first = any_bad & (self.first_bad == 0)
+        self.first_bad = torch.where(first, step, self.first_bad)
+        self.bad = torch.where(first, bad, self.bad)
+        self.loss = torch.where(first, sums[0].float(), self.loss)
+        if not self.deferred:
+            self.check()
+
+    def failure(self) -> tuple[int, str] | None:
+        """(iteration, what) of the first non-finite step, or None (one host read)."""
+        step = int(self.first_bad)
+        if step == 0:
+            return None
+        bad = self.bad.tolist()
+        if bad[0]:
+            return step, f"loss is {float(self.loss)}"
+        return step, f"non-finite gradient of {[n for n, b in zip(self.names, bad[1:]) if b]}"
+
+    def check(self) -> None:
+        """Raise (``on_failure``, else :class:`FitDivergedError`) if a recorded step was not finite."""
+        f = self.failure()
+        if f is None:
+            return
+        if self.on_failure is not None:
+            self.on_failure(*f)
+        raise FitDivergedError(f"static fit diverged at iteration {f[0]}: {f[1]}")
+
+
+def train_step(params: dict[str, torch.nn.Parameter], optimizer: torch.optim.Optimizer, cam: Camera,
+               target: torch.Tensor, sh_degree: int, bg: torch.Tensor, backend: str, ssim_weight: float,
+               mats: tuple[torch.Tensor, torch.Tensor] | None = None, stats: DensifyState | None = None,
+               guard: DivergenceGuard | None = None, step: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+    """One optimisation step on view ``cam`` with image ``target`` [H,W,3]: render, loss, backward,
+    densification statistics into ``stats`` (None: skipped), divergence record, Adam step.
+
+    Returns the detached loss (0-dim, on the device; not read here) and rendered rgb [H,W,3].
+    """
+    rgb, _, meta = _render(params, cam, sh_degree, bg, backend, mats)
+    if stats is not None:
+        meta["means2d"].retain_grad()
+    loss = loss_fn(rgb, target, ssim_weight)
+    loss.backward()
+    if guard is not None:
+        guard.record(step, loss, params)
+    if stats is not None:
+        update_state(stats, meta, cam.width, cam.height)
+    optimizer.step()
+    optimizer.zero_grad(set_to_none=True)
+    return loss.detach(), rgb.detach()
 
 
 def _lr_means(step: int, total: int, lr0: float, lr1: float) -> float:
@@ -238,11 +350,11 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     bg = torch.tensor(cfg.background, dtype=torch.float32, device=device)
     lr = {"means": cfg.lr_means * extent, "quats": cfg.lr_quats, "log_scales": cfg.lr_scales,
           "opacity_logits": cfg.lr_opacity, "sh_dc": cfg.lr_sh_dc, "sh_rest": cfg.lr_sh_rest}
-    optimizer = torch.optim.Adam([{"params": [params[k]], "lr": lr[k], "name": k} for k in params],
-                                 lr=0.0, eps=1e-15)
+    optimizer = make_optimizer(params, lr)
     dstate = DensifyState.empty(g0.num, device)
-    log.info("static fit: %d train / %d held-out views, %d initial Gaussians, scene extent %.3f, %d iterations",
-             len(train_idx), len(test_idx), g0.num, extent, cfg.iterations)
+    log.info("static fit: %d train / %d held-out views, %d initial Gaussians, scene extent %.3f, %d iterations, "
+             "%s Adam", len(train_idx), len(test_idx), g0.num, extent, cfg.iterations,
+             "fused" if optimizer.defaults.get("fused") else "foreach")
 
     eval_seconds = eval_cpu = 0.0
 
@@ -275,6 +387,8 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         last_good.update(iteration=step, path=str(checkpoint_path))
 
     bar = None
+    guard = DivergenceGuard(optimizer, list(params), device,
+                            on_failure=lambda step, what: _diverged(what, step, last_good, bar))
     save_checkpoint(0)
     order: list[int] = []
     if progress:
@@ -288,45 +402,51 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     ema_loss = ema_psnr = None
     deg = 0
     densify_cfg = schedule_for(cfg.densify, cfg.iterations)
+    means_group = next(g for g in optimizer.param_groups if g["name"] == "means")  # refine keeps the groups
+    train_mats = [(c.torch_viewmat(device), c.torch_K(device)) for c in train_cams]
+    step_seconds: list[float] = []  # per step, checkpoints and evaluations excluded
+    last_refine = 0  # last step whose refinement changed the set
     for step in range(1, cfg.iterations + 1):
+        t_step = time.perf_counter()
         deg = min(cfg.sh_degree, (step - 1) // cfg.sh_increase_every)
-        for group in optimizer.param_groups:
-            if group["name"] == "means":
-                group["lr"] = _lr_means(step - 1, cfg.iterations, cfg.lr_means * extent, cfg.lr_means_final * extent)
+        means_group["lr"] = _lr_means(step - 1, cfg.iterations, cfg.lr_means * extent, cfg.lr_means_final * extent)
         if not order:
             order = torch.randperm(len(train_idx), generator=gen).tolist()
         v = order.pop()
         cam, target = train_cams[v], train_imgs[v]
         if params["means"].shape[0] == 0:
             raise RuntimeError(f"static fit: no Gaussians left at iteration {step}")
-        rgb, _, meta = _render(params, cam, deg, bg, cfg.backend)
-        meta["means2d"].retain_grad()
-        loss = loss_fn(rgb, target, cfg.ssim_weight)
-        if not torch.isfinite(loss):
-            _diverged(f"loss is {float(loss.detach())}", step, last_good, bar)
-        loss.backward()
-        bad = [k for k, p in params.items() if p.grad is not None and not torch.isfinite(p.grad).all()]
-        if bad:
-            _diverged(f"non-finite gradient of {bad}", step, last_good, bar)
-        update_state(dstate, meta, cam.width, cam.height)
-        optimizer.step()
-        optimizer.zero_grad(set_to_none=True)
+        stats = dstate if stats_needed(densify_cfg, step) else None
+        loss, rgb = train_step(params, optimizer, cam, target, deg, bg, cfg.backend, cfg.ssim_weight,
+                               mats=train_mats[v], stats=stats, guard=guard, step=step)
 
-        lv = float(loss.detach())
-        pv = psnr(rgb.detach().clamp(0, 1), target)
-        ema_loss = lv if ema_loss is None else 0.9 * ema_loss + 0.1 * lv
-        ema_psnr = pv if ema_psnr is None else 0.9 * ema_psnr + 0.1 * pv
-        if cfg.checkpoint_every > 0 and step % cfg.checkpoint_every == 0:
+        ckpt_due = cfg.checkpoint_every > 0 and step % cfg.checkpoint_every == 0
+        eval_due = cfg.eval_every > 0 and step % cfg.eval_every == 0 and step != cfg.iterations
+        due = refine_due(densify_cfg, step)
+        log_due = step % LOG_EVERY == 0 or step == cfg.iterations
+        if log_due or ckpt_due or eval_due or due:
+            guard.check()  # the one host read: raises naming the first non-finite step
+        if log_due and bar is not None:
+            lv, pv = float(loss), psnr(rgb.clamp(0, 1), target)
+            ema_loss = lv if ema_loss is None else 0.9 * ema_loss + 0.1 * lv
+            ema_psnr = pv if ema_psnr is None else 0.9 * ema_psnr + 0.1 * pv
+        aside = time.perf_counter()
+        if ckpt_due:
             save_checkpoint(step)
-        if cfg.eval_every > 0 and step % cfg.eval_every == 0 and step != cfg.iterations:
+        if eval_due:
             curve.append(checkpoint(step, deg))  # before refinement: an opacity reset would hide the progress
+        aside = time.perf_counter() - aside
         params = refine(params, optimizer, dstate, step, densify_cfg, extent, gen)
+        if due:
+            last_refine = step
+        step_seconds.append(time.perf_counter() - t_step - aside)
         if bar is not None:
             bar.update(1)
-            if step % 10 == 0 or step == cfg.iterations:
+            if log_due:
                 bar.set_postfix(loss=f"{ema_loss:.4f}", psnr=f"{ema_psnr:.2f}", n=int(params["means"].shape[0]))
     if bar is not None:
         bar.close()
+    guard.check()
 
     final_deg = min(cfg.sh_degree, max(deg, 0))
     if cfg.iterations > 0:
@@ -347,10 +467,20 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         "train_cpu_seconds": curve[-1]["train_cpu_seconds"], "torch_threads": torch.get_num_threads(),
         "scene_extent": extent, "sh_degree": cfg.sh_degree, "active_sh_degree": final_deg,
         "holdout": [cameras[i].name for i in test_idx], "curve": curve,
+        **_step_summary(step_seconds, last_refine),
     }
     log.info("static fit done: %d Gaussians, held-out PSNR %.2f dB, train PSNR %.2f dB, %.1f s",
              gaussians.num, te["test_psnr"], tr["psnr"], metrics["seconds"])
     return gaussians, metrics
+
+
+def _step_summary(step_seconds: list[float], last_refine: int) -> dict[str, Any]:
+    """Median step time (ms) over the fit and over its steps after the last refinement (constant
+    Gaussian count: what ``benchmarks/static_fit.py`` compares with the rasterizer)."""
+    final = step_seconds[last_refine:]
+    med = lambda xs: round(float(np.median(xs)) * 1e3, 3) if xs else None
+    return {"step_ms_median": med(step_seconds), "step_ms_median_final": med(final),
+            "final_steps_from": last_refine + 1 if final else None}
 
 
 def _diverged(what: str, step: int, last_good: dict[str, Any], bar) -> None:

@@ -6,13 +6,13 @@ import math
 import pytest
 import torch
 
-from anigs.static.densify import (AllPrunedError, DensifyConfig, DensifyState, refine, reset_opacity,
-                           update_state)
+from anigs.static.densify import (AllPrunedError, DensifyConfig, DensifyState, refine, refine_due, reset_opacity,
+                                  stats_needed, update_state)
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
-def make_params(n: int, scale: float = 0.01, opacity: float = 0.5, seed: int = 0):
+def make_params(n: int, scale: float = 0.01, opacity: float = 0.5, seed: int = 0, fused: bool = False):
     g = torch.Generator().manual_seed(seed)
     P = torch.nn.Parameter
     params = {
@@ -23,7 +23,8 @@ def make_params(n: int, scale: float = 0.01, opacity: float = 0.5, seed: int = 0
         "sh_dc": P(torch.randn(n, 1, 3, generator=g)),
         "sh_rest": P(torch.zeros(n, 3, 3)),
     }
-    opt = torch.optim.Adam([{"params": [v], "lr": 1e-3, "name": k} for k, v in params.items()], eps=1e-15)
+    opt = torch.optim.Adam([{"params": [v], "lr": 1e-3, "name": k} for k, v in params.items()], eps=1e-15,
+                           fused=fused or None)
     return params, opt
 
 
@@ -85,14 +86,16 @@ def test_update_state_rejects_size_mismatch():
         update_state(DensifyState.empty(3), {"means2d": m, "radii": torch.ones(2)}, 10, 10)
 
 
-def test_clone_small_and_split_large_keep_adam_moments_consistent():
-    params, opt = make_params(4, scale=0.01)
+@pytest.mark.parametrize("fused", [False, True])
+def test_clone_small_and_split_large_keep_adam_moments_consistent(fused):
+    params, opt = make_params(4, scale=0.01, fused=fused)
     with torch.no_grad():
         params["log_scales"][1] = math.log(0.5)  # large: will be split (extent 1, dense_percent 0.05)
     take_adam_step(params, opt)
     old_means = params["means"].detach().clone()
     parent_scale = params["log_scales"][1].detach().exp()
     old_m = {k: opt.state[v]["exp_avg"].clone() for k, v in params.items()}
+    old_v = {k: opt.state[v]["exp_avg_sq"].clone() for k, v in params.items()}
     st = state_with_grads(4, [0.01, 0.01, 0.0, 0.0])  # 0 -> clone, 1 -> split, 2 and 3 untouched
     new = refine(params, opt, st, step=5, cfg=CFG, scene_extent=1.0, generator=torch.Generator().manual_seed(0))
     assert new["means"].shape[0] == 4 + 1 + 1  # one clone, one split (2 children replace 1)
@@ -107,12 +110,15 @@ def test_clone_small_and_split_large_keep_adam_moments_consistent():
     for k, v in new.items():
         group = next(g for g in opt.param_groups if g["name"] == k)
         assert group["params"][0] is v
-        m = opt.state[v]["exp_avg"]
-        assert m.shape == v.shape
-        assert torch.equal(m[:3], old_m[k][[0, 2, 3]])
-        assert torch.count_nonzero(m[3:]) == 0
+        m, v2 = opt.state[v]["exp_avg"], opt.state[v]["exp_avg_sq"]
+        assert m.shape == v.shape and v2.shape == v.shape
+        assert torch.equal(m[:3], old_m[k][[0, 2, 3]]) and torch.equal(v2[:3], old_v[k][[0, 2, 3]])
+        assert torch.count_nonzero(m[3:]) == 0 and torch.count_nonzero(v2[3:]) == 0
+        assert float(opt.state[v]["step"]) == 1  # the step count moves with the moments
+    assert len(opt.state) == len(new)  # no state left on the replaced tensors
     assert st.num == 6 and float(st.grad_sum.sum()) == 0
     take_adam_step(new, opt)  # the optimizer still works with the new shapes
+    assert all(float(opt.state[v]["step"]) == 2 for v in new.values())
 
 
 def test_prune_low_opacity_and_too_large_after_reset():
@@ -220,3 +226,22 @@ def test_schedule_ends_densification_before_the_fit_ends():
     assert schedule_for(DensifyConfig(stop_fraction=1.0), 1000).stop == 1000
     with pytest.raises(ValueError, match="stop_fraction"):
         DensifyConfig.from_dict({"stop_fraction": 0})
+
+
+def test_statistics_are_needed_until_the_last_scheduled_densification():
+    cfg = DensifyConfig(start=300, stop=800, every=100)
+    assert [s for s in (1, 299, 700, 701, 800, 1000) if stats_needed(cfg, s)] == [1, 299, 700]
+    assert not stats_needed(DensifyConfig(start=300, stop=250, every=100), 1)  # nothing scheduled
+    assert stats_needed(DensifyConfig(start=10, stop=31, every=10), 30)
+    assert not stats_needed(DensifyConfig(start=10, stop=30, every=10), 21)  # 30 is not < stop
+
+
+def test_refine_due_matches_what_refine_does():
+    cfg = DensifyConfig(start=5, stop=20, every=5, reset_every=8)
+    params, opt = make_params(6, scale=0.01)
+    for step in range(1, 25):
+        st = state_with_grads(params["means"].shape[0], [0.0] * params["means"].shape[0])
+        before = params["opacity_logits"].detach().clone()
+        params = refine(params, opt, st, step, cfg, scene_extent=1.0)
+        changed = bool(st.last) or not torch.equal(before, params["opacity_logits"].detach())
+        assert changed == refine_due(cfg, step), step

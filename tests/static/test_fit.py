@@ -286,3 +286,96 @@ def test_fit_ends_densification_before_its_last_steps(scene, monkeypatch):
     cfg = FitConfig.from_dict({**FAST, "densify": {"start": 10, "stop": 1000, "every": 10, "reset_every": 0}})
     fit_static(imgs, cams, p, c, cfg, progress=False)
     assert seen and set(seen) == {32}  # 0.8 x 40 iterations
+
+
+# ---------------------------------------------------------------------------- the step
+def test_nan_loss_is_detected_with_a_non_fused_optimizer(scene, monkeypatch):
+    """Without a fused Adam (no found_inf skip) the divergence record is read every step."""
+    import anigs.static.fit as fit_mod
+
+    gt, cams, imgs = scene
+    p, c = sfm_points(gt, every=6)
+    real_loss, real_opt = fit_mod.loss_fn, fit_mod.make_optimizer
+    calls = {"n": 0}
+
+    def nan_at_7(pred, target, w):
+        calls["n"] += 1
+        loss = real_loss(pred, target, w)
+        return loss * float("nan") if calls["n"] == 7 else loss
+
+    def foreach_adam(params, lr):
+        return torch.optim.Adam([{"params": [params[k]], "lr": lr[k], "name": k} for k in params], lr=0.0,
+                                eps=1e-15, foreach=True)
+
+    monkeypatch.setattr(fit_mod, "loss_fn", nan_at_7)
+    monkeypatch.setattr(fit_mod, "make_optimizer", foreach_adam)
+    with pytest.raises(FitDivergedError, match=r"iteration 7: loss is nan"):
+        fit_static(imgs, cams, p, c, FitConfig.from_dict(FAST), progress=False)
+    assert calls["n"] == 7  # stopped at once
+
+
+def test_a_non_finite_step_is_skipped_until_reported(scene, monkeypatch):
+    """With the fused Adam a non-finite step leaves the parameters as they were."""
+    import anigs.static.fit as fit_mod
+    from anigs.static.fit import DivergenceGuard, _to_params, make_optimizer, train_step
+
+    gt, cams, imgs = scene
+    g = gt.with_sh_degree(1)
+    g = Gaussians(g.means.clone(), g.quats.clone(), g.log_scales.clone(), g.opacity_logits.clone(), g.sh)
+    params = _to_params(g, torch.device("cpu"))  # (trained in place: not the fixture's tensors)
+    opt = make_optimizer(params, {k: 1e-3 for k in params})
+    assert opt.defaults["fused"]
+    guard = DivergenceGuard(opt, list(params), torch.device("cpu"))
+    bg = torch.zeros(3)
+    train_step(params, opt, cams[1], imgs[1], 1, bg, "auto", 0.2, guard=guard, step=1)
+    assert guard.failure() is None
+    before = {k: v.detach().clone() for k, v in params.items()}
+    real_loss = fit_mod.loss_fn
+    monkeypatch.setattr(fit_mod, "loss_fn", lambda a, b, w: real_loss(a, b, w) * float("inf"))
+    train_step(params, opt, cams[2], imgs[2], 1, bg, "auto", 0.2, guard=guard, step=2)
+    monkeypatch.setattr(fit_mod, "loss_fn", real_loss)
+    for k, v in params.items():
+        assert torch.equal(v.detach(), before[k]), k  # skipped
+    train_step(params, opt, cams[3], imgs[3], 1, bg, "auto", 0.2, guard=guard, step=3)
+    assert not torch.equal(params["means"].detach(), before["means"])  # later steps go on
+    assert guard.failure() == (2, "loss is inf")  # the first bad step is remembered
+    with pytest.raises(FitDivergedError, match="iteration 2: loss is inf"):
+        guard.check()
+
+
+def test_render_passes_only_the_active_sh_bands(scene):
+    from anigs.render import rasterize
+    from anigs.static.fit import _render, _to_params
+
+    gt, cams, _ = scene
+    g = gt.with_sh_degree(3)
+    g.sh[:, 1:] = 0.1 * torch.randn(g.sh[:, 1:].shape, generator=torch.Generator().manual_seed(0))
+    params = _to_params(g, torch.device("cpu"))
+    cam = cams[0]
+    for deg in (0, 1, 3):
+        rgb, _, _ = _render(params, cam, deg, torch.zeros(3), "auto")
+        full, _, _ = rasterize(g.means, g.quats, g.scales, g.opacities, g.sh, cam.torch_viewmat(), cam.torch_K(),
+                               cam.width, cam.height, sh_degree=deg, background=torch.zeros(3))
+        assert torch.equal(rgb, full), deg
+    rgb, _, _ = _render(params, cam, 1, torch.zeros(3), "auto")
+    rgb.sum().backward()
+    assert params["sh_rest"].grad.shape == params["sh_rest"].shape
+    assert torch.count_nonzero(params["sh_rest"].grad[:, 3:]) == 0 and torch.count_nonzero(params["sh_rest"].grad[:, :3])
+
+
+def test_fit_reports_step_times_and_skips_statistics_after_the_last_densification(scene, monkeypatch):
+    import anigs.static.fit as fit_mod
+
+    gt, cams, imgs = scene
+    p, c = sfm_points(gt, every=4)
+    seen = []
+    real = fit_mod.update_state
+
+    def spy(state, meta, w, h):
+        seen.append(meta["means2d"].shape[0])
+        return real(state, meta, w, h)
+
+    monkeypatch.setattr(fit_mod, "update_state", spy)
+    _, m = fit_static(imgs, cams, p, c, FitConfig.from_dict(FAST), progress=False)
+    assert len(seen) == 20  # steps 1..20: the last densification is at step 20 (stop 30, every 10)
+    assert m["final_steps_from"] == 21 and m["step_ms_median_final"] > 0 and m["step_ms_median"] > 0
