@@ -16,14 +16,14 @@ from typing import Callable, Protocol
 
 import torch
 
-from anigs.ssim import ssim
+from anigs.fused_ssim import fused_ssim
 
 
 def photometric_loss(render: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     """Mean-absolute L1 plus (1 - SSIM) for images [H,W,3] or batches [B,H,W,3] (scalar)."""
     if render.shape != target.shape:
         raise ValueError(f"photometric_loss: render {tuple(render.shape)} vs target {tuple(target.shape)}")
-    return (render - target).abs().mean() + (1.0 - ssim(render, target))
+    return (render - target).abs().mean() + (1.0 - fused_ssim(render, target))
 
 
 def animation_loss(renders: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
