@@ -6,6 +6,8 @@ override (deep merge, later wins). Scene files live in ``config/scenes/{name}.ya
 from __future__ import annotations
 
 import copy
+import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +23,24 @@ SCENE_KEYS = {"name", "source", "synthetic", "photos", "colmap", "ply", "effects
 # fits of eval, and the synthetic capture.
 BACKGROUND_SECTIONS = ("static", "masks", "render_clip", "update", "final", "view")
 SOURCES = ("synthetic", "photos")
+_ENV_REF = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
+
+
+def expand_env(value: str, where: str) -> str:
+    """``value`` with each ``${NAME}`` replaced by the environment variable NAME (and a leading ``~``
+    by the home folder): a scene file can name a folder given at run time
+    (``photos: ${ANIGS_PHOTOS}``). An unset or empty variable is an error naming it and ``where``."""
+
+    def sub(m: re.Match) -> str:
+        name = m.group(1)
+        got = os.environ.get(name)
+        if not got:
+            raise ValueError(f"{where}: {m.group(0)} names the environment variable {name}, which is "
+                             f"{'empty' if got == '' else 'not set'}; set it to the folder, e.g. "
+                             f"{name}=/path/to/photos snakemake ...")
+        return got
+
+    return os.path.expanduser(_ENV_REF.sub(sub, value))
 
 
 def deep_merge(base: dict, override: dict | None) -> dict:
@@ -82,9 +102,12 @@ def load_scene(scene_dir: str | Path, name: str, schema: dict | None = None) -> 
         photos = scene.get("photos")
         if not photos:
             raise ValueError(f"scene file {path}: source 'photos' needs 'photos: /path/to/your/photos'")
+        given = str(photos)
+        photos = scene["photos"] = expand_env(given, f"scene file {path}: photos")
         p = Path(photos)
         if not p.is_dir():
-            raise FileNotFoundError(f"scene {name!r}: photo folder {p} does not exist")
+            raise FileNotFoundError(f"scene {name!r}: photo folder {p} does not exist"
+                                    + (f" (photos: {given} in {path})" if given != photos else ""))
         if not any(f.suffix.lower() in (".jpg", ".jpeg", ".png") for f in p.iterdir()):
             raise ValueError(f"scene {name!r}: photo folder {p} holds no .jpg/.jpeg/.png files")
     bg = scene.get("background")

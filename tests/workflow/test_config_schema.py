@@ -63,6 +63,28 @@ def test_scene_files_and_merging(tmp_path):
         load_scene(tmp_path, "e")
 
 
+def test_photo_scene_folder_from_an_environment_variable(tmp_path, monkeypatch):
+    """config/scenes/photos.yaml names its folder as ${ANIGS_PHOTOS}: expanded when the scene is
+    loaded, and an unset or empty variable fails naming it and the scene file."""
+    monkeypatch.delenv("ANIGS_PHOTOS", raising=False)
+    with pytest.raises(ValueError, match=r"ANIGS_PHOTOS.*not set") as err:
+        load_scene(ROOT / "config/scenes", "photos", _schema())
+    assert "photos.yaml" in str(err.value)
+    monkeypatch.setenv("ANIGS_PHOTOS", "")
+    with pytest.raises(ValueError, match=r"ANIGS_PHOTOS.*empty"):
+        load_scene(ROOT / "config/scenes", "photos")
+    photos = tmp_path / "shots"
+    photos.mkdir()
+    (photos / "a.png").write_bytes(b"")
+    monkeypatch.setenv("ANIGS_PHOTOS", str(photos))
+    scene = load_scene(ROOT / "config/scenes", "photos", _schema())
+    assert scene["source"] == "photos" and scene["photos"] == str(photos)
+    # inside a longer path too; a missing folder names the reference it came from
+    (tmp_path / "sub.yaml").write_text("source: photos\nphotos: ${ANIGS_PHOTOS}/../missing\n")
+    with pytest.raises(FileNotFoundError, match=r"missing.*\$\{ANIGS_PHOTOS\}"):
+        load_scene(tmp_path, "sub")
+
+
 def test_config_docs_are_in_sync_with_the_schema():
     res = subprocess.run([sys.executable, str(ROOT / "workflow/scripts/make_config_docs.py"), "--check"],
                          capture_output=True, text=True)
