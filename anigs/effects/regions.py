@@ -10,7 +10,7 @@ rendered per-Gaussian maps (surface variation, ``|normal . up|``, multi-view col
    components that fill their bounding rectangle and are flat are pictures and are dropped;
 4. *lawn*: vegetation lower than the ground cut (the flat ground sheet: static); the rest is *plant*;
 5. *flowers*: saturated colours of any hue outside the green band (red included) or white,
-   within ``flower_radius_frac`` of plant pixels and surrounded by plants for at least
+   blobs reaching within ``flower_radius_frac`` of plant pixels and surrounded by plants for at least
    ``flower_min_ring`` of their ring, closed into beds with the stems between blossoms; low
    plant components with blossoms on >= ``flower_bed_share`` of their area are flower beds;
 6. *foliage* / *grass*: plant components whose 90th-percentile height above the ground reaches
@@ -105,9 +105,12 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
     col = cues.colourful(img, cfg.flower_green_hue, cfg.flower_min_saturation, cfg.flower_min_value,
                          cfg.white_flowers) & valid & ~wall & ~green_all
     near = cv2.dilate(plant.astype(np.uint8), cues.disk(r_f)) > 0
-    n, lab, areas = cues.components(col & near)
+    # whole colourful blobs that reach within r_f of a plant: a large blossom's centre is farther
+    # than r_f from any leaf, and belongs to the blossom all the same
+    n, lab, areas = cues.components(col)
+    touches = np.bincount(lab[near], minlength=n)[:n] > 0
     ring = cues.ring_share(lab, n, r_f, plant)
-    keep = (ring >= cfg.flower_min_ring) & (areas >= 2)
+    keep = touches & (ring >= cfg.flower_min_ring) & (areas >= 2)
     keep[0] = False
     blossom = keep[lab]
     flowers = blossom.copy()
