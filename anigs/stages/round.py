@@ -42,6 +42,7 @@ def run(canonical_path: str | Path, views_json: str | Path, view_ids: list[str],
     render_dir, target_dir = Path(render_dir), Path(target_dir)
     render_dir.mkdir(parents=True, exist_ok=True)
     target_dir.mkdir(parents=True, exist_ok=True)
+    startup_cpu = time.process_time()  # CPU this process spent before the work: interpreter, imports, arguments
     t0 = time.perf_counter()
     scene = render_clip.load_scene(canonical_path, render_cfg, model_path)
     timings = {"load_s": time.perf_counter() - t0, "views": {}}
@@ -58,8 +59,11 @@ def run(canonical_path: str | Path, views_json: str | Path, view_ids: list[str],
         timings["views"][v] = {"render_s": round(t2 - t1, 3), "refine_s": round(t3 - t2, 3)}
     timings["load_s"] = round(timings["load_s"], 3)
     timings["total_s"] = round(time.perf_counter() - t0, 3)
+    timings["startup_cpu_s"] = round(startup_cpu, 3)
+    timings["process_cpu_s"] = round(time.process_time(), 3)
     log.info("round %d: %d views in %.2fs (scene and model load %.2fs; per view: %s)", round_, len(view_ids),
              timings["total_s"], timings["load_s"], timings["views"])
+    log.info("round %d: start-up %.2f s of the process's %.2f s CPU", round_, startup_cpu, timings["process_cpu_s"])
     return timings
 
 
