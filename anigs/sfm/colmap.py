@@ -1,19 +1,34 @@
 """Structure from motion with pycolmap 4.x: images -> cameras + sparse points.
 
 Pipeline (:func:`run_sfm`): check the images (unreadable files, fewer than 3) before COLMAP
-runs -> SIFT extraction (GPU when available) -> matching (exhaustive, sequential or
-spatial, from config) -> incremental mapping (or global mapping) with the failure
-handling below -> fine-scale refinement (:mod:`anigs.sfm.bundle`: bundle adjustment of the
-cameras on the finest, best-localised keypoints, robust loss; every point is kept) ->
-undistortion to PINHOLE when the camera model has distortion -> frame normalisation -> outputs.
+runs -> thread counts -> SIFT extraction (GPU when available) -> matching: exhaustive, sequential
+or spatial, ``auto`` choosing from the photos' order and the keypoint count
+(:mod:`anigs.sfm.plan`) -> the initial-pair angle from the matches (``init_min_tri_angle: auto``)
+-> incremental mapping (or global mapping) with the failure handling below (for
+SIMPLE_RADIAL/RADIAL the mapper holds the distortion at its start, zero unless given:
+``mapper_refine_distortion``) ->
+fine-scale refinement (:mod:`anigs.sfm.bundle`: bundle adjustment of the cameras on the finest,
+best-localised keypoints, robust loss; every point is kept; it also estimates the distortion the
+mapper held, which one plain bundle adjustment does with refine off) -> undistortion to PINHOLE
+when the camera model has distortion -> frame normalisation -> outputs.
 
 Parameters live in :mod:`anigs.sfm.config`, model conversion in :mod:`anigs.sfm.model`.
+
+Reproducibility: extraction (the images enter the database in name order first, so several
+threads cannot renumber them), matching and undistortion gave bit-identical databases, cameras
+and images for 1 and 2 threads (tests/sfm; the 34-photo flower capture), so they use
+``num_threads`` (all available CPUs by default); the mapper and the bundle adjustments are
+bit-identical for a seed only with ``mapper_num_threads: 1`` (the default; 2 threads changed the
+cameras in the last digits from run to run). The report has wall and CPU seconds per step
+(``timings_s``, ``cpu_s``: CPU seconds of all the process's threads, less sensitive than wall
+seconds to other work on a shared machine) and what ``auto`` chose (``auto``, ``mapping``).
 
 Failure handling:
 - several models: the one with most registered images is kept, the others are reported;
 - a mapping failure, or a best model under ``min_registered_fraction`` of the images, is
   retried once with ``init_min_tri_angle = retry_init_min_tri_angle`` (4 degrees
-  reconstructs forward-facing captures); still too few is an error naming registered/total.
+  reconstructs forward-facing captures) when that is below the first attempt's angle; still
+  too few is an error naming registered/total.
 
 Frame normalisation (downstream works in a z-up world, ground near z=0): without ground
 truth, up is estimated from the cameras held upright (:func:`anigs.sfm.align.estimate_up`) and rotated onto
@@ -32,6 +47,8 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
+import resource
 import shutil
 import tempfile
 import time
@@ -48,11 +65,12 @@ from anigs.photos import check_images, image_headers, list_images, report_unread
 from anigs.sfm.config import MAPPERS, MATCHERS, UNDISTORTED_MODELS, SfmConfig
 from anigs.sfm.model import (find_model_dir, reconstruction_cameras, reconstruction_points, replace_dir,
                              to_sim3d)
-from anigs.sfm.bundle import refine_fine_scale
+from anigs.sfm.bundle import adjust_intrinsics, refine_fine_scale
+from anigs.sfm.plan import choose_matcher, initial_pair_angle, resolve_threads, similar_pairs
 
 __all__ = ["MAPPERS", "MATCHERS", "UNDISTORTED_MODELS", "SfmConfig", "SfmError", "SfmResult", "extract_and_match",
-           "map_with_retries", "reconstruction_cameras", "reconstruction_points", "refine_model", "run_mapper",
-           "run_sfm", "select_model"]
+           "map_with_retries", "reconstruction_cameras", "reconstruction_points", "refine_model", "resolve_config",
+           "run_mapper", "run_sfm", "select_model"]
 
 log = logging.getLogger(__name__)
 
@@ -69,6 +87,25 @@ class SfmResult:
     xyz: np.ndarray  # [P,3] float32
     rgb: np.ndarray  # [P,3] float32 in [0,1]
     report: dict = field(default_factory=dict)
+
+
+def cpu_seconds() -> float:
+    """CPU seconds (user + system) of this process, all threads."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def resolve_config(cfg: SfmConfig, cli_threads: int | None = None) -> tuple[SfmConfig, dict]:
+    """``cfg`` with the thread counts resolved (:func:`anigs.sfm.plan.resolve_threads`).
+
+    ``matcher: auto`` needs the keypoint count (:func:`extract_and_match` resolves it) and
+    ``init_min_tri_angle: auto`` the matches (:func:`map_with_retries`). Returns the config and
+    the report entry.
+    """
+    threads = resolve_threads(cfg.num_threads, cli_threads)
+    mapper_threads = threads if cfg.mapper_num_threads == -1 else cfg.mapper_num_threads
+    return (dataclasses.replace(cfg, num_threads=threads, mapper_num_threads=mapper_threads),
+            {"num_threads": threads, "mapper_num_threads": mapper_threads})
 
 
 # ---- COLMAP steps (module-level so tests can replace one) ---------------------------------
@@ -102,9 +139,13 @@ def camera_mode(cfg: SfmConfig, sizes: list[tuple[int, int]]) -> str:
 def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: SfmConfig,
                       mode: str | None = None) -> dict:
     """SIFT extraction and matching into ``database`` (``mode``: a :func:`camera_mode`); returns
-    statistics and timings."""
+    statistics and timings (wall ``*_s``, CPU ``*_cpu_s``), the matcher run and why
+    (``matcher: auto`` is chosen here, from the keypoints found: :func:`anigs.sfm.plan.choose_matcher`).
+    ``cfg.num_threads`` must be a count (:func:`resolve_config`)."""
     import pycolmap
 
+    if cfg.num_threads < 1:
+        raise ValueError("extract_and_match needs a thread count (sfm.colmap.resolve_config)")
     device = _device(cfg)
     pycolmap.set_random_seed(cfg.seed)
     reader = pycolmap.ImageReaderOptions(camera_model=cfg.camera_model)
@@ -117,22 +158,46 @@ def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: Sf
     ext.sift.peak_threshold = cfg.sift_peak_threshold
     ext.use_gpu = device == pycolmap.Device.cuda
     mode = getattr(pycolmap.CameraMode, mode or ("SINGLE" if cfg.single_camera else "PER_IMAGE"))
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), cpu_seconds()
+    # images enter the database first, one thread, in name order: several extraction threads would
+    # otherwise number them in the order they finish, and the mapper's choices follow the numbers
+    pycolmap.Database.open(str(database)).close()
+    pycolmap.import_images(database, image_dir, camera_mode=mode, image_names=names, options=reader)
     pycolmap.extract_features(database, image_dir, image_names=names, camera_mode=mode,
                               reader_options=reader, extraction_options=ext, device=device)
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), cpu_seconds()
+    db = pycolmap.Database.open(database)
+    try:
+        keypoints_per_image = db.num_keypoints() / max(db.num_images(), 1)
+    finally:
+        db.close()
+    matcher, why = choose_matcher(cfg.matcher, [Path(image_dir) / n for n in names], cfg.exhaustive_max_images,
+                                  cfg.exhaustive_max_comparisons, keypoints_per_image)
+    if cfg.matcher == "auto":
+        log.info("sfm: matcher %s (%s)", matcher, why["reason"])
     match = pycolmap.FeatureMatchingOptions()
     match.num_threads = cfg.num_threads
     match.use_gpu = device == pycolmap.Device.cuda
     verify = pycolmap.TwoViewGeometryOptions()
     verify.ransac.random_seed = cfg.seed
     kw = {"matching_options": match, "verification_options": verify, "device": device}
-    if cfg.matcher == "exhaustive":
+    extra_pairs = 0
+    if matcher == "exhaustive":
         pycolmap.match_exhaustive(database, **kw)
-    elif cfg.matcher == "sequential":
+    elif matcher == "sequential":
         pairing = pycolmap.SequentialPairingOptions()
         pairing.overlap = cfg.sequential_overlap
+        pairing.quadratic_overlap = True
+        pairing.num_threads = cfg.num_threads
         pycolmap.match_sequential(database, pairing_options=pairing, **kw)
+        extra = similar_pairs([Path(image_dir) / n for n in names], cfg.sequential_similar, cfg.sequential_overlap)
+        if extra:
+            pairs_file = Path(database).with_name("similar_pairs.txt")
+            pairs_file.write_text("".join(f"{names[i]} {names[j]}\n" for i, j in extra))
+            imported = pycolmap.ImportedPairingOptions()
+            imported.match_list_path = str(pairs_file)
+            pycolmap.match_image_pairs(database, pairing_options=imported, **kw)
+        extra_pairs = len(extra)
     else:
         db = pycolmap.Database.open(database)
         try:
@@ -145,14 +210,15 @@ def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: Sf
         pairing = pycolmap.SpatialPairingOptions()
         pairing.max_num_neighbors = cfg.spatial_max_neighbors
         pycolmap.match_spatial(database, pairing_options=pairing, **kw)
-    t2 = time.perf_counter()
+    t2, c2 = time.perf_counter(), cpu_seconds()
     db = pycolmap.Database.open(database)
     try:
         stats = {"keypoints_per_image": db.num_keypoints() / max(db.num_images(), 1),
                  "verified_pairs": db.num_verified_image_pairs(), "inlier_matches": db.num_inlier_matches()}
     finally:
         db.close()
-    stats.update(extract_s=t1 - t0, match_s=t2 - t1, device=str(device).split(".")[-1])
+    stats.update(extract_s=t1 - t0, match_s=t2 - t1, extract_cpu_s=c1 - c0, match_cpu_s=c2 - c1,
+                 device=str(device).split(".")[-1], matcher=matcher, matcher_choice=why, similar_pairs=extra_pairs)
     return stats
 
 
@@ -166,7 +232,7 @@ def run_mapper(database: Path, image_dir: Path, out_dir: Path, cfg: SfmConfig, n
     if mapper == "global":
         opts = pycolmap.GlobalPipelineOptions()
         opts.random_seed = cfg.seed
-        opts.num_threads = cfg.num_threads
+        opts.num_threads = cfg.mapper_num_threads
         opts.min_model_size = 3
         opts.image_names = names
         cuda = _device(cfg) == pycolmap.Device.cuda
@@ -175,9 +241,13 @@ def run_mapper(database: Path, image_dir: Path, out_dir: Path, cfg: SfmConfig, n
         return dict(pycolmap.global_mapping(database, image_dir, out_dir, options=opts))
     opts = pycolmap.IncrementalPipelineOptions()
     opts.random_seed = cfg.seed
-    opts.num_threads = cfg.num_threads
+    opts.num_threads = cfg.mapper_num_threads
     opts.min_model_size = 3
     opts.image_names = names
+    opts.ba_global_frames_ratio = opts.ba_global_points_ratio = float(cfg.ba_global_growth)
+    opts.ba_global_max_refinements = int(cfg.ba_global_max_refinements)
+    opts.ba_local_max_refinements = int(cfg.ba_local_max_refinements)
+    opts.ba_refine_extra_params = not cfg.mapper_holds_distortion()
     opts.mapper.init_min_tri_angle = float(init_min_tri_angle)
     opts.mapper.random_seed = cfg.seed
     opts.triangulation.random_seed = cfg.seed
@@ -198,20 +268,32 @@ def map_with_retries(database: Path, image_dir: Path, work: Path, cfg: SfmConfig
                      names: list[str]) -> tuple[Any, dict]:
     """Mapping with the retry policy of the module docstring.
 
+    ``init_min_tri_angle: auto`` is resolved from the matches in ``database``
+    (:func:`anigs.sfm.plan.initial_pair_angle`); the retry runs only when its angle is below the
+    first attempt's (or the first attempt was the global mapper).
     Returns the chosen ``pycolmap.Reconstruction`` and a report with every attempt.
     Raises :class:`SfmError` naming registered/total when no attempt registers enough.
     """
     total = len(names)
     need = cfg.min_registered_fraction * total
-    attempts = [(cfg.mapper, cfg.init_min_tri_angle)]
-    if cfg.retry_init_min_tri_angle is not None:
-        attempts.append(("incremental", cfg.retry_init_min_tri_angle))
+    angle, auto_angle = cfg.init_min_tri_angle, None
+    if angle == "auto":
+        if cfg.mapper == "incremental":
+            angle, auto_angle = initial_pair_angle(database)
+            log.info("sfm: initial-pair angle %g degrees (largest pair angle %s degrees)", angle,
+                     auto_angle.get("largest_pair_angle_deg"))
+        else:
+            angle = 16.0
+    attempts = [(cfg.mapper, angle)]
+    retry = cfg.retry_init_min_tri_angle
+    if retry is not None and (cfg.mapper != "incremental" or retry < angle):
+        attempts.append(("incremental", retry))
     tried, best, best_sizes = [], None, []
     for i, (mapper, angle) in enumerate(attempts):
         if i > 0:
             log.warning("retrying mapping with init_min_tri_angle=%g degrees (was %s)", angle,
                         tried[-1]["result"])
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), cpu_seconds()
         entry = {"mapper": mapper, "init_min_tri_angle": angle if mapper == "incremental" else None}
         try:
             models = run_mapper(database, image_dir, work / f"mapping{i}", cfg, names, mapper, angle)
@@ -220,7 +302,7 @@ def map_with_retries(database: Path, image_dir: Path, work: Path, cfg: SfmConfig
             models, error = {}, f"{type(exc).__name__}: {exc}"
         chosen, sizes = select_model(models)
         reg = sizes[0] if sizes else 0
-        entry.update(seconds=time.perf_counter() - t0, models=sizes, registered=reg,
+        entry.update(seconds=time.perf_counter() - t0, cpu_seconds=cpu_seconds() - c0, models=sizes, registered=reg,
                      result=error or ("no model" if not sizes else f"registered {reg}/{total}"))
         tried.append(entry)
         log.info("mapping attempt %d (%s, init_min_tri_angle=%s): %s, models %s", i + 1, mapper,
@@ -229,7 +311,7 @@ def map_with_retries(database: Path, image_dir: Path, work: Path, cfg: SfmConfig
             best, best_sizes = chosen, sizes
         if chosen is not None and reg >= need:
             break
-    report = {"attempts": tried, "retries": len(tried) - 1}
+    report = {"attempts": tried, "retries": len(tried) - 1, "init_min_tri_angle_auto": auto_angle}
     reg = int(best.num_reg_images()) if best is not None else 0
     if best is None or reg < need:
         detail = "; ".join(f"attempt {k + 1} ({a['mapper']}, init_min_tri_angle={a['init_min_tri_angle']}): "
@@ -260,7 +342,8 @@ def refine_model(rec, database: Path, cfg: SfmConfig) -> dict:
     try:
         report = refine_fine_scale(rec, database, max_keypoint_scale=cfg.refine_max_keypoint_scale,
                                    min_observations=cfg.refine_min_observations, loss_scale=cfg.refine_loss_scale,
-                                   num_threads=cfg.num_threads, max_image_size=cfg.max_image_size)
+                                   num_threads=cfg.mapper_num_threads, max_image_size=cfg.max_image_size,
+                                   max_iterations=cfg.refine_max_iterations)
     except ValueError as exc:
         log.warning("fine-scale refinement skipped: %s", exc)
         return {"applied": False, "reason": str(exc)}
@@ -271,7 +354,7 @@ def refine_model(rec, database: Path, cfg: SfmConfig) -> dict:
 
 def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = None,
             gt_cameras: str | Path | None = None, model_dir: str | Path | None = None,
-            keep_work: bool = False) -> SfmResult:
+            keep_work: bool = False, threads: int | None = None) -> SfmResult:
     """Run the whole stage; see the module docstring for steps, failures and outputs.
 
     Args:
@@ -282,11 +365,12 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
         model_dir: an existing COLMAP sparse model of these images: skips extraction, matching
             and mapping (registration is still checked against the images in ``image_dir``).
         keep_work: keep the COLMAP database and raw models in ``out_dir/work``.
+        threads: ``anigs --threads`` (what Snakemake gives the job): the count ``num_threads: -1`` means.
     """
     import pycolmap
 
     cfg = cfg or SfmConfig()
-    t_start = time.perf_counter()
+    t_start, c_start = time.perf_counter(), cpu_seconds()
     image_dir, out_dir = Path(image_dir), Path(out_dir)
     files = list_images(image_dir)
     good, bad = check_images(files)
@@ -312,7 +396,8 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
         shutil.rmtree(work)
     work.mkdir(parents=True, exist_ok=True)
     report: dict[str, Any] = {"images": total, "skipped_unreadable": bad, "config": dataclasses.asdict(cfg),
-                              "pycolmap_version": pycolmap.__version__, "timings_s": {}}
+                              "pycolmap_version": pycolmap.__version__, "timings_s": {}, "cpu_s": {}}
+    cfg, report["auto"] = resolve_config(cfg, threads)
     try:
         if model_dir is not None:
             model_dir = find_model_dir(Path(model_dir))
@@ -330,20 +415,25 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
             stats = extract_and_match(work / "database.db", image_dir, names, cfg, mode)
             report["camera_mode"] = mode
             report["timings_s"].update(extract=stats.pop("extract_s"), match=stats.pop("match_s"))
+            report["cpu_s"].update(extract=stats.pop("extract_cpu_s", None), match=stats.pop("match_cpu_s", None))
+            report["auto"]["matcher"] = stats.pop("matcher", cfg.matcher)
+            report["auto"]["matcher_choice"] = stats.pop("matcher_choice", None)
             report["features"] = stats
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), cpu_seconds()
             rec, report["mapping"] = map_with_retries(work / "database.db", image_dir, work, cfg, names)
-            report["timings_s"]["mapping"] = time.perf_counter() - t0
-            t0 = time.perf_counter()
+            report["timings_s"]["mapping"], report["cpu_s"]["mapping"] = time.perf_counter() - t0, cpu_seconds() - c0
+            t0, c0 = time.perf_counter(), cpu_seconds()
             report["refine"] = refine_model(rec, work / "database.db", cfg)
-            report["timings_s"]["refine"] = time.perf_counter() - t0
+            if cfg.mapper_holds_distortion() and not report["refine"]["applied"]:
+                report["refine"]["intrinsics_adjustment"] = adjust_intrinsics(rec, cfg.mapper_num_threads)
+            report["timings_s"]["refine"], report["cpu_s"]["refine"] = time.perf_counter() - t0, cpu_seconds() - c0
         report["registered"] = int(rec.num_reg_images())
         report["registered_fraction"] = report["registered"] / total
         registered = sorted(rec.images[i].name for i in rec.reg_image_ids())
         report["unregistered_images"] = sorted(set(names) - set(registered))
 
         # undistortion: every camera the stage writes is PINHOLE / SIMPLE_PINHOLE
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), cpu_seconds()
         models = {rec.cameras[rec.images[i].camera_id].model.name for i in rec.reg_image_ids()}
         raw_dir = work / "selected"
         raw_dir.mkdir(exist_ok=True)
@@ -365,7 +455,7 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
                 shutil.copy2(image_dir / n, images_tmp / n)
             report["undistorted"] = False
         report["camera_models"] = sorted(models)
-        report["timings_s"]["undistort"] = time.perf_counter() - t0
+        report["timings_s"]["undistort"], report["cpu_s"]["undistort"] = time.perf_counter() - t0, cpu_seconds() - c0
 
         # frame normalisation
         cams = reconstruction_cameras(rec)
@@ -400,7 +490,8 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
         replace_dir(images_tmp, out_dir / "images")
         save_cameras(out_dir / "cameras.json", cams, extra={"source": "colmap", "frame": frame["mode"]})
         write_npz(out_dir / "points.npz", **pts)
-        report["timings_s"]["total"] = time.perf_counter() - t_start
+        report["timings_s"]["total"], report["cpu_s"]["total"] = time.perf_counter() - t_start, cpu_seconds() - c_start
+        report["load_average"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
         write_json(out_dir / "report.json", report)
     finally:
         if not keep_work:

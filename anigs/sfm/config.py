@@ -2,13 +2,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Any, Optional, Union
 
 from anigs.configs import from_dict
 
-MATCHERS = ("exhaustive", "sequential", "spatial")
+MATCHERS = ("auto", "exhaustive", "sequential", "spatial")
 MAPPERS = ("incremental", "global")
 UNDISTORTED_MODELS = ("PINHOLE", "SIMPLE_PINHOLE")
+# camera models whose (mild) distortion the incremental mapper holds at zero with mapper_refine_distortion: auto
+MILD_DISTORTION_MODELS = ("SIMPLE_RADIAL", "RADIAL")
 
 
 @dataclass
@@ -18,26 +20,35 @@ class SfmConfig:
     camera_model: str = "SIMPLE_RADIAL"  # COLMAP camera model; SIMPLE_PINHOLE/PINHOLE for synthetic renders
     single_camera: bool = True  # all images share one camera (one device, fixed zoom)
     camera_params: Optional[list[float]] = None  # known intrinsics in COLMAP's order for camera_model
-    matcher: str = "exhaustive"  # exhaustive | sequential | spatial (needs GPS/pose priors)
-    sequential_overlap: int = 10  # neighbours matched per image by the sequential matcher
+    matcher: str = "auto"  # auto | exhaustive | sequential | spatial (needs GPS/pose priors); auto: sequential when the photos are ordered like a video and exhaustive matching would be expensive, or more than exhaustive_max_images; else exhaustive (report.json says which and why)
+    exhaustive_max_images: int = 300  # matcher auto: more photos than this are matched sequentially (exhaustive matching grows with the square of the count)
+    exhaustive_max_comparisons: float = 2.0e9  # matcher auto: ordered photos are matched sequentially when exhaustive matching would compare more descriptors than this (images^2/2 x keypoints^2; matching takes about 10 CPU s per 1e9, benchmarks/README.md)
+    sequential_overlap: int = 10  # the sequential matcher pairs image i with i+1, i+2, i+4, ..., i+2^(overlap-1) (COLMAP's quadratic overlap, images sorted by name)
+    sequential_similar: int = 3  # the sequential matcher also pairs each image with its this many most similar images (grey thumbnails): closes the loop of an orbit, joins the rows of a sweep; 0: COLMAP's pairs only
     spatial_max_neighbors: int = 50  # neighbours matched per image by the spatial matcher
-    max_num_features: int = 8192  # SIFT features per image
+    max_num_features: int = 8192  # SIFT features per image; COLMAP meets a smaller budget by dropping whole octaves, finest first (what the refinement uses)
     max_image_size: int = -1  # SIFT extraction downscales larger images (-1: never)
     sift_peak_threshold: float = 0.02 / 3  # SIFT detection threshold (COLMAP's default); lower finds more features in low-contrast or small images
     mapper: str = "incremental"  # incremental | global
-    init_min_tri_angle: float = 16.0  # incremental mapper's initial-pair triangulation angle (deg)
-    retry_init_min_tri_angle: Optional[float] = 4.0  # lower angle for the retry; None disables the retry
+    init_min_tri_angle: Union[float, str] = "auto"  # incremental mapper's initial-pair triangulation angle (deg); auto: the largest of 16, 8, 4, 2, 1 that a matched pair reaches (COLMAP would otherwise search all pairs again at each halving)
+    retry_init_min_tri_angle: Optional[float] = 4.0  # angle of the retry when the first mapping registers too few (runs only when below the first angle); None disables the retry
     min_registered_fraction: float = 0.8  # fewer registered images than this fraction is an error
     refine: bool = True  # after mapping, bundle-adjust the cameras on the finest-scale keypoints (anigs.sfm.bundle)
     refine_max_keypoint_scale: float = 1.3  # refinement keeps keypoints up to this scale (sigma, px of the image SIFT ran on)
     refine_min_observations: int = 60  # refinement keeps at least this many (finest) observations per image
     refine_loss_scale: float = 0.5  # refinement's Cauchy loss scale, times the median reprojection error (0: plain least squares)
+    refine_max_iterations: int = 30  # the refinement's bundle adjustment stops after this many iterations (it creeps on: iterations 30-100 moved the flower capture's cameras by under 0.01 degrees and cost 3.7 s)
     undistort: bool = True  # undistort to PINHOLE when the camera model has distortion
     skip_unreadable: bool = False  # skip corrupt image files with a warning instead of failing
     ground_percentile: float = 5.0  # (no ground truth) this percentile of point heights is put at z=0
     camera_height: Optional[float] = 1.6  # (no ground truth) scale so the mean camera height is this; None keeps COLMAP's scale
     device: str = "auto"  # auto | cpu | cuda (SIFT extraction and matching)
-    num_threads: int = 1  # COLMAP threads; 1 is bit-deterministic for a seed, -1 (all cores) is faster but not
+    num_threads: int = -1  # threads of SIFT extraction, matching and undistortion (-1: the CPUs available, or anigs --threads); 1 and 2 threads gave bit-identical outputs
+    mapper_num_threads: int = 1  # threads of mapping and bundle adjustment; 1 is bit-deterministic for a seed, more (-1: as num_threads) is faster but cameras differ slightly from run to run
+    ba_global_growth: float = 1.4  # the incremental mapper bundle-adjusts the whole model when it has grown by this factor in images or points since the last time (COLMAP: 1.1)
+    ba_global_max_refinements: int = 2  # the mapper's global bundle adjustment is repeated (filter, retriangulate, adjust) at most this many times (COLMAP: 5)
+    ba_local_max_refinements: int = 1  # same for the local bundle adjustment after each registered image (COLMAP: 2)
+    mapper_refine_distortion: Union[bool, str] = "auto"  # the incremental mapper's bundle adjustments refine the lens distortion too; auto: not for SIMPLE_RADIAL/RADIAL (the refinement, or one last bundle adjustment, estimates it: a first model of a few close views cannot tell it from the focal length; on the flower capture one reached f = 2978 px, k = 10 and stalled), yes for the other models
     seed: int = 0  # COLMAP random seed
 
     @staticmethod
@@ -45,6 +56,12 @@ class SfmConfig:
         cfg = from_dict(SfmConfig, d, "sfm config", KeyError)
         cfg.validate()
         return cfg
+
+    def mapper_holds_distortion(self) -> bool:
+        """Whether the incremental mapper keeps the distortion parameters at their initial values."""
+        if self.mapper_refine_distortion == "auto":
+            return self.camera_model in MILD_DISTORTION_MODELS
+        return not self.mapper_refine_distortion
 
     def validate(self) -> None:
         import pycolmap
@@ -64,8 +81,26 @@ class SfmConfig:
             raise ValueError(f"sfm.camera_height must be > 0 or null, got {self.camera_height}")
         if not 0 <= self.ground_percentile <= 100:
             raise ValueError(f"sfm.ground_percentile must be in [0, 100], got {self.ground_percentile}")
-        if self.num_threads == 0 or self.num_threads < -1:
-            raise ValueError(f"sfm.num_threads must be -1 (all cores) or >= 1, got {self.num_threads}")
+        for key in ("num_threads", "mapper_num_threads"):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, int) or v == 0 or v < -1:
+                raise ValueError(f"sfm.{key} must be -1 (all cores) or >= 1, got {v!r}")
+        if isinstance(self.exhaustive_max_images, bool) or not isinstance(self.exhaustive_max_images, int) \
+                or self.exhaustive_max_images < 2:
+            raise ValueError(f"sfm.exhaustive_max_images must be an integer >= 2, got {self.exhaustive_max_images!r}")
+        if not self.exhaustive_max_comparisons > 0:
+            raise ValueError(f"sfm.exhaustive_max_comparisons must be > 0, got {self.exhaustive_max_comparisons}")
+        if self.sequential_similar < 0:
+            raise ValueError(f"sfm.sequential_similar must be >= 0, got {self.sequential_similar}")
+        if self.mapper_refine_distortion not in (True, False, "auto"):
+            raise ValueError(f"sfm.mapper_refine_distortion must be true, false or 'auto', got {self.mapper_refine_distortion!r}")
+        if self.refine_max_iterations < 1:
+            raise ValueError(f"sfm.refine_max_iterations must be >= 1, got {self.refine_max_iterations}")
+        if not self.ba_global_growth > 1:
+            raise ValueError(f"sfm.ba_global_growth must be > 1, got {self.ba_global_growth}")
+        for key in ("ba_global_max_refinements", "ba_local_max_refinements"):
+            if getattr(self, key) < 1:
+                raise ValueError(f"sfm.{key} must be >= 1, got {getattr(self, key)}")
         if not self.sift_peak_threshold > 0:
             raise ValueError(f"sfm.sift_peak_threshold must be > 0, got {self.sift_peak_threshold}")
         if not self.refine_max_keypoint_scale > 0:
@@ -79,7 +114,9 @@ class SfmConfig:
             if len(self.camera_params) != len(probe.params):
                 raise ValueError(f"sfm.camera_params has {len(self.camera_params)} values; camera model "
                                  f"{self.camera_model} takes {len(probe.params)} ({probe.params_info})")
+        if isinstance(self.init_min_tri_angle, str) and self.init_min_tri_angle != "auto":
+            raise ValueError(f"sfm.init_min_tri_angle must be 'auto' or an angle in degrees, got {self.init_min_tri_angle!r}")
         for key in ("init_min_tri_angle", "retry_init_min_tri_angle"):
             v = getattr(self, key)
-            if v is not None and not 0 < v < 90:
+            if v is not None and v != "auto" and not 0 < v < 90:
                 raise ValueError(f"sfm.{key} must be in (0, 90) degrees, got {v}")

@@ -16,11 +16,15 @@ Config = SfmConfig  # the `sfm` config section
 
 
 def run(images: str | Path, out: str | Path, cfg: SfmConfig, gt_cameras: str | Path | None = None,
-        model_dir: str | Path | None = None, keep_work: bool = False) -> dict:
-    """Structure from motion of the images in ``images`` into ``out``; returns ``report.json``'s content."""
+        model_dir: str | Path | None = None, keep_work: bool = False, threads: int | None = None) -> dict:
+    """Structure from motion of the images in ``images`` into ``out``; returns ``report.json``'s content.
+
+    ``threads``: what ``num_threads: -1`` means (``anigs --threads``, set by Snakemake); all available
+    CPUs when None."""
     from anigs.sfm.colmap import run_sfm
 
-    return run_sfm(images, out, cfg, gt_cameras=gt_cameras, model_dir=model_dir, keep_work=keep_work).report
+    return run_sfm(images, out, cfg, gt_cameras=gt_cameras, model_dir=model_dir, keep_work=keep_work,
+                   threads=threads).report
 
 
 # ---- command line: anigs sfm ----
@@ -42,7 +46,7 @@ def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
     r = run(args.images, args.out, SfmConfig.from_dict(parse_params(args.params)), gt_cameras=args.gt_cameras,
-            model_dir=args.model, keep_work=args.keep_work)
+            model_dir=args.model, keep_work=args.keep_work, threads=getattr(args, "threads", None))
     line = f"registered {r['registered']}/{r['images']} images, {r['num_points']} points"
     if "gt_errors" in r:
         e = r["gt_errors"]

@@ -18,6 +18,7 @@ import torch
 pycolmap = pytest.importorskip("pycolmap")
 
 from anigs.sfm import colmap as sfm_mod  # noqa: E402
+from anigs.sfm import plan  # noqa: E402
 from anigs.sfm.align import (Similarity, estimate_up, pose_errors, rotation_angle_deg, rotation_between,  # noqa: E402
                          umeyama)
 from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at, save_cameras  # noqa: E402
@@ -272,7 +273,7 @@ def _patch_colmap(monkeypatch, models_for_angle):
     calls = []
 
     def fake_extract(database, image_dir, names, cfg, mode=None):
-        return {"extract_s": 0.0, "match_s": 0.0}
+        return {"extract_s": 0.0, "match_s": 0.0, "extract_cpu_s": 0.0, "match_cpu_s": 0.0}
 
     def fake_mapper(database, image_dir, out_dir, cfg, names, mapper, angle):
         calls.append(angle)
@@ -440,6 +441,12 @@ def test_config_rejects_unknown_and_bad_values():
         SfmConfig.from_dict({"camera_model": "SIMPLE_RADIAL", "camera_params": [300, 160, 120]})
     with pytest.raises(ValueError, match="num_threads"):
         SfmConfig.from_dict({"num_threads": 0})
+    for key, bad in (("mapper_num_threads", -2), ("init_min_tri_angle", "wide"), ("init_min_tri_angle", 95),
+                     ("exhaustive_max_images", 1), ("exhaustive_max_comparisons", 0), ("sequential_similar", -1),
+                     ("ba_global_growth", 1.0), ("ba_global_max_refinements", 0), ("ba_local_max_refinements", 0)):
+        with pytest.raises(ValueError, match=key):
+            SfmConfig.from_dict({key: bad})
+    assert SfmConfig.from_dict({}).matcher == "auto" and SfmConfig.from_dict({}).init_min_tri_angle == "auto"
     for key, bad in (("refine_max_keypoint_scale", 0), ("refine_min_observations", -1), ("refine_loss_scale", -0.5),
                      ("sift_peak_threshold", 0)):
         with pytest.raises(ValueError, match=key):
@@ -447,18 +454,124 @@ def test_config_rejects_unknown_and_bad_values():
     assert SfmConfig.from_dict({"matcher": "sequential"}).matcher == "sequential"
 
 
-def test_same_seed_same_output(ring, tmp_path):
-    """num_threads=1 (the default) makes COLMAP bit-deterministic for a seed."""
+def test_same_seed_same_output_for_any_extraction_thread_count(ring, tmp_path):
+    """mapper_num_threads=1 (the default) makes the stage bit-deterministic for a seed, whatever
+    num_threads extraction, matching and undistortion use."""
     folder = tmp_path / "imgs"
     folder.mkdir()
     for p in sorted(ring["images"].iterdir())[:7]:  # 7 neighbouring views: a quick reconstruction
         (folder / p.name).write_bytes(p.read_bytes())
-    cfg = SfmConfig(camera_model="SIMPLE_PINHOLE")
-    a = run_sfm(folder, tmp_path / "a", cfg)
-    b = run_sfm(folder, tmp_path / "b", cfg)
+    a = run_sfm(folder, tmp_path / "a", SfmConfig(camera_model="SIMPLE_RADIAL", num_threads=1), keep_work=True)
+    b = run_sfm(folder, tmp_path / "b", SfmConfig(camera_model="SIMPLE_RADIAL", num_threads=2), keep_work=True)
     assert a.report["registered"] == 7
+    assert (a.report["auto"]["num_threads"], b.report["auto"]["num_threads"]) == (1, 2)
+    assert a.report["auto"]["mapper_num_threads"] == b.report["auto"]["mapper_num_threads"] == 1
     assert np.array_equal(a.xyz, b.xyz) and np.array_equal(a.rgb, b.rgb)
     assert all(np.array_equal(x.viewmat, y.viewmat) and np.array_equal(x.K, y.K) for x, y in zip(a.cameras, b.cameras))
+    for name in sorted(p.name for p in (tmp_path / "a" / "images").iterdir()):  # undistorted with 1 and 2 threads
+        assert (tmp_path / "a" / "images" / name).read_bytes() == (tmp_path / "b" / "images" / name).read_bytes()
+    da, db = (pycolmap.Database.open(str(tmp_path / x / "work" / "database.db")) for x in "ab")
+    try:
+        for im in da.read_all_images():
+            assert np.array_equal(da.read_keypoints(im.image_id), db.read_keypoints(im.image_id))
+            assert np.array_equal(da.read_descriptors(im.image_id).data, db.read_descriptors(im.image_id).data)
+        (pa, ga), (pb, gb) = da.read_two_view_geometries(), db.read_two_view_geometries()
+        assert sorted(pa) == sorted(pb)
+        by_a, by_b = dict(zip(pa, ga)), dict(zip(pb, gb))
+        for pid in pa:
+            assert np.array_equal(by_a[pid].inlier_matches, by_b[pid].inlier_matches)
+            assert np.array_equal(by_a[pid].F, by_b[pid].F)
+    finally:
+        da.close()
+        db.close()
+
+
+# ---- choices from the capture (anigs.sfm.plan) ------------------------------------------------
+
+def _copy_as(paths, folder: Path, names) -> list[Path]:
+    folder.mkdir()
+    for p, n in zip(paths, names):
+        (folder / n).write_bytes(p.read_bytes())
+    return sorted(folder.iterdir())
+
+
+def test_auto_matcher_choice(ring, tmp_path, caplog):
+    orbit = sorted(ring["images"].iterdir())  # 20 views around the scene, in order
+    assert plan.ordering(orbit)["ordered"]
+    pick = lambda paths, kp, max_images=300: plan.choose_matcher("auto", paths, max_images, 2e9, kp)
+    # ordered: sequential only when exhaustive matching would be expensive (190 pairs x keypoints^2)
+    assert pick(orbit, 5000)[0] == "sequential"
+    matcher, why = pick(orbit, 1000)
+    assert matcher == "exhaustive" and "cheap" in why["reason"] and why["exhaustive_comparisons"] == 190e6
+    # the same photos shuffled are not ordered: exhaustive, unless there are too many of them
+    perm = np.random.default_rng(0).permutation(len(orbit))
+    shuffled = _copy_as([orbit[i] for i in perm], tmp_path / "shuffled", [p.name for p in orbit])
+    assert not plan.ordering(shuffled)["ordered"]
+    assert pick(shuffled, 5000)[0] == "exhaustive"
+    with caplog.at_level(logging.WARNING, logger="anigs.sfm.plan"):
+        assert pick(shuffled, 100, max_images=10)[0] == "sequential"
+    assert "do not look ordered" in caplog.text
+    assert pick(orbit[:15], 5000)[0] == "exhaustive"  # few photos: always exhaustive
+    assert plan.choose_matcher("sequential", shuffled, 300, 2e9, 10)[0] == "sequential"  # explicit: kept
+
+
+def test_similar_pairs_close_the_orbit(ring):
+    orbit = sorted(ring["images"].iterdir())
+    pairs = plan.similar_pairs(orbit, 3, overlap=10)
+    assert (0, 19) in pairs  # first and last view: neighbours on the circle, 19 apart in the order
+    assert not set(pairs) & plan.sequential_offsets(20, 10)
+    assert plan.sequential_offsets(34, 10) == {(i, i + d) for d in (1, 2, 4, 8, 16, 32) for i in range(34 - d)}
+    assert plan.similar_pairs(orbit, 0, overlap=10) == []
+
+
+def test_thread_counts():
+    assert plan.resolve_threads(3, cli_threads=8) == 3
+    assert plan.resolve_threads(-1, cli_threads=2) == 2
+    assert plan.resolve_threads(-1) == plan.available_cpus() >= 1
+    cfg, info = sfm_mod.resolve_config(SfmConfig(num_threads=-1, mapper_num_threads=-1), cli_threads=5)
+    assert (cfg.num_threads, cfg.mapper_num_threads) == (5, 5) == (info["num_threads"], info["mapper_num_threads"])
+    cfg, _ = sfm_mod.resolve_config(SfmConfig(), cli_threads=5)
+    assert (cfg.num_threads, cfg.mapper_num_threads) == (5, 1)
+
+
+def test_initial_pair_angle_from_the_matches(ring, tmp_path):
+    angles, inliers = plan.pair_triangulation_angles(ring["out"] / "work" / "database.db")
+    assert len(angles) == len(inliers) > 10 and np.all(angles >= 0)
+    angle, info = plan.initial_pair_angle(ring["out"] / "work" / "database.db")
+    assert angle == 16.0 and info["largest_pair_angle_deg"] >= 16  # views 18 degrees apart on the orbit
+    assert ring["res"].report["mapping"]["init_min_tri_angle_auto"]["angle"] == 16.0
+    assert plan.initial_pair_angle(tmp_path / "missing.db") == (16.0, {"angle": 16.0, "reason": "no feature database"})
+
+
+def test_auto_sequential_matching_of_an_orbit(ring, tmp_path):
+    """Forced to sequential (tiny comparison budget), the orbit still registers every view: the
+    similar-thumbnail pairs close the loop that COLMAP's sequential pairs leave open."""
+    cfg = SfmConfig(camera_model="SIMPLE_PINHOLE", exhaustive_max_comparisons=1.0, refine=False)
+    r = run_sfm(ring["images"], tmp_path / "sfm", cfg, gt_cameras=ring["gt"]).report
+    assert r["auto"]["matcher"] == "sequential" and "ordered" in r["auto"]["matcher_choice"]["reason"]
+    assert r["features"]["similar_pairs"] > 0
+    assert r["registered"] == r["images"] == 20
+    assert r["gt_errors"]["rotation_error_deg"]["max"] < 1.0, r["gt_errors"]
+
+
+def test_held_distortion_is_estimated_without_refinement(ring, tmp_path):
+    """SIMPLE_RADIAL: the mapper holds k at zero; with refine off one last bundle adjustment
+    estimates it (with refine on, the refinement does: the ring fixture)."""
+    assert SfmConfig(camera_model="SIMPLE_RADIAL").mapper_holds_distortion()
+    assert not SfmConfig(camera_model="OPENCV").mapper_holds_distortion()
+    assert not SfmConfig(camera_model="SIMPLE_RADIAL", mapper_refine_distortion=True).mapper_holds_distortion()
+    folder = tmp_path / "imgs"
+    folder.mkdir()
+    for p in sorted(ring["images"].iterdir())[:7]:
+        (folder / p.name).write_bytes(p.read_bytes())
+    r = run_sfm(folder, tmp_path / "sfm", SfmConfig(camera_model="SIMPLE_RADIAL", refine=False), keep_work=True).report
+    adj = r["refine"]["intrinsics_adjustment"]
+    assert adj["mean_reprojection_error_after_px"] <= adj["mean_reprojection_error_before_px"] + 1e-9
+    raw = pycolmap.Reconstruction(tmp_path / "sfm" / "work" / "selected")
+    assert all(c.params[3] != 0 for c in raw.cameras.values())  # k estimated, not left at zero
+    assert r["undistorted"] is True
+    ring_raw = pycolmap.Reconstruction(ring["out"] / "work" / "selected")
+    assert all(c.params[3] != 0 for c in ring_raw.cameras.values())
 
 
 # ---- a real forward-facing capture -------------------------------------------------------------
@@ -470,6 +583,8 @@ def test_forward_facing_capture(tmp_path, scene):
     r = res.report
     assert r["registered"] == r["images"] == 16
     assert r["undistorted"] is False
+    # forward-facing: no pair reaches 16 degrees; the mapper starts lower instead of failing at 16
+    assert r["mapping"]["init_min_tri_angle_auto"]["angle"] < 16 and r["mapping"]["retries"] == 0
     e = r["gt_errors"]
     # small baseline: the centres pin the alignment rotation down loosely, the orientations do not
     assert e["rotation_error_deg_after_best_rotation"]["max"] < 0.5, e
