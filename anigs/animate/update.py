@@ -73,6 +73,9 @@ class UpdateConfig:
     backend: str = "auto"
     log_every: int = 25
     nan_guard: bool = True
+    contain: bool = True  # with the masks: after training, a Gaussian whose motion carries its footprint out of a view's dilated mask moves less (1/2, 1/4) or stays still
+    contain_margin_px: int = 3  # containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
+    contain_max_outside_px: float = 0.01  # containment: most blending weight (in pixels) a moving Gaussian may put outside, in any frame and view (0.05 left 1-3 levels of change on flower-llff)
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "UpdateConfig":
@@ -98,6 +101,8 @@ class UpdateConfig:
         for f in fields(self):
             if f.name.startswith("lr_") and not (math.isfinite(getattr(self, f.name)) and getattr(self, f.name) > 0):
                 raise ValueError(f"update config: {f.name} must be a finite positive number, got {getattr(self, f.name)}")
+        if self.contain_margin_px < 0 or not self.contain_max_outside_px >= 0:
+            raise ValueError("update config: contain_margin_px and contain_max_outside_px must be >= 0")
         if not 0 < self.lr_final_factor <= 1:
             raise ValueError("update config: lr_final_factor must be in (0, 1]")
         if len(self.background) != 3:

@@ -16,6 +16,12 @@ With ``complete_masks`` each queued view's mask is then completed with the pixel
 lifted dynamic Gaussians dominate in that view (the render of the 3D set), so every Gaussian
 that moves lies inside the masks the later stages composite with.
 
+With ``contain`` (default) the dynamic set then keeps only the Gaussians whose footprint stays
+inside every queued view's mask dilated by ``contain_margin_px`` (at most
+``contain_max_outside_px`` of blending weight outside): halos, floaters and needles that reach
+into the sky or the walls stay still instead of making them flicker (:mod:`anigs.masks.contain`).
+The masks are not changed.
+
 Writes to ``--out``: ``{id}.png`` (dynamic mask, 0/255), ``{id}_{effect}.png`` when the backend
 gives several effect types, ``{id}_overlay.png``, ``dynamic.npy`` (bool [N] canonical Gaussians
 lifted from the masks) and ``masks.json`` (per-view fractions; with ``--labels``: IoU of each
@@ -55,6 +61,9 @@ class MasksConfig:
     appearance: bool = True                    # with --labels, --gt-*, --cameras: also vs appearance labels (~0.3 s/photo)
     capture_ground_layer: float = 0.5          # with --images: vegetation ground_layer on the capture photos
     complete_masks: bool = True                # add the pixels the lifted dynamic Gaussians dominate to each mask
+    contain: bool = True                       # move only the Gaussians whose footprint stays inside every view's dilated mask; halos and floaters stay still (anigs.masks.contain)
+    contain_margin_px: int = 3                 # containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
+    contain_max_outside_px: float = 0.05       # containment: most blending weight (in pixels) a moving Gaussian may put outside the dilated mask of any view
 
     @staticmethod
     def from_dict(d: dict | None) -> "MasksConfig":
@@ -67,6 +76,9 @@ class MasksConfig:
             raise ValueError(f"masks.background must be [r, g, b], got {cfg.background}")
         if cfg.capture_ground_layer < 0:
             raise ValueError(f"masks.capture_ground_layer must be >= 0, got {cfg.capture_ground_layer}")
+        if cfg.contain_margin_px < 0 or not cfg.contain_max_outside_px >= 0:
+            raise ValueError("masks.contain_margin_px and masks.contain_max_outside_px must be >= 0, got "
+                             f"{cfg.contain_margin_px} and {cfg.contain_max_outside_px}")
         return cfg
 
 
@@ -238,6 +250,15 @@ def run(inputs: MasksInputs, cfg: MasksConfig) -> dict:
             added.append(float((extra & ~res["dynamic"]).mean()))
             res["dynamic"] = res["dynamic"] | extra
         info["completed_fraction"] = added
+    if cfg.contain:  # a Gaussian moves only if its footprint stays inside the (dilated) masks of every view
+        from anigs.masks.contain import contain_dynamic
+
+        before = dyn
+        kept = contain_dynamic(g, dyn, [fr.camera for fr in frames], [r["dynamic"] for r in results],
+                               cfg.contain_margin_px, cfg.contain_max_outside_px)
+        dyn = kept.dynamic
+        info["containment"] = kept.info(before, [fr.name for fr in frames], cfg.contain_margin_px,
+                                        cfg.contain_max_outside_px)
 
     truth = app_truth = app_dynamic = None
     if inputs.labels and cfg.compare:

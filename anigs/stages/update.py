@@ -12,6 +12,13 @@ Cameras: from ``--camera-json`` (one per target), else from ``--view-json`` with
 Static references (for L_cano): ``--static-refs`` images (.png, .npy [H,W,3], or .npz clip: frame 0),
 else renders of the canonical PLY. ``--dynamic``: .npy [N] bool (or int effect labels, 0 = static).
 If the update diverges, the last good state is written to ``<out stem>.last_good.pt`` next to ``--out``.
+
+``--masks DIR`` (the masks stage's folder, ``{view}.png``) with ``contain`` (default): after training,
+the dynamic Gaussians whose motion carries their footprint out of a view's mask (dilated by
+``contain_margin_px``) in any frame, for every view of ``--view-json`` (else the targets' views),
+move less (half, then a quarter) until they stay inside, or else stay still: their coefficients
+are dropped and their canonical position is the static fit's again
+(:func:`anigs.masks.contain.contain_motion`); ``update.json`` reports how many.
 """
 from __future__ import annotations
 
@@ -72,9 +79,10 @@ def _cameras(targets: list[str], metas: list[dict], view_json: str | None, view_
 def run(canonical_path: str | Path, targets: list[str], dynamic_path: str | Path, out: str | Path, cfg: UpdateConfig,
         init_model: str | None = None, view_json: str | None = None, view_ids: list[str] | None = None,
         camera_json: list[str] | None = None, static_refs: list[str] | None = None, sds_prior: str | None = None,
-        sds_prior_params: dict | None = None, prompt: str = "") -> dict:
+        sds_prior_params: dict | None = None, prompt: str = "", masks_dir: str | Path | None = None) -> dict:
     """Train the deformation field (and canonical positions) on the round's ``targets``; writes the
-    model to ``out`` and returns the training log (loss history, timing)."""
+    model to ``out`` and returns the training log (loss history, timing; with ``masks_dir``, the
+    containment of the motion)."""
     from anigs.animate.deform import load_model, save_model
     from anigs.animate.losses import prior_sds_hook
     from anigs.animate.update import ViewData, run_update
@@ -119,15 +127,66 @@ def run(canonical_path: str | Path, targets: list[str], dynamic_path: str | Path
     out = Path(out)
     result = run_update(canonical, dynamic, views, cfg, init=init, sds_fn=sds,
                         failure_path=out.with_name(out.stem + ".last_good.pt"))
+    contained = None
+    if masks_dir is not None and cfg.contain and result.deformation.num_dynamic:
+        all_cams = cams
+        if view_json:
+            from anigs.io import read_json
+            from anigs.views import cameras_from_views
+
+            all_cams = cameras_from_views(read_json(view_json))
+        contained = _contain(result, canonical_ply, all_cams, Path(masks_dir), cfg)
     save_model(out, result.deformation, result.canonical, cfg.to_dict(),
                store_all_attributes=cfg.param_groups == "all",
                extra={"targets": [str(t) for t in targets], "init_model": init_model,
                       "skipped": result.skipped})
     log.info("wrote %s (%d dynamic Gaussians, K=%d, T=%d)", out, result.deformation.num_dynamic,
              result.deformation.num_bases, result.deformation.num_frames)
-    return {"steps": result.steps, "seconds": result.seconds, "skipped": result.skipped,
+    info = {"steps": result.steps, "seconds": result.seconds, "skipped": result.skipped,
             "num_dynamic": result.deformation.num_dynamic, "num_bases": result.deformation.num_bases,
             "num_frames": result.deformation.num_frames, "history": result.history, "config": cfg.to_dict()}
+    if contained is not None:
+        info["containment"] = contained
+    return info
+
+
+def _contain(result, static, cameras, masks_dir: Path, cfg: UpdateConfig) -> dict:
+    """Shrink or stop (in ``result``) the motion of the dynamic Gaussians that leaves the dilated masks
+    of ``cameras`` (:func:`anigs.masks.contain.contain_motion`); returns the counts for ``update.json``."""
+    import time
+
+    import torch
+
+    from anigs.masks import read_mask
+    from anigs.masks.contain import contain_motion, scaled_motion
+
+    t0 = time.perf_counter()
+    missing = [c.name for c in cameras if not (masks_dir / f"{c.name}.png").is_file()]
+    if missing:
+        raise FileNotFoundError(f"update: no mask for views {missing} in {masks_dir} (containment needs one per view)")
+    masks = [read_mask(masks_dir / f"{c.name}.png") >= 0.5 for c in cameras]
+    d = result.deformation
+    factor, outside, worst = contain_motion(result.canonical, d, cameras, masks, cfg.contain_margin_px,
+                                            cfg.contain_max_outside_px)
+    keep = factor > 0
+    info = {"margin_px": cfg.contain_margin_px, "max_outside_px": cfg.contain_max_outside_px,
+            "dynamic_before": int(len(keep)), "dynamic_after": int(keep.sum()),
+            "attenuated": {str(f): int((factor == f).sum()) for f in sorted(set(factor.tolist())) if 0 < f < 1},
+            "frozen": int((~keep).sum()),
+            "frozen_by_view": {c.name: int(((worst == k) & ~keep).sum()) for k, c in enumerate(cameras)}}
+    if (factor < 1).any():
+        d = scaled_motion(d, factor)
+        k = torch.from_numpy(keep)
+        frozen = d.dynamic_index[~k]
+        sub = lambda lim: None if lim is None else lim[k]  # noqa: E731
+        result.deformation = d.remapped(d.dynamic_index[k], sub(d.max_offset), sub(d.max_angle))
+        for p in result.deformation.parameters():
+            p.requires_grad_(False)
+        if cfg.param_groups == "deformation+positions":  # a frozen Gaussian is the static fit's again
+            c = result.canonical
+            c.means = c.means.index_copy(0, frozen, static.means.detach()[frozen].to(c.means.dtype))
+    info["seconds"] = round(time.perf_counter() - t0, 3)
+    return info
 
 
 # ---- command line: anigs update ----
@@ -143,6 +202,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--camera-json", nargs="+", default=None, help="one camera JSON per target")
     p.add_argument("--static-refs", nargs="+", default=None, help="static reference images, one per target")
     p.add_argument("--dynamic", default=None, help=".npy [N] bool (or int labels) selecting dynamic Gaussians")
+    p.add_argument("--masks", default=None, help="the masks stage's folder ({view}.png): with update.contain, a Gaussian "
+                                                 "whose motion leaves the dilated masks moves less or stays still")
     add_out(p, "output model.pt")
     p.add_argument("--log-json", default=None, help="write the loss history and timing here")
     add_params(p, "update")
@@ -186,7 +247,7 @@ def main(args: argparse.Namespace) -> int:
     info = run(args.canonical, args.targets, args.dynamic, args.out, UpdateConfig.from_dict(parse_params(args.params)),
                init_model=args.init_model, view_json=args.view_json, view_ids=args.view_ids,
                camera_json=args.camera_json, static_refs=args.static_refs, sds_prior=args.prior,
-               sds_prior_params=parse_params(args.prior_params), prompt=args.prompt)
+               sds_prior_params=parse_params(args.prior_params), prompt=args.prompt, masks_dir=args.masks)
     if args.log_json:
         write_json(args.log_json, info)
     return 0
