@@ -67,6 +67,7 @@ class Case:
     timeout_s: int = RUN_TIMEOUT_S  # limit of one snakemake invocation
     local_rules: tuple[str, ...] = ("all",)  # `localrules:` of the workflow (not submitted)
     sibling_finishes: bool = False  # another job of cancel_rule finishes in the cancelled run
+    config: tuple[str, ...] = ()  # --config entries of every run of the case (local ones included)
 
 
 CASES = [
@@ -93,6 +94,9 @@ CASES = [
         ignore=("*.log", "*/logs/*", "logs/*", "benchmarks/*", "*/benchmarks/*", "*.json"),
         cancel_rule="refine",
         timeout_s=600,
+        # the local reference and the dry runs split rounds into per-view jobs like the cluster
+        # (round_jobs: auto would give one job per round locally; the files are the same)
+        config=("round_jobs=view",),
     ),
 ]
 
@@ -246,8 +250,8 @@ def _snakemake(case: Case, workdir: Path, env: dict[str, str], *args: str,
            "--snakefile", str(case.snakefile)]
     if case.configfile is not None:
         cmd += ["--configfile", str(case.configfile)]
-    if config:
-        cmd += ["--config", *config]
+    if case.config or config:
+        cmd += ["--config", *case.config, *config]
     cmd += ["--nocolor", *args]
     workdir.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
@@ -260,7 +264,13 @@ def _planned_jobs(case, workdir, env, config=()) -> Counter:
     case's local rules (they run on the submitting host by design)."""
     rc, log, _ = _snakemake(case, workdir, env, "--dry-run", "--cores", "1", config=config, timeout=120)
     assert rc == 0, _tail(log)
-    return Counter(r for r in re.findall(r"^rule (\w+):$", log, flags=re.M) if r not in case.local_rules)
+    return _job_rules(case, log)
+
+
+def _job_rules(case: Case, log: str) -> Counter:
+    """Jobs per rule in a run's or dry run's log (checkpoints included), without the case's local rules."""
+    found = re.findall(r"^(?:local)?(?:rule|checkpoint) (\w+):$", log, flags=re.M)
+    return Counter(r for r in found if r not in case.local_rules)
 
 
 def _check_local_jobs(case: Case, log: str) -> None:
@@ -291,17 +301,20 @@ def _digests(root: Path, ignore: tuple[str, ...]) -> dict[str, str]:
 
 
 _LOCAL: dict[str, tuple[dict[str, str], float, int]] = {}
+_LOCAL_JOBS: dict[str, Counter] = {}
 
 
 def _local_reference(case: Case, root: Path) -> tuple[dict[str, str], float, int]:
-    """Digests of a local run of the case (once per session), its time and job count."""
+    """Digests of a local run of the case (once per session), its time and job count (its jobs per
+    rule in ``_LOCAL_JOBS``)."""
     if case.name not in _LOCAL:
         env = dict(os.environ)
         env["PATH"] = f"{SNAKEMAKE.parent}{os.pathsep}{env.get('PATH', '')}"
         workdir = root / f"local-{case.name}"
         rc, log, secs = _snakemake(case, workdir, env, "--cores", "2")
         assert rc == 0, f"local run failed:\n{_tail(log)}"
-        njobs = len(re.findall(r"^(?:local)?rule \w+:", log, flags=re.M))
+        njobs = len(re.findall(r"^(?:local)?(?:rule|checkpoint) \w+:", log, flags=re.M))
+        _LOCAL_JOBS[case.name] = _job_rules(case, log)
         digests = _digests(workdir / case.results, case.ignore)
         assert digests, f"local run wrote nothing under {workdir / case.results}"
         _LOCAL[case.name] = (digests, secs, njobs)
@@ -360,7 +373,8 @@ def test_every_job_runs_through_slurm_and_matches_local(case, slurm_cluster, tes
     ref, local_s, local_jobs = _local_reference(case, tmp_path_factory.getbasetemp())
 
     workdir = tmp_path_factory.mktemp(f"slurm-{case.name}")
-    planned = _planned_jobs(case, workdir, cluster.env)
+    # the jobs the local run ran (a dry run cannot see past the effects checkpoint on a fresh run)
+    planned = _LOCAL_JOBS[case.name]
     assert sum(planned.values()) > 0
     before = set(cluster.jobs())
     rc, log, slurm_s = _snakemake(case, workdir, cluster.env, "--profile", str(test_profile))
@@ -407,8 +421,8 @@ def test_cancelled_job_fails_and_rerun_resumes(case, slurm_cluster, test_profile
            "--nocolor", "--profile", str(test_profile)]
     if case.configfile is not None:
         cmd += ["--configfile", str(case.configfile)]
-    if case.fault_config:
-        cmd += ["--config", *case.fault_config]
+    if case.config or case.fault_config:
+        cmd += ["--config", *case.config, *case.fault_config]
     logf = workdir / "run1.log"
     with open(logf, "w") as fh:
         proc = subprocess.Popen(cmd, cwd=workdir, env=cluster.env, stdout=fh, stderr=subprocess.STDOUT)

@@ -210,7 +210,7 @@ def test_round_jobs_and_view_jobs_give_the_same_artifacts(run, tmp_path):
     variant = results / "tiny" / "full"
     for d in variant.glob("round*"):
         shutil.rmtree(d)
-    res = _snakemake(results, "--rerun-triggers", "mtime", "--config", f"results={results}", "round_jobs=view", "animate")
+    res = _snakemake(results, "--rerun-triggers", "mtime", "--config", f"results={results}", "round_jobs=view", "--", "animate")
     assert res.returncode == 0, res.stderr[-3000:]
     assert "rule round:" not in res.stdout + res.stderr
     bench = variant / "benchmarks" / "round1"
