@@ -166,7 +166,7 @@ def _contain(result, static, cameras, masks_dir: Path, cfg: UpdateConfig) -> dic
         raise FileNotFoundError(f"update: no mask for views {missing} in {masks_dir} (containment needs one per view)")
     masks = [read_mask(masks_dir / f"{c.name}.png") >= 0.5 for c in cameras]
     d = result.deformation
-    factor, outside, worst = contain_motion(result.canonical, d, cameras, masks, cfg.contain_margin_px,
+    factor, _, worst = contain_motion(result.canonical, d, cameras, masks, cfg.contain_margin_px,
                                             cfg.contain_max_outside_px)
     keep = factor > 0
     info = {"margin_px": cfg.contain_margin_px, "max_outside_px": cfg.contain_max_outside_px,

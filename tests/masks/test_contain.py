@@ -59,7 +59,7 @@ def scene():
 
 
 def test_halo_is_frozen_compact_gaussians_keep_moving(scene):
-    g, index, cam, truth, mask = scene
+    g, index, cam, _, mask = scene
     lifted = _flags(g.num, index["cluster"], index["halo"], index["hidden"])
     res = contain_dynamic(g, lifted, [cam], [mask], margin_px=3, max_outside_px=0.05)
     assert not res.dynamic[index["halo"]]
@@ -83,7 +83,7 @@ def test_contained_motion_leaves_the_outside_still(scene):
     from anigs.animate.frames import render_clip
     from anigs.metrics.motion import clip_motion_metrics, outside_mask_still
 
-    g, index, cam, truth, mask = scene
+    g, index, cam, _, mask = scene
     lifted = _flags(g.num, index["cluster"], index["halo"])
     contained = contain_dynamic(g, lifted, [cam], [mask]).dynamic
 
@@ -106,6 +106,12 @@ def test_outside_weights_margin_and_errors(scene):
     w5 = outside_weights(g, [cam], [mask], margin_px=5)
     assert w0.shape == (1, g.num) and (w5 <= w0 + 1e-9).all()  # a wider band forgives more
     assert w0[0, index["halo"]] > w5[0, index["halo"]] > 0
+    from anigs.masks.contain import _outside_region, _reaching
+    from anigs.masks.lift import blend_weights
+
+    out, dist = _outside_region(mask, cam, 5)
+    assert len(_reaching(g, cam, dist)) < g.num  # the cull leaves out what cannot reach those pixels...
+    np.testing.assert_allclose(w5[0], blend_weights(g, cam, out)[1], atol=1e-6)  # ...and changes no weight
     with pytest.raises(ValueError, match="margin_px"):
         outside_weights(g, [cam], [mask], margin_px=-1)
     with pytest.raises(ValueError, match="masks"):
@@ -194,7 +200,7 @@ def test_motion_that_leaves_the_mask_moves_less_or_stops(scene):
     assert np.abs(after - after[:1]).max() > 0.05  # the rest still moves
     # a second view that sees nothing outside its mask changes nothing; the leaks are found in view 0
     full = np.ones_like(mask)
-    f2, o2, w2 = contain_motion(g, d, [cam, cam], [full, mask])
+    f2, _, w2 = contain_motion(g, d, [cam, cam], [full, mask], margin_px=3, max_outside_px=0.05)
     np.testing.assert_array_equal(f2, factor)
     assert w2[rows == wild][0] == 1
     # scaled_motion scales every coefficient; a fixed set of frames; the empty set; bad steps
@@ -219,7 +225,7 @@ def test_update_stage_contains_the_trained_motion(tmp_path, scene):
     from anigs.masks import write_mask_png
     from anigs.video import save_clip
 
-    g, index, cam, truth, mask = scene
+    g, index, cam, _, mask = scene
     g.save_ply(tmp_path / "canonical.ply")
     (tmp_path / "views.json").write_text(json.dumps({"views": [{"id": "v00", "camera": cam.to_dict()}]}))
     write_mask_png(tmp_path / "masks" / "v00.png", mask)
