@@ -76,6 +76,7 @@ class UpdateConfig:
     contain: bool = True  # with the masks: after training, a Gaussian whose motion carries its footprint out of a view's dilated mask moves less (1/2, 1/4) or stays still
     contain_margin_px: int = 3  # containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
     contain_max_outside_px: float = 0.01  # containment: most blending weight (in pixels) a moving Gaussian may put outside, in any frame and view (0.05 left 1-3 levels of change on flower-llff)
+    contain_rounds: str = "final"  # which rounds' updates contain the motion (the workflow passes --masks to them): final (the model that is rendered, exported and evaluated; an earlier round's model only renders the next round's clips, whose static pixels ComposedV2V pastes back from frame 0) | every
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "UpdateConfig":
@@ -107,6 +108,8 @@ class UpdateConfig:
             raise ValueError("update config: lr_final_factor must be in (0, 1]")
         if len(self.background) != 3:
             raise ValueError("update config: background must be 3 numbers")
+        if self.contain_rounds not in ("final", "every"):
+            raise ValueError(f"update config: contain_rounds={self.contain_rounds!r}; choose final or every")
         for key, lim in self.effect_limits.items():
             bad = set(lim) - {"max_offset_frac", "max_offset_abs", "max_angle_deg"}
             if bad:

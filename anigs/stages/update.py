@@ -18,7 +18,8 @@ the dynamic Gaussians whose motion carries their footprint out of a view's mask 
 ``contain_margin_px``) in any frame, for every view of ``--view-json`` (else the targets' views),
 move less (half, then a quarter) until they stay inside, or else stay still: their coefficients
 are dropped and their canonical position is the static fit's again
-(:func:`anigs.masks.contain.contain_motion`); ``update.json`` reports how many.
+(:func:`anigs.masks.contain.contain_motion`); ``update.json`` reports how many. The workflow passes
+``--masks`` to the final round's update only (``contain_rounds: final``; ``every`` for all rounds).
 """
 from __future__ import annotations
 

@@ -122,6 +122,10 @@ def test_nothing_outside_the_masks_moves(run):
     contained = json.loads((scene / "masks" / "masks.json").read_text())["containment"]
     assert 0 < contained["dynamic_after"] <= contained["dynamic_before"]
     assert contained["dynamic_after"] == int(np.load(scene / "masks" / "dynamic.npy").sum())
+    # the update contains the trained motion in the final round only (update.contain_rounds: final)
+    rounds = sorted((scene / "full").glob("round*/update.json"), key=lambda p: int(p.parent.name[5:]))
+    assert len(rounds) >= 2
+    assert ["containment" in json.loads(p.read_text()) for p in rounds] == [False] * (len(rounds) - 1) + [True]
 
 
 def test_second_run_has_nothing_to_do(run):

@@ -107,6 +107,7 @@ rule update:
         p=jparams("update", _update_extra),
         init=lambda wc, input: f"--init-model {input.init[0]}" if input.init else "",
         method=_method_args,
+        contain=_contain_args,
         targets=_target_files,
         version=ANIGS_VERSION,
     log:
@@ -122,7 +123,7 @@ rule update:
         "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} update --canonical {input.ply:q} {params.init} --targets {params.targets} "
-        "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy --masks {input.masks:q} --out {output.model:q} "
+        "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy {params.contain} --out {output.model:q} "
         "--log-json {output.log_json:q} --params {params.p:q} {params.method} > {log} 2>&1"
 
 

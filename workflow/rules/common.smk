@@ -243,6 +243,17 @@ def _method_args(wc):
         return ""
     params = {"num_bases": sec(wc.scene, "update", wc.variant)["num_bases"], **a[a["method"]]}
     return f"--method {a['method']} --method-params {shlex.quote(json.dumps(params, sort_keys=True))}"
+def _contain_args(wc, input):
+    """``--masks`` for the update jobs that contain the motion (``update.contain``,
+    ``update.contain_rounds``: the final round, or every round)."""
+    u = sec(wc.scene, "update", wc.variant)
+    if not u["contain"]:
+        return ""
+    if u["contain_rounds"] == "every" or int(wc.round) == plan(wc.scene, wc.variant).num_rounds:
+        return f"--masks {shlex.quote(str(input.masks))}"
+    return ""
+
+
 
 
 def _chosen_effects(scene):
