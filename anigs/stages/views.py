@@ -13,6 +13,10 @@ The regions of interest (dynamic canonical Gaussians) come from exactly one of:
                         canonical depth for the ground cue) and lifted to 3D.
 
 Writes ``OUT/views.json``, ``OUT/topdown.png`` and ``OUT/dynamic.npy`` (the ROI used).
+Views whose dynamic region is negligible (``min_dynamic_fraction``, see :mod:`anigs.views`)
+are not queued: ``views.json`` lists them under ``dynamic_fraction.dropped`` and numbers the
+queued ones v00, v01, ... (:func:`anigs.views.queued_view_count` counts them). Under the
+whole-scene fallback (no ROI) nothing is dropped.
 """
 from __future__ import annotations
 
@@ -127,7 +131,8 @@ def run(inputs: ViewsInputs, cfg: ViewsConfig, dynamic_labels: list[int] | None 
         fallback = (f"no region of interest ({source} marks none of the {g.num} Gaussians dynamic): "
                     "the views look at the whole scene, and nothing will move")
         log.warning("views: %s", fallback)
-    plan = plan_views(g, roi if roi.any() else np.ones_like(roi), cameras, cfg)
+    plan = plan_views(g, roi if roi.any() else np.ones_like(roi), cameras, cfg,
+                      keep_all=None if fallback is None else "roi_fallback: the ROI is the whole scene")
     out.mkdir(parents=True, exist_ok=True)
     payload = plan.to_json()
     payload.update({"roi_source": source, "num_gaussians": g.num, "num_roi": int(roi.sum()),
@@ -138,7 +143,8 @@ def run(inputs: ViewsInputs, cfg: ViewsConfig, dynamic_labels: list[int] | None 
     save_topdown(out / "topdown.png", plan, g.means.detach().double().numpy(), roi,
                  size=cfg.topdown_size)
     write_json(out / "views.json", payload)
-    log.info("views: wrote %s (%d views), topdown.png, dynamic.npy", out / "views.json", len(plan.views))
+    log.info("views: wrote %s (%d views queued%s), topdown.png, dynamic.npy", out / "views.json", len(plan.views),
+             f", {len(plan.dropped)} dropped as negligible" if plan.dropped else "")
     return payload
 
 

@@ -30,17 +30,52 @@ pitches, then the requested yaw at an extra location (the next farthest-point ca
 Rejected directions are kept in :attr:`ViewPlan.rejected` (and drawn on the top-down map);
 they are never queued. A slot no location can fill is left out (logged).
 
+Negligible views (``min_dynamic_fraction``, :func:`drop_negligible`): the dynamic fraction of a
+view is the share of its width x height pixels in the dynamic mask of the ROI, i.e. the pixels
+the masks stage would mark: all Gaussians rendered, alpha >= 0.3 and the ROI Gaussians carrying
+>= 0.5 of it (:func:`anigs.masks.labels.dynamic_masks`; occluded ROI counts for nothing). A
+placed view below ``min_dynamic_fraction`` is not queued; it is listed in ``views.json``
+(``dynamic_fraction.dropped``, with its fraction and the reason) and the kept views are numbered
+v00, v01, ... consecutively. If every view is negligible, the one with the largest fraction is
+kept (``dynamic_fraction.kept_below_min``). Nothing is dropped under the whole-scene ROI
+fallback (nothing moves), and with ``min_dynamic_fraction: 0`` nothing is computed (the
+``views.json`` has no ``dynamic_fraction`` section). :func:`queued_view_count` reads the
+queue's size back (json only).
+
 ROI coverage counts a Gaussian as seen by a view when it is visible there
 (:mod:`anigs.masks.lift`: ``weight`` = it contributes at least ``min_weight`` pixels of
 blending weight to the rendered image; ``depth`` = its centre passes a depth test).
 """
-from anigs.views.candidates import (azimuth_deg, ccw_order, farthest_point_order, in_wedges, location_cameras,
-                                    make_candidates, score_candidate, view_camera)
-from anigs.views.config import ViewsConfig
-from anigs.views.coverage import (capture_pitch_deg, estimate_up, observation_counts, replacement_directions,
-                                  scene_coverage)
-from anigs.views.plan import ViewPlan, cameras_from_views, plan_views
+from __future__ import annotations
 
-__all__ = ["ViewsConfig", "ViewPlan", "plan_views", "view_camera", "farthest_point_order", "ccw_order",
-           "estimate_up", "observation_counts", "scene_coverage", "capture_pitch_deg", "replacement_directions",
-           "make_candidates", "location_cameras", "score_candidate", "in_wedges", "azimuth_deg", "cameras_from_views"]
+import importlib
+from typing import Any
+
+from anigs.views.queue import queued_view_count
+
+# the rest loads on first use (PEP 562), so that ``queued_view_count`` does not import torch
+_LAZY = {
+    "ViewsConfig": "config", "ViewPlan": "plan", "plan_views": "plan", "cameras_from_views": "plan",
+    "drop_negligible": "plan", "view_camera": "candidates", "farthest_point_order": "candidates",
+    "ccw_order": "candidates", "make_candidates": "candidates", "location_cameras": "candidates",
+    "score_candidate": "candidates", "in_wedges": "candidates", "azimuth_deg": "candidates",
+    "estimate_up": "coverage", "observation_counts": "coverage", "scene_coverage": "coverage",
+    "capture_pitch_deg": "coverage", "replacement_directions": "coverage", "dynamic_fraction": "coverage",
+}
+
+__all__ = ["queued_view_count", "ViewsConfig", "ViewPlan", "plan_views", "cameras_from_views", "drop_negligible",
+           "view_camera", "farthest_point_order", "ccw_order", "make_candidates", "location_cameras",
+           "score_candidate", "in_wedges", "azimuth_deg", "estimate_up", "observation_counts", "scene_coverage",
+           "capture_pitch_deg", "replacement_directions", "dynamic_fraction"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        value = getattr(importlib.import_module(f"anigs.views.{_LAZY[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'anigs.views' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

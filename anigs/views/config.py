@@ -45,6 +45,7 @@ class ViewsConfig:
     yaw_steps: list = field(default_factory=lambda: [0.33, 0.67, 1.0])  # then move yaw this share towards the ROI
     extra_locations: int = 8          # extra candidate locations tried for directions no location passes
     match_capture_fov: bool = True    # forward/orbit layouts: FOV at most the capture photos' median FOV
+    min_dynamic_fraction: float = 0.005  # a view is queued only if the ROI covers >= this share of its pixels (pixels the masks stage would mark: ROI carries >= 0.5 of the rendered alpha, alpha >= 0.3); 0 queues every view
     topdown_size: int = 720         # pixels of the top-down map (views/topdown.png)
 
     def __post_init__(self) -> None:
@@ -53,6 +54,8 @@ class ViewsConfig:
         if not 0.0 <= self.min_coverage <= 1.0 or not 0.0 < self.coverage_alpha <= 1.0:
             raise ValueError(f"views.min_coverage must be in [0, 1] and coverage_alpha in (0, 1], "
                              f"got {self.min_coverage}, {self.coverage_alpha}")
+        if not 0.0 <= self.min_dynamic_fraction <= 1.0:
+            raise ValueError(f"views.min_dynamic_fraction must be in [0, 1], got {self.min_dynamic_fraction}")
         if self.min_observations < 0 or self.extra_locations < 0:
             raise ValueError("views.min_observations and views.extra_locations must be >= 0")
         if self.pitch_step_deg <= 0 or self.max_pitch_drop_deg < 0:

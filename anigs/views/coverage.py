@@ -42,6 +42,23 @@ def scene_coverage(g_observed: Gaussians, cam: Camera, alpha_min: float = 0.5) -
     return float((alpha >= alpha_min).mean())
 
 
+DYNAMIC_SHARE = 0.5   # a pixel is dynamic when the ROI carries >= this share of its alpha ...
+DYNAMIC_ALPHA = 0.3   # ... and its alpha is >= this (the labels/effects mask backends' defaults)
+
+
+def dynamic_fraction(g: Gaussians, roi: np.ndarray, cam: Camera) -> float:
+    """Share of ``cam``'s pixels in the dynamic mask of the ROI (bool [N]).
+
+    The mask is the render the masks stage makes of a dynamic Gaussian set
+    (:func:`anigs.masks.labels.dynamic_masks`): every Gaussian of ``g`` is rasterised, and a
+    pixel is dynamic when its alpha is >= ``DYNAMIC_ALPHA`` and the ROI Gaussians carry
+    >= ``DYNAMIC_SHARE`` of it (occluded ROI Gaussians do not count).
+    """
+    from anigs.masks.labels import dynamic_masks
+
+    return float(dynamic_masks(g, roi, [cam], DYNAMIC_SHARE, DYNAMIC_ALPHA)[0].mean())
+
+
 def capture_pitch_deg(cameras: Sequence[Camera], up: np.ndarray) -> float:
     """Median pitch (deg, positive looks up) of the capture cameras."""
     f = np.stack([c.forward for c in cameras])

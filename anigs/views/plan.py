@@ -16,7 +16,8 @@ from anigs.gaussians import Gaussians
 from anigs.geometry import horizontal_basis
 from anigs.views.candidates import azimuth_deg, ccw_order, farthest_point_order, make_candidates, score_candidate, view_camera
 from anigs.views.config import ViewsConfig
-from anigs.views.coverage import _rel_deg, capture_pitch_deg, observation_counts, replacement_directions, scene_coverage
+from anigs.views.coverage import (DYNAMIC_ALPHA, DYNAMIC_SHARE, _rel_deg, capture_pitch_deg, dynamic_fraction,
+                                  observation_counts, replacement_directions, scene_coverage)
 from anigs.masks.lift import VisibilityConfig, visibility
 
 log = logging.getLogger("anigs.views")
@@ -44,6 +45,13 @@ class ViewPlan:
     rejected: list[dict[str, Any]] = field(default_factory=list)  # directions that failed the coverage test
     coverage_rule: dict[str, Any] = field(default_factory=dict)   # the test (min, alpha, min_observations)
     up_estimate: dict[str, Any] | None = None      # geometry.estimate_up report (up: auto)
+    dropped: list[dict[str, Any]] = field(default_factory=list)   # views left out: negligible dynamic region
+    dynamic_rule: dict[str, Any] | None = None     # the negligible-view test (None: min_dynamic_fraction 0)
+
+    def dynamic_json(self) -> dict[str, Any]:
+        """The ``dynamic_fraction`` section of ``views.json`` (see :func:`drop_negligible`)."""
+        return {**(self.dynamic_rule or {}), "per_view": [v.get("dynamic_fraction") for v in self.views],
+                "dropped": self.dropped}
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -51,6 +59,7 @@ class ViewPlan:
             "layout": None if self.layout is None else self.layout.to_dict(),
             "scene_coverage": {**self.coverage_rule, "per_view": [v.get("coverage") for v in self.views],
                                "rejected": self.rejected},
+            **({} if self.dynamic_rule is None else {"dynamic_fraction": self.dynamic_json()}),
             "up_estimate": self.up_estimate,
             "coverage_after": self.coverage_after,
             "frustum_coverage_after": self.frustum_coverage_after,
@@ -67,8 +76,45 @@ class ViewPlan:
         }
 
 
+DYNAMIC_DEFINITION = ("share of the view's width x height pixels in the dynamic mask of the ROI: all Gaussians "
+                      "rendered, a pixel counts when its alpha is >= alpha and the ROI Gaussians carry >= share "
+                      "of it (the masks stage's render of a dynamic set)")
+
+
+def drop_negligible(g: Gaussians, roi: np.ndarray, cams: Sequence[Camera], cfg: ViewsConfig,
+                    keep_all: str | None = None) -> tuple[list[int], list[float | None], dict[str, Any] | None]:
+    """Which of the placed views ``cams`` to queue: (kept indices, dynamic fraction per view, rule).
+
+    A view is negligible when its dynamic fraction (:func:`~anigs.views.coverage.dynamic_fraction`)
+    is < ``cfg.min_dynamic_fraction``; negligible views are not queued. When every view is
+    negligible the one with the largest fraction is kept (ties: the earliest). With
+    ``min_dynamic_fraction`` 0 nothing is computed and the rule is None; with ``keep_all`` (a
+    reason, e.g. the whole-scene ROI fallback) nothing is dropped and the reason is recorded.
+    """
+    n = len(cams)
+    if cfg.min_dynamic_fraction <= 0:
+        return list(range(n)), [None] * n, None
+    rule: dict[str, Any] = {"min": cfg.min_dynamic_fraction, "share": DYNAMIC_SHARE, "alpha": DYNAMIC_ALPHA,
+                            "definition": DYNAMIC_DEFINITION, "applied": keep_all is None, "not_applied": keep_all,
+                            "kept_below_min": None}
+    if keep_all is not None:
+        log.info("views: min_dynamic_fraction not applied (%s): every view is queued", keep_all)
+        return list(range(n)), [None] * n, rule
+    fractions: list[float | None] = [dynamic_fraction(g, roi, c) for c in cams]
+    keep = [i for i, f in enumerate(fractions) if f >= cfg.min_dynamic_fraction]
+    if n and not keep:
+        best = int(np.argmax(fractions))
+        keep = [best]
+        rule["kept_below_min"] = (f"all {n} views are below min_dynamic_fraction {cfg.min_dynamic_fraction:g}: "
+                                  f"kept the one with the largest dynamic fraction ({fractions[best]:.5f}) rather "
+                                  "than an empty queue")
+        log.warning("views: %s", rule["kept_below_min"])
+    return keep, fractions, rule
+
+
 def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
-               cfg: ViewsConfig | None = None, observations: np.ndarray | None = None) -> ViewPlan:
+               cfg: ViewsConfig | None = None, observations: np.ndarray | None = None,
+               keep_all: str | None = None) -> ViewPlan:
     """Build the view queue.
 
     Args:
@@ -77,6 +123,8 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
         cameras: the capture cameras (SfM): candidate positions, layout, observation counts.
         observations: int [N] capture photos each Gaussian is visible in (computed from
             ``cameras`` with the configured visibility test when None).
+        keep_all: a reason to queue every placed view, whatever its dynamic fraction (the
+            stage passes its whole-scene ROI fallback); None applies ``min_dynamic_fraction``.
     """
     cfg = cfg or ViewsConfig()
     roi = np.asarray(roi)
@@ -232,6 +280,28 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
                     ", ".join(f"{y:+.0f}" for y in missing), 100 * cfg.min_coverage, cfg.min_observations)
     if rejected:
         log.info("views: %d direction(s) rejected by the coverage test and replaced", len(rejected))
+    keep, fractions, dyn_rule = drop_negligible(g, roi, [s[3][0] for s in slots], cfg, keep_all)
+    dropped: list[dict[str, Any]] = []
+    if dyn_rule is not None and dyn_rule["applied"]:
+        log.info("views: dynamic fraction of the %d placed views (queue order before dropping): %s", len(slots),
+                 " ".join(f"{100 * f:.2f}%" for f in fractions))
+        for i, ((loc, ci, req_yaw, (cam, cov, yaw, pitch)), f) in enumerate(zip(slots, fractions)):
+            if i in keep:
+                continue
+            dropped.append({"slot": i, "location": loc, "candidate": int(ci), "requested_yaw": float(req_yaw),
+                            "yaw": float(yaw), "pitch": float(pitch), "coverage": cov, "dynamic_fraction": f,
+                            "reason": f"negligible dynamic region: {f:.5f} of the pixels < min_dynamic_fraction "
+                                      f"{cfg.min_dynamic_fraction:g}",
+                            "position": cam.center.tolist(), "forward": cam.forward.tolist(),
+                            "camera": cam.to_dict()})
+        if dropped:
+            log.warning("views: %d of %d views not queued, their dynamic region covers < %.2f%% of the pixels: %s; "
+                        "the %d others are numbered v00..v%02d", len(dropped), len(slots),
+                        100 * cfg.min_dynamic_fraction,
+                        ", ".join(f"slot {d['slot']} (location {d['location']}, yaw {d['requested_yaw']:+.0f}) "
+                                  f"{100 * d['dynamic_fraction']:.3f}%" for d in dropped), len(keep), len(keep) - 1)
+    fractions = [fractions[i] for i in keep]
+    slots = [slots[i] for i in keep]
 
     views: list[dict[str, Any]] = []
     cams: list[Camera] = []
@@ -241,7 +311,7 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
     coverage_after: list[float] = []
     in_frustum = np.zeros(gaussians.num, dtype=bool)
     frustum_after: list[float] = []
-    for loc, ci, req_yaw, (cam, cov, yaw, pitch) in slots:
+    for (loc, ci, req_yaw, (cam, cov, yaw, pitch)), dyn in zip(slots, fractions):
         vid = f"v{len(views):02d}"
         cam.name = vid
         seen = visibility(g, cam, vcfg)
@@ -254,6 +324,8 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
             "coverage": cov, "requested_yaw": float(req_yaw), "fov_deg": fov,
             "replaced": bool(abs(yaw - req_yaw) > 1e-9 or abs(pitch - base_pitch) > 1e-9 or loc >= cfg.num_locations),
         }
+        if dyn is not None:
+            entry["dynamic_fraction"] = dyn
         if views:
             ov = float((seen & any_seen).sum() / n_seen) if n_seen else 0.0
             ov_roi = float((seen & roi & covered).sum() / roi_seen) if roi_seen else 0.0
@@ -284,7 +356,7 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
     rule = {"min": cfg.min_coverage, "alpha": cfg.coverage_alpha, "min_observations": cfg.min_observations,
             "observed_gaussians": int(observed.sum())}
     return ViewPlan(views, cams, cand, cand_vis, heading, chosen, centroid, up, coverage_after, reachable, seen_by_view,
-                    cand_seen, frustum_after, layout, rejected, rule, up_report)
+                    cand_seen, frustum_after, layout, rejected, rule, up_report, dropped, dyn_rule)
 
 
 def cameras_from_views(data: dict) -> list[Camera]:

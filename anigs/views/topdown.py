@@ -17,6 +17,7 @@ from anigs.views.plan import ViewPlan
 
 # BGR colours
 _REJECTED = (40, 40, 140)
+_DROPPED = (150, 150, 40)
 _DIR_COLOURS = [(200, 90, 20), (0, 140, 255), (180, 40, 180), (40, 160, 40), (30, 30, 200)]
 
 
@@ -90,6 +91,14 @@ def draw_topdown(plan: ViewPlan, means: np.ndarray, roi: np.ndarray, size: int =
         tip = eye + 0.45 * ray * fwd / n
         cv2.line(img, ipt(eye), ipt(tip), _REJECTED, 1, cv2.LINE_AA)
         cv2.drawMarker(img, ipt(tip), _REJECTED, cv2.MARKER_TILTED_CROSS, 7, 1, cv2.LINE_AA)
+    for d in plan.dropped:  # views left out for a negligible dynamic region: short ray ending in a circle
+        eye, fwd = to2(np.asarray(d["position"])), to2(np.asarray(d["forward"]))
+        n = np.linalg.norm(fwd)
+        if n < 1e-9:
+            continue
+        tip = eye + 0.45 * ray * fwd / n
+        cv2.line(img, ipt(eye), ipt(tip), _DROPPED, 1, cv2.LINE_8)
+        cv2.circle(img, ipt(tip), 4, _DROPPED, 1, cv2.LINE_8)
     for i, ci in enumerate(plan.chosen):
         p = ipt(cand[ci])
         cv2.circle(img, p, 8, (30, 30, 220), -1, cv2.LINE_AA)
@@ -103,7 +112,8 @@ def draw_topdown(plan: ViewPlan, means: np.ndarray, roi: np.ndarray, size: int =
         cv2.putText(img, f"yaw {yaw:+.0f}", (x, y0 + 20), cv2.FONT_HERSHEY_SIMPLEX, 0.45, col, 1, cv2.LINE_AA)
         x += 90
     if plan.layout is not None:
-        cv2.putText(img, f"layout {plan.layout.kind}, {len(plan.rejected)} rejected", (8, y0 + 38),
+        dropped = f", {len(plan.dropped)} dropped (o: no dynamic region)" if plan.dropped else ""
+        cv2.putText(img, f"layout {plan.layout.kind}, {len(plan.rejected)} rejected{dropped}", (8, y0 + 38),
                     cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
     if plan.coverage_after:
         cv2.putText(img, f"ROI coverage {100 * plan.coverage_after[-1]:.1f}% after {len(plan.views)} views",

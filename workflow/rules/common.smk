@@ -10,6 +10,7 @@ import yaml
 from anigs.config import check_sections, deep_merge, load_scene, section
 from anigs.tradeoff import DERIVED_SEP, get_dotted, knob_filename, stage_owner, sweep_points as _sweep_points
 from anigs.animate.plan import METHODS, AnimateConfig, RoundPlan
+from anigs.views.queue import queued_view_count
 
 ANIGS_VERSION = anigs.__version__
 R = config["results"]
@@ -83,8 +84,9 @@ def is_synthetic(scene):
 
 
 def num_views(scene):
-    v = sec(scene, "views")
-    return int(v["num_locations"]) * len(v["directions"])
+    """The views the queue holds, read from views.json once that checkpoint has run: the views stage
+    leaves out views whose dynamic region is negligible (views.min_dynamic_fraction)."""
+    return queued_view_count(checkpoints.views.get(scene=stage_owner(scene, "views")).output.views)
 
 
 def view_ids(scene):

@@ -31,7 +31,8 @@ checkpoint effects:
         "--images {input.images:q} --out {params.out:q} --params {params.p:q} > {log} 2>&1"
 
 
-rule views:
+# a checkpoint: the queue's length (views with a negligible dynamic region are left out) sets the rounds
+checkpoint views:
     input:
         ply=stage_path("static", "canonical.ply"),
         cameras=stage_path("sfm", "cameras.json"),
