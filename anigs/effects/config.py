@@ -42,9 +42,11 @@ class Config:
     wall_max_upness: float = 0.35    # |normal . up| below this = vertical
     floor_min_upness: float = 0.85   # |normal . up| above this = horizontal
     ground_margin: float = 0.03      # ground layer: surfaces below this x camera height are ground
+    ground_seen_quantile: float = 0.9  # ... and below this quantile of how deep the photos see under the ground plane, mirrored upwards (the top of the seen ground)
     ground_min_support: float = 0.03  # the ground plane counts when this fraction of Gaussians lies on it
     ground_max_below: float = 0.1    # ... and at most this fraction lies clearly under it
-    grass_max_height: float = 0.2    # vegetation whose components stay below this x camera height is grass
+    grass_max_height: float = 0.2    # plants rising above this x camera height are trees and bushes (foliage); lower ones grass or flower beds
+    foliage_reach_frac: float = 0.03  # ... and so are plant pixels within this (x photo diagonal) of such a part of the same plant (a bush's lowest leaves)
     # colour
     green_hue: tuple = (62.0, 170.0)  # hue band of vegetation (degrees)
     green_min_saturation: float = 0.16  # HSV saturation a vegetation pixel needs at least
@@ -55,9 +57,10 @@ class Config:
     white_flowers: bool = True       # bright near-white blobs inside vegetation count as blossoms
     flower_radius_frac: float = 0.025  # a blossom lies within this of vegetation
     flower_min_ring: float = 0.25    # share of a blossom's surroundings that must be vegetation
+    flower_max_behind: float = 0.1   # a blossom lies at most this x its depth behind that vegetation (a wall seen past a bush lies farther)
     flower_bed_frac: float = 0.015   # closing radius joining blossoms (and the stems between them) into beds
     flower_rim_frac: float = 0.008  # blossoms grow this far over their blended, less saturated rim
-    flower_bed_share: float = 0.1    # low plant components with blossoms on this share of their area are beds
+    flower_bed_share: float = 0.1    # low plant components (and low plant pixels' surroundings) with blossoms on this share of their area are beds
     max_rectangularity: float = 0.9  # green components filling >= this of their bounding rectangle are pictures
     # water
     water_hue: tuple = (165.0, 265.0)  # bluish / cyan hues of water (sky reflection, depth)
@@ -86,6 +89,8 @@ class Config:
             if len(v) != 2 or not 0 <= v[0] < v[1] <= 360:
                 raise ValueError(f"effects.{name} must be (low, high) degrees in [0, 360], got {v}")
             setattr(self, name, v)
+        if not 0 < self.ground_seen_quantile < 1:
+            raise ValueError(f"effects.ground_seen_quantile must be in (0, 1), got {self.ground_seen_quantile}")
         if not 0 < self.vote_threshold <= 1:
             raise ValueError(f"effects.vote_threshold must be in (0, 1], got {self.vote_threshold}")
         for name in ("neighbour_radius", "grass_max_height", "water_max_height", "ground_margin"):

@@ -77,6 +77,32 @@ def ring_share(labels: np.ndarray, n: int, radius: int, inside: np.ndarray) -> n
     return np.where(total > 0, hit / np.maximum(total, 1), 0.0)
 
 
+def ring_depth_gap(labels: np.ndarray, n: int, radius: int, depth: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """Per component [n]: (median depth of the component - median depth of its ring pixels where
+    ``inside`` holds) / median depth of the component (nan where either is empty): > 0 when the
+    component lies behind the surface around it, < 0 in front of it."""
+    grown = cv2.dilate(labels.astype(np.float32), disk(radius)).astype(np.int64)
+    ring = (labels == 0) & (grown > 0) & inside & (depth > 0)
+    own = cue_median(labels, n, depth, (labels > 0) & (depth > 0))
+    around = cue_median(grown, n, depth, ring)
+    return (own - around) / np.maximum(own, 1e-9)
+
+
+def cue_median(labels: np.ndarray, n: int, values: np.ndarray, where: np.ndarray) -> np.ndarray:
+    """Per label [n]: the median of ``values`` over the pixels where ``where`` holds (nan if none)."""
+    lab, v = labels[where], values[where]
+    out = np.full(n, np.nan)
+    if not len(lab):
+        return out
+    order = np.lexsort((v, lab))
+    lab, v = lab[order], v[order]
+    bounds = np.searchsorted(lab, np.arange(n + 1))
+    for i in np.flatnonzero(bounds[1:] > bounds[:-1]):
+        seg = v[bounds[i]:bounds[i + 1]]
+        out[i] = float(seg[len(seg) // 2])
+    return out
+
+
 def rectangularity(labels: np.ndarray, n: int, areas: np.ndarray, min_pixels: int) -> np.ndarray:
     """Per component [n]: area / area of its minimum-area rotated rectangle (1 = a rectangle; an
     ellipse is ~0.79, ragged foliage lower); 0 for components under ``min_pixels``."""

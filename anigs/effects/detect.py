@@ -31,7 +31,8 @@ import numpy as np
 
 from anigs.cameras import Camera
 from anigs.effects.config import EFFECTS, REGION_EFFECTS, REGIONS, Config
-from anigs.effects.geometry import Ground, colour_spread, local_shape, render_features, scene_ground, world_up
+from anigs.effects.geometry import (Ground, colour_spread, local_shape, render_features, scene_ground, seen_ground_cut,
+                                   world_up)
 from anigs.effects.reasons import reason
 from anigs.effects.regions import PhotoMaps, PhotoRegions, classify_photo
 from anigs.gaussians import Gaussians
@@ -202,6 +203,11 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
         m2 = render_features(g, second, cam)[0]
         height = m2[..., 1] if ground.plane is not None else None
         maps.append(PhotoMaps(img, cam, d, a, m[..., 0], m[..., 1], m2[..., 0], height, cam.name))
+    if ground.plane is not None:
+        seen = [np.where((p.alpha >= cfg.min_alpha) & (p.depth > 0), p.height, np.nan) for p in maps]
+        ground.cut = seen_ground_cut(ground.plane, seen, cfg.ground_seen_quantile)
+        log.info("effects: ground cut %.3g above the plane (seen ground; the centres' layer reaches %.3g)",
+                 ground.cut, ground.plane.cut_height())
     regions = [classify_photo(p, ground, cfg) for p in maps]
     region_of, share = _lift(means, max_scale, maps, regions, ground, cfg)
     effects: dict[str, EffectResult] = {}

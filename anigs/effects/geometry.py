@@ -34,10 +34,18 @@ class Ground:
     up: np.ndarray
     support: float = 0.0  # share of the Gaussians lying on the plane
     note: str = ""
+    cut: float = 0.0      # seen surfaces lower than this above the plane are ground (:func:`seen_ground_cut`; 0: unset)
+
+    def cut_height(self) -> float:
+        """Height above the plane below which a seen surface is ground (``cut``, else the plane's own)."""
+        if self.plane is None:
+            raise ValueError("Ground.cut_height: no ground plane")
+        return float(self.cut) if self.cut > 0 else float(self.plane.cut_height())
 
     def to_dict(self) -> dict:
         return {"found": self.plane is not None, "up": self.up.tolist(), "support": round(self.support, 4),
-                "note": self.note, **({"plane": self.plane.to_dict()} if self.plane is not None else {})}
+                "note": self.note, **({"plane": self.plane.to_dict(), "cut": round(self.cut_height(), 4)}
+                                      if self.plane is not None else {})}
 
 
 def world_up(cameras: Sequence[Camera], mode: str = "z", points: np.ndarray | None = None) -> np.ndarray:
@@ -70,6 +78,26 @@ def scene_ground(means: np.ndarray, cameras: Sequence[Camera], up: np.ndarray, m
         return Ground(None, up, support, f"no ground plane: {100 * below:.0f}% of the Gaussians lie under the "
                                          f"lowest dense layer (at most {100 * max_below:.0f}% allowed)")
     return Ground(plane, up, support, "")
+
+
+def seen_ground_cut(plane: GroundPlane, heights: Sequence[np.ndarray], quantile: float,
+                    min_pixels: int = 100) -> float:
+    """Height below which a seen surface is ground: the ``quantile`` of how deep the photos see
+    surfaces under the plane (``heights`` [H,W] per photo, nan where nothing is seen), mirrored
+    upwards; between ``plane.min_height`` and ``plane.cut_height()``.
+
+    ``plane.layer`` measures the scatter of all the ground's centres, hidden ones included: a
+    fitted ground keeps a tail of Gaussians deep under its surface that no ray reaches, and that
+    tail can put the cut above the grass and flower beds. What the photos see of the ground
+    scatters about the plane as much above as below it, and only the ground is seen below it,
+    so the seen depths under the plane measure how high the seen ground reaches.
+    """
+    hi = plane.cut_height()
+    below = [-h[np.isfinite(h) & (h < 0)] for h in heights]
+    below = np.concatenate(below) if below else np.zeros(0)
+    if len(below) < min_pixels:
+        return float(hi)
+    return float(np.clip(np.quantile(below, quantile), plane.min_height, hi))
 
 
 def local_shape(means: np.ndarray, up: np.ndarray, radius: float, k: int = 32) -> tuple[np.ndarray, np.ndarray]:

@@ -6,7 +6,7 @@ from anigs.effects.geometry import Ground
 
 WHAT = {
     "foliage": "green vegetation standing above the ground (trees, bushes, leaves)",
-    "grass": "low vegetation within the ground layer (grass)",
+    "grass": "low green plants on the ground, below the trees and bushes (grass)",
     "flowers": "saturated blossoms of any colour in or next to vegetation",
     "water": "a low, flat, weakly textured surface with a bluish or view-dependent (reflective) colour",
 }

@@ -8,14 +8,19 @@ rendered per-Gaussian maps (surface variation, ``|normal . up|``, multi-view col
 2. *wall*: locally planar and vertical (walls, fences, pictures and screens on walls);
 3. *vegetation*: green hue at any brightness (shaded foliage included), not on a wall; green
    components that fill their bounding rectangle and are flat are pictures and are dropped;
-4. *lawn*: vegetation lower than the ground cut (the flat ground sheet: static); the rest is *plant*;
+4. *lawn*: vegetation lower than the ground cut (the flat ground sheet: static; the cut is how high
+   the photos see the fitted ground reach, :func:`~anigs.effects.geometry.seen_ground_cut`); the rest
+   is *plant*;
 5. *flowers*: saturated colours of any hue outside the green band (red included) or white,
-   blobs reaching within ``flower_radius_frac`` of plant pixels and surrounded by plants for at least
-   ``flower_min_ring`` of their ring, closed into beds with the stems between blossoms; low
-   plant components with blossoms on >= ``flower_bed_share`` of their area are flower beds;
-6. *foliage* / *grass*: plant components whose 90th-percentile height above the ground reaches
-   ``grass_max_height`` x camera height are foliage, lower ones grass (all foliage without a
-   ground plane);
+   blobs reaching within ``flower_radius_frac`` of plant pixels, surrounded by plants for at least
+   ``flower_min_ring`` of their ring and not behind those plants (by more than
+   ``flower_max_behind`` x their depth: a brick wall or a bench seen past a bush), closed into
+   beds with the stems between blossoms; low plant components (below foliage) with blossoms on
+   >= ``flower_bed_share`` of their area, and low plant pixels with that share of blossoms
+   within ``flower_radius_frac``, are flower beds;
+6. *foliage* / *grass*: plant pixels within ``foliage_reach_frac`` of a part of their component
+   that rises above ``grass_max_height`` x camera height are foliage (trees and bushes down to
+   their lowest leaves), the other plant pixels grass (all foliage without a ground plane);
 7. *water*: low (near the ground plane), horizontal and planar, weakly textured cores with a
    bluish hue or a reflective (view-dependent) colour, grown over the same colour, not green.
 """
@@ -75,7 +80,7 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
     if plane is not None:
         height = p.height if p.height is not None else pixel_heights(p.depth.astype(np.float64), p.camera, plane)
         cam_h = plane.camera_height if plane.camera_height > 0 else 1.0
-        low = valid & (height < plane.cut_height())
+        low = valid & (height < ground.cut_height())
     else:
         height = np.full((h, w), np.nan)
         cam_h = 1.0
@@ -92,14 +97,20 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
     rejected = int((green_all & ~veg).sum())
     lawn = veg & low
     plant = veg & ~lawn
-    # plant components and how high they reach (all "tall" without a ground plane)
+    # plants standing above grass height (trees, bushes) and the low plants (grass, flower beds):
+    # a plant pixel is tall within foliage_reach_frac of a part of its component that rises above
+    # grass_max_height (a bush's lower leaves included), so low plants that merely touch a bush in
+    # the photo (a lawn's tufts, a flower bed in front of it) stay low (all tall without a plane)
     n_p, lab_p, _ = cues.components(plant)
     if plane is not None:
-        top = np.nan_to_num(cues.component_quantile(lab_p, n_p, height, 0.9), nan=0.0)
-        tall = top >= cfg.grass_max_height * cam_h
+        core = cues.clean(plant & (height >= cfg.grass_max_height * cam_h), min_px, 0)
+        has_core = np.bincount(lab_p[core], minlength=n_p)[:n_p] > 0
+        has_core[0] = False
+        reach = cv2.dilate(core.astype(np.uint8), cues.disk(_px(cfg.foliage_reach_frac, h, w))) > 0
+        tall_px = plant & has_core[lab_p] & reach
     else:
-        tall = np.ones(n_p, bool)
-    tall[0] = False
+        tall_px = plant.copy()
+    n_l, lab_l, _ = cues.components(plant & ~tall_px)
     # flowers: saturated non-green (any hue) or white blobs next to plants
     r_f = _px(cfg.flower_radius_frac, h, w)
     col = cues.colourful(img, cfg.flower_green_hue, cfg.flower_min_saturation, cfg.flower_min_value,
@@ -110,18 +121,25 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
     n, lab, areas = cues.components(col)
     touches = np.bincount(lab[near], minlength=n)[:n] > 0
     ring = cues.ring_share(lab, n, r_f, plant)
-    keep = touches & (ring >= cfg.flower_min_ring) & (areas >= 2)
+    # a blossom sits on its plant or in front of it; a wall or a bench seen past a bush lies behind it
+    behind = cues.ring_depth_gap(lab, n, r_f, p.depth, plant)
+    keep = touches & (ring >= cfg.flower_min_ring) & (areas >= 2) & ~(behind > cfg.flower_max_behind)
     keep[0] = False
     blossom = keep[lab]
     flowers = blossom.copy()
     if blossom.any():
         # low plant components dotted with blossoms are flower beds (stems and leaves included)
-        grown = cv2.dilate(lab_p.astype(np.float32), cues.disk(r_f)).astype(np.int64)
-        hits = np.bincount(grown[blossom], minlength=n_p)[:n_p]
-        area_p = np.bincount(lab_p.ravel(), minlength=n_p)[:n_p]
-        bed_comp = ~tall & (hits >= cfg.flower_bed_share * np.maximum(area_p, 1))
+        grown = cv2.dilate(lab_l.astype(np.float32), cues.disk(r_f)).astype(np.int64)
+        hits = np.bincount(grown[blossom], minlength=n_l)[:n_l]
+        area_l = np.bincount(lab_l.ravel(), minlength=n_l)[:n_l]
+        bed_comp = hits >= cfg.flower_bed_share * np.maximum(area_l, 1)
         bed_comp[0] = False
-        flowers |= bed_comp[lab_p]
+        flowers |= bed_comp[lab_l]
+        # ... and so are low plant pixels with that share of blossoms around them (a bed merged
+        # in the photo with the lawn around it)
+        k = 2 * r_f + 1
+        share = cv2.blur(blossom.astype(np.float32), (k, k))
+        flowers |= plant & ~tall_px & (share >= cfg.flower_bed_share)
         bed = cv2.morphologyEx(blossom.astype(np.uint8), cv2.MORPH_CLOSE,
                                cues.disk(_px(cfg.flower_bed_frac, h, w))) > 0
         flowers |= bed & (plant | col) & valid & ~wall
@@ -132,14 +150,14 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
         flowers = cues.clean(flowers, max(min_px // 2, 2), min_px)
     # foliage and grass: the rest of the plant components by how high they reach
     rest = cues.clean(plant & ~flowers, min_px, min_px) & plant & ~flowers
-    foliage = rest & tall[lab_p]
+    foliage = rest & tall_px
     grass = rest & ~foliage
     # water: low, horizontal, planar, weakly textured, bluish or reflective
     water = np.zeros((h, w), bool)
     if plane is not None:
         hue, sat, _ = cues.hsv(img)
         reach = cfg.water_max_height * cam_h
-        near_plane = valid & (height < max(plane.cut_height(), reach)) & (height > -reach)
+        near_plane = valid & (height < max(ground.cut_height(), reach)) & (height > -reach)
         colour = (cues.in_band(hue, cfg.water_hue) & (sat >= cfg.water_min_saturation)) | \
                  (p.reflect >= cfg.reflect_min_spread)
         base = near_plane & floor & colour & ~green_all & ~flowers

@@ -186,17 +186,22 @@ def _frames(wc):
     return {"num_frames": sec(wc.scene, "animate", wc.variant)["frames"], "device": config["device"]}
 
 
+def _gt_effects(scene):
+    """A synthetic scene's explicitly listed effects are its ground truth (the refine step
+    synthesises them whatever the effects stage found); None: the effects stage chooses."""
+    requested = sec(scene, "effects")["requested"]
+    return list(requested) if is_synthetic(scene) and requested != "auto" else None
+
+
 def _refine_extra(wc):
-    """The scene's prompt and effects: a synthetic scene's listed effects are its ground truth; a
-    photo scene's come from the effects stage at run time (--effects-json)."""
+    """The scene's prompt and effects: a synthetic scene's listed effects, else the effects stage's
+    choice, read at run time (--effects-json)."""
     s = ALL_SCENES[wc.scene]
-    requested = sec(wc.scene, "effects")["requested"]
-    effects = list(requested) if is_synthetic(wc.scene) and requested != "auto" else []
-    return {"prompt": s.get("prompt", ""), "effects": effects, "seed": config["seed"]}
+    return {"prompt": s.get("prompt", ""), "effects": _gt_effects(wc.scene) or [], "seed": config["seed"]}
 
 
 def _effects_json(wc):
-    return [] if is_synthetic(wc.scene) else [f"{stage_dir(wc.scene, 'effects')}/effects.json"]
+    return [] if _gt_effects(wc.scene) is not None else [f"{stage_dir(wc.scene, 'effects')}/effects.json"]
 
 
 # A round's render and refine work: one job per round (one Python start-up) for local runs, one
@@ -238,13 +243,6 @@ def _update_extra(wc):
     return {"device": config["device"], "seed": config["seed"] + 1000 * int(wc.round)}
 
 
-def _method_args(wc):
-    """A baseline variant's update job fits the baseline (its config: animate.<method>) instead of ours."""
-    a = sec(wc.scene, "animate", wc.variant)
-    if a["method"] == "anigs":
-        return ""
-    params = {"num_bases": sec(wc.scene, "update", wc.variant)["num_bases"], **a[a["method"]]}
-    return f"--method {a['method']} --method-params {shlex.quote(json.dumps(params, sort_keys=True))}"
 def _contain_args(wc, input):
     """``--masks`` for the update jobs that contain the motion (``update.contain``,
     ``update.contain_rounds``: the final round, or every round)."""
@@ -256,6 +254,13 @@ def _contain_args(wc, input):
     return ""
 
 
+def _method_args(wc):
+    """A baseline variant's update job fits the baseline (its config: animate.<method>) instead of ours."""
+    a = sec(wc.scene, "animate", wc.variant)
+    if a["method"] == "anigs":
+        return ""
+    params = {"num_bases": sec(wc.scene, "update", wc.variant)["num_bases"], **a[a["method"]]}
+    return f"--method {a['method']} --method-params {shlex.quote(json.dumps(params, sort_keys=True))}"
 
 
 def _chosen_effects(scene):
