@@ -33,6 +33,10 @@ Optional smooth amplitude limits (per Gaussian, so per effect): offsets are squa
 fraction of the Gaussian's distance to its anchor (default anchor: its ground point
 ``(x, y, 0)``, i.e. the height above the z = 0 ground) and/or an absolute cap; the same
 for rotation angles.
+
+Optional per-Gaussian capacity: ``active_bases`` [D] (K_d <= K) keeps Gaussian d on the first
+K_d bases only; its coefficients beyond K_d are zero and stay zero (the offsets use the masked
+coefficients, so their gradients are zero too). Absent (the default) = every Gaussian uses all K.
 """
 from __future__ import annotations
 
@@ -127,12 +131,14 @@ class DCTDeformation(nn.Module):
     Parameters: ``pos_coeffs`` [D,3,K] (world-space position offsets), ``rot_coeffs`` [D,3,K]
     (rotation vector in radians; absent when ``rotation=False``).
     Buffers: ``dynamic_index`` [D] long (rows of the canonical scene), ``max_offset`` [D]
-    and ``max_angle`` [D] (smooth limits; absent = unlimited).
+    and ``max_angle`` [D] (smooth limits; absent = unlimited), ``active_bases`` [D] long (bases
+    K_d <= K each Gaussian uses; absent = all K).
     """
 
     def __init__(self, dynamic_index: torch.Tensor, num_frames: int, num_bases: int,
                  rotation: bool = True, max_offset: torch.Tensor | None = None,
-                 max_angle: torch.Tensor | None = None, num_gaussians: int | None = None) -> None:
+                 max_angle: torch.Tensor | None = None, num_gaussians: int | None = None,
+                 active_bases: torch.Tensor | None = None) -> None:
         super().__init__()
         num_frames, num_bases = int(num_frames), int(num_bases)
         if num_frames < 1:
@@ -163,6 +169,37 @@ class DCTDeformation(nn.Module):
                 if lim.shape != (d,) or not bool((lim > 0).all()):
                     raise ValueError(f"DCTDeformation: {name} must be [D]={d} positive values")
             self.register_buffer(name, lim)
+        self.register_buffer("active_bases", None)
+        self.set_active_bases(active_bases)
+
+    def set_active_bases(self, active_bases: torch.Tensor | None) -> None:
+        """Use only the first K_d bases for Gaussian d (``active_bases`` [D] ints in [0, K]; None:
+        all K). Zeroes the coefficients beyond K_d, so they stay zero under training."""
+        if active_bases is None:
+            self.active_bases = None
+            return
+        ab = torch.as_tensor(active_bases).reshape(-1)
+        if ab.is_floating_point() or ab.dtype == torch.bool:
+            raise ValueError(f"DCTDeformation: active_bases must be integers, got {ab.dtype}")
+        ab = ab.long().to(self.dynamic_index.device)
+        if ab.shape != (self.num_dynamic,):
+            raise ValueError(f"DCTDeformation: active_bases must be [D]={self.num_dynamic} values, got {tuple(ab.shape)}")
+        if ab.numel() and (int(ab.min()) < 0 or int(ab.max()) > self.num_bases):
+            raise ValueError(f"DCTDeformation: active_bases must be in [0, K={self.num_bases}], "
+                             f"got [{int(ab.min())}, {int(ab.max())}]")
+        self.active_bases = ab
+        m = self.coeff_mask()
+        with torch.no_grad():
+            self.pos_coeffs.mul_(m)
+            if self.rot_coeffs is not None:
+                self.rot_coeffs.mul_(m)
+
+    def coeff_mask(self) -> torch.Tensor | None:
+        """[D,1,K] 1/0 mask of the bases each Gaussian uses (None: all K)."""
+        if self.active_bases is None:
+            return None
+        k = torch.arange(self.num_bases, device=self.active_bases.device)
+        return (k[None, :] < self.active_bases[:, None]).to(self.pos_coeffs.dtype)[:, None, :]
 
     # ---- evaluation -------------------------------------------------------------
     @property
@@ -179,13 +216,16 @@ class DCTDeformation(nn.Module):
     def offsets(self, t: torch.Tensor | float | int) -> tuple[torch.Tensor, torch.Tensor | None]:
         """Position offsets [D,3] and rotation-offset quaternions [D,4] (None without rotation) at t."""
         b = self.basis(t)
-        dmu = self.pos_coeffs @ b  # [D,3]
+        m = self.coeff_mask()
+        pos = self.pos_coeffs if m is None else self.pos_coeffs * m
+        dmu = pos @ b  # [D,3]
         dmu = torch.nan_to_num(dmu, nan=0.0).clamp(-_OFFSET_GUARD, _OFFSET_GUARD)
         if self.max_offset is not None:
             dmu = soft_limit(dmu, self.max_offset)
         dq = None
         if self.rot_coeffs is not None:
-            w = torch.nan_to_num(self.rot_coeffs @ b, nan=0.0).clamp(-_ANGLE_GUARD, _ANGLE_GUARD)
+            rot = self.rot_coeffs if m is None else self.rot_coeffs * m
+            w = torch.nan_to_num(rot @ b, nan=0.0).clamp(-_ANGLE_GUARD, _ANGLE_GUARD)
             if self.max_angle is not None:
                 w = soft_limit(w, self.max_angle)
             dq = axis_angle_to_quat(w)
@@ -214,7 +254,8 @@ class DCTDeformation(nn.Module):
     # ---- maintenance ------------------------------------------------------------
     def remapped(self, new_index: torch.Tensor, max_offset: torch.Tensor | None = None,
                  max_angle: torch.Tensor | None = None) -> "DCTDeformation":
-        """Copy for another dynamic set: coefficients kept where the Gaussian stays dynamic, zero elsewhere."""
+        """Copy for another dynamic set: coefficients (and ``active_bases``, when set) kept where the
+        Gaussian stays dynamic; new ones start at zero (with all K bases)."""
         new = DCTDeformation(new_index, self.num_frames, self.num_bases, self.rotation,
                              max_offset, max_angle, self.num_gaussians)
         old_pos = {int(i): r for r, i in enumerate(self.dynamic_index.tolist())}
@@ -229,22 +270,31 @@ class DCTDeformation(nn.Module):
                 new.pos_coeffs[d] = self.pos_coeffs.detach()[s]
                 if new.rot_coeffs is not None and self.rot_coeffs is not None:
                     new.rot_coeffs[d] = self.rot_coeffs.detach()[s]
+        if self.active_bases is not None:
+            ab = torch.full((new.num_dynamic,), self.num_bases, dtype=torch.long)
+            if src:
+                ab[d] = self.active_bases.cpu()[s]
+            new.set_active_bases(ab)
         return new
 
     def state(self) -> dict[str, Any]:
-        """Plain dict of the field (tensors detached to CPU)."""
+        """Plain dict of the field (tensors detached to CPU; ``active_bases`` only when set, so a
+        field without it writes the same checkpoint bytes as before the key existed)."""
         cpu = lambda x: None if x is None else x.detach().cpu().clone()
-        return {
+        s = {
             "num_frames": self.num_frames, "num_bases": self.num_bases, "rotation": self.rotation,
             "num_gaussians": self.num_gaussians, "dynamic_index": cpu(self.dynamic_index),
             "pos_coeffs": cpu(self.pos_coeffs), "rot_coeffs": cpu(self.rot_coeffs),
             "max_offset": cpu(self.max_offset), "max_angle": cpu(self.max_angle),
         }
+        if self.active_bases is not None:  # int16: K <= T-1 is far below 2^15
+            s["active_bases"] = cpu(self.active_bases).to(torch.int16 if self.num_bases < 2**15 else torch.long)
+        return s
 
     @staticmethod
     def from_state(s: dict[str, Any]) -> "DCTDeformation":
         d = DCTDeformation(s["dynamic_index"], s["num_frames"], s["num_bases"], s["rotation"],
-                           s.get("max_offset"), s.get("max_angle"), s.get("num_gaussians"))
+                           s.get("max_offset"), s.get("max_angle"), s.get("num_gaussians"), s.get("active_bases"))
         with torch.no_grad():
             if tuple(s["pos_coeffs"].shape) != tuple(d.pos_coeffs.shape):
                 raise ValueError(f"pos_coeffs shape {tuple(s['pos_coeffs'].shape)} != {tuple(d.pos_coeffs.shape)}")
@@ -253,6 +303,8 @@ class DCTDeformation(nn.Module):
                 if s.get("rot_coeffs") is None or tuple(s["rot_coeffs"].shape) != tuple(d.rot_coeffs.shape):
                     raise ValueError("rot_coeffs missing or of the wrong shape")
                 d.rot_coeffs.copy_(s["rot_coeffs"])
+            if d.active_bases is not None:  # a stored field has zeros there already; keep it exact
+                d.set_active_bases(d.active_bases)
         return d
 
 

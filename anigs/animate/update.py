@@ -67,6 +67,7 @@ class UpdateConfig:
     max_offset_abs: float | None = None
     max_angle_deg: float | None = None
     effect_limits: dict = field(default_factory=dict)
+    effect_num_bases: dict = field(default_factory=dict)  # per-effect capacity, {key: K_e <= num_bases}: the Gaussians of that effect use only the first K_e DCT bases (the rest stay zero); key = a label of an int --dynamic mask ("1", "2", ...; with a bool mask every dynamic Gaussian is "1") or an effect name (foliage_sway, leaf_flutter: label 1, grass_wave 2, flower_bob 3, water_ripple 4 = 1 + the effects stage's region index; effects sharing a label take their largest K_e, unnamed ones count as num_bases); {} = all use num_bases
     background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
     seed: int = 0
     device: str = "auto"
@@ -76,7 +77,7 @@ class UpdateConfig:
     contain: bool = True  # with the masks: after training, a Gaussian whose motion carries its footprint out of a view's dilated mask moves less (1/2, 1/4) or stays still
     contain_margin_px: int = 3  # containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
     contain_max_outside_px: float = 0.01  # containment: most blending weight (in pixels) a moving Gaussian may put outside, in any frame and view (0.05 left 1-3 levels of change on flower-llff)
-    contain_rounds: str = "final"  # which rounds' updates contain the motion (the workflow passes --masks to them): final (the model that is rendered, exported and evaluated; an earlier round's model only renders the next round's clips, whose static pixels ComposedV2V pastes back from frame 0) | every
+    contain_rounds: str = "final"  # which rounds' updates contain the motion (the workflow passes --masks to them): final (the model that is rendered, exported and evaluated; an earlier round's model only renders the next round's clips, whose static pixels ComposedV2V pastes back from frame 0) or every
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "UpdateConfig":
@@ -85,7 +86,10 @@ class UpdateConfig:
         return cfg
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        d = asdict(self)
+        if not d["effect_num_bases"]:  # opt-in key: unused, the recorded config is the one before it existed
+            del d["effect_num_bases"]
+        return d
 
     def validate(self) -> None:
         if self.param_groups not in PARAM_GROUPS:
@@ -114,6 +118,60 @@ class UpdateConfig:
             bad = set(lim) - {"max_offset_frac", "max_offset_abs", "max_angle_deg"}
             if bad:
                 raise KeyError(f"update config: effect_limits[{key!r}] has unknown key(s) {sorted(bad)}")
+        if self.effect_num_bases:
+            names = effect_labels()
+            for key, k in self.effect_num_bases.items():
+                if not (str(key) in names or (str(key).isdigit() and int(key) > 0)):
+                    raise KeyError(f"update config: effect_num_bases key {key!r} is unknown: give an effect label "
+                                   f"(1, 2, ... as a string) or an effect name ({', '.join(names)})")
+                if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= self.num_bases:
+                    raise ValueError(f"update config: effect_num_bases[{key!r}] = {k!r}: must be an integer in "
+                                     f"[1, num_bases = {self.num_bases}]")
+            twice = {names[k] for k in self.effect_num_bases if k in names} & {
+                int(k) for k in self.effect_num_bases if k not in names}
+            if twice:
+                raise ValueError(f"update config: effect_num_bases gives label(s) {sorted(twice)} both by number "
+                                 "and by effect name")
+
+
+def effect_labels() -> dict[str, int]:
+    """Effect name -> its label in an int dynamic mask: 1 + the index of its region in the effects
+    stage's ``REGIONS`` (``regions.npy`` + 1; 0 = static)."""
+    from anigs.effects.config import EFFECT_REGION, EFFECTS, REGIONS
+
+    return {e: 1 + REGIONS.index(EFFECT_REGION[e]) for e in EFFECTS}
+
+
+def bases_from_config(mask: torch.Tensor, cfg: UpdateConfig, num_bases: int) -> torch.Tensor | None:
+    """Bases K_d [D] long each dynamic Gaussian uses, from ``effect_num_bases`` (None when it is empty).
+
+    ``mask`` [N] is bool or integer effect labels (0 = static); keys are labels (as strings) or
+    effect names (:func:`effect_labels`; several effects on one label: the largest K_e, an effect
+    not named counting as ``cfg.num_bases``). Values are clamped to ``num_bases`` (the K resolved for T).
+    """
+    if not cfg.effect_num_bases:
+        return None
+    mask = torch.as_tensor(mask)
+    idx = dynamic_index_from_mask(mask)
+    labels = mask[idx].long() if mask.dtype != torch.bool else torch.ones_like(idx)
+    names = effect_labels()
+    per_label: dict[int, int] = {}
+    by_name = {k: v for k, v in cfg.effect_num_bases.items() if k in names}
+    if by_name and mask.dtype == torch.bool:
+        raise ValueError(f"update: effect_num_bases names effects {sorted(by_name)} but the dynamic mask is bool "
+                         "(no per-Gaussian effect labels): pass an int mask (1 + region index, 0 = static) or key "
+                         "effect_num_bases by label (\"1\" = every dynamic Gaussian)")
+    for name, k in by_name.items():
+        lab = names[name]
+        shared = [e for e, lb in names.items() if lb == lab]
+        per_label[lab] = max(int(cfg.effect_num_bases.get(e, cfg.num_bases)) for e in shared)
+    for key, k in cfg.effect_num_bases.items():
+        if key not in names:
+            per_label[int(key)] = int(k)
+    kd = torch.full((idx.numel(),), int(num_bases), dtype=torch.long)
+    for lab, k in per_label.items():
+        kd[labels.cpu() == lab] = min(k, int(num_bases))
+    return kd
 
 
 @dataclass
@@ -273,6 +331,7 @@ def run_update(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[Vie
         deformation = init.remapped(idx, max_off, max_ang)
     else:
         deformation = DCTDeformation(idx, T, K, cfg.rotation, max_off, max_ang, canonical.num)
+    deformation.set_active_bases(bases_from_config(mask, cfg, K))  # this update's capacity (None: all K)
     deformation.num_gaussians = canonical.num
 
     if idx.numel() == 0:
@@ -302,6 +361,10 @@ def run_update(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[Vie
     trainables = [("pos_coeffs", deformation.pos_coeffs), ("rot_coeffs", deformation.rot_coeffs)] + list(tr.params.items())
     log.info("model update: N=%d Gaussians, D=%d dynamic, %d views, T=%d, K=%d, group=%s, steps=%d, spatial lr scale %.3g",
              canonical.num, idx.numel(), len(views), T, K, cfg.param_groups, cfg.steps, spatial)
+    if deformation.active_bases is not None:
+        ks, counts = torch.unique(deformation.active_bases.cpu(), return_counts=True)
+        log.info("model update: per-effect capacity: %s", ", ".join(
+            f"{int(c)} Gaussians with K={int(k)}" for k, c in zip(ks, counts)))
 
     def save_state(path: Path, it: int, params: dict[str, torch.Tensor] | None = None) -> None:
         with torch.no_grad():
