@@ -9,8 +9,9 @@ Re-runs only the final round's update of ``--demo`` (``{variant_dir}/round{R}``:
 targets and seed recorded in its ``model.pt`` / ``update.json``, ``--masks`` containment as the
 workflow runs it), once per capacity variant, then ``anigs final``, ``anigs eval`` (the recorded eval
 config; ``multiview_capture`` off: it does not depend on the model) and ``anigs export`` on each.
-The K12 variant is the workflow's own job (bool ``masks/dynamic.npy``); the others need per-Gaussian
-effect labels, which the workflow does not write yet: they are the ground-truth labels of
+The K12 variant is every Gaussian at num_bases (``effect_num_bases: {}``); the others need per-Gaussian
+effect labels. The workflow's own are the masks stage's ``effect_labels.npy`` (from the effects
+stage's regions); this script uses ideal ones, the ground-truth labels of
 ``capture/gt`` moved onto the dynamic Gaussians (nearest moving ground-truth Gaussian, after the
 camera alignment the masks stage uses), 1 + region index (foliage 1, grass 2, flowers 3).
 
@@ -169,7 +170,7 @@ def main() -> int:
     for name in a.variants.split(","):
         v_out = out / name
         (v_out / "logs").mkdir(parents=True, exist_ok=True)
-        cfg = dict(base_cfg, effect_num_bases=VARIANTS[name]) if VARIANTS[name] else dict(base_cfg)
+        cfg = dict(base_cfg, effect_num_bases=VARIANTS[name])
         model = v_out / f"round{R}" / "model.pt"
         model.parent.mkdir(exist_ok=True)
         dyn = demo / "masks" / "dynamic.npy" if not VARIANTS[name] else labels_path

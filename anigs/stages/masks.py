@@ -24,7 +24,8 @@ The masks are not changed.
 
 Writes to ``--out``: ``{id}.png`` (dynamic mask, 0/255), ``{id}_{effect}.png`` when the backend
 gives several effect types, ``{id}_overlay.png``, ``dynamic.npy`` (bool [N] canonical Gaussians
-lifted from the masks) and ``masks.json`` (per-view fractions; with ``--labels``: IoU of each
+lifted from the masks), with ``--effects`` ``effect_labels.npy`` (int8 [N]: which effect each
+dynamic Gaussian belongs to, :mod:`anigs.masks.effect_labels`) and ``masks.json`` (per-view fractions; with ``--labels``: IoU of each
 mask against the ground-truth label masks and precision/recall of the lifted Gaussians; with
 ``--gt-gaussians``, ``--gt-cameras`` and ``--cameras`` also against the appearance labels:
 ``iou_appearance`` per view and ``lift_appearance``, see :func:`anigs.masks.labels.appearance_labels`).
@@ -307,10 +308,33 @@ def run(inputs: MasksInputs, cfg: MasksConfig) -> dict:
     with atomic_path(out / "dynamic.npy") as tmp:
         with open(tmp, "wb") as fh:
             np.save(fh, dyn)
+    if inputs.effects:
+        info["effect_labels"] = _write_effect_labels(Path(inputs.effects), dyn, g, out)
     info["config"] = dataclasses.asdict(cfg)
     write_json(out / "masks.json", info)
     log.info("masks: wrote %d masks, dynamic.npy (%d of %d Gaussians) to %s", len(frames), int(dyn.sum()), g.num, out)
     return info
+
+
+def _write_effect_labels(effects_dir: Path, dyn: np.ndarray, g, out: Path) -> dict:
+    """``effect_labels.npy`` (int8 [N], 0 static, 1 + region index: :mod:`anigs.masks.effect_labels`)
+    from the effects stage's regions of its chosen effects; returns the counts for ``masks.json``."""
+    from anigs.effects.config import EFFECT_REGION, REGIONS
+    from anigs.masks.effect_labels import effect_labels
+
+    regions = np.load(effects_dir / "regions.npy")
+    if regions.shape != (g.num,):
+        raise ValueError(f"{effects_dir}/regions.npy: shape {regions.shape} does not match the {g.num} Gaussians "
+                         "of the canonical model (re-run the effects stage)")
+    chosen = sorted({REGIONS.index(EFFECT_REGION[e]) for e in read_json(effects_dir / "effects.json")["chosen"]})
+    labels, counts = effect_labels(dyn, regions, chosen, g.means.detach().double().numpy())
+    with atomic_path(out / "effect_labels.npy") as tmp:
+        with open(tmp, "wb") as fh:
+            np.save(fh, labels)
+    counts["per_region"] = {REGIONS[k - 1]: int((labels == k).sum()) for k in range(1, len(REGIONS) + 1)}
+    log.info("masks: effect labels of the %d dynamic Gaussians: %s (%d from the effects stage's regions, %d from "
+             "the nearest labelled one)", int(dyn.sum()), counts["per_region"], counts["from_regions"], counts["nearest"])
+    return counts
 
 
 # ---- command line: anigs masks ----

@@ -3,7 +3,7 @@
     anigs update --canonical static/canonical.ply [--init-model round{r-1}/model.pt] \\
         --targets round{r}/target/A.npz round{r}/target/B.npz \\
         [--view-json views/views.json [--view-ids A B] | --camera-json A.json B.json] \\
-        [--static-refs refA.png refB.png] --dynamic dynamic.npy \\
+        [--static-refs refA.png refB.png] --dynamic dynamic.npy [--effect-labels effect_labels.npy] \\
         --out round{r}/model.pt [--log-json round{r}/update.json] --params '{...update section...}' \\
         [--prior ltx --prior-params '{...}' --prompt "trees swaying"]   # only when lambda_sds > 0
 
@@ -11,6 +11,9 @@ Cameras: from ``--camera-json`` (one per target), else from ``--view-json`` with
 (default: the targets' file stems), else from each target clip's metadata (``camera``).
 Static references (for L_cano): ``--static-refs`` images (.png, .npy [H,W,3], or .npz clip: frame 0),
 else renders of the canonical PLY. ``--dynamic``: .npy [N] bool (or int effect labels, 0 = static).
+``--effect-labels``: the masks stage's ``effect_labels.npy`` (int [N], 0 on exactly the static
+Gaussians of ``--dynamic``): which effect each dynamic Gaussian belongs to, for the per-effect
+settings ``effect_num_bases`` and ``effect_limits``.
 If the update diverges, the last good state is written to ``<out stem>.last_good.pt`` next to ``--out``.
 
 ``--masks DIR`` (the masks stage's folder, ``{view}.png``) with ``contain`` (default): after training,
@@ -80,10 +83,12 @@ def _cameras(targets: list[str], metas: list[dict], view_json: str | None, view_
 def run(canonical_path: str | Path, targets: list[str], dynamic_path: str | Path, out: str | Path, cfg: UpdateConfig,
         init_model: str | None = None, view_json: str | None = None, view_ids: list[str] | None = None,
         camera_json: list[str] | None = None, static_refs: list[str] | None = None, sds_prior: str | None = None,
-        sds_prior_params: dict | None = None, prompt: str = "", masks_dir: str | Path | None = None) -> dict:
+        sds_prior_params: dict | None = None, prompt: str = "", masks_dir: str | Path | None = None,
+        effect_labels_path: str | Path | None = None) -> dict:
     """Train the deformation field (and canonical positions) on the round's ``targets``; writes the
     model to ``out`` and returns the training log (loss history, timing; with ``masks_dir``, the
-    containment of the motion)."""
+    containment of the motion). ``effect_labels_path``: int [N] effect labels of the dynamic set
+    (the masks stage's ``effect_labels.npy``), read by ``effect_num_bases`` and ``effect_limits``."""
     from anigs.animate.deform import load_model, save_model
     from anigs.animate.losses import prior_sds_hook
     from anigs.animate.update import ViewData, run_update
@@ -98,6 +103,12 @@ def run(canonical_path: str | Path, targets: list[str], dynamic_path: str | Path
     if dynamic.ndim != 1 or dynamic.shape[0] != canonical_ply.num:
         raise ValueError(f"{dyn_path}: shape {tuple(dynamic.shape)}, expected [{canonical_ply.num}] (one per Gaussian "
                          f"of {canonical_path})")
+    if effect_labels_path is not None:
+        labels = torch.from_numpy(np.load(effect_labels_path).astype(np.int64))
+        if labels.shape != dynamic.shape or not torch.equal(labels != 0, dynamic != 0):
+            raise ValueError(f"update: {effect_labels_path} (effect labels, shape {tuple(labels.shape)}) does not "
+                             f"label exactly the dynamic Gaussians of {dyn_path}: re-run the masks stage")
+        dynamic = labels
     clips, metas = [], []
     for t in targets:
         c, m = load_clip(t)
@@ -203,6 +214,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--camera-json", nargs="+", default=None, help="one camera JSON per target")
     p.add_argument("--static-refs", nargs="+", default=None, help="static reference images, one per target")
     p.add_argument("--dynamic", default=None, help=".npy [N] bool (or int labels) selecting dynamic Gaussians")
+    p.add_argument("--effect-labels", default=None, help="int .npy [N]: the effect of each dynamic Gaussian (the masks "
+                                                         "stage's effect_labels.npy: 0 static, 1 + region index), "
+                                                         "for update.effect_num_bases and effect_limits")
     p.add_argument("--masks", default=None, help="the masks stage's folder ({view}.png): with update.contain, a Gaussian "
                                                  "whose motion leaves the dilated masks moves less or stays still")
     add_out(p, "output model.pt")
@@ -248,7 +262,8 @@ def main(args: argparse.Namespace) -> int:
     info = run(args.canonical, args.targets, args.dynamic, args.out, UpdateConfig.from_dict(parse_params(args.params)),
                init_model=args.init_model, view_json=args.view_json, view_ids=args.view_ids,
                camera_json=args.camera_json, static_refs=args.static_refs, sds_prior=args.prior,
-               sds_prior_params=parse_params(args.prior_params), prompt=args.prompt, masks_dir=args.masks)
+               sds_prior_params=parse_params(args.prior_params), prompt=args.prompt, masks_dir=args.masks,
+               effect_labels_path=args.effect_labels)
     if args.log_json:
         write_json(args.log_json, info)
     return 0

@@ -55,10 +55,11 @@ def test_masked_bases_are_zero_after_training_and_the_others_train():
 
 def test_default_is_unchanged_and_a_full_capacity_mask_is_bitwise_the_same():
     G, labels, views = _problem()
-    plain = _run(G, labels, views)
+    plain = _run(G, labels, views, effect_num_bases={})
     assert plain.deformation.active_bases is None
     assert "active_bases" not in plain.deformation.state()  # model.pt holds what it held before the key
-    assert "effect_num_bases" not in UpdateConfig().to_dict()
+    assert "effect_num_bases" not in UpdateConfig(effect_num_bases={}).to_dict()
+    assert UpdateConfig().effect_num_bases == {"grass_wave": 6, "flower_bob": 6}  # the measured default
     full = _run(G, labels, views, effect_num_bases={"1": K, "2": K})
     assert torch.equal(full.deformation.pos_coeffs, plain.deformation.pos_coeffs)
     assert torch.equal(full.deformation.rot_coeffs, plain.deformation.rot_coeffs)
@@ -93,7 +94,8 @@ def test_save_load_remap_and_state_copies_keep_the_capacity(tmp_path):
                        effect_num_bases={"2": 1}), init=d2, progress=False)
     grass = labels[again.deformation.dynamic_index] == 2
     assert bool((again.deformation.pos_coeffs[grass][:, :, 1:] == 0).all())
-    free = run_update(res.canonical, labels, views, UpdateConfig(steps=3, num_bases=K, seed=1), init=d2, progress=False)
+    free = run_update(res.canonical, labels, views, UpdateConfig(steps=3, num_bases=K, seed=1, effect_num_bases={}),
+                      init=d2, progress=False)
     assert free.deformation.active_bases is None
 
 
@@ -120,17 +122,19 @@ def test_effect_names_map_to_labels_and_shared_labels_take_the_largest():
     cfg = UpdateConfig.from_dict({"num_bases": 12, "effect_num_bases": {"foliage_sway": 4, "leaf_flutter": 8}})
     assert bases_from_config(mask, cfg, 12).tolist() == [8, 12, 12, 12]
     assert bases_from_config(mask, cfg, 6).tolist() == [6, 6, 6, 6]  # clamped to the resolved K
-    assert bases_from_config(mask, UpdateConfig(), 12) is None
+    assert bases_from_config(mask, UpdateConfig(effect_num_bases={}), 12) is None
     boolean = mask > 0
     assert bases_from_config(boolean, UpdateConfig(num_bases=12, effect_num_bases={"1": 5}), 12).tolist() == [5] * 4
-    with pytest.raises(ValueError, match="mask is bool"):
-        bases_from_config(boolean, cfg, 12)
+    # effect names without per-Gaussian labels: every Gaussian keeps num_bases (warned), labels still apply
+    assert bases_from_config(boolean, cfg, 12) is None
+    mixed = UpdateConfig.from_dict({"num_bases": 12, "effect_num_bases": {"grass_wave": 6, "1": 5}})
+    assert bases_from_config(boolean, mixed, 12).tolist() == [5] * 4
 
 
 @pytest.mark.parametrize("bad, err, match", [
     ({"foliage": 3}, KeyError, r"effect_num_bases key 'foliage' is unknown"),
     ({"0": 3}, KeyError, r"effect_num_bases key '0' is unknown"),
-    ({"grass_wave": 13}, ValueError, r"effect_num_bases\['grass_wave'\] = 13: must be an integer in \[1, num_bases = 12\]"),
+    ({"grass_wave": -2}, ValueError, r"effect_num_bases\['grass_wave'\] = -2: must be an integer >= 1"),
     ({"1": 0}, ValueError, r"effect_num_bases\['1'\] = 0"),
     ({"1": 2.5}, ValueError, r"effect_num_bases\['1'\] = 2.5"),
     ({"1": 3, "leaf_flutter": 4}, ValueError, r"label\(s\) \[1\] both by number and by effect name"),
@@ -153,3 +157,36 @@ def test_model_bytes_without_the_key_do_not_depend_on_it(tmp_path):
     save_model(tmp_path / "a.pt", d, G, UpdateConfig().to_dict())
     save_model(tmp_path / "b.pt", DCTDeformation.from_state(d.state()), G, UpdateConfig().to_dict())
     assert (tmp_path / "a.pt").read_bytes() == (tmp_path / "b.pt").read_bytes()
+
+
+def test_update_stage_reads_effect_labels_and_refuses_labels_that_disagree(tmp_path, caplog):
+    """`anigs update --effect-labels`: the masks stage's int labels drive the per-effect capacity;
+    labels that do not mark exactly the --dynamic set are an error naming the file."""
+    import json
+
+    import numpy as np
+
+    from anigs.cli import main
+    from anigs.video import save_clip
+
+    G, labels, views = _problem()
+    G.save_ply(tmp_path / "canonical.ply")
+    np.save(tmp_path / "dynamic.npy", (labels > 0).numpy())
+    np.save(tmp_path / "labels.npy", labels.numpy().astype(np.int8))
+    for k, v in enumerate(views):
+        save_clip(tmp_path / f"v{k}.npz", v.clip.numpy(), {"camera": v.camera.to_dict()})
+    params = {"steps": 6, "num_bases": K, "lr_position_coeffs": 0.05, "effect_num_bases": {"grass_wave": 2}}
+    base = ["update", "--canonical", str(tmp_path / "canonical.ply"), "--targets",
+            *[str(tmp_path / f"v{k}.npz") for k in range(len(views))], "--dynamic", str(tmp_path / "dynamic.npy"),
+            "--params", json.dumps(params)]
+    assert main(base + ["--effect-labels", str(tmp_path / "labels.npy"), "--out", str(tmp_path / "m.pt")]) == 0
+    _, d, _ = load_model(tmp_path / "m.pt", G)
+    grass = (labels[d.dynamic_index] == 2)
+    assert grass.any() and bool((d.pos_coeffs[grass][:, :, 2:] == 0).all())
+    assert bool((d.pos_coeffs[~grass][:, :, 2:] != 0).any())
+    bad = labels.clone()
+    bad[(labels == 0).nonzero()[0, 0]] = 1  # a static Gaussian labelled
+    np.save(tmp_path / "bad.npy", bad.numpy().astype(np.int8))
+    assert main(base + ["--effect-labels", str(tmp_path / "bad.npy"), "--out", str(tmp_path / "x.pt")]) != 0
+    assert "bad.npy (effect labels" in caplog.text and "re-run the masks stage" in caplog.text
+    assert not (tmp_path / "x.pt").exists()

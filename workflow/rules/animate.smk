@@ -123,7 +123,7 @@ rule update:
         "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} update --canonical {input.ply:q} {params.init} --targets {params.targets} "
-        "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy {params.contain} --out {output.model:q} "
+        "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy --effect-labels {input.masks}/effect_labels.npy {params.contain} --out {output.model:q} "
         "--log-json {output.log_json:q} --params {params.p:q} {params.method} > {log} 2>&1"
 
 
