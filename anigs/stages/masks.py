@@ -261,6 +261,12 @@ def run(inputs: MasksInputs, cfg: MasksConfig) -> dict:
         info["containment"] = kept.info(before, [fr.name for fr in frames], cfg.contain_margin_px,
                                         cfg.contain_max_outside_px)
 
+    labels = None
+    if inputs.effects:  # which effect each dynamic Gaussian belongs to; per-effect masks for every backend
+        labels, info["effect_labels"], chosen = _effect_labels(Path(inputs.effects), dyn, g)
+        if cfg.backend not in ("labels", "effects") and chosen:
+            _add_effect_masks(g, labels, chosen, frames, results, cfg.labels)
+
     truth = app_truth = app_dynamic = None
     if inputs.labels and cfg.compare:
         truth = results if cfg.backend == "labels" else compute_masks(_labels_backend(inputs, cfg, g, effects), frames)
@@ -308,17 +314,20 @@ def run(inputs: MasksInputs, cfg: MasksConfig) -> dict:
     with atomic_path(out / "dynamic.npy") as tmp:
         with open(tmp, "wb") as fh:
             np.save(fh, dyn)
-    if inputs.effects:
-        info["effect_labels"] = _write_effect_labels(Path(inputs.effects), dyn, g, out)
+    if labels is not None:
+        with atomic_path(out / "effect_labels.npy") as tmp:
+            with open(tmp, "wb") as fh:
+                np.save(fh, labels)
     info["config"] = dataclasses.asdict(cfg)
     write_json(out / "masks.json", info)
     log.info("masks: wrote %d masks, dynamic.npy (%d of %d Gaussians) to %s", len(frames), int(dyn.sum()), g.num, out)
     return info
 
 
-def _write_effect_labels(effects_dir: Path, dyn: np.ndarray, g, out: Path) -> dict:
-    """``effect_labels.npy`` (int8 [N], 0 static, 1 + region index: :mod:`anigs.masks.effect_labels`)
-    from the effects stage's regions of its chosen effects; returns the counts for ``masks.json``."""
+def _effect_labels(effects_dir: Path, dyn: np.ndarray, g) -> tuple[np.ndarray, dict, list[str]]:
+    """(int8 [N] effect labels of the dynamic set: 0 static, 1 + region index,
+    :mod:`anigs.masks.effect_labels`; their counts for ``masks.json``; the chosen effects) from the
+    effects stage's regions of its chosen effects."""
     from anigs.effects.config import EFFECT_REGION, REGIONS
     from anigs.masks.effect_labels import effect_labels
 
@@ -326,15 +335,26 @@ def _write_effect_labels(effects_dir: Path, dyn: np.ndarray, g, out: Path) -> di
     if regions.shape != (g.num,):
         raise ValueError(f"{effects_dir}/regions.npy: shape {regions.shape} does not match the {g.num} Gaussians "
                          "of the canonical model (re-run the effects stage)")
-    chosen = sorted({REGIONS.index(EFFECT_REGION[e]) for e in read_json(effects_dir / "effects.json")["chosen"]})
-    labels, counts = effect_labels(dyn, regions, chosen, g.means.detach().double().numpy())
-    with atomic_path(out / "effect_labels.npy") as tmp:
-        with open(tmp, "wb") as fh:
-            np.save(fh, labels)
+    chosen = list(read_json(effects_dir / "effects.json")["chosen"])
+    chosen_regions = sorted({REGIONS.index(EFFECT_REGION[e]) for e in chosen})
+    labels, counts = effect_labels(dyn, regions, chosen_regions, g.means.detach().double().numpy())
     counts["per_region"] = {REGIONS[k - 1]: int((labels == k).sum()) for k in range(1, len(REGIONS) + 1)}
     log.info("masks: effect labels of the %d dynamic Gaussians: %s (%d from the effects stage's regions, %d from "
              "the nearest labelled one)", int(dyn.sum()), counts["per_region"], counts["from_regions"], counts["nearest"])
-    return counts
+    return labels, counts, chosen
+
+
+def _add_effect_masks(g, labels: np.ndarray, chosen: list[str], frames, results: list[dict], opts: dict) -> None:
+    """Per-effect masks for a backend that gives one dynamic mask (vegetation, sam2): the render of
+    each chosen effect's dynamic Gaussians (by their effect label), within the backend's mask."""
+    from anigs.effects.config import EFFECT_REGION, REGIONS
+    from anigs.masks.labels import LabelsBackend
+
+    backend = LabelsBackend(g, labels.astype(np.int64), {e: [1 + REGIONS.index(EFFECT_REGION[e])] for e in chosen}, **opts)
+    for fr, res in zip(frames, results):
+        for e, m in backend(fr).items():
+            if e != "dynamic":
+                res[e] = m & res["dynamic"]
 
 
 # ---- command line: anigs masks ----

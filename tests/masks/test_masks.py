@@ -525,6 +525,17 @@ def test_cli_masks_effects_backend_renders_the_effects_stage_sets(tmp_path, lawn
         assert got.any() == w.any() and (got & w).sum() >= 0.9 * w.sum(), v["id"]
         for e in ("foliage_sway", "leaf_flutter"):  # one mask per chosen effect
             assert (tmp_path / "m" / f"{v['id']}_{e}.png").is_file()
+    labels = np.load(tmp_path / "m" / "effect_labels.npy")  # each dynamic Gaussian's effect: foliage = 1
+    np.testing.assert_array_equal(labels, np.where(regions >= 0, 1, 0))
+    # a backend with one mask per view (vegetation) gets the per-effect masks too, within its own mask
+    veg = args[:-2] + ["--params", json.dumps({"backend": "vegetation"}), "--out", str(tmp_path / "veg")]
+    assert main(veg) == 0
+    for v in views:
+        whole = read_mask_png(tmp_path / "veg" / f"{v['id']}.png")
+        for e in ("foliage_sway", "leaf_flutter"):
+            m = read_mask_png(tmp_path / "veg" / f"{v['id']}_{e}.png")
+            assert not (m & ~whole).any(), (v["id"], e)
+    assert any(read_mask_png(tmp_path / "veg" / f"{v['id']}_foliage_sway.png").any() for v in views)
     (eff / "effects.json").write_text(json.dumps({"chosen": []}))
     np.save(eff / "dynamic.npy", np.zeros(gs.num, bool))
     assert main(args + ["--out", str(tmp_path / "none")]) == 0
