@@ -277,6 +277,12 @@ def ablation_table(records: Sequence[dict[str, Any]], prior: str | None = None, 
     return t
 
 
+def _weightfree_fmt(key: str) -> str:
+    """Significant digits (static leakage is ~1e-6: fixed decimals would print 0.0000); the share of
+    still pixels with five decimals (it is within 1e-4 of 1)."""
+    return "{:.5f}" if key == "static_outside_mask_still" else "{:.3g}"
+
+
 def weightfree_table(records: Sequence[dict[str, Any]]) -> Table:
     """Weight-free metrics of every (scene, method, variant): one row each."""
     cols = [(k, h) for k, h in WEIGHTFREE_COLUMNS if any(k in r["metrics"] for r in records)]
@@ -287,15 +293,17 @@ def weightfree_table(records: Sequence[dict[str, Any]]) -> Table:
         for r in [r for r in records if r["scene"] == s]:
             v = r.get("variant") or "full"
             label = r["method"] if v == "full" else f"{r['method']} {variant_label(v)}"
-            fmt = "{:.4f}"
             t.rows.append((f"{s} | {label}", [t.cell(r["metrics"].get(k) or
                                                      {"available": False, "reason": f"metric {k!r} not computed"},
-                                                     fmt=fmt) for k, _ in cols]))
+                                                     fmt=_weightfree_fmt(k)) for k, _ in cols]))
+        recs = [r for r in records if r["scene"] == s]
         for c, (k, _) in enumerate(cols):
-            if k.startswith("static_"):
+            if k.startswith("static_") or k in ("gt/amplitude_w1", "gt/frequency_w1"):  # columns with a "best"
+                hib = next((bool(m.get("higher_is_better")) for m in (r["metrics"].get(k) for r in recs)
+                            if isinstance(m, dict) and m.get("higher_is_better") is not None), False)
                 sub = Table("", "", [])
                 sub.rows = [(lbl, [cells[c]]) for lbl, cells in t.rows[start:]]
-                _bold_best(sub, range(len(sub.rows)), higher_is_better=False)
+                _bold_best(sub, range(len(sub.rows)), higher_is_better=hib)
     return t
 
 

@@ -115,6 +115,22 @@ def test_weightfree_table_every_variant():
     assert csv_rows[1][:2] == ["demo", "Ours"] and csv_rows[2][1] == "Ours w/o ComposedV2V"
 
 
+def test_weightfree_bolds_each_column_in_its_direction_with_significant_digits():
+    """The share of still pixels is best high, leakage and GT distances best low; ~1e-6 leakage is
+    printed with significant digits, not as 0.0000; the GT amplitude ratio (best at 1) is not bolded."""
+    recs = [rec("demo", method=m, static_abs_diff=metric_record(a, False),
+                static_outside_mask_still=metric_record(still, True),
+                **{"gt/frequency_w1": metric_record(w, False), "gt/rms_amplitude_ratio": metric_record(r, None)})
+            for m, a, still, w, r in (("Ours", 2.08e-6, 1.0, 0.016, 0.83), ("Other", 4.9e-6, 0.99866, 0.051, 1.0))]
+    t = weightfree_table(recs)
+    col = {h: i for i, h in enumerate(t.header[2:])}
+    ours, other = t.rows[0][1], t.rows[1][1]
+    assert ours[col["static |dI/dt|"]].bold and ours[col["still outside mask"]].bold and ours[col["GT freq. W1"]].bold
+    assert not any(c.bold for c in other[:3]) and not other[col["GT amp. ratio"]].bold
+    md = to_markdown(t)
+    assert "2.08e-06" in md and "0.99866" in md and "0.0000 " not in md
+
+
 def test_load_metrics_checks_and_write_tables(tmp_path):
     paths = []
     for i, r in enumerate(paper_like_records()):
