@@ -22,9 +22,10 @@ def test_blocks_are_filled_from_the_results_and_check_sees_staleness(tmp_path):
     res = _run("--results", tmp_path / "results", "--into", doc)
     assert res.returncode == 0, res.stderr
     text = doc.read_text()
-    assert "old | figures" not in text and "| 1 | 2 |" in text and "### Ablation" in text
-    assert text.index("### FVD") < text.index("### Ablation")  # the paper's order
+    assert "old | figures" not in text and "| 1 | 2 |" in text and "#### Ablation" in text
+    assert text.index("#### FVD") < text.index("#### Ablation")  # the paper's order
     assert text.startswith("intro\n") and "\nmiddle\n" in text and text.endswith("end\n")
+    assert "`results/tables/table1_fvd.md`" in text and str(tmp_path) not in text
     assert "no reports" in res.stdout  # the tradeoff block is left as it was
     assert _run("--results", tmp_path / "results", "--into", doc, "--check").returncode == 0
 
