@@ -135,11 +135,10 @@ class UpdateConfig:
 
 
 def effect_labels() -> dict[str, int]:
-    """Effect name -> its label in an int dynamic mask: 1 + the index of its region in the effects
-    stage's ``REGIONS`` (``regions.npy`` + 1; 0 = static)."""
-    from anigs.effects.config import EFFECT_REGION, EFFECTS, REGIONS
+    """Effect name -> its label in an int dynamic mask (:func:`anigs.masks.effect_labels.effect_label_ids`)."""
+    from anigs.masks.effect_labels import effect_label_ids
 
-    return {e: 1 + REGIONS.index(EFFECT_REGION[e]) for e in EFFECTS}
+    return effect_label_ids()
 
 
 def bases_from_config(mask: torch.Tensor, cfg: UpdateConfig, num_bases: int) -> torch.Tensor | None:

@@ -328,15 +328,15 @@ def _effect_labels(effects_dir: Path, dyn: np.ndarray, g) -> tuple[np.ndarray, d
     """(int8 [N] effect labels of the dynamic set: 0 static, 1 + region index,
     :mod:`anigs.masks.effect_labels`; their counts for ``masks.json``; the chosen effects) from the
     effects stage's regions of its chosen effects."""
-    from anigs.effects.config import EFFECT_REGION, REGIONS
-    from anigs.masks.effect_labels import effect_labels
+    from anigs.effects.config import REGIONS
+    from anigs.masks.effect_labels import effect_label_ids, effect_labels
 
     regions = np.load(effects_dir / "regions.npy")
     if regions.shape != (g.num,):
         raise ValueError(f"{effects_dir}/regions.npy: shape {regions.shape} does not match the {g.num} Gaussians "
                          "of the canonical model (re-run the effects stage)")
     chosen = list(read_json(effects_dir / "effects.json")["chosen"])
-    chosen_regions = sorted({REGIONS.index(EFFECT_REGION[e]) for e in chosen})
+    chosen_regions = sorted({effect_label_ids()[e] - 1 for e in chosen})
     labels, counts = effect_labels(dyn, regions, chosen_regions, g.means.detach().double().numpy())
     counts["per_region"] = {REGIONS[k - 1]: int((labels == k).sum()) for k in range(1, len(REGIONS) + 1)}
     log.info("masks: effect labels of the %d dynamic Gaussians: %s (%d from the effects stage's regions, %d from "
@@ -347,10 +347,11 @@ def _effect_labels(effects_dir: Path, dyn: np.ndarray, g) -> tuple[np.ndarray, d
 def _add_effect_masks(g, labels: np.ndarray, chosen: list[str], frames, results: list[dict], opts: dict) -> None:
     """Per-effect masks for a backend that gives one dynamic mask (vegetation, sam2): the render of
     each chosen effect's dynamic Gaussians (by their effect label), within the backend's mask."""
-    from anigs.effects.config import EFFECT_REGION, REGIONS
+    from anigs.masks.effect_labels import effect_label_ids
     from anigs.masks.labels import LabelsBackend
 
-    backend = LabelsBackend(g, labels.astype(np.int64), {e: [1 + REGIONS.index(EFFECT_REGION[e])] for e in chosen}, **opts)
+    ids = effect_label_ids()
+    backend = LabelsBackend(g, labels.astype(np.int64), {e: [ids[e]] for e in chosen}, **opts)
     for fr, res in zip(frames, results):
         for e, m in backend(fr).items():
             if e != "dynamic":
