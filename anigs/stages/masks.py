@@ -125,6 +125,16 @@ def _load_frames(frames_dir: str | None, g, cams, background) -> list:
     return out
 
 
+def _read_effects(d: Path, g) -> tuple[list[str], np.ndarray]:
+    """The effects stage's chosen effects and its region index per Gaussian (int64 [N], -1 none)."""
+    chosen = list(read_json(d / "effects.json")["chosen"])
+    regions = np.load(d / "regions.npy").astype(np.int64)
+    if regions.shape != (g.num,):
+        raise ValueError(f"{d}/regions.npy: shape {regions.shape} does not match the {g.num} Gaussians of the "
+                         "canonical model (re-run the effects stage)")
+    return chosen, regions
+
+
 def _effects_backend(effects_dir: str | None, cfg: MasksConfig, g):
     """(backend rendering the chosen effects' Gaussian sets, their union [N]) from the effects stage."""
     from anigs.effects.config import EFFECT_REGION, REGIONS
@@ -133,12 +143,11 @@ def _effects_backend(effects_dir: str | None, cfg: MasksConfig, g):
     if not effects_dir:
         raise ValueError("masks.backend 'effects' needs --effects (the effects stage's folder)")
     d = Path(effects_dir)
-    chosen = read_json(d / "effects.json")["chosen"]
-    regions = np.load(d / "regions.npy").astype(np.int64)
+    chosen, regions = _read_effects(d, g)
     dynamic = np.load(d / "dynamic.npy").astype(bool)
-    if regions.shape != (g.num,) or dynamic.shape != (g.num,):
-        raise ValueError(f"{d}: regions {regions.shape} / dynamic {dynamic.shape} do not match the {g.num} "
-                         "Gaussians of the canonical model (re-run the effects stage)")
+    if dynamic.shape != (g.num,):
+        raise ValueError(f"{d}/dynamic.npy: shape {dynamic.shape} does not match the {g.num} Gaussians of the "
+                         "canonical model (re-run the effects stage)")
     effects = {e: [REGIONS.index(EFFECT_REGION[e])] for e in chosen}
     return (LabelsBackend(g, regions, effects, **cfg.labels) if effects else None), dynamic
 
@@ -331,11 +340,7 @@ def _effect_labels(effects_dir: Path, dyn: np.ndarray, g) -> tuple[np.ndarray, d
     from anigs.effects.config import REGIONS
     from anigs.masks.effect_labels import effect_label_ids, effect_labels
 
-    regions = np.load(effects_dir / "regions.npy")
-    if regions.shape != (g.num,):
-        raise ValueError(f"{effects_dir}/regions.npy: shape {regions.shape} does not match the {g.num} Gaussians "
-                         "of the canonical model (re-run the effects stage)")
-    chosen = list(read_json(effects_dir / "effects.json")["chosen"])
+    chosen, regions = _read_effects(effects_dir, g)
     chosen_regions = sorted({effect_label_ids()[e] - 1 for e in chosen})
     labels, counts = effect_labels(dyn, regions, chosen_regions, g.means.detach().double().numpy())
     counts["per_region"] = {REGIONS[k - 1]: int((labels == k).sum()) for k in range(1, len(REGIONS) + 1)}
