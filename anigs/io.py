@@ -69,8 +69,8 @@ def read_json(path: str | Path) -> Any:
     return json.loads(path.read_text())
 
 
-def write_npz(path: str | Path, **arrays: np.ndarray) -> None:
-    """Atomically write a compressed npz, byte-for-byte reproducible.
+def write_npz(path: str | Path, compress: bool = True, **arrays: np.ndarray) -> None:
+    """Atomically write an npz (deflated, or with ``compress=False`` stored), byte-for-byte reproducible.
 
     ``np.savez_compressed`` stamps each member with the current time; here every member gets
     a fixed timestamp, so the same arrays always give the same file (a run on a cluster can be
@@ -80,10 +80,11 @@ def write_npz(path: str | Path, **arrays: np.ndarray) -> None:
     import zipfile
 
     with atomic_path(path) as tmp:
-        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
+        with zipfile.ZipFile(tmp, "w", compression=method) as zf:
             for name, value in arrays.items():
                 buf = io.BytesIO()
                 np.lib.format.write_array(buf, np.asanyarray(value), allow_pickle=False)
                 info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-                info.compress_type = zipfile.ZIP_DEFLATED
+                info.compress_type = method
                 zf.writestr(info, buf.getvalue())
