@@ -26,6 +26,7 @@ from typing import Any
 
 import torch
 
+from anigs.animate.adam import Adam
 from anigs.animate.frames import render_frame
 from anigs.cameras import Camera
 from anigs.configs import from_dict
@@ -357,9 +358,8 @@ def run_update(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[Vie
 
     tr = _Trainable(canonical, idx.to(dev), cfg.param_groups)
     spatial = cfg.spatial_lr_scale if cfg.spatial_lr_scale is not None else box_diagonal(canonical.means)
-    opt = torch.optim.Adam(_param_groups(cfg, deformation, tr, spatial), eps=1e-15)
     gamma = cfg.lr_final_factor ** (1.0 / max(cfg.steps, 1))
-    sched = torch.optim.lr_scheduler.ExponentialLR(opt, gamma)
+    opt = Adam(_param_groups(cfg, deformation, tr, spatial), eps=1e-15, gamma=gamma)  # torch.optim's, minus 2.7 s of import
     trainables = [("pos_coeffs", deformation.pos_coeffs), ("rot_coeffs", deformation.rot_coeffs)] + list(tr.params.items())
     log.info("model update: N=%d Gaussians, D=%d dynamic, %d views, T=%d, K=%d, group=%s, steps=%d, spatial lr scale %.3g",
              canonical.num, idx.numel(), len(views), T, K, cfg.param_groups, cfg.steps, spatial)
@@ -428,7 +428,7 @@ def run_update(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[Vie
         rec["loss"] = loss.item()
         if cfg.nan_guard and not math.isfinite(rec["loss"]):
             raise diverged(it, f"non-finite loss ({rec})")
-        opt.zero_grad(set_to_none=True)
+        opt.zero_grad()
         loss.backward()
         snapshot = None
         if cfg.nan_guard:
@@ -437,7 +437,6 @@ def run_update(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[Vie
                 raise diverged(it, f"non-finite gradient of {bad!r}")
             snapshot = {n: p.detach().clone() for n, p in trainables if p is not None}
         opt.step()
-        sched.step()
         if cfg.nan_guard:
             bad = _all_finite((n, p) for n, p in trainables if p is not None)
             if bad:
