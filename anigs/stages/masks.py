@@ -59,7 +59,7 @@ class MasksConfig:
     lift: dict = field(default_factory=dict)        # LiftConfig keys
     per_effect: bool = True                    # write one mask per effect type when there are several
     compare: bool = True                       # with --labels: IoU / precision / recall vs ground truth
-    appearance: bool = True                    # with --labels, --gt-*, --cameras: also vs appearance labels (~0.3 s/photo)
+    appearance: bool = False                   # with --labels, --gt-*, --cameras: also vs appearance labels (a diagnostic: 0.25 s per photo, 12 s of the demo's 24 s masks job; benchmarks/masks.py reports it too)
     capture_ground_layer: float = 0.5          # with --images: vegetation ground_layer on the capture photos
     complete_masks: bool = True                # add the pixels the lifted dynamic Gaussians dominate to each mask
     contain: bool = True                       # move only the Gaussians whose footprint stays inside every view's dilated mask; halos and floaters stay still (anigs.masks.contain)

@@ -436,7 +436,8 @@ def test_cli_masks_lifts_over_capture_photos(tmp_path, lawn_scene):
     base = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
             "--labels", str(tmp_path / "labels.npy"), "--motion", str(tmp_path / "motion.json"),
             "--gt-gaussians", str(tmp_path / "canonical.ply"), "--gt-cameras", str(tmp_path / "cameras.json"),
-            "--cameras", str(tmp_path / "cameras.json"), "--params", json.dumps({"backend": "vegetation"})]
+            "--cameras", str(tmp_path / "cameras.json"),
+            "--params", json.dumps({"backend": "vegetation", "appearance": True})]
     assert main(base + ["--out", str(tmp_path / "views_only")]) == 0
     assert main(base + ["--out", str(tmp_path / "capture"), "--images", str(tmp_path / "images")]) == 0
     before = json.loads((tmp_path / "views_only" / "masks.json").read_text())
