@@ -9,6 +9,8 @@ metrics.json schema (``"schema": "anigs-metrics/1"``), one file per (scene, meth
       "method": "Ours",           # row of Tables 1/2 (baselines: any other name)
       "variant": "full",          # ablation id (Table 5): full | no_dataset_update | no_view_expansion |
                                   #   no_composed_v2v | opt_all | opt_deform_only (others shown verbatim)
+      "part": "all",              # all | clips | model: which metrics `anigs eval --part` computed (tables
+                                  #   refuse a model-only record: the workflow merges it into the full one)
       "anigs_version": "0.1.0",
       "config": {...},            # the evaluation config used
       "inputs": {...},            # files evaluated (clips, references, masks, ...)
@@ -101,6 +103,9 @@ def load_metrics(paths: Iterable[str | Path]) -> list[dict[str, Any]]:
                 raise ValueError(f"{p}: missing key {key!r}")
         if not isinstance(rec["metrics"], dict):
             raise ValueError(f"{p}: 'metrics' must be an object")
+        if rec.get("part", "all") == "model":
+            raise ValueError(f"{p}: holds only the model's metrics (`anigs eval --part model`); give the "
+                             f"metrics.json of the evaluation that merged it (--model-metrics)")
         rec.setdefault("dataset", "default")
         rec.setdefault("variant", "full")
         rec["_path"] = str(p)

@@ -44,7 +44,7 @@ VARIANT_SECTIONS = sections_of("variant")
 SCENE_STAGES = tuple(s for s in sections_of("scene") if s not in ("capture", "sfm"))
 # per-scene stages in pipeline order: a derived scene shares every stage before its knob's
 SCENE_STAGE_ORDER = sections_of("scene")
-EXCLUDED_BENCHMARKS = ("eval.tsv", "export.tsv", "view.tsv")
+EXCLUDED_BENCHMARKS = ("eval.tsv", "eval_model.tsv", "export.tsv", "view.tsv")
 DERIVED_SEP = "--"
 
 

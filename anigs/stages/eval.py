@@ -6,6 +6,10 @@ output in :mod:`anigs.tables`.
     anigs eval --final-dir final/ --masks masks/ --model round4/model.pt --canonical static/canonical.ply \
         --cameras sfm/cameras.json --images sfm/images --points sfm/points.npz [--gt-dir capture/gt] \
         --scene demo --variant full --out eval/metrics.json --params '{...eval section...}'
+
+The workflow runs it in two jobs: ``--part model`` (the ground-truth motion and the multiview
+protocol, which need the model but not the final clips) beside the final renders, then the rest
+with ``--model-metrics`` reading that record, so the model's metrics are not computed twice.
 """
 from __future__ import annotations
 
@@ -38,6 +42,8 @@ class EvalInputs:
     images: str | None = None
     points: str | None = None
     gt_dir: str | None = None
+    part: str = "all"                   # all | clips | model (anigs.metrics.suite.evaluate)
+    model_metrics: str | None = None    # a --part model record whose metrics replace the model half
 
 
 def run(inputs: EvalInputs, cfg: EvalConfig, out: str | Path, scene: str, method: str = "Ours",
@@ -49,10 +55,14 @@ def run(inputs: EvalInputs, cfg: EvalConfig, out: str | Path, scene: str, method
     from anigs.tables import SCHEMA
 
     t0 = time.perf_counter()
+    model_metrics = _read_model_metrics(inputs.model_metrics, scene, variant, method) if inputs.model_metrics else None
     metrics = evaluate(cfg, inputs.clips, inputs.masks, inputs.reference, inputs.model, inputs.canonical,
-                       inputs.cameras, inputs.images, inputs.points, inputs.gt_dir, inputs.fid_reference)
+                       inputs.cameras, inputs.images, inputs.points, inputs.gt_dir, inputs.fid_reference,
+                       part=inputs.part, model_metrics=model_metrics)
     record = {"schema": SCHEMA, "scene": scene, "dataset": dataset, "method": method,
-              "variant": variant, "anigs_version": __version__, "config": dataclasses.asdict(cfg),
+              "variant": variant, "part": "all" if model_metrics is not None else inputs.part,
+              "anigs_version": __version__,
+              "config": dataclasses.asdict(cfg),
               "inputs": {"clips": inputs.clips, "masks": inputs.masks, "reference": inputs.reference,
                          "fid_reference": inputs.fid_reference, "model": inputs.model,
                          "canonical": inputs.canonical, "cameras": inputs.cameras, "images": inputs.images,
@@ -64,6 +74,20 @@ def run(inputs: EvalInputs, cfg: EvalConfig, out: str | Path, scene: str, method
     for name, m in metrics.items():
         log.info("  %-26s %s", name, f"{m['value']:.4g}" if m["available"] else f"n/a ({m['reason']})")
     return record
+
+
+def _read_model_metrics(path: str, scene: str, variant: str, method: str) -> dict:
+    """The ``metrics`` of a ``--part model`` record at ``path``, checked to be that half of this evaluation."""
+    from anigs.io import read_json
+
+    rec = read_json(path)
+    if not isinstance(rec, dict) or rec.get("part") != "model" or not isinstance(rec.get("metrics"), dict):
+        raise ValueError(f"eval: --model-metrics {path} is not the record of an `anigs eval --part model` run")
+    theirs = (rec.get("scene"), rec.get("variant"), rec.get("method"))
+    if theirs != (scene, variant, method):
+        raise ValueError(f"eval: --model-metrics {path} is for scene, variant, method {theirs}, "
+                         f"not {(scene, variant, method)}")
+    return rec["metrics"]
 
 
 # ---- command line: anigs eval ----
@@ -88,6 +112,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", default="Ours", help="method name (table row)")
     parser.add_argument("--variant", default="full", help="ablation variant id (Table 5)")
     parser.add_argument("--dataset", default="anigs", help="scene group (one FVD table per dataset)")
+    parser.add_argument("--part", default="all", choices=("all", "clips", "model"),
+                        help="all metrics, or only those of the final clips or of the model (two jobs)")
+    parser.add_argument("--model-metrics", help="record of a --part model run: its metrics are used, not recomputed")
     add_out(parser, "metrics.json to write")
     add_params(parser, "eval")
 
@@ -110,7 +137,7 @@ def main(args: argparse.Namespace) -> int:
                         reference=_pairs(args.reference, "--reference"),
                         fid_reference=_pairs(args.fid_reference, "--fid-reference"), model=args.model,
                         canonical=args.canonical, cameras=args.cameras, images=args.images, points=args.points,
-                        gt_dir=args.gt_dir)
+                        gt_dir=args.gt_dir, part=args.part, model_metrics=args.model_metrics)
     run(inputs, EvalConfig.from_dict(parse_params(args.params)), args.out, args.scene, args.method, args.variant,
         args.dataset)
     return 0

@@ -1,15 +1,50 @@
 # Stage 10: evaluation per (scene, variant) and the paper's tables.
 
 
-rule eval:
+# The model's half of the metrics (ground-truth motion, the multiview protocol's two static fits)
+# needs the model, not the final clips: one thread, beside the final renders.
+rule eval_model:
     input:
-        final=f"{R}/{{scene}}/{{variant}}/final/final.json",
-        masks=stage_path("masks"),
         ply=stage_path("static", "canonical.ply"),
         model=final_model,
         cameras=stage_path("sfm", "cameras.json"),
         points=stage_path("sfm", "points.npz"),
         images=stage_path("sfm", "images"),  # undistorted: the images sfm/cameras.json describes
+    output:
+        f"{R}/{{scene}}/{{variant}}/eval/model_metrics.json",
+    params:
+        p=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
+        gt=_eval_gt,
+        method=_eval_method,
+        version=ANIGS_VERSION,
+    log:
+        f"{R}/{{scene}}/{{variant}}/logs/eval_model.log",
+    benchmark:
+        f"{R}/{{scene}}/{{variant}}/benchmarks/eval_model.tsv"
+    threads: 1
+    priority: 1  # the longest job after the last update: start it first, beside the final renders
+    resources:
+        mem_mb=8000,
+        runtime=60,
+    conda:
+        "../../envs/anigs.yaml"
+    shell:
+        "anigs --threads {threads} eval --part model --model {input.model:q} --canonical {input.ply:q} "
+        "--cameras {input.cameras:q} --images {input.images:q} --points {input.points:q} "
+        "{params.gt} --scene {wildcards.scene} {params.method} --out {output:q} "
+        "--params {params.p:q} > {log} 2>&1"
+
+
+rule eval:
+    input:
+        final=f"{R}/{{scene}}/{{variant}}/final/final.json",
+        model_metrics=f"{R}/{{scene}}/{{variant}}/eval/model_metrics.json",
+        masks=stage_path("masks"),
+        ply=stage_path("static", "canonical.ply"),
+        model=final_model,
+        cameras=stage_path("sfm", "cameras.json"),
+        points=stage_path("sfm", "points.npz"),
+        images=stage_path("sfm", "images"),
     output:
         report(f"{R}/{{scene}}/{{variant}}/eval/metrics.json", caption="../report/metrics.rst", category="Metrics",
                subcategory="{scene} {variant}"),
@@ -23,14 +58,15 @@ rule eval:
         f"{R}/{{scene}}/{{variant}}/logs/eval.log",
     benchmark:
         f"{R}/{{scene}}/{{variant}}/benchmarks/eval.tsv"
-    threads: 2
+    threads: 1
     resources:
         mem_mb=8000,
         runtime=60,
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} eval --final-dir {params.final:q} --masks {input.masks:q} --model {input.model:q} "
+        "anigs --threads {threads} eval --part clips --model-metrics {input.model_metrics:q} "
+        "--final-dir {params.final:q} --masks {input.masks:q} --model {input.model:q} "
         "--canonical {input.ply:q} --cameras {input.cameras:q} --images {input.images:q} --points {input.points:q} "
         "{params.gt} --scene {wildcards.scene} {params.method} --out {output:q} "
         "--params {params.p:q} > {log} 2>&1"

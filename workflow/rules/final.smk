@@ -22,7 +22,7 @@ rule final:
         f"{R}/{{scene}}/{{variant}}/logs/final.log",
     benchmark:
         f"{R}/{{scene}}/{{variant}}/benchmarks/final.tsv"
-    threads: 2
+    threads: 1  # mostly single-threaded Python and video encoding: the model's metrics run beside it
     resources:
         mem_mb=4000,
         runtime=30,
