@@ -38,7 +38,7 @@ synthetic scene ``gt/rms_amplitude_ratio``, ``gt/amplitude_w1``, ``gt/frequency_
 ``gt/dominant_freq_learned``, ``gt/dominant_freq_gt``; Table 3 ``multiview/psnr_capture``,
 ``multiview/psnr_novel`` (and ``multiview/ssim_*``).
 
-Tables written by :func:`write_tables`: ``table1_fvd`` (FVD per prior block, methods as rows,
+Tables written by :func:`write_tables`: ``table1_fvd`` (FVD, then FID, per prior block, methods as rows,
 scenes + Avg as columns; the variant ``full`` of each method, or records without variant),
 ``table2_fvd_<dataset>`` for further datasets, ``table3_multiview`` (original capture vs
 novel time), ``table5_ablation`` (FVD of one prior, variants as rows) and
@@ -222,19 +222,23 @@ def _priors(records: Sequence[dict[str, Any]], kind: str = "fvd") -> list[str]:
 # ----------------------------------------------------------------------------- the tables
 
 def fvd_table(records: Sequence[dict[str, Any]], name: str = "table1_fvd", title: str = "") -> Table:
-    """FVD per prior (blocks), methods as rows (variant 'full'), scenes + Avg as columns."""
+    """FVD per prior (blocks), then FID per prior (blocks: the paper measures FID too, with frames of
+    the prior pooled over the scenes as reference, but prints no table of it); methods as rows
+    (variant 'full'), scenes + Avg as columns. A block for LTX is always there (n/a with the reason
+    when no evaluation computed it)."""
     recs = [r for r in records if (r.get("variant") or "full") == "full"]
     scenes = _scenes(recs)
     methods = list(dict.fromkeys(r["method"] for r in recs))
     idx = _index(recs)
-    t = Table(name, title or "Quantitative evaluation (FVD, lower is better)", ["FVD"] + scenes + ["Avg."])
-    for prior in _priors(recs) or ["ltx"]:
-        t.sections[len(t.rows)] = f"FVD-{prior_label(prior)}"
-        start = len(t.rows)
-        for m in methods:
-            cells = [t.cell(_metric(idx.get((s, m, "full")), f"fvd/{prior}")) for s in scenes]
-            t.rows.append((m, cells + [_avg_cell(t, cells)]))
-        _bold_best(t, range(start, len(t.rows)), higher_is_better=False)
+    t = Table(name, title or "Quantitative evaluation (FVD and FID, lower is better)", ["FVD"] + scenes + ["Avg."])
+    for kind in ("fvd", "fid"):
+        for prior in _priors(recs, kind) or ["ltx"]:
+            t.sections[len(t.rows)] = f"{kind.upper()}-{prior_label(prior)}"
+            start = len(t.rows)
+            for m in methods:
+                cells = [t.cell(_metric(idx.get((s, m, "full")), f"{kind}/{prior}")) for s in scenes]
+                t.rows.append((m, cells + [_avg_cell(t, cells)]))
+            _bold_best(t, range(start, len(t.rows)), higher_is_better=False)
     return t
 
 
@@ -403,7 +407,7 @@ def build_tables(records: Sequence[dict[str, Any]], ablation_prior: str | None =
     for i, d in enumerate(datasets):
         sub = [r for r in records if r.get("dataset", "default") == d]
         name = "table1_fvd" if i == 0 else f"table2_fvd_{d}"
-        title = "Quantitative evaluation (FVD, lower is better)" + ("" if i == 0 else f" on {d}")
+        title = "Quantitative evaluation (FVD and FID, lower is better)" + ("" if i == 0 else f" on {d}")
         tables.append(fvd_table(sub, name, title))
     tables.append(multiview_table(records))
     tables.append(ablation_table(records, ablation_prior))

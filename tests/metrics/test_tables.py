@@ -38,9 +38,9 @@ def paper_like_records():
 def test_fvd_table_structure_best_and_average():
     t = fvd_table(paper_like_records())
     assert t.header == ["FVD", "fireplace", "garden", "Avg."]
-    assert list(t.sections.values()) == ["FVD-LTX", "FVD-Cosmos"]
+    assert list(t.sections.values()) == ["FVD-LTX", "FVD-Cosmos", "FID-LTX"]  # FID: n/a, not computed
     labels = [r[0] for r in t.rows]
-    assert labels == ["Ours", "Gaussians2Life", "PhysDreamer"] * 2
+    assert labels == ["Ours", "Gaussians2Life", "PhysDreamer"] * 3
     ours = t.rows[0][1]
     assert ours[2].value == pytest.approx((374.49 + 403.89) / 2)
     assert all(c.bold for c in ours)  # lowest FVD in every column
@@ -55,7 +55,7 @@ def test_formats_carry_na_footnotes_and_bold():
     t = fvd_table(paper_like_records())
     md = to_markdown(t)
     assert "**374.49**" in md and "n/a<sup>1</sup>" in md and "weights file not found" in md
-    assert md.count("\n|") == 10  # header, rule, 2 section rows, 6 data rows
+    assert md.count("\n|") == 14  # header, rule, 3 section rows, 9 data rows
     tex = to_latex(t)
     assert r"\textbf{374.49}" in tex and "n/a$^{1}$" in tex and r"\begin{tabular}{lccc}" in tex
     for line in tex.splitlines():
@@ -65,7 +65,9 @@ def test_formats_carry_na_footnotes_and_bold():
     assert rows[0] == ["block", "FVD", "fireplace", "garden", "Avg."]
     assert rows[1][:3] == ["FVD-LTX", "Ours", "374.49"]
     assert rows[6][:2] == ["FVD-Cosmos", "PhysDreamer"] and rows[6][3] == "n/a [1]"
-    assert rows[-2][0].startswith("# [1]")
+    notes = [r[0] for r in rows if r and r[0].startswith("# [")]
+    assert notes[0].startswith("# [1]") and "weights file not found" in notes[0]
+    assert any("FID-LTX not computed" in n for n in notes)
 
 
 def test_missing_record_is_na_with_reason():
@@ -159,6 +161,21 @@ def test_second_dataset_gets_table2():
     recs = paper_like_records() + [rec("gazebo", dataset="dl3dv", **{"fvd/ltx": fvd(413.59)})]
     names = [t.name for t in build_tables(recs)]
     assert names[:2] == ["table1_fvd", "table2_fvd_dl3dv"]
+
+
+def test_table1_has_fid_blocks_with_the_reason_when_not_computed():
+    recs = paper_like_records()
+    recs[0]["metrics"]["fid/ltx"] = {"available": False, "value": None, "higher_is_better": False,
+                                      "reason": "no weights path for fid (eval.inception_path)"}
+    recs[1]["metrics"]["fid/ltx"] = {"available": True, "value": 12.5, "higher_is_better": False}
+    t = fvd_table(recs)
+    labels = list(t.sections.values())
+    assert labels[-1] == "FID-LTX" and labels[0] == "FVD-LTX"
+    md = to_markdown(t)
+    assert "no weights path for fid" in md and "12.50" in md
+    # records without any FID still get the block, each cell n/a with why
+    md0 = to_markdown(fvd_table(paper_like_records()))
+    assert "FID-LTX" in md0 and "FID-LTX not computed" in md0
 
 
 def test_tables_cli(tmp_path):
@@ -298,3 +315,40 @@ def test_eval_fid_reference_pools_paths(tmp_path):
         EvalConfig.from_dict({"fvd_crop": 1})
     with pytest.raises(ValueError, match="flow_preset"):
         EvalConfig.from_dict({"flow_preset": "slow"})
+
+
+def test_eval_in_two_parts_gives_the_same_record_as_in_one(tmp_path, caplog):
+    """--part model, then --part clips --model-metrics: the same metrics as one run; halves checked."""
+    from anigs.cli import main
+    from anigs.io import read_json, write_json
+
+    d = _tiny_inputs(tmp_path)
+    params = json.dumps({"flow_preset": "ultrafast", "multiview_fit": {"iterations": 10, "sh_degree": 0,
+                                                                       "device": "cpu"}})
+    common = ["--masks", str(d / "masks"), "--model", str(d / "model.pt"), "--canonical", str(d / "canonical.ply"),
+              "--cameras", str(d / "cameras.json"), "--images", str(d / "images"), "--points", str(d / "points.npz"),
+              "--scene", "demo", "--params", params]
+    final = ["--final-dir", str(d / "final")]
+    assert main(["eval", *final, *common, "--out", str(d / "one.json")]) == 0
+    assert main(["eval", "--part", "model", *common, "--out", str(d / "model.json")]) == 0
+    assert main(["eval", "--part", "clips", "--model-metrics", str(d / "model.json"), *final, *common,
+                 "--out", str(d / "two.json")]) == 0
+    one, half, two = (read_json(d / f) for f in ("one.json", "model.json", "two.json"))
+    assert half["part"] == "model" and set(half["metrics"]) == {k for k in one["metrics"] if k.startswith("multiview/")}
+    assert one["part"] == two["part"] == "all"
+    assert list(two["metrics"]) == list(one["metrics"])
+    assert {k: m["value"] for k, m in two["metrics"].items()} == {k: m["value"] for k, m in one["metrics"].items()}
+    # the clips' half alone has no model metrics; a model half is no table record
+    assert main(["eval", "--part", "clips", *final, *common, "--out", str(d / "clips.json")]) == 0
+    assert not any(k.startswith("multiview/") for k in read_json(d / "clips.json")["metrics"])
+    assert main(["tables", "--metrics", str(d / "model.json"), "--out", str(d / "tables")]) == 1
+    assert "holds only the model's metrics" in caplog.text
+    # a record of another evaluation, or not a model half, is refused with its path
+    write_json(d / "other.json", dict(half, variant="no_composed_v2v"))
+    assert main(["eval", "--part", "clips", "--model-metrics", str(d / "other.json"), *final, *common,
+                 "--out", str(d / "x.json")]) == 1
+    assert "other.json is for scene, variant, method" in caplog.text
+    assert main(["eval", "--part", "clips", "--model-metrics", str(d / "one.json"), *final, *common,
+                 "--out", str(d / "x.json")]) == 1
+    assert "not the record of an `anigs eval --part model` run" in caplog.text
+    assert not (d / "x.json").exists()
