@@ -20,7 +20,7 @@ checkpoint effects:
         f"{R}/{{scene}}/logs/effects.log",
     benchmark:
         f"{R}/{{scene}}/benchmarks/effects.tsv"
-    threads: 1
+    threads: 2  # the rasterizer's loops use both; the same files as with 1 thread
     resources:
         mem_mb=4000,
         runtime=30,
@@ -50,7 +50,7 @@ checkpoint views:
         f"{R}/{{scene}}/logs/views.log",
     benchmark:
         f"{R}/{{scene}}/benchmarks/views.tsv"
-    threads: 1
+    threads: 2  # the rasterizer's loops use both; the same files as with 1 thread
     resources:
         mem_mb=4000,
         runtime=20,
@@ -84,7 +84,7 @@ rule masks:
         f"{R}/{{scene}}/logs/masks.log",
     benchmark:
         f"{R}/{{scene}}/benchmarks/masks.tsv"
-    threads: 1
+    threads: 2  # the rasterizer's loops use both; the same files as with 1 thread
     resources:
         mem_mb=4000,
         runtime=20,
