@@ -5,6 +5,11 @@ and ``main(args) -> int``, which parses and calls the stage's ``run``); the comm
 derives from the stage registry :data:`anigs.stages.STAGES`. Stage parameters come as the config
 section in JSON (``--params '{...}'`` or ``--params @file.json``) so Snakemake can pass
 its ``params:`` verbatim; paths are explicit options.
+
+Commands chain with ``--then``: ``anigs --threads 2 round ... --then update ...`` runs them one
+after another in one process (the global options apply to each; the first that fails stops the
+chain and gives its exit status). The workflow runs a round's render, refine and model update so
+(``round_jobs: round``): one Python and torch start-up per round instead of two.
 """
 from __future__ import annotations
 
@@ -61,14 +66,52 @@ def parse_params(value: str | None) -> dict[str, Any]:
     return json.loads(value)
 
 
+THEN = "--then"
+
+
+def _split_chain(argv: list[str]) -> list[list[str]]:
+    """``[global options] CMD ARGS --then CMD ARGS ...`` -> one argv per command, each with the global options."""
+    parts: list[list[str]] = [[]]
+    for a in argv:
+        if a == THEN:
+            parts.append([])
+        else:
+            parts[-1].append(a)
+    if len(parts) == 1:
+        return parts
+    table = commands()
+    first = parts[0]
+    cmd_at = next((i for i, a in enumerate(first) if a in table), None)
+    if cmd_at is None or any(not p or p[0] not in table for p in parts[1:]):
+        raise SystemExit(f"anigs: {THEN} must separate commands (anigs [options] CMD ARGS {THEN} CMD ARGS ...)")
+    glob = first[:cmd_at]
+    return [first] + [glob + p for p in parts[1:]]
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    chain = _split_chain(argv)
+    if len(chain) > 1:
+        import time
+
+        for k, part in enumerate(chain):
+            t0 = time.perf_counter()
+            rc = _main(part)
+            logging.getLogger("anigs").info("chain: command %d of %d (%s) took %.2f s, exit %d", k + 1, len(chain),
+                                            next(a for a in part if a in commands()), time.perf_counter() - t0, rc)
+            if rc:
+                return rc
+        return 0
+    return _main(argv)
+
+
+def _main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="anigs", description=__doc__.splitlines()[0])
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     parser.add_argument("--threads", type=int, default=None,
                         help="CPU threads for torch and the rasterizer (Snakemake passes {threads})")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     modules = {}
-    argv = sys.argv[1:] if argv is None else argv
     table = commands()
     from anigs.stages import RENAMED
 

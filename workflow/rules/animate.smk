@@ -1,8 +1,10 @@
 # Stages 6-8, unrolled into rounds (see anigs/animate/plan.py): round r renders every view of its
 # dataset with the model of round r-1 (round 0 = static canonical), refines each view, then trains
-# one model (fan-in). round_jobs (common.smk) picks how the render and refine work is split:
-# - view: render_clip and refine jobs per view (fan-out: independent GPU jobs on a cluster);
-# - round: one `round` job per round writes the same files into round{r}/render and round{r}/target.
+# one model (fan-in). round_jobs (common.smk) picks how the work is split:
+# - view: render_clip and refine jobs per view (fan-out: independent GPU jobs on a cluster), then
+#   an update job;
+# - round: one `round` job per round writes the same files into round{r}/render, round{r}/target
+#   and round{r}/model.pt (anigs round ... --then update ...: one Python and torch start-up).
 
 
 rule render_clip:
@@ -65,15 +67,24 @@ rule round:
         model=_render_model,
         masks=stage_path("masks"),
         effects=_effects_json,
+        earlier=_earlier_targets,
+        init=_init_model,
     output:
         render=directory(f"{VARIANT_DIR}/round{{round}}/render"),
         target=directory(f"{VARIANT_DIR}/round{{round}}/target"),
+        model=f"{VARIANT_DIR}/round{{round}}/model.pt",
+        log_json=f"{VARIANT_DIR}/round{{round}}/update.json",
     params:
         views=lambda wc: ",".join(round_views(wc.scene, wc.variant, int(wc.round))),
         render=jparams("render_clip", _frames),
         refine=jparams("refine", _refine_extra),
         model=lambda wc, input: f"--model {input.model[0]}" if input.model else "",
         effects=lambda wc, input: f"--effects-json {input.effects}" if input.effects else "",
+        p=jparams("update", _update_extra),
+        init=lambda wc, input: f"--init-model {input.init[0]}" if input.init else "",
+        method=_method_args,
+        contain=_contain_args,
+        targets=_target_files,
         version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/round.log",
@@ -81,8 +92,8 @@ rule round:
         f"{VARIANT_DIR}/benchmarks/round{{round}}/round.tsv"
     threads: 2  # the round's views one after another, each with both threads (same files as 1 thread)
     resources:
-        mem_mb=6000,
-        runtime=120,
+        mem_mb=8000,
+        runtime=180,
         gpu=lambda wc: wants_gpu(wc.scene, wc.variant),
     conda:
         "../../envs/anigs.yaml"
@@ -90,7 +101,22 @@ rule round:
         "anigs --threads {threads} round --canonical {input.ply:q} {params.model} --view-json {input.views:q} "
         "--views {params.views} --masks-dir {input.masks:q} --round {wildcards.round} {params.effects} "
         "--render-dir {output.render:q} --target-dir {output.target:q} "
-        "--render-params {params.render:q} --refine-params {params.refine:q} > {log} 2>&1"
+        "--render-params {params.render:q} --refine-params {params.refine:q} "
+        "--then update --canonical {input.ply:q} {params.init} --targets {params.targets} "
+        "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy --effect-labels {input.masks}/effect_labels.npy "
+        "{params.contain} --out {output.model:q} --log-json {output.log_json:q} --params {params.p:q} {params.method} "
+        "> {log} 2>&1"
+
+
+# One model per round: the round job above trains it in the same process (round_jobs: round), or
+# this job after the per-view jobs (round_jobs: view).
+if ROUND_JOBS == "round":
+
+    ruleorder: round > update
+
+else:
+
+    ruleorder: update > round
 
 
 rule update:

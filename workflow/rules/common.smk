@@ -226,6 +226,15 @@ def _targets(wc):
     return [f"{base}/round{p.target_round(r, v)}/target/{v}.npz" for v in p.dataset(r)]
 
 
+def _earlier_targets(wc):
+    """Round jobs (round_jobs: round): the target folders of earlier rounds that round r's update
+    trains on (its own folder is the job's output); none in view mode (the update job's inputs)."""
+    if ROUND_JOBS != "round":
+        return []
+    own = f"{R}/{wc.scene}/{wc.variant}/round{wc.round}/target"
+    return [t for t in _targets(wc) if t != own]
+
+
 def _target_files(wc):
     """The update's --targets: one clip per view of round r's dataset."""
     p = plan(wc.scene, wc.variant)
