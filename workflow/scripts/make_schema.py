@@ -202,10 +202,11 @@ TOP = {
                "description": "torch device of every stage: auto picks CUDA when present; cuda on a machine "
                               "without a GPU is an error before any job starts"},
     "round_jobs": {"type": "string", "enum": ["auto", "round", "view"], "default": "auto",
-                   "description": "how a round's render and refine work is split into jobs: round = one job per round "
-                                  "(one Python start-up, models loaded once), view = one render_clip and one refine job "
-                                  "per view (a cluster's GPUs take the views in parallel), auto = round for local runs "
-                                  "and view under a cluster executor; the artifacts are byte-identical either way"},
+                   "description": "how a round's work is split into jobs: round = one job per round (render, refine "
+                                  "and update: one Python start-up, models loaded once), view = one render_clip and one "
+                                  "refine job per view (a cluster's GPUs take the views in parallel), then an update "
+                                  "job, auto = round for local runs and view under a cluster executor; the artifacts "
+                                  "are byte-identical either way"},
     "scene_dir": {"type": "string", "default": "config/scenes", "description": "folder of the scene files ({name}.yaml)"},
     "scenes": {"type": "array", "items": {"type": "string", "pattern": "^[A-Za-z0-9_.-]+$"}, "minItems": 1,
                "default": ["demo"], "description": "scenes to process (names of files in scene_dir)"},
