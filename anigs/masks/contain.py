@@ -15,9 +15,10 @@ of the worst view change by more than 1/255 (0.05 over all views; by up to 50 le
 :func:`contain_dynamic` keeps a dynamic Gaussian dynamic only when, in every view, the
 blending weight it contributes to pixels *outside* that view's mask dilated by ``margin_px``
 sums to at most ``max_outside_px`` (in pixel units: 1 = one fully covered pixel). The weight is
-exact and occlusion-aware (:func:`anigs.masks.lift.blend_weights`: one backward pass of the
-rasterizer per view), so a Gaussian hidden behind a static wall in one view is judged by the
-views that see it. The others move to the static set: they stay in the scene, bit for bit still.
+exact and occlusion-aware (:func:`anigs.masks.lift.blend_weights`: one forward-only pass of the
+cpu rasterizer per view, one backward pass with the other backends), so a Gaussian hidden behind
+a static wall in one view is judged by the views that see it. The others move to the static set:
+they stay in the scene, bit for bit still.
 The masks themselves are not changed (they stay the honest "what should move" region); only
 the set of Gaussians allowed to move shrinks. The margin leaves room for the motion itself: a
 kept Gaussian's footprint ends within ``margin_px`` of the mask, inside the 5 px band that the

@@ -8,10 +8,11 @@ Two visibility tests, both for a Gaussian set seen from one :class:`~anigs.camer
     tolerance (``rel_tol * depth + scale_tol * max_scale``).
 ``weight``
     The exact blending weight each Gaussian contributes to the image, summed over pixels
-    (``sum_p w_i(p)``), obtained in one backward pass of the rasterizer with zero colours:
-    ``d(sum_p rgb_0(p)) / d colour_i0 = sum_p w_i(p)``. A second channel weighted by a
-    mask gives ``sum_p mask(p) w_i(p)`` in the same pass. Visible = total weight >=
-    ``min_weight`` (in pixel units).
+    (``sum_p w_i(p)``), and summed over a mask (``sum_p mask(p) w_i(p)``). With the cpu
+    rasterizer one forward-only kernel pass accumulates both while compositing; otherwise
+    one backward pass of the rasterizer with zero colours gives them
+    (``d(sum_p rgb_0(p)) / d colour_i0 = sum_p w_i(p)``, a second channel weighted by the
+    mask). Visible = total weight >= ``min_weight`` (in pixel units).
 
 :func:`lift_masks` votes, per Gaussian, among the views where it is visible: dynamic when
 the fraction of positive votes is >= ``vote_threshold`` and it is visible in >= ``min_views``.
@@ -166,18 +167,54 @@ def visible_depth(means: np.ndarray, cam: Camera, depth: np.ndarray | None, alph
     return inside & ~occluded
 
 
+def _blend_backend() -> str:
+    """The rasterizer backend that renders the CPU tensors of :func:`render_inputs` (``auto``)."""
+    from anigs.render.rasterize import select_backend
+
+    return select_backend("auto", torch.device("cpu"))
+
+
 def blend_weights(g: Gaussians, cam: Camera, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per-Gaussian blending weight summed over pixels: (total [N], inside ``mask`` [N]).
 
-    Exact, via one backward pass of the rasterizer (see module docstring).
+    Exact (see module docstring). With the cpu rasterizer one forward-only kernel pass
+    (:func:`anigs.render.cpu_backend.composite_weights_cpu`) sums them during compositing;
+    with the other backends one backward pass gives them (:func:`blend_weights_backward`).
     """
+    backend = _blend_backend()
+    if backend != "cpu":
+        return blend_weights_backward(g, cam, mask, backend)
+    from anigs.render.cpu_backend import composite_weights_cpu
+
+    idx = frustum_subset(g, cam)
+    total = np.zeros(g.num)
+    inside = np.zeros(g.num)
+    if len(idx) == 0:
+        return total, inside
+    ones = torch.ones(cam.height, cam.width, 1)
+    factors = ones if mask is None else torch.cat(
+        [ones, torch.from_numpy(np.asarray(mask, dtype=np.float32)).reshape(cam.height, cam.width, 1)], 2)
+    w = composite_weights_cpu(*render_inputs(g, idx), cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height,
+                              factors).numpy()
+    total[idx.numpy()] = w[:, 0]
+    if mask is not None:
+        inside[idx.numpy()] = w[:, 1]
+    return total, inside
+
+
+def blend_weights_backward(g: Gaussians, cam: Camera, mask: np.ndarray | None = None,
+                           backend: str = "auto") -> tuple[np.ndarray, np.ndarray]:
+    """:func:`blend_weights` via one backward pass of the rasterizer ``backend`` with zero
+    colours (``d(sum_p rgb_0(p)) / d colour_i0``; channel 1 weighted by the mask); the path of
+    the torch and gsplat backends, and the reference of the forward-only one."""
     idx = frustum_subset(g, cam)
     total = np.zeros(g.num)
     inside = np.zeros(g.num)
     if len(idx) == 0:
         return total, inside
     colors = torch.zeros(len(idx), 3, requires_grad=True)
-    rgb, _, _ = rasterize(*render_inputs(g, idx), colors, cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height)
+    rgb, _, _ = rasterize(*render_inputs(g, idx), colors, cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height,
+                          backend=backend)
     gout = torch.zeros_like(rgb)
     gout[..., 0] = 1.0
     if mask is not None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 
 from anigs.render import _build
@@ -209,3 +210,78 @@ def project_cpu(means, quats, scales, opacities, viewmat, K, width: int, height:
     m2d, con, feats, rects, radii, valid = _Preprocess.apply(
         means, quats, scales, opacities, zeros, cam, -1, int(width), int(height), None)
     return m2d, con, feats[:, 3], rects, radii, valid.view(torch.bool)
+
+
+def _weights_fn():
+    """``anigs_composite_weights`` of the loaded kernel, with its ctypes signature."""
+    lib = _build.load()
+    fn = lib.anigs_composite_weights
+    if fn.argtypes is None:
+        P, I = _build.ctypes.c_void_p, _build.ctypes.c_int
+        fn.argtypes = [I, I, I, I] + [P] * 8 + [I, P, I]
+        fn.restype = I
+    return lib, fn
+
+
+def composite_weights_cpu(means, quats, scales, opacities, viewmat, K, width: int, height: int, factors,
+                          near: float = 0.01, far: float = 1e10) -> torch.Tensor:
+    """Per-Gaussian blend weights summed over pixels, forward only: [N, C] float64 with
+
+        out[i, c] = sum_p w_i(p) factors[p, c],   w_i(p) = alpha_i(p) T_i(p),
+
+    the weights of the image :func:`render_cpu` renders (same sort, binning, alpha cutoff and
+    clamp, early termination), i.e. ``d rgb_c / d colour_i`` summed against ``factors`` as one
+    backward pass would give it, without the gradients of the other inputs. ``factors``: a
+    tensor or array [H,W,C] (C = 1..3) or [H,W] (C = 1). No autograd; the inputs are validated
+    as by :func:`anigs.render.rasterize`. Deterministic and independent of the thread count.
+    """
+    _device_check(means)
+    width, height = int(width), int(height)
+    if width < 1 or height < 1:
+        raise ValueError(f"composite_weights_cpu: image size must be >= 1x1, got {width}x{height}")
+    n = means.shape[0]
+    if means.shape != (n, 3) or quats.shape != (n, 4) or scales.shape != (n, 3) or opacities.shape != (n,):
+        raise ValueError(f"composite_weights_cpu: shape mismatch: means {tuple(means.shape)}, quats "
+                         f"{tuple(quats.shape)}, scales {tuple(scales.shape)}, opacities {tuple(opacities.shape)}")
+    f = factors if torch.is_tensor(factors) else torch.from_numpy(np.asarray(factors))
+    if f.ndim == 2:
+        f = f[..., None]
+    if f.ndim != 3 or tuple(f.shape[:2]) != (height, width) or not 1 <= f.shape[2] <= 3:
+        raise ValueError(f"composite_weights_cpu: factors must be [H,W,C] = [{height},{width},1..3], "
+                         f"got {tuple(f.shape)}")
+    f = _f32(f.cpu())
+    C = int(f.shape[2])
+    lib, fn = _weights_fn()
+    named = {"means": means, "quats": quats, "scales": scales, "opacities": opacities, "viewmat": viewmat, "K": K}
+
+    def on_invalid(_flags: int) -> None:
+        from anigs.render.rasterize import _validate
+
+        _validate(named)
+        raise ValueError("composite_weights_cpu: inputs are not finite in float32, or scales/opacities out of range")
+
+    cam = camera_params(viewmat, K, near, far, on_invalid=on_invalid)
+    m, q, s, o = (_f32(t) for t in (means, quats, scales, opacities))
+    nt = _threads()
+    nb = max(n, 1)
+    colors = torch.zeros(nb, 3)
+    means2d, conics, feats = torch.empty(nb, 2), torch.empty(nb, 3), torch.empty(nb, 4)
+    rects, radii = torch.empty(nb, 4, dtype=torch.int32), torch.empty(nb, dtype=torch.int32)
+    valid = torch.empty(nb, dtype=torch.uint8)
+    flags = lib.anigs_preprocess(n, _ptr(cam), width, height, _ptr(m), _ptr(q), _ptr(s), _ptr(o), _ptr(colors),
+                                 1, -1, _ptr(means2d), _ptr(conics), _ptr(feats), _ptr(rects), _ptr(radii),
+                                 _ptr(valid), 1, nt)
+    if flags:
+        on_invalid(flags)
+    order, gstart = torch.empty(nb, dtype=torch.int32), torch.empty(nb + 1, dtype=torch.int32)
+    npairs = _build.ctypes.c_longlong(0)
+    M = lib.anigs_sort_count(n, _ptr(feats), _ptr(valid), _ptr(rects), width, height, _ptr(order), _ptr(gstart),
+                             _build.ctypes.byref(npairs))
+    if npairs.value >= 2**31:
+        raise ValueError(f"composite_weights_cpu: {npairs.value} (tile, Gaussian) pairs exceed the int32 limit")
+    out = torch.empty(nb, C, dtype=torch.float64)
+    rc = fn(n, M, width, height, _ptr(order), _ptr(gstart), _ptr(means2d), _ptr(conics), _ptr(feats), _ptr(o),
+            _ptr(rects), _ptr(f), C, _ptr(out), nt)
+    if rc != 0:
+        raise MemoryError("composite_weights_cpu: the kernel could not allocate its buffers")
+    return out[:n]

@@ -7,6 +7,8 @@
 //                             per-splat tile counts
 //   anigs_composite_forward   tile binning, compositing, rgb/alpha/depth
 //   anigs_composite_backward  per-(tile, splat) gradient rows, reduced per splat in a fixed order
+//   anigs_composite_weights   forward-only alternative to forward + backward for the per-splat
+//                             blend weight sums sum_p alpha T factor(p) (mask lifting, visibility)
 //   anigs_preprocess_backward (project.cpp)
 // Parallelism: OpenMP (or pool.cpp's threads) over Gaussians and over 16x16 tiles. Inside
 // a tile, a splat's box rows are processed in vector windows (GCC/Clang vector extensions:
@@ -301,11 +303,21 @@ struct BwdTile {
   alignas(64) int32_t last[TILE * RS];
 };
 
+// Tile-rect overlap of splat s with tile (px0, py0, tw, th); false when empty.
+inline bool overlap(const Rec& s, int px0, int py0, int tw, int th, int& x0, int& y0, int& x1, int& y1) {
+  x0 = std::max(s.x0, px0); x1 = std::min(s.x1, px0 + tw);
+  y0 = std::max(s.y0, py0); y1 = std::min(s.y1, py0 + th);
+  return x0 < x1 && y0 < y1;
+}
+
 // Composite splat s (list position jl1 - 1) over rows [by0, by1) of the L-lane window at
 // pixel column ax (= px0 + off). Returns true when some pixel hit the transmittance floor.
-template <int L>
+// NCW = 0: the image forward (channel sums acc, last). NCW = 1..3: the blend weights only
+// (anigs_composite_weights): acc and last are left alone, and out[c] (c < NCW) gets the sum
+// over the window of w(p) fac[c](p), fac = the tile's factor rows ([NCW][TILE * RS]).
+template <int L, int NCW = 0>
 ANIGS_INLINE bool forward_pair(const Rec& s, int ax, int off, int bx0, int bx1, int by0, int by1, int py0, int jl1,
-                         FwdTile& t) {
+                         FwdTile& t, const float* fac = nullptr, float* out = nullptr) {
   typedef typename VT<L>::f F;
   typedef typename VT<L>::i I;
   const PairEval<L> pe(s, ax, bx0, bx1);
@@ -313,6 +325,8 @@ ANIGS_INLINE bool forward_pair(const Rec& s, int ax, int off, int bx0, int bx1, 
   pe.eval(s, by0, by1, rw);
   const I jl1v = bci<I>(jl1);
   I term_any = bci<I>(0);
+  F wsum[NCW > 0 ? NCW : 1];
+  for (int c = 0; c < NCW; ++c) wsum[c] = bc<F>(0.f);
   for (int y = by0; y < by1; ++y) {
     const int k = (y - py0) * RS + off;
     const I done = ld<I>(t.done + k);
@@ -326,11 +340,46 @@ ANIGS_INLINE bool forward_pair(const Rec& s, int ax, int off, int bx0, int bx1, 
     term_any |= term;
     m &= ~term;
     const F w = sel(m, alpha * Tr, bc<F>(0.f));
-    for (int c = 0; c < NCH; ++c) st(t.acc[c] + k, ld<F>(t.acc[c] + k) + w * s.f[c]);
+    if constexpr (NCW == 0) {
+      for (int c = 0; c < NCH; ++c) st(t.acc[c] + k, ld<F>(t.acc[c] + k) + w * s.f[c]);
+    } else {
+      for (int c = 0; c < NCW; ++c) wsum[c] += w * ld<F>(fac + c * (TILE * RS) + k);
+    }
     st(t.T + k, sel(m, nextT, Tr));
-    st(t.last + k, seli(m, jl1v, ld<I>(t.last + k)));
+    if constexpr (NCW == 0) st(t.last + k, seli(m, jl1v, ld<I>(t.last + k)));
   }
+  if constexpr (NCW > 0) add_sums<NCW>(wsum, out);
   return any(term_any);
+}
+
+// Composite the tile's list [j0, j1) of sorted splats over the tile at (px0, py0), tw x th
+// pixels, until every pixel has stopped (forward_pair's NCW; with NCW > 0 pair_w[j * NCW + c]
+// gets pair j's weight sums and must be zero on entry).
+template <int NCW = 0>
+ANIGS_INLINE void composite_tile(const Rec* recs, const int* tile_splats, int j0, int j1, int px0, int py0, int tw,
+                                 int th, FwdTile& tl, const float* fac = nullptr, float* pair_w = nullptr) {
+  int ndone = 0;
+  const int npix = tw * th;
+  for (int j = j0; j < j1 && ndone < npix; ++j) {
+    if (j + PREFETCH < j1) __builtin_prefetch(recs + tile_splats[j + PREFETCH]);
+    const Rec& s = recs[tile_splats[j]];
+    int bx0, by0, bx1, by1;
+    if (!overlap(s, px0, py0, tw, th, bx0, by0, bx1, by1)) continue;
+    const int jl1 = j - j0 + 1;
+    float* out = NCW > 0 ? pair_w + (size_t)j * NCW : nullptr;
+    bool term;
+    if (WIDE16 && bx1 - bx0 > 8) {
+      term = forward_pair<16, NCW>(s, px0, 0, bx0, bx1, by0, by1, py0, jl1, tl, fac, out);
+    } else {  // windows left to right (pixels are independent: their order does not matter)
+      term = false;
+      for (int x = bx0; x < bx1; x += NW)
+        term |= forward_pair<NW, NCW>(s, x, x - px0, bx0, bx1, by0, by1, py0, jl1, tl, fac, out);
+    }
+    if (term) {
+      ndone = 0;
+      for (int r = 0; r < th; ++r) ndone += count(ld<vi16>(tl.done + r * RS));
+    }
+  }
 }
 
 // Backward of splat s at list position jl: adds its gradient to out[D] and steps the
@@ -380,13 +429,6 @@ ANIGS_INLINE void backward_pair(const Rec& s, int ax, int off, int bx0, int bx1,
   add_sums<6 + NC>(sum, out);
 }
 
-// Tile-rect overlap of splat s with tile (px0, py0, tw, th); false when empty.
-inline bool overlap(const Rec& s, int px0, int py0, int tw, int th, int& x0, int& y0, int& x1, int& y1) {
-  x0 = std::max(s.x0, px0); x1 = std::min(s.x1, px0 + tw);
-  y0 = std::max(s.y0, py0); y1 = std::min(s.y1, py0 + th);
-  return x0 < x1 && y0 < y1;
-}
-
 inline int nthreads_or_max(int n) { return n > 0 ? n : pool::max_threads(); }
 
 // Order-preserving unsigned key of a float (ascending), -0 folded onto +0.
@@ -395,6 +437,102 @@ inline uint32_t float_key(float x) {
   uint32_t u;
   std::memcpy(&u, &x, 4);
   return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+}
+
+// Binning (the first part of anigs_composite_forward): packs the M sorted splats into recs
+// and bins the (tile, splat) pairs by tile (tile_offsets, tile_splats, and pair_slots unless
+// null); see anigs_composite_forward.
+void bin_splats(int M, int W, int H, const int* order, const int* gstart, const float* means2d, const float* conics,
+                const float* feats, const float* opac, const int* rects, Rec* recs, int* tile_offsets,
+                int* tile_splats, int* pair_slots, int nthreads) {
+  const int TX = tiles_of(W), TY = tiles_of(H), NT = TX * TY;
+  // Binning: chunk k of the sorted splats packs its records and counts its pairs per tile;
+  // after a prefix sum over (tile, chunk) it fills its slots. The result is the stable
+  // order whatever the chunking.
+  const int nchunk = std::max(1, std::min(4 * nthreads, M / 512));
+  std::vector<int> hist((size_t)nchunk * NT, 0);
+  const auto chunk_range = [&](int k, int& m0, int& m1) {
+    m0 = (int)((long long)M * k / nchunk);
+    m1 = (int)((long long)M * (k + 1) / nchunk);
+  };
+  pool::parallel_for(nchunk, nthreads, 1, [&](int kb, int ke) {
+    for (int k = kb; k < ke; ++k) {
+      int m0, m1;
+      chunk_range(k, m0, m1);
+      int* h = hist.data() + (size_t)k * NT;
+      for (int m = m0; m < m1; ++m) {
+        const int g = order[m];
+        const int* r = rects + 4 * g;
+        Rec& s = recs[m];
+        s.mx = means2d[2 * g]; s.my = means2d[2 * g + 1];
+        s.A = conics[3 * g]; s.B = conics[3 * g + 1]; s.C = conics[3 * g + 2];
+        s.o = opac[g];
+        s.pad0 = s.pad1 = 0.f;
+        for (int c = 0; c < NCH; ++c) s.f[c] = feats[NCH * g + c];
+        s.x0 = r[0]; s.y0 = r[1]; s.x1 = r[2]; s.y1 = r[3];
+        for (int ty = r[1] / TILE; ty <= (r[3] - 1) / TILE; ++ty)
+          for (int tx = r[0] / TILE; tx <= (r[2] - 1) / TILE; ++tx) h[ty * TX + tx]++;
+      }
+    }
+  });
+  int sum = 0;
+  for (int t = 0; t < NT; ++t) {
+    tile_offsets[t] = sum;
+    for (int k = 0; k < nchunk; ++k) {
+      const int c = hist[(size_t)k * NT + t];
+      hist[(size_t)k * NT + t] = sum;
+      sum += c;
+    }
+  }
+  tile_offsets[NT] = sum;
+
+  pool::parallel_for(nchunk, nthreads, 1, [&](int kb, int ke) {
+    for (int k = kb; k < ke; ++k) {
+      int m0, m1;
+      chunk_range(k, m0, m1);
+      int* h = hist.data() + (size_t)k * NT;
+      for (int m = m0; m < m1; ++m) {
+        const Rec& s = recs[m];
+        int slot = gstart[m];
+        for (int ty = s.y0 / TILE; ty <= (s.y1 - 1) / TILE; ++ty)
+          for (int tx = s.x0 / TILE; tx <= (s.x1 - 1) / TILE; ++tx) {
+            const int pos = h[ty * TX + tx]++;
+            tile_splats[pos] = m;
+            if (pair_slots) pair_slots[slot++] = pos;
+          }
+      }
+    }
+  });
+}
+
+// The tiles of anigs_composite_weights with NCW factor channels: pair_w [npairs, NCW].
+template <int NCW>
+void weights_tiles(int W, int H, const Rec* recs, const int* tile_offsets, const int* tile_splats,
+                   const float* factors, float* pair_w, int nthreads) {
+  const int TX = tiles_of(W), TY = tiles_of(H), NT = TX * TY;
+  pool::parallel_for(NT, nthreads, 1, [&](int tb, int te) {
+    for (int t = tb; t < te; ++t) {
+      const int tx = t % TX, ty = t / TX;
+      const int px0 = tx * TILE, py0 = ty * TILE;
+      const int tw = std::min(TILE, W - px0), th = std::min(TILE, H - py0);
+      const int j0 = tile_offsets[t], j1 = tile_offsets[t + 1];
+      std::memset(pair_w + (size_t)j0 * NCW, 0, sizeof(float) * NCW * (size_t)(j1 - j0));
+      if (j0 == j1) continue;
+      FwdTile tl;  // acc and last unused here
+      alignas(64) float fac[NCW][TILE * RS];
+      for (int i = 0; i < TILE * RS; ++i) {
+        tl.T[i] = 1.f;
+        tl.done[i] = 0;
+        for (int c = 0; c < NCW; ++c) fac[c][i] = 0.f;
+      }
+      for (int r = 0; r < th; ++r) {
+        const float* src = factors + ((size_t)(py0 + r) * W + px0) * NCW;
+        for (int x = 0; x < tw; ++x)
+          for (int c = 0; c < NCW; ++c) fac[c][r * RS + x] = src[(size_t)x * NCW + c];
+      }
+      composite_tile<NCW>(recs, tile_splats, j0, j1, px0, py0, tw, th, tl, &fac[0][0], pair_w);
+    }
+  });
 }
 }  // namespace
 
@@ -483,63 +621,8 @@ void anigs_composite_forward(int M, int W, int H, const int* order, const int* g
   const int TX = tiles_of(W), TY = tiles_of(H), NT = TX * TY;
   nthreads = nthreads_or_max(nthreads);
   const float bgv[3] = {bg[0], bg[1], bg[2]};
-  // Binning: chunk k of the sorted splats packs its records and counts its pairs per tile;
-  // after a prefix sum over (tile, chunk) it fills its slots. The result is the stable
-  // order whatever the chunking.
-  const int nchunk = std::max(1, std::min(4 * nthreads, M / 512));
-  std::vector<int> hist((size_t)nchunk * NT, 0);
-  const auto chunk_range = [&](int k, int& m0, int& m1) {
-    m0 = (int)((long long)M * k / nchunk);
-    m1 = (int)((long long)M * (k + 1) / nchunk);
-  };
-  pool::parallel_for(nchunk, nthreads, 1, [&](int kb, int ke) {
-    for (int k = kb; k < ke; ++k) {
-      int m0, m1;
-      chunk_range(k, m0, m1);
-      int* h = hist.data() + (size_t)k * NT;
-      for (int m = m0; m < m1; ++m) {
-        const int g = order[m];
-        const int* r = rects + 4 * g;
-        Rec& s = recs[m];
-        s.mx = means2d[2 * g]; s.my = means2d[2 * g + 1];
-        s.A = conics[3 * g]; s.B = conics[3 * g + 1]; s.C = conics[3 * g + 2];
-        s.o = opac[g];
-        s.pad0 = s.pad1 = 0.f;
-        for (int c = 0; c < NCH; ++c) s.f[c] = feats[NCH * g + c];
-        s.x0 = r[0]; s.y0 = r[1]; s.x1 = r[2]; s.y1 = r[3];
-        for (int ty = r[1] / TILE; ty <= (r[3] - 1) / TILE; ++ty)
-          for (int tx = r[0] / TILE; tx <= (r[2] - 1) / TILE; ++tx) h[ty * TX + tx]++;
-      }
-    }
-  });
-  int sum = 0;
-  for (int t = 0; t < NT; ++t) {
-    tile_offsets[t] = sum;
-    for (int k = 0; k < nchunk; ++k) {
-      const int c = hist[(size_t)k * NT + t];
-      hist[(size_t)k * NT + t] = sum;
-      sum += c;
-    }
-  }
-  tile_offsets[NT] = sum;
-
-  pool::parallel_for(nchunk, nthreads, 1, [&](int kb, int ke) {
-    for (int k = kb; k < ke; ++k) {
-      int m0, m1;
-      chunk_range(k, m0, m1);
-      int* h = hist.data() + (size_t)k * NT;
-      for (int m = m0; m < m1; ++m) {
-        const Rec& s = recs[m];
-        int slot = gstart[m];
-        for (int ty = s.y0 / TILE; ty <= (s.y1 - 1) / TILE; ++ty)
-          for (int tx = s.x0 / TILE; tx <= (s.x1 - 1) / TILE; ++tx) {
-            const int pos = h[ty * TX + tx]++;
-            tile_splats[pos] = m;
-            if (pair_slots) pair_slots[slot++] = pos;
-          }
-      }
-    }
-  });
+  bin_splats(M, W, H, order, gstart, means2d, conics, feats, opac, rects, recs, tile_offsets, tile_splats,
+             pair_slots, nthreads);
 
   pool::parallel_for(NT, nthreads, 1, [&](int tb, int te) {
     for (int t = tb; t < te; ++t) {
@@ -552,28 +635,7 @@ void anigs_composite_forward(int M, int W, int H, const int* order, const int* g
         tl.last[i] = tl.done[i] = 0;
         for (int c = 0; c < NCH; ++c) tl.acc[c][i] = 0.f;
       }
-      int ndone = 0;
-      const int npix = tw * th;
-      const int j0 = tile_offsets[t], j1 = tile_offsets[t + 1];
-      for (int j = j0; j < j1 && ndone < npix; ++j) {
-        if (j + PREFETCH < j1) __builtin_prefetch(recs + tile_splats[j + PREFETCH]);
-        const Rec& s = recs[tile_splats[j]];
-        int bx0, by0, bx1, by1;
-        if (!overlap(s, px0, py0, tw, th, bx0, by0, bx1, by1)) continue;
-        const int jl1 = j - j0 + 1;
-        bool term;
-        if (WIDE16 && bx1 - bx0 > 8) {
-          term = forward_pair<16>(s, px0, 0, bx0, bx1, by0, by1, py0, jl1, tl);
-        } else {  // windows left to right (pixels are independent: their order does not matter)
-          term = false;
-          for (int x = bx0; x < bx1; x += NW)
-            term |= forward_pair<NW>(s, x, x - px0, bx0, bx1, by0, by1, py0, jl1, tl);
-        }
-        if (term) {
-          ndone = 0;
-          for (int r = 0; r < th; ++r) ndone += count(ld<vi16>(tl.done + r * RS));
-        }
-      }
+      composite_tile(recs, tile_splats, tile_offsets[t], tile_offsets[t + 1], px0, py0, tw, th, tl);
       for (int r = 0; r < th; ++r) {
         const int k = r * RS;
         const size_t o = (size_t)(py0 + r) * W + px0;
@@ -595,6 +657,51 @@ void anigs_composite_forward(int M, int W, int H, const int* order, const int* g
       }
     }
   });
+}
+
+// Blend weights only: the sort and binning of anigs_composite_forward and its compositing
+// (same transmittance floor, alpha cutoff and clamp, so the weights are those of the image it
+// renders), without the image. For each splat i and factor channel c < C (1..3) writes
+//   out[i, c] = sum_p w_i(p) factors[p, c],  w_i(p) = alpha_i(p) T_i(p)
+// (the d rgb_c / d colour_i of the forward; zero for splats that are not drawn). factors
+// [H,W,C] float32 contiguous; out [N,C] float64. Sums per (tile, splat) pair in float, then
+// per splat over its pairs in tile order (double): bit-identical whatever the thread count.
+// Returns 0, or -1 for C outside 1..3 or when out of memory.
+int anigs_composite_weights(int N, int M, int W, int H, const int* order, const int* gstart,
+                            const float* means2d, const float* conics, const float* feats, const float* opac,
+                            const int* rects, const float* factors, int C, double* out, int nthreads) {
+  if (C < 1 || C > 3) return -1;
+  nthreads = nthreads_or_max(nthreads);
+  const int NT = tiles_of(W) * tiles_of(H);
+  const size_t npairs = (size_t)gstart[M];
+  Rec* recs = static_cast<Rec*>(std::aligned_alloc(64, sizeof(Rec) * (size_t)std::max(M, 1)));
+  int* tile_offsets = static_cast<int*>(std::malloc(sizeof(int) * (size_t)(NT + 1)));
+  int* tile_splats = static_cast<int*>(std::malloc(sizeof(int) * std::max<size_t>(npairs, 1)));
+  int* pair_slots = static_cast<int*>(std::malloc(sizeof(int) * std::max<size_t>(npairs, 1)));
+  float* pair_w = static_cast<float*>(std::malloc(sizeof(float) * C * std::max<size_t>(npairs, 1)));
+  int rc = -1;
+  if (recs && tile_offsets && tile_splats && pair_slots && pair_w) {
+    rc = 0;
+    bin_splats(M, W, H, order, gstart, means2d, conics, feats, opac, rects, recs, tile_offsets, tile_splats,
+               pair_slots, nthreads);
+    if (C == 1) weights_tiles<1>(W, H, recs, tile_offsets, tile_splats, factors, pair_w, nthreads);
+    else if (C == 2) weights_tiles<2>(W, H, recs, tile_offsets, tile_splats, factors, pair_w, nthreads);
+    else weights_tiles<3>(W, H, recs, tile_offsets, tile_splats, factors, pair_w, nthreads);
+    std::memset(out, 0, sizeof(double) * C * (size_t)N);  // splats not drawn
+    pool::parallel_for(M, nthreads, 1024, [&](int mb, int me) {
+      for (int m = mb; m < me; ++m) {
+        double o[3] = {0.0, 0.0, 0.0};
+        for (int k = gstart[m]; k < gstart[m + 1]; ++k) {
+          const float* r = pair_w + (size_t)pair_slots[k] * C;
+          for (int c = 0; c < C; ++c) o[c] += (double)r[c];
+        }
+        double* dst = out + (size_t)order[m] * C;
+        for (int c = 0; c < C; ++c) dst[c] = o[c];
+      }
+    });
+  }
+  std::free(recs); std::free(tile_offsets); std::free(tile_splats); std::free(pair_slots); std::free(pair_w);
+  return rc;
 }
 
 // Backward. Upstream grads g_rgb [H,W,3], g_alpha [H,W], g_depth [H,W] (each may be null =
