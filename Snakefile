@@ -33,6 +33,7 @@ localrules:
     all_final,
     all_export,
     all_eval,
+    eval,
     tables,
     study,
 

@@ -101,6 +101,7 @@ def main(argv: list[str] | None = None) -> int:
                                             next(a for a in part if a in commands()), time.perf_counter() - t0, rc)
             if rc:
                 return rc
+        logging.getLogger("anigs").info("chain: %d commands, process CPU %.2f s", len(chain), time.process_time())
         return 0
     return _main(argv)
 

@@ -90,6 +90,29 @@ def _read_model_metrics(path: str, scene: str, variant: str, method: str) -> dic
     return rec["metrics"]
 
 
+def merge(clips_record: str | Path, model_record: str | Path, out: str | Path) -> dict:
+    """``metrics.json`` from the two halves of an evaluation: a ``--part clips`` record (the final
+    clips' metrics) and a ``--part model`` record (the model's), checked to be of the same scene,
+    variant and method; the metrics in the order of one ``--part all`` run. No torch: the workflow
+    runs it inside Snakemake."""
+    from anigs.io import read_json, write_json
+
+    clips, model = read_json(clips_record), read_json(model_record)
+    for path, rec, part in ((clips_record, clips, "clips"), (model_record, model, "model")):
+        if not isinstance(rec, dict) or rec.get("part") != part or not isinstance(rec.get("metrics"), dict):
+            raise ValueError(f"eval merge: {path} is not the record of an `anigs eval --part {part}` run")
+    key = ("scene", "variant", "method", "dataset")
+    if tuple(clips.get(k) for k in key) != tuple(model.get(k) for k in key):
+        raise ValueError(f"eval merge: {clips_record} and {model_record} are of different evaluations "
+                         f"({[clips.get(k) for k in key]} against {[model.get(k) for k in key]})")
+    inputs = {k: v if v not in (None, [], {}) else model.get("inputs", {}).get(k)
+              for k, v in clips.get("inputs", {}).items()}
+    record = dict(clips, part="all", inputs=inputs, seconds=round(clips.get("seconds", 0) + model.get("seconds", 0), 2),
+                  metrics={**clips["metrics"], **model["metrics"]})
+    write_json(out, record)
+    return record
+
+
 # ---- command line: anigs eval ----
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -1,8 +1,9 @@
 # Stage 10: evaluation per (scene, variant) and the paper's tables.
 
 
-# The model's half of the metrics (ground-truth motion, the multiview protocol's two static fits)
-# needs the model, not the final clips: one thread, beside the final renders.
+# The evaluation in two halves: the model's metrics (ground-truth motion, the multiview protocol's
+# two static fits) need the model, not the final clips: one thread, beside the final renders; the
+# final clips' metrics run in the final job (final.smk); the eval rule merges them.
 rule eval_model:
     input:
         ply=stage_path("static", "canonical.ply"),
@@ -35,41 +36,20 @@ rule eval_model:
         "--params {params.p:q} > {log} 2>&1"
 
 
+# metrics.json: the two halves merged (inside Snakemake: a JSON merge, no process start-up).
 rule eval:
     input:
-        final=f"{R}/{{scene}}/{{variant}}/final/final.json",
-        model_metrics=f"{R}/{{scene}}/{{variant}}/eval/model_metrics.json",
-        masks=stage_path("masks"),
-        ply=stage_path("static", "canonical.ply"),
-        model=final_model,
-        cameras=stage_path("sfm", "cameras.json"),
-        points=stage_path("sfm", "points.npz"),
-        images=stage_path("sfm", "images"),
+        clips=f"{R}/{{scene}}/{{variant}}/eval/clip_metrics.json",
+        model=f"{R}/{{scene}}/{{variant}}/eval/model_metrics.json",
     output:
         report(f"{R}/{{scene}}/{{variant}}/eval/metrics.json", caption="../report/metrics.rst", category="Metrics",
                subcategory="{scene} {variant}"),
     params:
-        p=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
-        final=lambda wc: f"{R}/{wc.scene}/{wc.variant}/final/clips",
-        gt=_eval_gt,
-        method=_eval_method,
         version=ANIGS_VERSION,
-    log:
-        f"{R}/{{scene}}/{{variant}}/logs/eval.log",
-    benchmark:
-        f"{R}/{{scene}}/{{variant}}/benchmarks/eval.tsv"
-    threads: 1
-    resources:
-        mem_mb=8000,
-        runtime=60,
-    conda:
-        "../../envs/anigs.yaml"
-    shell:
-        "anigs --threads {threads} eval --part clips --model-metrics {input.model_metrics:q} "
-        "--final-dir {params.final:q} --masks {input.masks:q} --model {input.model:q} "
-        "--canonical {input.ply:q} --cameras {input.cameras:q} --images {input.images:q} --points {input.points:q} "
-        "{params.gt} --scene {wildcards.scene} {params.method} --out {output:q} "
-        "--params {params.p:q} > {log} 2>&1"
+    run:
+        from anigs.stages.eval import merge
+
+        merge(input.clips, input.model, output[0])
 
 
 rule tables:
