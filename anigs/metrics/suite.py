@@ -277,8 +277,7 @@ def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path
              canonical: str | Path | None = None, cameras: str | Path | None = None,
              images: str | Path | None = None, points: str | Path | None = None,
              gt_dir: str | Path | None = None,
-             fid_references: dict[str, list[str | Path]] | None = None, part: str = "all",
-             model_metrics: dict[str, Any] | None = None) -> dict[str, Any]:
+             fid_references: dict[str, list[str | Path]] | None = None, part: str = "all") -> dict[str, Any]:
     """Compute every metric whose inputs are given; returns the ``metrics`` mapping of metrics.json.
 
     ``references``: prior -> clip files/folders (FVD-prior, and FID-prior unless
@@ -287,15 +286,13 @@ def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path
 
     ``part``: ``all``; ``clips`` (the metrics of the final clips: weight-free, FVD, FID) or
     ``model`` (those of the model: ground-truth motion, the multiview protocol), so that the two
-    halves can run as separate jobs (the model's beside the final renders). ``model_metrics``: the
-    ``model`` half computed already (its ``metrics`` mapping), merged in place of computing it.
+    halves can run as separate jobs (the model's beside the final renders; see
+    :func:`anigs.stages.eval.merge`).
     """
     from anigs.device import get_device, seed_everything
 
     if part not in EVAL_PARTS:
         raise ValueError(f"eval: part must be one of {EVAL_PARTS}, got {part!r}")
-    if model_metrics is not None and part == "model":
-        raise ValueError("eval: model_metrics replaces the model half, so part must be 'all' or 'clips'")
     seed_everything(cfg.seed)
     device = get_device(cfg.device)
     P = (lambda p: None if p in (None, "") else Path(p))
@@ -314,10 +311,7 @@ def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path
             t0 = time.perf_counter()
             metrics.update(frechet_metrics(kind, clips, r, cfg, device))
             log.info("eval: %s %.1f s", kind, time.perf_counter() - t0)
-    if model_metrics is not None:
-        metrics.update(model_metrics)
-        log.info("eval: model-based metrics read (%d)", len(model_metrics))
-    elif part in ("all", "model"):
+    if part in ("all", "model"):
         t0 = time.perf_counter()
         seed_everything(cfg.seed)  # the same draws whether or not the clips' half ran first
         metrics.update(gt_metrics(P(model), P(canonical), P(gt_dir), P(cameras)))

@@ -7,9 +7,10 @@ output in :mod:`anigs.tables`.
         --cameras sfm/cameras.json --images sfm/images --points sfm/points.npz [--gt-dir capture/gt] \
         --scene demo --variant full --out eval/metrics.json --params '{...eval section...}'
 
-The workflow runs it in two jobs: ``--part model`` (the ground-truth motion and the multiview
-protocol, which need the model but not the final clips) beside the final renders, then the rest
-with ``--model-metrics`` reading that record, so the model's metrics are not computed twice.
+The workflow runs it in two halves: ``--part model`` (the ground-truth motion and the multiview
+protocol, which need the model but not the final clips) in a job beside the final renders, and
+``--part clips`` in the final job after the videos; :func:`merge` (``anigs eval --merge CLIPS
+MODEL --out metrics.json``) joins the two records into the one a ``--part all`` run writes.
 """
 from __future__ import annotations
 
@@ -43,7 +44,6 @@ class EvalInputs:
     points: str | None = None
     gt_dir: str | None = None
     part: str = "all"                   # all | clips | model (anigs.metrics.suite.evaluate)
-    model_metrics: str | None = None    # a --part model record whose metrics replace the model half
 
 
 def run(inputs: EvalInputs, cfg: EvalConfig, out: str | Path, scene: str, method: str = "Ours",
@@ -55,13 +55,11 @@ def run(inputs: EvalInputs, cfg: EvalConfig, out: str | Path, scene: str, method
     from anigs.tables import SCHEMA
 
     t0 = time.perf_counter()
-    model_metrics = _read_model_metrics(inputs.model_metrics, scene, variant, method) if inputs.model_metrics else None
     metrics = evaluate(cfg, inputs.clips, inputs.masks, inputs.reference, inputs.model, inputs.canonical,
                        inputs.cameras, inputs.images, inputs.points, inputs.gt_dir, inputs.fid_reference,
-                       part=inputs.part, model_metrics=model_metrics)
+                       part=inputs.part)
     record = {"schema": SCHEMA, "scene": scene, "dataset": dataset, "method": method,
-              "variant": variant, "part": "all" if model_metrics is not None else inputs.part,
-              "anigs_version": __version__,
+              "variant": variant, "part": inputs.part, "anigs_version": __version__,
               "config": dataclasses.asdict(cfg),
               "inputs": {"clips": inputs.clips, "masks": inputs.masks, "reference": inputs.reference,
                          "fid_reference": inputs.fid_reference, "model": inputs.model,
@@ -74,20 +72,6 @@ def run(inputs: EvalInputs, cfg: EvalConfig, out: str | Path, scene: str, method
     for name, m in metrics.items():
         log.info("  %-26s %s", name, f"{m['value']:.4g}" if m["available"] else f"n/a ({m['reason']})")
     return record
-
-
-def _read_model_metrics(path: str, scene: str, variant: str, method: str) -> dict:
-    """The ``metrics`` of a ``--part model`` record at ``path``, checked to be that half of this evaluation."""
-    from anigs.io import read_json
-
-    rec = read_json(path)
-    if not isinstance(rec, dict) or rec.get("part") != "model" or not isinstance(rec.get("metrics"), dict):
-        raise ValueError(f"eval: --model-metrics {path} is not the record of an `anigs eval --part model` run")
-    theirs = (rec.get("scene"), rec.get("variant"), rec.get("method"))
-    if theirs != (scene, variant, method):
-        raise ValueError(f"eval: --model-metrics {path} is for scene, variant, method {theirs}, "
-                         f"not {(scene, variant, method)}")
-    return rec["metrics"]
 
 
 def merge(clips_record: str | Path, model_record: str | Path, out: str | Path) -> dict:
@@ -131,13 +115,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--images", help="capture images named by camera (multiview reference row)")
     parser.add_argument("--points", help="SfM points.npz (xyz, rgb) initialising the multiview fits")
     parser.add_argument("--gt-dir", help="synthetic ground truth folder (capture/gt)")
-    parser.add_argument("--scene", required=True, help="scene name (table column)")
+    parser.add_argument("--scene", help="scene name (table column; required unless --merge)")
     parser.add_argument("--method", default="Ours", help="method name (table row)")
     parser.add_argument("--variant", default="full", help="ablation variant id (Table 5)")
     parser.add_argument("--dataset", default="anigs", help="scene group (one FVD table per dataset)")
     parser.add_argument("--part", default="all", choices=("all", "clips", "model"),
                         help="all metrics, or only those of the final clips or of the model (two jobs)")
-    parser.add_argument("--model-metrics", help="record of a --part model run: its metrics are used, not recomputed")
+    parser.add_argument("--merge", nargs=2, metavar=("CLIPS", "MODEL"),
+                        help="join the records of a --part clips and a --part model run into --out (nothing computed)")
     add_out(parser, "metrics.json to write")
     add_params(parser, "eval")
 
@@ -156,11 +141,16 @@ def _pairs(items: list[str], opt: str) -> dict[str, list[str]]:
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
+    if args.merge:
+        merge(args.merge[0], args.merge[1], args.out)
+        return 0
+    if not args.scene:
+        raise ValueError("eval: --scene is required (the table column)")
     inputs = EvalInputs(clips=([args.final_dir] if args.final_dir else []) + list(args.clips), masks=args.masks,
                         reference=_pairs(args.reference, "--reference"),
                         fid_reference=_pairs(args.fid_reference, "--fid-reference"), model=args.model,
                         canonical=args.canonical, cameras=args.cameras, images=args.images, points=args.points,
-                        gt_dir=args.gt_dir, part=args.part, model_metrics=args.model_metrics)
+                        gt_dir=args.gt_dir, part=args.part)
     run(inputs, EvalConfig.from_dict(parse_params(args.params)), args.out, args.scene, args.method, args.variant,
         args.dataset)
     return 0

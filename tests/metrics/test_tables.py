@@ -317,15 +317,8 @@ def test_eval_fid_reference_pools_paths(tmp_path):
         EvalConfig.from_dict({"flow_preset": "slow"})
 
 
-def _other(d, half):
-    from anigs.io import write_json
-
-    write_json(d / "other.json", dict(half, variant="no_composed_v2v"))
-    return d / "other.json"
-
-
 def test_eval_in_two_parts_gives_the_same_record_as_in_one(tmp_path, caplog):
-    """--part model, then --part clips --model-metrics: the same metrics as one run; halves checked."""
+    """--part model and --part clips, joined by --merge: the record of one --part all run; halves checked."""
     from anigs.cli import main
     from anigs.io import read_json, write_json
 
@@ -338,35 +331,23 @@ def test_eval_in_two_parts_gives_the_same_record_as_in_one(tmp_path, caplog):
     final = ["--final-dir", str(d / "final")]
     assert main(["eval", *final, *common, "--out", str(d / "one.json")]) == 0
     assert main(["eval", "--part", "model", *common, "--out", str(d / "model.json")]) == 0
-    assert main(["eval", "--part", "clips", "--model-metrics", str(d / "model.json"), *final, *common,
-                 "--out", str(d / "two.json")]) == 0
-    one, half, two = (read_json(d / f) for f in ("one.json", "model.json", "two.json"))
+    assert main(["eval", "--part", "clips", *final, *common, "--out", str(d / "clips.json")]) == 0
+    assert main(["eval", "--merge", str(d / "clips.json"), str(d / "model.json"), "--out", str(d / "two.json")]) == 0
+    one, half, clips, two = (read_json(d / f) for f in ("one.json", "model.json", "clips.json", "two.json"))
     assert half["part"] == "model" and set(half["metrics"]) == {k for k in one["metrics"] if k.startswith("multiview/")}
+    assert clips["part"] == "clips" and not any(k.startswith("multiview/") for k in clips["metrics"])
     assert one["part"] == two["part"] == "all"
     assert list(two["metrics"]) == list(one["metrics"])
     assert {k: m["value"] for k, m in two["metrics"].items()} == {k: m["value"] for k, m in one["metrics"].items()}
-    # the clips' half alone has no model metrics; merged with the model's half it is the one-run record
-    assert main(["eval", "--part", "clips", *final, *common, "--out", str(d / "clips.json")]) == 0
-    assert not any(k.startswith("multiview/") for k in read_json(d / "clips.json")["metrics"])
-    from anigs.stages.eval import merge
-
-    merged = merge(d / "clips.json", d / "model.json", d / "merged.json")
-    assert merged == read_json(d / "merged.json") and merged["part"] == "all"
-    assert list(merged["metrics"]) == list(one["metrics"])
-    assert {k: m["value"] for k, m in merged["metrics"].items()} == {k: m["value"] for k, m in one["metrics"].items()}
-    assert {k: v for k, v in merged["inputs"].items()} == {k: v for k, v in one["inputs"].items()}
-    with pytest.raises(ValueError, match="not the record of an `anigs eval --part model` run"):
-        merge(d / "clips.json", d / "clips.json", d / "x.json")
-    with pytest.raises(ValueError, match="of different evaluations"):
-        merge(d / "clips.json", _other(d, half), d / "x.json")
+    assert two["inputs"] == one["inputs"]
+    # a model half is no table record; halves of different evaluations, or not halves, are refused
     assert main(["tables", "--metrics", str(d / "model.json"), "--out", str(d / "tables")]) == 1
     assert "holds only the model's metrics" in caplog.text
-    # a record of another evaluation, or not a model half, is refused with its path
     write_json(d / "other.json", dict(half, variant="no_composed_v2v"))
-    assert main(["eval", "--part", "clips", "--model-metrics", str(d / "other.json"), *final, *common,
-                 "--out", str(d / "x.json")]) == 1
-    assert "other.json is for scene, variant, method" in caplog.text
-    assert main(["eval", "--part", "clips", "--model-metrics", str(d / "one.json"), *final, *common,
-                 "--out", str(d / "x.json")]) == 1
-    assert "not the record of an `anigs eval --part model` run" in caplog.text
+    assert main(["eval", "--merge", str(d / "clips.json"), str(d / "other.json"), "--out", str(d / "x.json")]) == 1
+    assert "are of different evaluations" in caplog.text
+    assert main(["eval", "--merge", str(d / "clips.json"), str(d / "one.json"), "--out", str(d / "x.json")]) == 1
+    assert "one.json is not the record of an `anigs eval --part model` run" in caplog.text
     assert not (d / "x.json").exists()
+    assert main(["eval", *final, "--out", str(d / "x.json")]) == 1
+    assert "--scene is required" in caplog.text
