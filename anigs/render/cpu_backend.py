@@ -235,14 +235,10 @@ def composite_weights_cpu(means, quats, scales, opacities, viewmat, K, width: in
     tensor or array [H,W,C] (C = 1..3) or [H,W] (C = 1). No autograd; the inputs are validated
     as by :func:`anigs.render.rasterize`. Deterministic and independent of the thread count.
     """
+    from anigs.render.rasterize import check_inputs
+
     _device_check(means)
-    width, height = int(width), int(height)
-    if width < 1 or height < 1:
-        raise ValueError(f"composite_weights_cpu: image size must be >= 1x1, got {width}x{height}")
-    n = means.shape[0]
-    if means.shape != (n, 3) or quats.shape != (n, 4) or scales.shape != (n, 3) or opacities.shape != (n,):
-        raise ValueError(f"composite_weights_cpu: shape mismatch: means {tuple(means.shape)}, quats "
-                         f"{tuple(quats.shape)}, scales {tuple(scales.shape)}, opacities {tuple(opacities.shape)}")
+    width, height, n = check_inputs("composite_weights_cpu", means, quats, scales, opacities, width, height)
     f = factors if torch.is_tensor(factors) else torch.from_numpy(np.asarray(factors))
     if f.ndim == 2:
         f = f[..., None]

@@ -63,6 +63,20 @@ def select_backend(backend: str, device: torch.device) -> str:
     return "torch"
 
 
+def check_inputs(what: str, means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,
+                 opacities: torch.Tensor, width, height) -> tuple[int, int, int]:
+    """Check the image size and the shapes of a splat set (means [N,3], quats [N,4], scales [N,3],
+    opacities [N]); returns (width, height, N). ``what`` names the caller in the error."""
+    width, height = int(width), int(height)
+    if width < 1 or height < 1:
+        raise ValueError(f"{what}: image size must be >= 1x1, got {width}x{height}")
+    n = means.shape[0]
+    if means.shape != (n, 3) or quats.shape != (n, 4) or scales.shape != (n, 3) or opacities.shape != (n,):
+        raise ValueError(f"{what}: shape mismatch: means {tuple(means.shape)}, quats {tuple(quats.shape)}, "
+                         f"scales {tuple(scales.shape)}, opacities {tuple(opacities.shape)} (N={n})")
+    return width, height, n
+
+
 def rasterize(
     means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor,
     colors: torch.Tensor, viewmat: torch.Tensor, K: torch.Tensor, width: int, height: int,
@@ -80,13 +94,7 @@ def rasterize(
         ``radii`` [N] int (0 = culled), ``means2d`` [N,2] (in the autograd graph: call
         ``retain_grad()`` for densification), ``visible`` [N] bool, ``backend`` str.
     """
-    width, height = int(width), int(height)
-    if width < 1 or height < 1:
-        raise ValueError(f"rasterize: image size must be >= 1x1, got {width}x{height}")
-    n = means.shape[0]
-    if means.shape != (n, 3) or quats.shape != (n, 4) or scales.shape != (n, 3) or opacities.shape != (n,):
-        raise ValueError(f"rasterize: shape mismatch: means {tuple(means.shape)}, quats {tuple(quats.shape)}, "
-                         f"scales {tuple(scales.shape)}, opacities {tuple(opacities.shape)} (N={n})")
+    width, height, n = check_inputs("rasterize", means, quats, scales, opacities, width, height)
     if sh_degree is None:
         if colors.shape != (n, 3):
             raise ValueError(f"rasterize: colors must be [N,3] without sh_degree, got {tuple(colors.shape)}")
