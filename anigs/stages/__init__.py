@@ -72,6 +72,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("export", "export the animated scene (compact .anigs file, DCT PLY + JSON, optional PLY frames)", "variant"),
     Stage("view", "interactive WebGL2 viewer folder of the animated scene (--serve: on 127.0.0.1)", "variant"),
     Stage("eval", "evaluation metrics of one variant", "variant"),
+    Stage("fvd_gt", "FVD against the synthetic ground-truth motion on evaluation-only views (FVD-GT)", "variant"),
     Stage("tables", "the paper's tables from metric files", "global", section=False),
     Stage("tradeoff", "accuracy-versus-time report of a sweep (CSV + plots)", "global", section=False),
 )
