@@ -19,6 +19,7 @@ include: "workflow/rules/reconstruct.smk"
 include: "workflow/rules/views.smk"
 include: "workflow/rules/animate.smk"
 include: "workflow/rules/final.smk"
+include: "workflow/rules/fvd_gt.smk"
 include: "workflow/rules/eval.smk"
 
 

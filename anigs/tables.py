@@ -82,7 +82,12 @@ WEIGHTFREE_COLUMNS: list[tuple[str, str]] = [
     ("gt/rms_amplitude_ratio", "GT amp. ratio"),
     ("gt/amplitude_w1", "GT amp. W1"),
     ("gt/frequency_w1", "GT freq. W1"),
+    ("vbench/temporal_flickering", "VBench flicker"),
+    ("vbench/dynamic_degree_proxy", "dyn. degree (proxy)"),
 ]
+
+FVD_GT = "fvd/gt"  # FVD against the synthetic ground-truth motion (anigs fvd_gt)
+FVD_GT_PART = "fvd_gt"  # the `part` of its records, joined to the variant's metrics.json
 
 MISSING = "no metrics file for this scene/method/variant"
 
@@ -110,7 +115,24 @@ def load_metrics(paths: Iterable[str | Path]) -> list[dict[str, Any]]:
         rec.setdefault("variant", "full")
         rec["_path"] = str(p)
         records.append(rec)
-    return records
+    return join_parts(records)
+
+
+def join_parts(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Records of ``part: fvd_gt`` (``anigs fvd_gt``) joined into the record of the same scene, dataset,
+    method and variant (kept as records of their own when there is none)."""
+    key = (lambda r: (r["scene"], r.get("dataset"), r["method"], r.get("variant") or "full"))
+    main = {key(r): r for r in records if r.get("part", "all") != FVD_GT_PART}
+    out = [r for r in records if r.get("part", "all") != FVD_GT_PART]
+    for r in records:
+        if r.get("part", "all") != FVD_GT_PART:
+            continue
+        if key(r) in main:
+            m = main[key(r)]
+            m["metrics"] = {**m["metrics"], **r["metrics"]}
+        else:
+            out.append(r)
+    return out
 
 
 def prior_label(prior: str) -> str:
@@ -129,13 +151,14 @@ class Cell:
     note: int | None = None  # footnote number when n/a
     bold: bool = False
     fmt: str = "{:.2f}"
+    suffix: str = ""  # printed after the value (e.g. a spread and a sample count)
 
     def text(self) -> str:
         if self.value is None:
             return "n/a"
         if isinstance(self.value, float) and math.isinf(self.value):
             return "inf"
-        return self.fmt.format(self.value)
+        return self.fmt.format(self.value) + self.suffix
 
 
 @dataclass
@@ -188,7 +211,10 @@ def _metric(rec: dict[str, Any] | None, name: str) -> dict[str, Any] | None:
         return None
     m = rec["metrics"].get(name)
     if m is None:
-        if name.startswith(("fvd/", "fid/")):
+        if name == FVD_GT:
+            reason = ("FVD-GT n/a: a real capture has no ground-truth motion" if not (rec.get("inputs") or {}).get("gt_dir")
+                      else "FVD-GT not computed (`snakemake tables` computes it unless fvd_gt.when is never)")
+        elif name.startswith(("fvd/", "fid/")):
             kind, prior = name.split("/", 1)
             reason = (f"{kind.upper()}-{prior_label(prior)} not computed: no reference clips of prior {prior!r} "
                       "were given to anigs eval (--reference PRIOR=PATH)")
@@ -214,7 +240,8 @@ def _index(records: Sequence[dict[str, Any]]) -> dict[tuple[str, str, str], dict
 
 
 def _priors(records: Sequence[dict[str, Any]], kind: str = "fvd") -> list[str]:
-    names = [k.split("/", 1)[1] for r in records for k in r["metrics"] if k.startswith(kind + "/")]
+    """The video priors whose reference clips some record was compared with (not the ground truth)."""
+    names = [k.split("/", 1)[1] for r in records for k in r["metrics"] if k.startswith(kind + "/") and k != FVD_GT]
     order = {p: i for i, p in enumerate(PRIOR_LABELS)}
     return sorted(dict.fromkeys(names), key=lambda p: (order.get(p.lower(), 99), p))
 
@@ -239,6 +266,67 @@ def fvd_table(records: Sequence[dict[str, Any]], name: str = "table1_fvd", title
                 cells = [t.cell(_metric(idx.get((s, m, "full")), f"{kind}/{prior}")) for s in scenes]
                 t.rows.append((m, cells + [_avg_cell(t, cells)]))
             _bold_best(t, range(start, len(t.rows)), higher_is_better=False)
+        if kind == "fvd" and any(FVD_GT in r["metrics"] or (r.get("inputs") or {}).get("gt_dir") for r in records):
+            _fvd_gt_block(t, records, scenes)
+    return t
+
+
+def _fvd_gt_cell(t: Table, metric: dict[str, Any] | None) -> Cell:
+    """An FVD-GT cell: the value, ± the bootstrap std, and (the clips per side)."""
+    c = t.cell(metric)
+    if c.value is not None and metric is not None:
+        std = (metric.get("bootstrap") or {}).get("std")
+        n = (metric.get("samples") or {}).get("test")
+        c.suffix = (f" ± {std:.2f}" if std is not None else "") + (f" ({n})" if n else "")
+    return c
+
+
+def _fvd_gt_block(t: Table, records: Sequence[dict[str, Any]], scenes: list[str]) -> None:
+    """FVD against the ground-truth motion: every method (variant full), the ablations of ours, and the
+    static scene with no motion (the share of the distance that appearance alone gives)."""
+    idx = _index(records)
+    keys = list(dict.fromkeys((r["method"], r.get("variant") or "full") for r in records))
+    keys.sort(key=lambda k: (k[1] != "full", ABLATION_ORDER.index(k[1]) if k[1] in ABLATION_ORDER else 99))
+    t.sections[len(t.rows)] = "FVD-GT (± bootstrap std over views; clips per side)"
+    start = len(t.rows)
+    for m, v in keys:
+        cells = [_fvd_gt_cell(t, _metric(idx.get((s, m, v)), FVD_GT)) for s in scenes]
+        label = m if v == "full" else f"{m} ({variant_label(v)})"
+        t.rows.append((label, cells + [_avg_cell(t, cells)]))
+    _bold_best(t, range(start, len(t.rows)), higher_is_better=False)
+    still = []
+    for s in scenes:
+        ctl = next((r["metrics"][FVD_GT].get("still_control") for r in records
+                    if r["scene"] == s and isinstance(r["metrics"].get(FVD_GT), dict)
+                    and r["metrics"][FVD_GT].get("still_control")), None)
+        still.append(_fvd_gt_cell(t, ctl) if ctl else
+                     Cell(None, t.note("no-motion control not computed (fvd_gt.still_control)")))
+    t.rows.append(("Static scene, no motion (control)", still + [_avg_cell(t, still)]))
+
+
+def fvd_gt_table(records: Sequence[dict[str, Any]]) -> Table:
+    """FVD-GT in detail: per scene and method/variant the value, the bootstrap spread and the clip counts."""
+    t = Table("fvd_gt", "FVD against the ground-truth motion (lower is better): bootstrap spread and clip counts",
+              ["scene", "method", "FVD-GT", "bootstrap std", "90% interval low", "90% interval high",
+               "clips (method)", "clips (GT)", "views"])
+    controls: set[str] = set()
+    for r in records:
+        m = r["metrics"].get(FVD_GT)
+        v = r.get("variant") or "full"
+        label = r["method"] if v == "full" else f"{r['method']} {variant_label(v)}"
+        rows = [(label, m)]
+        if isinstance(m, dict) and m.get("still_control") and r["scene"] not in controls:
+            controls.add(r["scene"])
+            rows.append(("Static scene, no motion (control)", m["still_control"]))
+        for lbl, met in rows:
+            if met is None:
+                continue
+            b = met.get("bootstrap") or {}
+            n = met.get("samples") or {}
+            iv = b.get("interval") or [None, None]
+            t.rows.append((f"{r['scene']} | {lbl}", [
+                t.cell(met), Cell(b.get("std")), Cell(iv[0]), Cell(iv[1]),
+                Cell(n.get("test"), fmt="{:d}"), Cell(n.get("reference"), fmt="{:d}"), Cell(n.get("views"), fmt="{:d}")]))
     return t
 
 
@@ -319,7 +407,7 @@ def weightfree_table(records: Sequence[dict[str, Any]]) -> Table:
 # ----------------------------------------------------------------------------- rendering
 
 def _split_label(t: Table, label: str) -> list[str]:
-    return label.split(" | ") if t.name == "weightfree" else [label]
+    return label.split(" | ") if t.name in ("weightfree", "fvd_gt") else [label]
 
 
 def to_csv(t: Table) -> str:
@@ -412,6 +500,8 @@ def build_tables(records: Sequence[dict[str, Any]], ablation_prior: str | None =
     tables.append(multiview_table(records))
     tables.append(ablation_table(records, ablation_prior))
     tables.append(weightfree_table(records))
+    if any(FVD_GT in r["metrics"] for r in records):
+        tables.append(fvd_gt_table(records))
     return tables
 
 

@@ -52,7 +52,6 @@ class EvalConfig:
     fid_max_frames: int = 2000  # frames per side at most (evenly subsampled)
     batch_size: int = 4  # network batch size
     flow_preset: str = "medium"  # OpenCV DIS preset: ultrafast | fast | medium
-    default_fps: float = 8.0  # playback rate of clips that record none (VBench dynamic-degree proxy's sampling)
     mask_margin_px: int = 2  # dynamic mask dilated by this before taking the static region
     mask_threshold: float = 0.5  # soft / resized masks: dynamic where >= threshold
     still_margin_px: int = 5  # static_outside_mask_still: dynamic mask dilated by this first
@@ -78,8 +77,6 @@ class EvalConfig:
 
         if self.flow_preset not in FLOW_PRESETS:
             raise ValueError(f"eval.flow_preset must be one of {FLOW_PRESETS}, got {self.flow_preset!r}")
-        if not self.default_fps > 0:
-            raise ValueError(f"eval.default_fps must be > 0, got {self.default_fps}")
         for k in ("fvd_crop_size", "fid_size", "batch_size", "fvd_window_stride"):
             if getattr(self, k) < 1:
                 raise ValueError(f"eval.{k} must be >= 1, got {getattr(self, k)}")
@@ -140,8 +137,9 @@ def load_any_clip(path: Path) -> np.ndarray:
     return load_clip(path)[0]
 
 
-def clip_fps(path: Path, default: float) -> float:
-    """The playback rate a clip file records (``meta.fps`` of an ``.npz`` clip), else ``default``."""
+def clip_fps(path: Path, default: float = 8.0) -> float:
+    """The playback rate a clip file records (``meta.fps`` of an ``.npz`` clip), else ``default``
+    (VBench's sampling rate: the dynamic-degree proxy then compares consecutive frames)."""
     if path.suffix == ".npz":
         import json
 
@@ -322,7 +320,7 @@ def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path
         metrics.update(weightfree_metrics(clips, P(mask_dir), cfg))
         from anigs.metrics.vbench import vbench_metrics
 
-        metrics.update(vbench_metrics(clips, {v: clip_fps(p, cfg.default_fps) for v, p in clip_files.items()},
+        metrics.update(vbench_metrics(clips, {v: clip_fps(p) for v, p in clip_files.items()},
                                       cfg.flow_preset))
         log.info("eval: weight-free metrics %.1f s", time.perf_counter() - t0)
         for kind, r in (("fvd", refs), ("fid", fid_refs)):

@@ -45,7 +45,7 @@ METRIC = "fvd/gt"
 class FvdGtConfig:
     """``fvd_gt`` config section."""
 
-    when: str = "tables"  # tables: only `snakemake tables` computes it | always: also the default target (into metrics.json) | never
+    when: str = "tables"  # tables (only `snakemake tables` computes it), always (also the default target, into metrics.json) or never
     num_views: int = 64  # evaluation-only camera-fixed views (64 x 2 windows = 128 clips per method)
     windows: int = 2  # windows of `frames` frames per view, evenly spread over the clip
     frames: int = 16  # frames per clip (I3D's usual 16)

@@ -41,6 +41,7 @@ rule eval:
     input:
         clips=f"{R}/{{scene}}/{{variant}}/eval/clip_metrics.json",
         model=f"{R}/{{scene}}/{{variant}}/eval/model_metrics.json",
+        fvd_gt=lambda wc: _fvd_gt_eval_input(wc),  # fvd_gt.when: always (workflow/rules/fvd_gt.smk)
     output:
         report(f"{R}/{{scene}}/{{variant}}/eval/metrics.json", caption="../report/metrics.rst", category="Metrics",
                subcategory="{scene} {variant}"),
@@ -49,12 +50,13 @@ rule eval:
     run:
         from anigs.stages.eval import merge
 
-        merge(input.clips, input.model, output[0])
+        merge(input.clips, input.model, output[0], extra=list(input.fvd_gt))
 
 
 rule tables:
     input:
         [f"{R}/{s}/{v}/eval/metrics.json" for s in SCENES for v in config["table_variants"]],
+        fvd_gt_table_inputs(),  # FVD-GT records (synthetic scenes), joined to their metrics.json by anigs tables
     output:
         f"{R}/tables/tables.json",
     params:
