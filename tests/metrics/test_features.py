@@ -101,7 +101,7 @@ def test_fvd_protocol_through_scripted_network(i3d_path):
     colour = np.array([0.2, 0.5, 0.8], np.float32)
     clips = [np.broadcast_to(colour, (6, 48, 80, 3)).copy(),  # short: padded to 10 frames
              rng.uniform(0, 1, (12, 60, 60, 3)).astype(np.float32)]
-    feats, info = i3d_features(det, clips, crop_size=256, min_frames=10, batch_size=4)
+    feats, info = i3d_features(det, clips, crop_size=256, min_frames=10, batch_size=4, detector_resize=False)
     assert feats.shape == (2, 17) and feats.dtype == np.float64
     assert info["padded_frames"] == 4
     # the network saw [B,3,T,256,256] in [-1,1]
@@ -111,8 +111,8 @@ def test_fvd_protocol_through_scripted_network(i3d_path):
     # constant colour c maps to 2c - 1 in every pooled cell
     pooled = feats[0, 5:].reshape(3, 4)
     np.testing.assert_allclose(pooled, np.repeat(2 * colour[:, None] - 1, 4, axis=1), atol=1e-5)
-    # detector_resize=True is forwarded to the network (it resizes to 224 inside)
-    feats_r, _ = i3d_features(det, clips[:1], crop_size=256, detector_resize=True)
+    # detector_resize (default True) is forwarded to the network (it resizes to 224 inside)
+    feats_r, _ = i3d_features(det, clips[:1], crop_size=256)
     assert feats_r[0, 1:3].tolist() == [224.0, 224.0]
 
 
