@@ -84,6 +84,7 @@ WEIGHTFREE_COLUMNS: list[tuple[str, str]] = [
     ("gt/frequency_w1", "GT freq. W1"),
     ("vbench/temporal_flickering", "VBench flicker"),
     ("vbench/dynamic_degree_proxy", "dyn. degree (proxy)"),
+    ("vbench/top5_flow_px", "top-5% flow (px)"),
 ]
 
 FVD_GT = "fvd/gt"  # FVD against the synthetic ground-truth motion (anigs fvd_gt)

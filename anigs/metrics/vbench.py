@@ -98,7 +98,8 @@ def dynamic_degree_proxy(clip: np.ndarray, fps: float, preset: str = "medium", n
 
 
 def vbench_metrics(clips: Mapping[str, np.ndarray], fps: Mapping[str, float], preset: str = "medium") -> dict[str, Any]:
-    """``vbench/temporal_flickering`` and ``vbench/dynamic_degree_proxy`` records over camera-fixed clips."""
+    """``vbench/temporal_flickering``, ``vbench/dynamic_degree_proxy`` and its continuous score
+    ``vbench/top5_flow_px`` over camera-fixed clips."""
     from anigs.metrics import metric_record, not_available
 
     p_flick = {"definition": "VBench temporal flickering: per clip (255 - mean over consecutive frame pairs of the "
@@ -108,10 +109,14 @@ def vbench_metrics(clips: Mapping[str, np.ndarray], fps: Mapping[str, float], pr
                            "of frames sampled every max(1, round(fps/8)) frames have a top-5% mean flow magnitude "
                            "above max(1, 8/fps) * 6 * min(H,W)/256 px",
              "flow": f"OpenCV DIS {preset} (VBench uses RAFT: this is a proxy, not VBench's score)"}
+    p_top = dict(p_dyn, definition="the proxy's per-pair score (mean of the largest 5% flow magnitudes between frames "
+                                   "sampled every max(1, round(fps/8)) frames), averaged over pairs and clips: the "
+                                   "continuous quantity the dynamic-degree threshold cuts")
     if not clips:
         reason = "no rendered clips given (--final-dir / --clips)"
         return {"vbench/temporal_flickering": not_available(reason, True, "score", p_flick),
-                "vbench/dynamic_degree_proxy": not_available(reason, True, "share of clips", p_dyn)}
+                "vbench/dynamic_degree_proxy": not_available(reason, True, "share of clips", p_dyn),
+                "vbench/top5_flow_px": not_available(reason, True, "px per sampled pair", p_top)}
     flick = {v: temporal_flickering(c, v) for v, c in clips.items()}
     dyn = {v: dynamic_degree_proxy(c, fps[v], preset, v) for v, c in clips.items()}
     samples = {"clips": len(clips), "frames": int(sum(c.shape[0] for c in clips.values()))}
@@ -121,4 +126,7 @@ def vbench_metrics(clips: Mapping[str, np.ndarray], fps: Mapping[str, float], pr
         "vbench/dynamic_degree_proxy": metric_record(float(np.mean([d.dynamic for d in dyn.values()])), True,
                                                      "share of clips", p_dyn, samples,
                                                      per_view={v: d.to_dict() for v, d in dyn.items()}),
+        "vbench/top5_flow_px": metric_record(float(np.mean([np.mean(d.pair_scores) for d in dyn.values()])), True,
+                                             "px per sampled pair", p_top, samples,
+                                             threshold_px={v: d.threshold_px for v, d in dyn.items()}),
     }

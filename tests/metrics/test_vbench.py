@@ -84,5 +84,8 @@ def test_vbench_records():
     assert f["available"] and f["per_view"]["v00"] == 1.0 and f["value"] < 1.0
     assert d["value"] == 0.5 and d["per_view"]["v01"]["dynamic"] and "PROXY" in d["protocol"]["definition"]
     assert d["samples"] == {"clips": 2, "frames": 12}
+    top = rec["vbench/top5_flow_px"]["value"]
+    assert top == pytest.approx(np.mean([np.mean(d["per_view"][v]["pair_scores"]) for v in clips]), abs=1e-3)
+    assert top > 1.5  # half the clips move 4 px per frame
     empty = vbench_metrics({}, {})
-    assert not empty["vbench/temporal_flickering"]["available"]
+    assert not empty["vbench/temporal_flickering"]["available"] and not empty["vbench/top5_flow_px"]["available"]
