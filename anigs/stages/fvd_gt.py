@@ -239,6 +239,8 @@ def run_reference(gt_dir: str | Path, cameras: str | Path, canonical: str | Path
 
     f_gt, rows, firsts, secs = _feature_loop("ground truth", views, render_gt, starts, cfg, ecfg, det, dev)
     write_npz(out / "features.npz", features=f_gt, views=np.array(rows))
+    for stale in (out / "still_features.npz",):
+        stale.unlink(missing_ok=True)
     ref.update(available=True, reason=None, clips=len(rows), views=len(views), seconds=secs,
                gt_vbench={"temporal_flickering": float(np.mean(flick)), "dynamic_degree_proxy": float(np.mean(dyn))})
     sheet_rows = [firsts[i:i + 8] for i in range(0, len(firsts), 8)]
@@ -250,6 +252,7 @@ def run_reference(gt_dir: str | Path, cameras: str | Path, canonical: str | Path
             starts, cfg, ecfg, det, dev)
         ref["still_control"] = _spread_record(f_still, f_gt, rows, cfg, ref["protocol"], alignment_rms=rms,
                                               seconds=secs_s)
+        write_npz(out / "still_features.npz", features=f_still, views=np.array(rows))
         sheet_rows = [r for i in range(0, len(firsts), 8) for r in (firsts[i:i + 8], firsts_s[i:i + 8])]
     save_png(out / "views.png", contact_sheet(sheet_rows))
     ref["seconds_total"] = round(time.perf_counter() - t0, 2)
@@ -298,6 +301,13 @@ def run_method(reference_dir: str | Path, model: str | Path, canonical: str | Pa
         raise ValueError(f"fvd_gt: the method's clips ({len(rows)}) do not pair with the reference's ({len(rows_gt)})")
     rec = _spread_record(f, f_gt, rows, cfg, protocol, alignment_rms=rms, seconds=secs,
                          still_control=ref.get("still_control"), gt_vbench=ref.get("gt_vbench"))
+    if (rdir / "still_features.npz").exists():  # the gap to no motion, on the same drawn views
+        from anigs.metrics.bootstrap import bootstrap_gap
+
+        with np.load(rdir / "still_features.npz", allow_pickle=False) as z:
+            f_still = z["features"]
+        rec["gap_to_still"] = bootstrap_gap(f, f_still, f_gt, rows, cfg.bootstrap, cfg.seed, cfg.level).to_dict()
+    rec["_features"] = f  # written beside the record by run(), not into it
     return {METRIC: rec}, firsts
 
 
@@ -309,8 +319,13 @@ def run(inputs: argparse.Namespace, cfg: FvdGtConfig, ecfg) -> dict[str, Any]:
     from anigs.video import save_png
 
     t0 = time.perf_counter()
+    from anigs.io import write_npz
+
     metrics, firsts = run_method(inputs.reference_dir, inputs.model, inputs.canonical, inputs.cameras,
                                  inputs.gt_dir, cfg, ecfg)
+    feats = metrics[METRIC].pop("_features", None)
+    if feats is not None:  # the method's I3D features: paired comparisons between methods (benchmarks/fvd_gt.py)
+        write_npz(Path(inputs.out).with_name(Path(inputs.out).stem + "_features.npz"), features=feats)
     record = {"schema": SCHEMA, "scene": inputs.scene, "dataset": inputs.dataset, "method": inputs.method,
               "variant": inputs.variant, "part": "fvd_gt", "anigs_version": __version__,
               "config": {"fvd_gt": dataclasses.asdict(cfg), "eval": dataclasses.asdict(ecfg)},

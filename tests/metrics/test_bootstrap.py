@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.metrics.bootstrap import bootstrap_frechet, frechet_lowrank, resample_groups
+from anigs.metrics.bootstrap import bootstrap_frechet, bootstrap_gap, frechet_lowrank, resample_groups
 from anigs.metrics.frechet import frechet_distance
 
 
@@ -57,3 +57,16 @@ def test_bootstrap_needs_paired_inputs():
         bootstrap_frechet(np.zeros((4, 3)), np.zeros((5, 3)), np.arange(4))
     with pytest.raises(ValueError, match="2 groups"):
         bootstrap_frechet(np.zeros((4, 3)), np.zeros((4, 3)), np.zeros(4))
+
+
+def test_gap_between_two_sets_on_the_same_draws():
+    ref = _feats(128, 16, 0.0, 10)
+    near, far = _feats(128, 16, 0.1, 11), _feats(128, 16, 0.6, 12)
+    g = np.arange(128) // 2
+    gap = bootstrap_gap(near, far, ref, g, 100, seed=0)
+    assert gap.interval[1] < 0  # near is closer to the reference on every draw's central 90%
+    same = bootstrap_gap(near, near.copy(), ref, g, 20, seed=0)
+    assert same.mean == 0 and same.std == 0
+    # the gap's draws are those of bootstrap_frechet: its mean is the difference of their means
+    a, b = bootstrap_frechet(near, ref, g, 100, 0), bootstrap_frechet(far, ref, g, 100, 0)
+    assert gap.mean == pytest.approx(a.mean - b.mean, rel=1e-9)

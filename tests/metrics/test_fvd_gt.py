@@ -123,11 +123,14 @@ def test_reference_and_method_records(reference, gt_dir, tmp_path):
     # the ground-truth motion itself, rendered through the methods' path: ~0, far below the still scene
     assert m["value"] < 1e-3 * still["value"] and still["value"] > 0
     assert m["bootstrap"]["resamples"] == 20 and m["samples"]["test"] == 12 and m["undersampled"]
+    assert (out / "still_features.npz").exists() and m["gap_to_still"]["interval"][1] < 0  # motion beats no motion
+    assert m["_features"].shape == (12, 400)
     still_model = _gt_motion_model(gt_dir, tmp_path / "still.pt", 25, move=False)
     rec2, _ = F.run_method(out, still_model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", gt_dir, cfg, ecfg)
     # a still model through the methods' path gives the reference's still control, bit for bit
     assert rec2["fvd/gt"]["value"] == still["value"]
     assert rec2["fvd/gt"]["bootstrap"] == still["bootstrap"]
+    assert rec2["fvd/gt"]["gap_to_still"]["mean"] == 0
     rec3, _ = F.run_method(out, still_model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", gt_dir, cfg, ecfg)
     assert rec3["fvd/gt"]["value"] == rec2["fvd/gt"]["value"]  # same clips, same FVD, bit for bit
 
