@@ -377,8 +377,8 @@ def ablation_table(records: Sequence[dict[str, Any]], prior: str | None = None, 
 
 def _weightfree_fmt(key: str) -> str:
     """Significant digits (static leakage is ~1e-6: fixed decimals would print 0.0000); the share of
-    still pixels with five decimals (it is within 1e-4 of 1)."""
-    return "{:.5f}" if key == "static_outside_mask_still" else "{:.3g}"
+    still pixels and VBench's flickering score with five decimals (both within 1e-3 of 1)."""
+    return "{:.5f}" if key in ("static_outside_mask_still", "vbench/temporal_flickering") else "{:.3g}"
 
 
 def weightfree_table(records: Sequence[dict[str, Any]]) -> Table:
