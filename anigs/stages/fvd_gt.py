@@ -38,6 +38,7 @@ from anigs.configs import from_dict
 log = logging.getLogger("anigs.fvd_gt")
 
 WHEN = ("tables", "always", "never")
+_NOT_VIEWS = ("when", "bootstrap", "level", "still_control")  # keys a variant may change without a new reference
 METRIC = "fvd/gt"
 
 
@@ -279,9 +280,11 @@ def run_method(reference_dir: str | Path, model: str | Path, canonical: str | Pa
     if not ref.get("available"):
         return {METRIC: not_available(ref.get("reason") or "no ground-truth reference features", False, "", protocol,
                                       expected_path=ref.get("expected_path"))}, []
-    if ref["config"]["num_views"] != cfg.num_views or ref["config"]["seed"] != cfg.seed or \
-            ref["config"]["frames"] != cfg.frames or ref["config"]["windows"] != cfg.windows:
-        raise ValueError(f"fvd_gt: {rdir} was made with other views or windows than this variant's fvd_gt section")
+    own = dataclasses.asdict(cfg)
+    differ = sorted(k for k in own if k not in _NOT_VIEWS and ref["config"].get(k) != own[k])
+    if differ:
+        raise ValueError(f"fvd_gt: {rdir} was made with other views or windows than this variant's fvd_gt section "
+                         f"(keys {differ}); the reference is the scene's, made with the full variant's section")
     dev = get_device(ecfg.device)
     det = i3d_detector(ecfg, dev)
     if isinstance(det, Unavailable):
