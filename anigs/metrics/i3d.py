@@ -229,6 +229,7 @@ class InceptionI3d(nn.Module):
     def __init__(self, num_classes: int = NUM_CLASSES, width: float = 1.0) -> None:
         super().__init__()
         self.num_classes, self.width = num_classes, width
+
         def c(n: int) -> int:
             return scaled(n, width)
 
