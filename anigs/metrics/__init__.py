@@ -1,4 +1,4 @@
-"""Evaluation metrics: Fréchet distance, FVD/FID features (TorchScript, local weights), image
+"""Evaluation metrics: Fréchet distance, FVD/FID features (the torch I3D, TorchScript; local weights), image
 metrics, weight-free motion metrics and the multiview-consistency protocol.
 
 Every metric is written into ``metrics.json`` as a *record* (see :mod:`anigs.tables` for

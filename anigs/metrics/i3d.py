@@ -192,6 +192,16 @@ class InceptionModule(nn.Module):
         return torch.cat([b0, u[2](b1), u[4](b2), b3], dim=1)
 
 
+def resize_to_input(x: torch.Tensor, size: int = INPUT_SIZE) -> torch.Tensor:
+    """Frames of x [B,C,T,H,W] resized to size x size (bilinear, half-pixel centres, no antialiasing)."""
+    B, C, T, H, W = x.shape
+    if (H, W) == (size, size):
+        return x
+    f = x.transpose(1, 2).reshape(B * T, C, H, W)
+    f = F.interpolate(f, size=(size, size), mode="bilinear", align_corners=False)
+    return f.reshape(B, T, C, size, size).transpose(1, 2)
+
+
 def scaled(channels: int, width: float) -> int:
     """Channel count of a layer in a network ``width`` times as wide (>= 1; 1.0 = the real I3D)."""
     return max(1, round(channels * width))
@@ -219,6 +229,7 @@ class InceptionI3d(nn.Module):
     def __init__(self, num_classes: int = NUM_CLASSES, width: float = 1.0) -> None:
         super().__init__()
         self.num_classes, self.width = num_classes, width
+
         def c(n: int) -> int:
             return scaled(n, width)
 
@@ -274,10 +285,7 @@ class InceptionI3d(nn.Module):
         x = x.float()
         if rescale:
             x = x / 127.5 - 1.0
-        if resize and tuple(x.shape[-2:]) != (INPUT_SIZE, INPUT_SIZE):
-            B, C, T, H, W = x.shape
-            f = x.transpose(1, 2).reshape(B * T, C, H, W)
-            f = F.interpolate(f, size=(INPUT_SIZE, INPUT_SIZE), mode="bilinear", align_corners=False)
-            x = f.reshape(B, T, C, INPUT_SIZE, INPUT_SIZE).transpose(1, 2)
+        if resize:
+            x = resize_to_input(x)
         logits = self.logits_per_time(x.contiguous()).mean(dim=1)
         return logits if return_features else torch.softmax(logits, dim=-1)

