@@ -110,6 +110,9 @@ def paired_gaps(scene_dir: Path) -> list[dict]:
         rec = json.loads((p.parent / "fvd_gt.json").read_text())
         label = rec["method"] if rec.get("variant", "full") == "full" else f"{rec['method']} {rec['variant']}"
         with np.load(p) as z:
+            if z["features"].shape != f_gt.shape:  # made against another reference: not paired
+                print(f"(skipped {p}: {z['features'].shape[0]} clips against the reference's {f_gt.shape[0]})")
+                continue
             sets[label] = z["features"]
     order = [k for k in ("Ours", "no motion") if k in sets] + [k for k in sets if k not in ("Ours", "no motion")]
     out = []
