@@ -194,7 +194,9 @@ for p in sorted((w / 'res').glob('*.json'))}, open(sys.argv[2], 'w'), indent=1)"
       demo-results/*/static/metrics.json demo-results/*/*/benchmarks demo-results/*/benchmarks 2>/dev/null) 2>/dev/null
   cp "$WORK/logs/check.log" "$OUT/check.log" 2>/dev/null
   [ -f "$WORK/agree_view.png" ] && cp "$WORK/agree_view.png" "$OUT/"
-  f=$(find "$WORK/demo-results" -path '*final*' -name '*.png' 2>/dev/null | sort | head -1)
-  [ -n "$f" ] && cp "$f" "$OUT/demo_final.png"
+  f=$(find "$WORK/demo-results" -path '*final/slices*' -name '*_frame.png' 2>/dev/null | sort | head -1)
+  [ -n "$f" ] && cp "$f" "$OUT/demo_final_frame.png"
+  f=$(find "$WORK/demo-results" -path '*effects*' -name 'overview.png' 2>/dev/null | sort | head -1)
+  [ -n "$f" ] && cp "$f" "$OUT/demo_effects_overview.png"
 fi
 exit 0
