@@ -199,4 +199,6 @@ for p in sorted((w / 'res').glob('*.json'))}, open(sys.argv[2], 'w'), indent=1)"
   f=$(find "$WORK/demo-results" -path '*effects*' -name 'overview.png' 2>/dev/null | sort | head -1)
   [ -n "$f" ] && cp "$f" "$OUT/demo_effects_overview.png"
 fi
+exec >&- 2>&-   # the tee of the log sees the end and writes its last lines
+sleep 1
 exit 0

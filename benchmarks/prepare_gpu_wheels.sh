@@ -20,7 +20,7 @@
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 DEST="${1:-.whl}"
-PY="${PYTHON:-python3}"
+PY="${PYTHON:-$( [ -x .venv/bin/python ] && echo .venv/bin/python || echo python3)}"   # the project venv where there is one
 # What the GPU image lacks, pinned. Roots: snakemake (+ closure), pycolmap (SfM), gsplat (CUDA
 # rasterizer, pure Python: its CUDA sources are in the wheel and compile on first use),
 # diffusers (LTX-Video), jsonschema (anigs' config validation).
