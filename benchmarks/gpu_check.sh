@@ -57,7 +57,8 @@ export PYTHONPATH="$ROOT/benchmarks/gpu_check_shim:$ROOT${PYTHONPATH:+:$PYTHONPA
 printf '#!/usr/bin/env bash\nexec %q -c "import sys; from anigs.cli import main; sys.exit(main())" "$@"\n' \
   "$(command -v "$PY")" > "$WORK/bin/anigs"
 chmod +x "$WORK/bin/anigs"
-export PATH="$WORK/bin:$PATH"
+# the interpreter's own bin folder (ninja, which torch's extension builder calls, lives there in a venv)
+export PATH="$WORK/bin:$PATH:$(dirname "$(command -v "$PY")")"
 
 elapsed() { echo $(( $(date +%s) - T_START )); }
 record() {  # name status seconds note
@@ -131,12 +132,15 @@ s(sys.argv[1])" "$WORK/ltx-tiny" > "$WORK/logs/ltx_stack.log" 2>&1; echo $? > "$
   FAST=torch
   if [ "$DEV" = cuda ]; then
     if run_part gsplat 360 "$PY" -c "
-import os, time
-cached = os.path.exists(os.path.join(os.environ['TORCH_EXTENSIONS_DIR'], 'gsplat_cuda'))
+import json, os, sys, time
+cached = os.path.exists(os.path.join(os.environ['TORCH_EXTENSIONS_DIR'], 'gsplat_cuda', 'gsplat_cuda.so'))
 t = time.time()
 from gsplat.cuda._backend import _C
 assert _C is not None, 'gsplat: no CUDA extension (see the messages above)'
-print(f'gsplat CUDA extension ready in {time.time() - t:.1f} s (build folder existed before: {cached})')"; then
+r = {'seconds': time.time() - t, 'built_before': cached, 'arch': os.environ['TORCH_CUDA_ARCH_LIST'],
+     'max_jobs': os.environ['MAX_JOBS']}
+json.dump(r, open(sys.argv[1], 'w'))
+print(r)" "$WORK/res/gsplat.json"; then
       FAST=gsplat
     fi
   else

@@ -113,7 +113,15 @@ def _env(work: Path) -> str:
     return f"{gpu}; {e.get('cpu_count')} CPUs; Python {e.get('python')}, torch {e.get('torch')}; {pk}"
 
 
-SUMMARY = {"env": _env, "static": _static, "static_cpu": _static_cpu, "agree": _agree, "ltx": _ltx,
+def _gsplat(work: Path) -> str:
+    r = _load(work, "gsplat")
+    if not r:
+        return ""
+    how = "loaded an extension built before" if r.get("built_before") else "compiled"
+    return f"{how} in {_f(r['seconds'])} s (TORCH_CUDA_ARCH_LIST={r['arch']}, MAX_JOBS={r['max_jobs']})"
+
+
+SUMMARY = {"env": _env, "gsplat": _gsplat, "static": _static, "static_cpu": _static_cpu, "agree": _agree, "ltx": _ltx,
            "update": _update, "demo": _demo}
 
 

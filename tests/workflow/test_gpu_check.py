@@ -69,9 +69,11 @@ def test_parts_and_table_on_the_cpu(tmp_path):
     assert [r["iteration"] for r in static["curve"]] == [0, 10, 20] and static["test_psnr"] > 10
     upd = json.loads((res / "update.json").read_text())
     assert upd["steps"] == 2 and upd["finite"]
-    (work / "status.tsv").write_text("static\tOK\t1.0\t\nagree\tOK\t1.0\t\nupdate\tOK\t1.0\t\n"
+    (res / "gsplat.json").write_text(json.dumps({"seconds": 123.4, "built_before": False, "arch": "9.0", "max_jobs": "16"}))
+    (work / "status.tsv").write_text("gsplat\tOK\t130.0\t\nstatic\tOK\t1.0\t\nagree\tOK\t1.0\t\nupdate\tOK\t1.0\t\n"
                                      "ltx\tFAILED\t2.0\texit 1: boom\ndemo\tSKIPPED\t0\tno time left\n")
     rows = _rows(gpu_check_table.table(work))
+    assert rows["gsplat"] == ["OK", "130.0", "compiled in 123.4 s (TORCH_CUDA_ARCH_LIST=9.0, MAX_JOBS=16)"]
     assert rows["agree"][0] == "OK" and rows["agree"][2].startswith("PASS: torch vs CPU kernel on the fitted model")
     assert "held-out PSNR" in rows["static"][2] and "steps/s" in rows["update"][2]
     assert rows["ltx"] == ["FAILED", "2.0", "exit 1: boom"] and rows["demo"] == ["SKIPPED", "0", "no time left"]
