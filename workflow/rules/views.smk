@@ -13,7 +13,7 @@ checkpoint effects:
         dynamic=f"{R}/{{scene}}/effects/dynamic.npy",
         overview=report(f"{R}/{{scene}}/effects/overview.png", caption="../report/effects.rst", category="Effects"),
     params:
-        p=jparams("effects"),
+        p=jparams("effects", _effects_prompt),
         out=lambda wc: f"{R}/{wc.scene}/effects",
         version=ANIGS_VERSION,
     log:
