@@ -6,7 +6,7 @@ its masks and Gaussians.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 from anigs.configs import from_dict
 
@@ -84,6 +84,12 @@ class Config:
     min_gaussian_fraction: float = 0.001  # ... and of the Gaussians ...
     min_gaussians: int = 20          # ... and at least this many Gaussians ...
     min_photo_fraction: float = 0.1  # ... and a region in this share of the photos (at least 2)
+    # the user's corrections (anigs/effects/corrections.py; numbers as in overview.png)
+    drop: list = field(default_factory=list)  # numbered candidates of overview.png that must not move
+    force: list = field(default_factory=list)  # numbered candidates a geometry rule set aside that move all the same
+    boxes: list = field(default_factory=list)  # 3D boxes {min: [x, y, z], max: [x, y, z], effect: NAME or still} in the frame of static/canonical.ply
+    selections: list = field(default_factory=list)  # SuperSplat selection exports {ply: PATH, effect: NAME or still}, matched to the fitted Gaussians by position
+    selection_tol: float = 0.0001    # a selected splat matches the fitted Gaussian within this x the model's bounding-box diagonal
     vote_threshold: float = 0.5      # a Gaussian joins the region voted by this share of the photos that see it
     propagate_k: int = 8             # Gaussians seen by no photo take the majority of their k neighbours
 

@@ -30,7 +30,7 @@ from typing import Sequence
 
 import numpy as np
 
-from anigs.effects.config import Config
+from anigs.effects.config import REGION_EFFECTS, Config
 
 log = logging.getLogger("anigs.effects")
 
@@ -81,7 +81,17 @@ def run(canonical: str | Path, cameras: str | Path, images: str | Path, out: str
     kinds = prompt_kinds(cfg.prompt) if cfg.prompt is not None else None
     by_prompt = kinds is not None and is_auto(requested)
     res = detect_effects(photos, cams, g, cfg, kinds.regions if by_prompt else None)
-    chosen, missing = choose(res.detected, requested, kinds.effects if by_prompt else None)
+    if cfg.drop or cfg.force or cfg.boxes or cfg.selections:
+        from anigs.effects.corrections import apply_corrections
+
+        for note in apply_corrections(res, g.means.detach().double().numpy(), cfg.drop, cfg.force, cfg.boxes,
+                                      cfg.selections, cfg.selection_tol):
+            log.info("effects: correction: %s", note)
+    named = None
+    if by_prompt:  # the prompt's kinds, and those the user's corrections make move
+        named = kinds.effects + [e for r in getattr(res, "user_regions", []) for e in REGION_EFFECTS[r]
+                                 if e not in kinds.effects]
+    chosen, missing = choose(res.detected, requested, named)
     for e in missing:
         log.warning("effects: %s was asked for but the scene does not contain it: skipped (%s)", e,
                     res.effects[e].reason)
@@ -93,6 +103,7 @@ def run(canonical: str | Path, cameras: str | Path, images: str | Path, out: str
                     "chosen": chosen, "requested_not_found": missing,
                     "prompt": {**(kinds.to_json() if kinds is not None else {"prompt": None, "regions": None, "words": {}}),
                                "used": by_prompt, "note": _prompt_note(kinds, by_prompt, chosen)},
+                    "corrections": getattr(res, "notes", [])[1:],
                     "num_dynamic": int(dynamic.sum()), "dynamic_fraction": float(dynamic.mean()) if len(dynamic) else 0.0})
     with atomic_path(out / "regions.npy") as tmp, open(tmp, "wb") as fh:
         np.save(fh, res.region_of.astype(np.int8))

@@ -7,6 +7,7 @@ checkpoint effects:
         ply=stage_path("static", "canonical.ply"),
         cameras=stage_path("sfm", "cameras.json"),
         images=stage_path("sfm", "images"),  # undistorted: the images sfm/cameras.json describes
+        selections=lambda wc: [s["ply"] for s in sec(wc.scene, "effects")["selections"] if "ply" in s],  # SuperSplat exports
     output:
         effects=f"{R}/{{scene}}/effects/effects.json",
         regions=f"{R}/{{scene}}/effects/regions.npy",
