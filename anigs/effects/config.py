@@ -78,6 +78,7 @@ class Config:
     plane_min_extent: float = 2.0    # ... on up to 3 planes each spanning at least this x neighbour radius
     min_attached: float = 0.3        # flowers: this share of a candidate must lie within the link of leaves or stems (held by a plant)
     leaf_hue_margin: float = 20.0    # flowers: a median hue this many degrees below the green band, high in a crown, is sunlit leaves (foliage)
+    crown_min_height: float = 0.4    # ... high in a crown: most of it above this x camera height (flower heads stay lower)
     # regions and decisions
     min_component_frac: float = 0.0004  # components smaller than this share of the photo are dropped
     min_pixel_fraction: float = 0.002   # an effect needs this share of the photos' pixels ...

@@ -4,7 +4,7 @@ The photos' colour rules propose regions; the fitted model says what they lie on
 Gaussians are split into 3D candidates (connected within ``link`` = ``link_frac`` x the
 neighbourhood radius), numbered for the overview and the user's corrections, and checked:
 
-1. *on a large plane* (foliage, flowers): a plane fitted (RANSAC) to the candidate and the
+1. *on large planes* (foliage, flowers): a plane fitted (RANSAC) to the candidate and the
    non-plant Gaussians around it holds >= ``plane_max_share`` of the candidate within
    ``plane_tol`` x radius (and does not rise off it: fewer than a quarter as many within three
    times that) and spans >= ``plane_min_extent`` x radius: a facade and its
@@ -15,7 +15,8 @@ neighbourhood radius), numbered for the overview and the user's corrections, and
    within ``link``: a lamp or a window surround seen next to leaves. Rejected.
 3. *sunlit leaves* (flowers): a yellow-green candidate (median hue within ``leaf_hue_margin``
    degrees below the vegetation band) high in a tree's crown (most of it above
-   ``grass_max_height``), is foliage in the sun, not blossoms: moved to foliage.
+   ``crown_min_height`` x the camera height), is foliage in the sun, not blossoms: moved to
+   foliage. This rule runs first; the others apply to the candidates it leaves.
 
 ``check_candidates(...) -> (region_of, candidates)``: the new region per Gaussian and one
 :class:`Candidate` per numbered candidate (kept or rejected, with the reason).
@@ -234,9 +235,10 @@ def _sunlit_rule(cand: Candidate, colours, height, cam_height: float, cfg: Confi
     lo = cfg.green_hue[0]
     if height is None or not (lo - cfg.leaf_hue_margin <= hue < lo):
         return
-    high = float((height[cand.indices] >= cfg.grass_max_height * cam_height).mean())
+    high = float((height[cand.indices] >= cfg.crown_min_height * cam_height).mean())
     cand.figures["in_crown"] = high
     if high >= 0.5:
         cand.moved_to, cand.rule = "foliage", "sunlit_leaves"
-        cand.reason = (f"yellow-green (hue {hue:.0f} deg) and high in a crown ({high:.0%} above grass height): "
+        cand.reason = (f"yellow-green (hue {hue:.0f} deg) and high in a crown ({high:.0%} above "
+                       f"{cfg.crown_min_height:g} x the camera height): "
                        "sunlit leaves, so they sway with the foliage instead of bobbing as flowers")
