@@ -120,3 +120,18 @@ def test_a_misspelt_effect_in_a_scene_file_fails_at_parse_time(tmp_path):
         load_scene(tmp_path, "auto", schema)
     (tmp_path / "good.yaml").write_text("source: synthetic\neffects: [foliage_sway, flower_bob]\n")
     assert load_scene(tmp_path, "good", schema)["effects"]["requested"] == ["foliage_sway", "flower_bob"]
+
+
+def test_shipped_scene_prompts_name_their_effects():
+    """Each shipped scene file's prompt names the kinds of the effects it lists (the demo's prompt,
+    "a garden with trees, bushes, grass and flowers ...", names foliage, grass and flowers)."""
+    from anigs.effects.config import EFFECT_REGION
+
+    checked = 0
+    for path in sorted((ROOT / "config" / "scenes").glob("*.yaml")):
+        scene = yaml.safe_load(path.read_text()) or {}
+        listed, prompt = scene.get("effects"), scene.get("prompt")
+        if isinstance(listed, list) and prompt:
+            assert {EFFECT_REGION[e] for e in listed} <= set(prompt_kinds(prompt).regions), path.name
+            checked += 1
+    assert checked >= 1
