@@ -7,13 +7,14 @@ checkpoint effects:
         ply=stage_path("static", "canonical.ply"),
         cameras=stage_path("sfm", "cameras.json"),
         images=stage_path("sfm", "images"),  # undistorted: the images sfm/cameras.json describes
+        selections=lambda wc: [s["ply"] for s in sec(wc.scene, "effects")["selections"] if "ply" in s],  # SuperSplat exports
     output:
         effects=f"{R}/{{scene}}/effects/effects.json",
         regions=f"{R}/{{scene}}/effects/regions.npy",
         dynamic=f"{R}/{{scene}}/effects/dynamic.npy",
         overview=report(f"{R}/{{scene}}/effects/overview.png", caption="../report/effects.rst", category="Effects"),
     params:
-        p=jparams("effects"),
+        p=jparams("effects", _effects_prompt),
         out=lambda wc: f"{R}/{wc.scene}/effects",
         version=ANIGS_VERSION,
     log:
