@@ -26,7 +26,7 @@ LOOK_ALIKE = 10  # look-alike (thumbnail) pairs per photo in the loop step
 LOOP_IMAGES = 10  # photos the vocabulary tree retrieves per photo
 VOCAB_WORDS = 1024  # visual words of the tree built from the capture
 VOCAB_MAX_DESCRIPTORS = 50_000  # descriptors the tree is trained on (an even subsample)
-VOCAB_ITERATIONS = 20  # k-means iterations (COLMAP's 100 x 3 rounds took 150 s for 20 photos; a retrieval tree needs less)
+VOCAB_ITERATIONS = 20  # k-means iterations, one round (COLMAP's 100 x 3 took 150 s on 20 photos)
 
 
 def matching_kwargs(cfg: SfmConfig, device) -> dict:

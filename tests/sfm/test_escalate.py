@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import json
 import logging
-from pathlib import Path
 
+import numpy as np
 import pytest
 
 pycolmap = pytest.importorskip("pycolmap")
@@ -18,7 +18,6 @@ from _captures import SPLIT_GROUPS, split_ring_capture  # noqa: E402
 from anigs.sfm import rematch  # noqa: E402
 from anigs.sfm.colmap import SfmConfig, SfmError, run_sfm  # noqa: E402
 from anigs.sfm.diagnose import groups, likely_causes  # noqa: E402
-import numpy as np  # noqa: E402
 
 # sequential pairs (i, i+1) only, no look-alike pairs: what leaves the split capture in groups
 SEQUENTIAL = {"camera_model": "SIMPLE_PINHOLE", "matcher": "sequential", "sequential_overlap": 1,
