@@ -183,7 +183,7 @@ def _facade(T: _Tagged, n: int) -> None:
                 T.tag("window_surrounds", B.box, center, size, 0.0, fine, col, "building")
     # ornaments: orange-red rosettes (half spheres) in a band under the cornice and between the windows
     orn = np.array([0.82, 0.32, 0.12])
-    for k, (xc, zc) in enumerate([(x, 4.6) for x in np.arange(-4.5, 4.6, 0.75)] + [(x, 2.55) for x in (-2.15, 0.0, 2.15)]):
+    for xc, zc in [(x, 4.6) for x in np.arange(-4.5, 4.6, 0.75)] + [(x, 2.55) for x in (-2.15, 0.0, 2.15)]:
         m = 60
         d = rng.normal(size=(3 * m, 3))
         d /= np.linalg.norm(d, axis=1, keepdims=True)
