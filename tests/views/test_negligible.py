@@ -15,7 +15,7 @@ from tests.masks.test_lift import toy_scene
 
 # cameras on a ring facing the centre: yaw 0 faces the ROI (centroid heading), and with a 60 deg
 # FOV the +-90 views look along the ring, away from the blobs in the middle
-SIDEWAYS = dict(layout="walk", min_coverage=0.0, width=64, height=48, num_locations=3, fov_deg=60.0,
+SIDEWAYS = dict(layout="walk", min_coverage=0.0, min_content=0.0, width=64, height=48, num_locations=3, fov_deg=60.0,
                 forward="centroid")
 OLD_TOP_KEYS = ["views", "layout", "scene_coverage", "up_estimate", "coverage_after", "frustum_coverage_after",
                 "roi_reachable_fraction", "locations", "roi_centroid", "up", "num_candidates", "convention"]

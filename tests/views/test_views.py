@@ -16,7 +16,7 @@ from tests.masks.test_lift import toy_scene
 
 # the queue mechanics (order, yaws, overlap) on the toy ring, whose level views see mostly sky:
 # the paper's schedule as is (layout and coverage are tested with the garden layouts below)
-SCHEDULE = dict(layout="walk", min_coverage=0.0, min_dynamic_fraction=0.0)
+SCHEDULE = dict(layout="walk", min_coverage=0.0, min_dynamic_fraction=0.0, min_content=0.0)
 SMALL = dict(width=64, height=48, num_locations=3, **SCHEDULE)
 
 
