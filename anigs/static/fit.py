@@ -27,7 +27,7 @@ from anigs.cameras import Camera
 from anigs.configs import reject_unknown_keys
 from anigs.static.densify import (DensifyConfig, DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
-from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, prune_rows
+from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, last_densify_step, prune_rows
 from anigs.device import get_device, seed_everything
 from anigs.fused_ssim import fused_ssim
 from anigs.geometry.extent import scene_extent
@@ -410,6 +410,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     means_group = next(g for g in optimizer.param_groups if g["name"] == "means")  # refine keeps the groups
     train_mats = [(c.torch_viewmat(device), c.torch_K(device)) for c in train_cams]
     reg = NeedleRegularizer(cfg.regularize, extent, train_cams, train_mats)
+    last_densify = last_densify_step(densify_cfg.start, densify_cfg.stop, densify_cfg.every, cfg.iterations)
     step_seconds: list[float] = []  # per step, checkpoints and evaluations excluded
     last_refine = 0  # last step whose refinement changed the set
     for step in range(1, cfg.iterations + 1):
@@ -443,8 +444,8 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
             curve.append(checkpoint(step, deg))  # before refinement: an opacity reset would hide the progress
         aside = time.perf_counter() - aside
         reg.after_step(params)
-        if due:
-            reg.decay(params, step)
+        if due and step % densify_cfg.every == 0 and step >= densify_cfg.start:
+            reg.decay(params, step, last=step == last_densify)
         params = refine(params, optimizer, dstate, step, densify_cfg, extent, gen)
         if due:
             last_refine = step

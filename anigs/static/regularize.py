@@ -17,10 +17,12 @@ Two mechanisms, both cheap enough for every step (:class:`NeedleRegularizer`):
   splats too big for every view, measured here in the best photo instead of the worst), or it
   is larger than ``max_world_fraction`` of the scene extent (3DGS's world-space prune, 0.1 x
   extent there; off by default: the extent is the cameras' spread, far smaller than the scene
-  in a forward-facing capture). Its opacity is multiplied by ``decay`` at each densification step, so a splat
-  the photos need can win it back with gradients; a still-unresolved one below the prune
-  opacity is removed by densification's own opacity prune, and the final pass prunes what is
-  unresolved outright (``final_prune``).
+  in a forward-facing capture). Its opacity is multiplied by ``decay`` at each densification
+  step, so a splat the photos need can win it back with gradients; one below the prune opacity
+  is removed by densification's own opacity prune. At the last densification step what is still
+  unresolved is pruned outright (``final_prune``: its opacity is zeroed before that step's
+  prune), so the steps after it can fill what it covered; a fit with no densification step
+  prunes after its last step instead.
 
 All sizes are tensors on the fit's device; nothing reads back to the host except counts logged
 at the densification steps.
@@ -49,7 +51,7 @@ class RegularizeConfig:
     max_screen_fraction: float = 0.08  # unresolved: largest std dev > this x image width in every photo it is in
     max_world_fraction: float = 0.0    # ... or largest std dev > this x the scene extent (0: no world limit; 3DGS: 0.1)
     decay: float = 0.5                 # opacity factor of unresolved Gaussians at each densification step
-    final_prune: bool = True           # prune the Gaussians still unresolved after the last step
+    final_prune: bool = True           # prune the Gaussians still unresolved at the last densification step
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "RegularizeConfig":
@@ -85,6 +87,14 @@ def prune_rows(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimizer
     return _replace_rows(params, optimizer, _gather(params, src), src, torch.zeros_like(src, dtype=torch.bool))
 
 
+def last_densify_step(start: int, stop: int, every: int, iterations: int) -> int | None:
+    """The last step in 1..``iterations`` at which densification runs (``start <= s < stop``,
+    ``s % every == 0``), or None."""
+    hi = min(stop - 1, iterations)
+    last = hi - hi % every
+    return last if last >= max(start, 1) else None
+
+
 def min_screen_sigma(means: torch.Tensor, log_scales: torch.Tensor, cameras: Sequence[Camera],
                      mats: Sequence[tuple[torch.Tensor, torch.Tensor]]) -> torch.Tensor:
     """float [N]: the smallest, over the ``cameras`` whose image holds the centre (in front of
@@ -112,6 +122,7 @@ class NeedleRegularizer:
                  mats: Sequence[tuple[torch.Tensor, torch.Tensor]]):
         self.cfg, self.extent, self.cameras, self.mats = cfg, float(extent), list(cameras), list(mats)
         self.stats: dict[str, Any] = {"decayed": [], "final_pruned": 0}
+        self.pruned_at_densify = False
 
     def after_step(self, params: dict[str, torch.Tensor]) -> None:
         """The needle limit (no host read)."""
@@ -126,17 +137,23 @@ class NeedleRegularizer:
             bad |= ls.exp().max(1).values > self.cfg.max_world_fraction * self.extent
         return bad
 
-    def decay(self, params: dict[str, torch.Tensor], step: int) -> int:
-        """Multiply the opacity of unresolved Gaussians by ``decay``; returns their count."""
-        if not self.cfg.enabled or self.cfg.decay >= 1:
+    def decay(self, params: dict[str, torch.Tensor], step: int, last: bool = False) -> int:
+        """Before a densification step: multiply the opacity of unresolved Gaussians by ``decay``
+        (zero it at the ``last`` step with ``final_prune``, so that step's opacity prune removes
+        them); returns their count."""
+        prune = last and self.cfg.final_prune
+        if not self.cfg.enabled or (self.cfg.decay >= 1 and not prune):
             return 0
         bad = self.unresolved(params)
         with torch.no_grad():
             op = params["opacity_logits"]
-            p = torch.sigmoid(op[bad]) * self.cfg.decay
-            op[bad] = torch.logit(p.clamp(1e-6, 1 - 1e-6))
+            p = torch.sigmoid(op[bad]) * (0.0 if prune else self.cfg.decay)
+            op[bad] = torch.logit(p.clamp(1e-7, 1 - 1e-6))
         n = int(bad.sum())
-        self.stats["decayed"].append({"iteration": step, "unresolved": n})
+        self.stats["decayed"].append({"iteration": step, "unresolved": n, "pruned": prune})
+        if prune:
+            self.stats["final_pruned"] = n
+            self.pruned_at_densify = True
         if n:
             log.info("static fit: iteration %d: %d unresolved Gaussians (no photo sees them at <= %.0f%% of its "
                      "width%s): opacity x %g", step, n, 100 * self.cfg.max_screen_fraction,
@@ -145,8 +162,8 @@ class NeedleRegularizer:
         return n
 
     def final_keep(self, params: dict[str, torch.Tensor]) -> torch.Tensor | None:
-        """bool [N] rows to keep after the fit (None: keep all)."""
-        if not (self.cfg.enabled and self.cfg.final_prune):
+        """bool [N] rows to keep after the fit, when no densification step pruned (None: keep all)."""
+        if not (self.cfg.enabled and self.cfg.final_prune) or self.pruned_at_densify:
             return None
         bad = self.unresolved(params)
         n = int(bad.sum())

@@ -9,7 +9,8 @@ import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.static.fit import FitConfig, _to_params, fit_static, make_optimizer
-from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, limit_needles, prune_rows
+from anigs.static.regularize import (NeedleRegularizer, RegularizeConfig, last_densify_step, limit_needles,
+                                     prune_rows)
 from anigs.gaussians import Gaussians
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -64,6 +65,22 @@ def test_unresolved_flags_the_needle_and_the_huge_blob_only():
     pruned = prune_rows(params, opt, keep)
     assert pruned["means"].shape[0] == g.num - 2
     assert torch.equal(pruned["means"].detach(), g.means[:-2])
+
+
+def test_the_last_densification_step_prunes_what_is_unresolved():
+    g = _scene_with_needle()
+    cams = _ring()
+    params = _to_params(g, torch.device("cpu"))
+    reg = NeedleRegularizer(RegularizeConfig(), extent=4.4, cameras=cams,
+                            mats=[(c.torch_viewmat(), c.torch_K()) for c in cams])
+    assert reg.decay(params, 700, last=True) == 2
+    op = torch.sigmoid(params["opacity_logits"].detach())
+    assert (op[-2:] < 1e-6).all() and (op[:-2] == pytest.approx(0.8, abs=1e-5))  # below any prune opacity
+    assert reg.final_keep(params) is None                                          # nothing left for the end
+    assert reg.report(params)["final_pruned"] == 2
+    assert last_densify_step(300, 800, 100, 1000) == 700
+    assert last_densify_step(300, 1200, 100, 1000) == 1000
+    assert last_densify_step(300, 800, 100, 250) is None
 
 
 def test_config_validation():
