@@ -156,9 +156,9 @@ class NeedleRegularizer:
             self.pruned_at_densify = True
         if n:
             log.info("static fit: iteration %d: %d unresolved Gaussians (no photo sees them at <= %.0f%% of its "
-                     "width%s): opacity x %g", step, n, 100 * self.cfg.max_screen_fraction,
+                     "width%s): %s", step, n, 100 * self.cfg.max_screen_fraction,
                      f", or larger than {self.cfg.max_world_fraction:g} x extent" if self.cfg.max_world_fraction else "",
-                     self.cfg.decay)
+                     "pruned (the last densification step)" if prune else f"opacity x {self.cfg.decay:g}")
         return n
 
     def final_keep(self, params: dict[str, torch.Tensor]) -> torch.Tensor | None:
