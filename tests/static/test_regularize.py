@@ -51,7 +51,7 @@ def test_unresolved_flags_the_needle_and_the_huge_blob_only():
     g = _scene_with_needle()
     cams = _ring()
     params = _to_params(g, torch.device("cpu"))
-    reg = NeedleRegularizer(RegularizeConfig(max_world_fraction=0.1), extent=4.4, cameras=cams,
+    reg = NeedleRegularizer(RegularizeConfig(max_world_fraction=0.1, max_share=1.0), extent=4.4, cameras=cams,
                             mats=[(c.torch_viewmat(), c.torch_K()) for c in cams])
     bad = reg.unresolved(params)
     assert bad[-2:].all() and not bad[:-2].any()
@@ -71,7 +71,7 @@ def test_the_last_densification_step_prunes_what_is_unresolved():
     g = _scene_with_needle()
     cams = _ring()
     params = _to_params(g, torch.device("cpu"))
-    reg = NeedleRegularizer(RegularizeConfig(), extent=4.4, cameras=cams,
+    reg = NeedleRegularizer(RegularizeConfig(max_share=1.0), extent=4.4, cameras=cams,
                             mats=[(c.torch_viewmat(), c.torch_K()) for c in cams])
     assert reg.decay(params, 700, last=True) == 2
     op = torch.sigmoid(params["opacity_logits"].detach())
@@ -81,6 +81,19 @@ def test_the_last_densification_step_prunes_what_is_unresolved():
     assert last_densify_step(300, 800, 100, 1000) == 700
     assert last_densify_step(300, 1200, 100, 1000) == 1000
     assert last_densify_step(300, 800, 100, 250) is None
+
+
+def test_a_coarse_model_loses_at_most_max_share_its_least_resolved_first():
+    g = _scene_with_needle()
+    g.log_scales[:] = math.log(0.6)          # every splat large: unresolved in every photo
+    g.log_scales[7] = math.log(2.0)          # the two worst
+    g.log_scales[9] = math.log(1.5)
+    cams = _ring()
+    params = _to_params(g, torch.device("cpu"))
+    mats = [(c.torch_viewmat(), c.torch_K()) for c in cams]
+    cap = NeedleRegularizer(RegularizeConfig(max_share=2 / g.num), 4.4, cams, mats).unresolved(params)
+    assert cap.sum() == 2 and cap[7] and cap[9]
+    assert NeedleRegularizer(RegularizeConfig(max_share=1.0), 4.4, cams, mats).unresolved(params).all()
 
 
 def test_config_validation():
