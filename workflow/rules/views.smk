@@ -37,6 +37,7 @@ checkpoint views:
     input:
         ply=stage_path("static", "canonical.ply"),
         cameras=stage_path("sfm", "cameras.json"),
+        points=stage_path("sfm", "points.npz"),  # the content test: sharp Gaussians lie near SfM points
         roi=_roi_inputs,
         gt=_gt_inputs,
     output:
@@ -58,7 +59,8 @@ checkpoint views:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} views --canonical {input.ply:q} --cameras {input.cameras:q} {params.roi} "
+        "anigs --threads {threads} views --canonical {input.ply:q} --cameras {input.cameras:q} "
+        "--points {input.points:q} {params.roi} "
         "--out {params.out:q} --params {params.p:q} > {log} 2>&1"
 
 

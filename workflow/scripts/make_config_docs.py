@@ -36,7 +36,7 @@ Each scene is a file `config/scenes/NAME.yaml` listed under `scenes:`. Keys:
 | `synthetic` | parameters of the synthetic generator (see `config/scenes/demo.yaml`) |
 | `photos` | folder of JPEG/PNG photos (for `source: photos`); `${NAME}` is replaced by the environment variable NAME when the scene is loaded (unset: an error naming it), so `config/scenes/photos.yaml` (`photos: ${ANIGS_PHOTOS}`) takes the folder at run time |
 | `effects` | `auto` (the default: the effects the `effects` stage finds among the kinds the `prompt` names, see the vocabulary below; every effect it finds when the scene has no prompt) or a list of `foliage_sway`, `leaf_flutter`, `grass_wave`, `flower_bob`, `water_ripple` (only those, where found, whatever the prompt says; a listed effect the scene lacks is reported and skipped); a misspelt name fails when the workflow is parsed; nothing else moves. Shorthand of `effects: {requested: ...}` |
-| `background` | `[r, g, b]` in [0, 1]: the sky colour every rendering stage composites onto (static, masks, render_clip, update, final, view, eval's multiview fits) and the synthetic capture is rendered onto; a stage's own `background` wins |
+| `background` | `[r, g, b]` in [0, 1]: the sky colour every rendering stage composites onto (static, masks, render_clip, update, final, view, views (its edge figure), eval's multiview fits) and the synthetic capture is rendered onto; a stage's own `background` wins |
 | `prompt` | text prompt for the video prior; with `effects: auto` it also names the kinds that may move (a prompt that names none gives a still scene) |
 | any stage section | overrides of that section for this scene (e.g. `static: {iterations: 7000}`) |
 
