@@ -72,7 +72,7 @@ class Config:
     texture_frac: float = 0.012      # window of the local luminance std
     # geometry rules (anigs/effects/rules.py): what cannot move
     link_frac: float = 1.0           # a region's Gaussians within this x neighbour radius form one numbered candidate
-    min_candidate: int = 10          # candidates with fewer Gaussians are not numbered nor checked
+    min_candidate: int = 10          # parts with fewer Gaussians are checked by the rules but not numbered
     plane_tol: float = 0.25          # a Gaussian within this x neighbour radius of a plane lies on it
     plane_max_share: float = 0.6     # foliage / flowers with this share on a large plane lie on a wall, floor, facade, picture, rug or lawn: still
     plane_min_extent: float = 2.0    # ... on up to 3 planes each spanning at least this x neighbour radius

@@ -18,8 +18,14 @@ neighbourhood radius), numbered for the overview and the user's corrections, and
    ``crown_min_height`` x the camera height), is foliage in the sun, not blossoms: moved to
    foliage. This rule runs first; the others apply to the candidates it leaves.
 
-``check_candidates(...) -> (region_of, candidates)``: the new region per Gaussian and one
-:class:`Candidate` per numbered candidate (kept or rejected, with the reason).
+Connected parts of fewer than ``min_candidate`` Gaussians (after the flat / other split, whose
+small parts rejoin their component) are checked by the same rules but not numbered (under 3
+Gaussians, where no plane can be checked, they do not move); the Gaussians of those set aside
+are counted per region (``fragments``).
+
+``check_candidates(...) -> (region_of, candidates, fragments)``: the new region per Gaussian, one
+:class:`Candidate` per numbered candidate (kept or rejected, with the reason) and, per region, how
+many Gaussians of unnumbered small parts the rules set aside.
 """
 from __future__ import annotations
 
@@ -134,18 +140,16 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
     holders = np.flatnonzero(np.isin(region_of, [REGIONS.index("foliage"), REGIONS.index("grass")]) | green)
     holder_tree = cKDTree(means[holders]) if len(holders) else None
     cands: list[Candidate] = []
+    fragments: dict[str, int] = {}
     for k, name in enumerate(REGIONS):
         idx = np.flatnonzero(region_of == k)
         if not len(idx):
             continue
         lab = components(means[idx], link)
         if flat is not None:  # flat parts apart from the rest
-            lab = lab * 2 + flat[idx].astype(np.int64)
-            lab = np.unique(lab, return_inverse=True)[1]
+            lab = split_flat(lab, flat[idx], cfg.min_candidate)
         sizes = np.bincount(lab)
         for c in np.argsort(-sizes, kind="stable"):
-            if sizes[c] < cfg.min_candidate:
-                break
             sel = idx[lab == c]
             p = means[sel]
             cand = Candidate(0, name, sel, p.mean(0), float(np.linalg.norm(p.max(0) - p.min(0))))
@@ -157,10 +161,30 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
                 _held_rule(cand, means, holder_tree, holders, link, cfg)
             if not cand.kept or cand.moved_to:
                 out[sel] = REGIONS.index(cand.moved_to) if cand.moved_to else -1
-            cands.append(cand)
+            if sizes[c] >= cfg.min_candidate:
+                cands.append(cand)
+            else:  # a small part (a lone blossom, a speck on a lawn) is checked, not numbered; under 3
+                if sizes[c] < 3:  # Gaussians no plane can be checked: it does not move
+                    cand.kept = False
+                    out[sel] = -1
+                if not cand.kept:
+                    fragments[name] = fragments.get(name, 0) + len(sel)
     for i, cand in enumerate(cands):
         cand.number = i + 1
-    return out, cands
+    return out, cands, fragments
+
+
+def split_flat(lab: np.ndarray, flat: np.ndarray, min_size: int) -> np.ndarray:
+    """Component labels [M] split into their flat and other parts (``flat`` bool [M]); a part smaller
+    than ``min_size`` stays with the rest of its component (the rim of a picture whose neighbourhood
+    is not planar belongs to the picture), both when both are that small."""
+    key = lab * 2 + flat.astype(np.int64)
+    size = np.bincount(key, minlength=2 * (lab.max(initial=0) + 1))
+    own, sib = size[key], size[key ^ 1]
+    small = own < min_size
+    key = np.where(small & (sib >= min_size), key ^ 1, key)
+    key = np.where(small & (sib < min_size), lab * 2, key)
+    return np.unique(key, return_inverse=True)[1]
 
 
 def _green(colours: np.ndarray, cfg: Config) -> np.ndarray:
