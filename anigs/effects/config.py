@@ -72,10 +72,11 @@ class Config:
     texture_frac: float = 0.012      # window of the local luminance std
     # geometry rules (anigs/effects/rules.py): what cannot move
     link_frac: float = 1.0           # a region's Gaussians within this x neighbour radius form one numbered candidate
-    min_candidate: int = 10          # candidates with fewer Gaussians are not numbered nor checked
+    min_candidate: int = 10          # parts with fewer Gaussians are checked by the rules but not numbered
     plane_tol: float = 0.25          # a Gaussian within this x neighbour radius of a plane lies on it
     plane_max_share: float = 0.6     # foliage / flowers with this share on a large plane lie on a wall, floor, facade, picture, rug or lawn: still
     plane_min_extent: float = 2.0    # ... on up to 3 planes each spanning at least this x neighbour radius
+    plane_max_outside: float = 0.2   # ... each a surface: its band from 1 to 2 plane_tol off holds at most this x its Gaussians (a slice through flower heads holds more)
     min_attached: float = 0.3        # flowers: this share of a candidate must lie within the link of leaves or stems (held by a plant)
     leaf_hue_margin: float = 20.0    # flowers: a median hue this many degrees below the green band, high in a crown, is sunlit leaves (foliage)
     crown_min_height: float = 0.4    # ... high in a crown: most of it above this x camera height (flower heads stay lower)

@@ -80,6 +80,7 @@ class EffectsResult:
     cfg: Config
     candidates: list = field(default_factory=list)  # numbered 3D candidates (anigs.effects.rules.Candidate)
     rejected_masks: list = field(default_factory=list)  # per photo: int8 [H,W], 1 + region of a rejected candidate's pixel, 0 none
+    fragments: dict = field(default_factory=dict)  # region -> Gaussians of unnumbered small parts the rules set aside
 
     @property
     def detected(self) -> list[str]:
@@ -100,7 +101,8 @@ class EffectsResult:
                 "num_gaussians": int(len(self.region_of)), "photos": [c.name for c in self.cameras],
                 "ground": self.ground.to_dict(), "config": self.cfg.to_dict(),
                 "candidates": [c.to_json() for c in self.candidates],
-                "rejected": [c.to_json() for c in self.candidates if not c.kept or c.moved_to]}
+                "rejected": [c.to_json() for c in self.candidates if not c.kept or c.moved_to],
+                "fragments": {k: int(v) for k, v in self.fragments.items()}}
 
     def save(self, out_dir: str | Path) -> None:
         """Write ``effects.json`` and ``regions.npy`` (int8 [N]: index into ``REGIONS``, -1 none)."""
@@ -175,9 +177,9 @@ def _lift(means: np.ndarray, max_scale: np.ndarray, maps: Sequence[PhotoMaps], r
 
 def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground: Ground, radius: float,
                  maps: Sequence[PhotoMaps], regions: Sequence[PhotoRegions], cfg: Config,
-                 flat: np.ndarray) -> tuple[np.ndarray, list]:
+                 flat: np.ndarray) -> tuple[np.ndarray, list, dict]:
     """The geometry rules (:mod:`anigs.effects.rules`) on the lifted regions; the photos' masks lose
-    the pixels of rejected candidates (and sunlit leaves move from flowers to foliage)."""
+    the pixels of rejected candidates and small parts (and sunlit leaves move from flowers to foliage)."""
     from anigs.effects.rules import check_candidates
 
     colours = (0.5 + 0.28209479 * g.sh[:, 0, :]).clamp(0, 1).double().numpy()
@@ -185,16 +187,22 @@ def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground:
     if ground.plane is not None:
         height = means @ ground.plane.normal - ground.plane.offset
         cam_h = ground.plane.camera_height if ground.plane.camera_height > 0 else 1.0
-    new, cands = check_candidates(means, colours, region_of, height, cam_h or 1.0, radius, cfg, flat)
+    new, cands, fragments = check_candidates(means, colours, region_of, height, cam_h or 1.0, radius, cfg, flat)
+    for name, count in fragments.items():
+        log.info("effects: %d %s Gaussians in parts under %d Gaussians set aside by the rules", count, name,
+                 cfg.min_candidate)
     changed = [c for c in cands if not c.kept or c.moved_to]
     for p in maps:
         p.rejected = np.zeros(p.depth.shape, np.int8)
     for c in changed:
         log.info("effects: candidate %d (%s, %d Gaussians) %s: %s", c.number, c.region, len(c.indices),
                  f"moved to {c.moved_to}" if c.moved_to else "rejected", c.reason)
-    if not changed:
-        return new, cands
+    dropped = (new == -1) & (region_of >= 0)  # rejected candidates and small parts
+    if not dropped.any() and not changed:
+        return new, cands, fragments
     flags = np.zeros((len(means), 3), np.float32)
+    flags[dropped, 0] = 1.0
+    flags[dropped, 1] = region_of[dropped] + 1
     for c in changed:
         flags[c.indices, 0] = 1.0
         flags[c.indices, 1] = REGIONS.index(c.region) + 1
@@ -211,7 +219,7 @@ def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground:
             to = hit & (np.abs(f[..., 2] - (k + 1)) < 0.5)
             if to.any():
                 reg.masks[name] = reg.masks[name] | to
-    return new, cands
+    return new, cands, fragments
 
 
 def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaussians: Gaussians,
@@ -265,8 +273,8 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
             if name not in kinds:
                 reg.masks[name] = np.zeros_like(reg.masks[name])
     region_of, share = _lift(means, max_scale, maps, regions, ground, cfg)
-    region_of, candidates = _apply_rules(g, means, region_of, ground, radius, maps, regions, cfg,
-                                         variation < cfg.wall_max_variation)
+    region_of, candidates, fragments = _apply_rules(g, means, region_of, ground, radius, maps, regions, cfg,
+                                                    variation < cfg.wall_max_variation)
     effects: dict[str, EffectResult] = {}
     n_photos = len(maps)
     min_photos = max(2, int(np.ceil(cfg.min_photo_fraction * n_photos))) if n_photos > 1 else 1
@@ -294,6 +302,6 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
         for eff in REGION_EFFECTS[name]:
             effects[eff] = EffectResult(eff, name, ok, pf, gf, conf, text, masks, idx, photo_frac, agreement)
     res = EffectsResult(effects, photos, cams, region_of, ground, cfg, candidates,
-                        [getattr(p, "rejected", np.zeros(p.depth.shape, np.int8)) for p in maps])
+                        [getattr(p, "rejected", np.zeros(p.depth.shape, np.int8)) for p in maps], fragments)
     log.info("effects: detected %s", res.detected or "nothing")
     return res

@@ -7,7 +7,8 @@ neighbourhood radius), numbered for the overview and the user's corrections, and
 1. *on large planes* (foliage, flowers): a plane fitted (RANSAC) to the candidate and the
    non-plant Gaussians around it holds >= ``plane_max_share`` of the candidate within
    ``plane_tol`` x radius (and does not rise off it: fewer than a quarter as many within three
-   times that) and spans >= ``plane_min_extent`` x radius: a facade and its
+   times that), spans >= ``plane_min_extent`` x radius and is a surface (at most
+   ``plane_max_outside`` as many Gaussians in the band just off it): a facade and its
    ornaments, a wall, floor or ceiling, a picture, a rug, a mown lawn (a low flat lawn is grass
    or nothing). Rejected.
 2. *not held by a plant* (flowers): a blossom sits on plant Gaussians; fewer than
@@ -18,8 +19,14 @@ neighbourhood radius), numbered for the overview and the user's corrections, and
    ``crown_min_height`` x the camera height), is foliage in the sun, not blossoms: moved to
    foliage. This rule runs first; the others apply to the candidates it leaves.
 
-``check_candidates(...) -> (region_of, candidates)``: the new region per Gaussian and one
-:class:`Candidate` per numbered candidate (kept or rejected, with the reason).
+Connected parts of fewer than ``min_candidate`` Gaussians (after the flat / other split, whose
+small parts rejoin their component) are checked by the same rules but not numbered (under 3
+Gaussians, where no plane can be checked, they do not move); the Gaussians of those set aside
+are counted per region (``fragments``).
+
+``check_candidates(...) -> (region_of, candidates, fragments)``: the new region per Gaussian, one
+:class:`Candidate` per numbered candidate (kept or rejected, with the reason) and, per region, how
+many Gaussians of unnumbered small parts the rules set aside.
 """
 from __future__ import annotations
 
@@ -111,7 +118,7 @@ def _hue(rgb: np.ndarray) -> np.ndarray:
 
 def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarray, height: np.ndarray | None,
                      cam_height: float, radius: float, cfg: Config, flat: np.ndarray | None = None,
-                     seed: int = 0) -> tuple[np.ndarray, list[Candidate]]:
+                     seed: int = 0) -> tuple[np.ndarray, list[Candidate], dict[str, int]]:
     """Split each region into numbered 3D candidates and apply the rules (module docstring).
 
     Args:
@@ -123,7 +130,6 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
             candidates (a lawn bank under a tree, a facade behind it are not the crown).
     Returns the new region ids [N] and the candidates, numbered from 1 in ``REGIONS`` order, largest first.
     """
-    rng = np.random.default_rng(seed)
     out = region_of.copy()
     link = cfg.link_frac * radius
     tol = cfg.plane_tol * radius
@@ -134,19 +140,19 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
     holders = np.flatnonzero(np.isin(region_of, [REGIONS.index("foliage"), REGIONS.index("grass")]) | green)
     holder_tree = cKDTree(means[holders]) if len(holders) else None
     cands: list[Candidate] = []
+    fragments: dict[str, int] = {}
     for k, name in enumerate(REGIONS):
         idx = np.flatnonzero(region_of == k)
         if not len(idx):
             continue
         lab = components(means[idx], link)
         if flat is not None:  # flat parts apart from the rest
-            lab = lab * 2 + flat[idx].astype(np.int64)
-            lab = np.unique(lab, return_inverse=True)[1]
+            lab = split_flat(lab, flat[idx], cfg.min_candidate)
         sizes = np.bincount(lab)
         for c in np.argsort(-sizes, kind="stable"):
-            if sizes[c] < cfg.min_candidate:
-                break
             sel = idx[lab == c]
+            # the part's own RANSAC draws: checking another part (or not) does not change its verdict
+            rng = np.random.default_rng((seed, k, int(sel[0])))
             p = means[sel]
             cand = Candidate(0, name, sel, p.mean(0), float(np.linalg.norm(p.max(0) - p.min(0))))
             if name == "flowers":
@@ -157,10 +163,30 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
                 _held_rule(cand, means, holder_tree, holders, link, cfg)
             if not cand.kept or cand.moved_to:
                 out[sel] = REGIONS.index(cand.moved_to) if cand.moved_to else -1
-            cands.append(cand)
+            if sizes[c] >= cfg.min_candidate:
+                cands.append(cand)
+            else:  # a small part (a lone blossom, a speck on a lawn) is checked, not numbered; under 3
+                if sizes[c] < 3:  # Gaussians no plane can be checked: it does not move
+                    cand.kept = False
+                    out[sel] = -1
+                if not cand.kept:
+                    fragments[name] = fragments.get(name, 0) + len(sel)
     for i, cand in enumerate(cands):
         cand.number = i + 1
-    return out, cands
+    return out, cands, fragments
+
+
+def split_flat(lab: np.ndarray, flat: np.ndarray, min_size: int) -> np.ndarray:
+    """Component labels [M] split into their flat and other parts (``flat`` bool [M]); a part smaller
+    than ``min_size`` stays with the rest of its component (the rim of a picture whose neighbourhood
+    is not planar belongs to the picture), both when both are that small."""
+    key = lab * 2 + flat.astype(np.int64)
+    size = np.bincount(key, minlength=2 * (lab.max(initial=0) + 1))
+    own, sib = size[key], size[key ^ 1]
+    small = own < min_size
+    key = np.where(small & (sib >= min_size), key ^ 1, key)
+    key = np.where(small & (sib < min_size), lab * 2, key)
+    return np.unique(key, return_inverse=True)[1]
 
 
 def _green(colours: np.ndarray, cfg: Config) -> np.ndarray:
@@ -175,8 +201,9 @@ def _green(colours: np.ndarray, cfg: Config) -> np.ndarray:
 def _plane_rule(cand: Candidate, means, is_plant, tree_all, link, tol, radius, cfg: Config, rng) -> None:
     """Up to ``MAX_PLANES`` large planes (a facade and the lawn at its foot, a wall and a floor) fitted in
     turn to the candidate and the non-plant Gaussians around it; a plane counts when it spans
-    ``plane_min_extent`` x radius and its Gaussians hug it (median distance <= 0.3 x the tolerance: a
-    surface, not a slice through a crown); rejected when the planes hold most of the candidate."""
+    ``plane_min_extent`` x radius and its Gaussians hug it (the band from one to two tolerances off it
+    holds at most ``plane_max_outside`` as many Gaussians as the plane: a surface, not a slice through
+    a crown or a bed of flower heads); rejected when the planes hold most of the candidate."""
     p = means[cand.indices]
     sub = p[rng.choice(len(p), min(len(p), 400), replace=False)]
     near = np.unique(np.concatenate(tree_all.query_ball_point(sub, 2 * radius)).astype(np.int64))
@@ -197,7 +224,7 @@ def _plane_rule(cand: Candidate, means, is_plant, tree_all, link, tol, radius, c
         extent = _in_plane_extent(rest[inl], n)
         # a surface: the band just outside the plane's is nearly empty (a slice through a crown is not)
         outside = float(((res > tol) & (res <= 2 * tol)).sum() / max(inl.sum(), 1))
-        if extent < cfg.plane_min_extent * radius or outside > 0.3:
+        if extent < cfg.plane_min_extent * radius or outside > cfg.plane_max_outside:
             break
         extents.append(extent)
         r = np.abs(p @ n - d)

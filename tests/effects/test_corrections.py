@@ -61,7 +61,8 @@ def test_drop_and_force_by_number(room, caplog):
     from anigs.synth.decoys import DECOY_IDS
 
     forced = regions == REGIONS.index(rejected["region"])
-    assert (forced & (part == DECOY_IDS["picture"])).sum() >= 0.8 * rejected["num_gaussians"]  # forced back
+    # forced back (the candidate also holds the wall Gaussians around the picture's rim)
+    assert (forced & (part == DECOY_IDS["picture"])).sum() >= 0.75 * rejected["num_gaussians"]
     assert len(doc["corrections"]) == 2 and "dropped" in doc["corrections"][1]
     _fails(tmp, {"drop": [999]}, caplog, "no candidate 999")
 

@@ -52,7 +52,9 @@ def test_nothing_labelled_still_moves(decoy):
     print(f"{d.name}: detected {res.detected}; decoy Gaussians moved by an effect they may not take {report}; "
           f"share of the moving Gaussians labelled still {still_share:.4f}")
     for name, (wrong, total) in report.items():
-        assert wrong <= 0.01 * total, (d.name, name, wrong, total)
+        assert wrong == 0, (d.name, name, wrong, total)
+    # the share counts the still labels outside the decoy parts too: on the facade, the top of the trunk
+    # inside the crown (seen by no photo, it takes its leafy neighbours' region)
     assert still_share <= 0.03, (d.name, still_share)
     if "flower_bob" not in d.effects:
         assert not res.effects["flower_bob"].detected, res.effects["flower_bob"].reason
