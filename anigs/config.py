@@ -21,7 +21,7 @@ SCENE_KEYS = {"name", "source", "synthetic", "photos", "colmap", "ply", "effects
 # Where a scene's `background` (the sky colour every rendering stage composites onto) goes: the
 # stage sections with a `background` key (tests check this against the schema), the multiview
 # fits of eval, and the synthetic capture.
-BACKGROUND_SECTIONS = ("static", "masks", "render_clip", "update", "final", "view", "fvd_gt")
+BACKGROUND_SECTIONS = ("static", "masks", "render_clip", "update", "final", "view", "views", "fvd_gt")
 SOURCES = ("synthetic", "photos")
 _ENV_REF = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
 

@@ -104,6 +104,12 @@ def bench(capture: Path, out: Path, params: dict, label: str, repeats: int = 1, 
           f"initial-pair angle {figures['init_min_tri_angle']} deg")
     print(f"registered         {r['registered']}/{r['images']}  (models found: {r['mapping']['models_found']}, "
           f"retries: {r['mapping']['retries']})")
+    for k, a in enumerate(r["mapping"]["attempts"]):
+        print(f"  attempt {k + 1:<10} {a.get('step', '?')}: {a.get('matcher', '')} matches, "
+              f"{a.get('resolution', 'capture')} resolution, angle {a['init_min_tri_angle']}: {a['result']} "
+              f"(models {a['models']}), {a['seconds']:.1f} s")
+    if r.get("status") == "partial":
+        print(f"PARTIAL            left out: {', '.join(r['unregistered_images'])}")
     if figures["keypoints_per_image"] is not None:
         print(f"features           {figures['keypoints_per_image']:.0f} keypoints per image, "
               f"{figures['verified_pairs']} verified pairs")

@@ -164,7 +164,7 @@ def bases_from_config(mask: torch.Tensor, cfg: UpdateConfig, num_bases: int) -> 
         by_name = {}
         if not any(k not in names for k in cfg.effect_num_bases):
             return None
-    for name, k in by_name.items():
+    for name in by_name:
         lab = names[name]
         shared = [e for e, lb in names.items() if lb == lab]
         per_label[lab] = max(int(cfg.effect_num_bases.get(e, cfg.num_bases)) for e in shared)

@@ -6,7 +6,7 @@ its masks and Gaussians.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 from anigs.configs import from_dict
 
@@ -29,7 +29,8 @@ class Config:
     resolution; heights are fractions of the cameras' median height above the fitted ground.
     """
 
-    requested: list | str = "auto"  # effects to simulate: auto (every detected one) or a list; a listed effect the scene lacks is reported and skipped
+    requested: list | str = "auto"  # effects to simulate: auto (the detected kinds the prompt names; every detected one without a prompt) or a list of effect names, which overrides the prompt; a listed effect the scene lacks is reported and skipped
+    prompt: str | None = None        # the scene's prompt (the workflow passes the scene file's prompt): with requested auto only the kinds it names are localised (anigs/effects/vocabulary.py); null = no prompt
     # photos
     max_photos: int = 24             # photos analysed (evenly spaced over the capture)
     max_side: int = 400              # photos are downscaled to this longest side (px)
@@ -69,16 +70,38 @@ class Config:
     water_max_height: float = 0.06   # water lies below this x camera height above the ground plane
     reflect_min_spread: float = 0.25  # colour spread across photos (relative) that marks a reflective surface
     texture_frac: float = 0.012      # window of the local luminance std
+    # geometry rules (anigs/effects/rules.py): what cannot move
+    link_frac: float = 1.0           # a region's Gaussians within this x neighbour radius form one numbered candidate
+    min_candidate: int = 10          # parts with fewer Gaussians are checked by the rules but not numbered
+    plane_tol: float = 0.25          # a Gaussian within this x neighbour radius of a plane lies on it
+    plane_max_share: float = 0.6     # foliage / flowers with this share on a large plane lie on a wall, floor, facade, picture, rug or lawn: still
+    plane_min_extent: float = 2.0    # ... on up to 3 planes each spanning at least this x neighbour radius
+    plane_max_outside: float = 0.2   # ... each a surface: its band from 1 to 2 plane_tol off holds at most this x its Gaussians (a slice through flower heads holds more)
+    min_attached: float = 0.3        # flowers: this share of a candidate must lie within the link of leaves or stems (held by a plant)
+    leaf_hue_margin: float = 20.0    # flowers: a median hue this many degrees below the green band, high in a crown, is sunlit leaves (foliage)
+    crown_min_height: float = 0.4    # ... high in a crown: most of it above this x camera height (flower heads stay lower)
     # regions and decisions
     min_component_frac: float = 0.0004  # components smaller than this share of the photo are dropped
     min_pixel_fraction: float = 0.002   # an effect needs this share of the photos' pixels ...
     min_gaussian_fraction: float = 0.001  # ... and of the Gaussians ...
     min_gaussians: int = 20          # ... and at least this many Gaussians ...
     min_photo_fraction: float = 0.1  # ... and a region in this share of the photos (at least 2)
+    # the user's corrections (anigs/effects/corrections.py; numbers as in overview.png)
+    drop: list = field(default_factory=list)  # numbered candidates of overview.png that must not move
+    force: list = field(default_factory=list)  # numbered candidates a geometry rule set aside that move all the same
+    boxes: list = field(default_factory=list)  # 3D boxes {min: [x, y, z], max: [x, y, z], effect: NAME or still} in the frame of static/canonical.ply
+    selections: list = field(default_factory=list)  # SuperSplat selection exports {ply: PATH, effect: NAME or still}, matched to the fitted Gaussians by position
+    selection_tol: float = 0.0001    # a selected splat matches the fitted Gaussian within this x the model's bounding-box diagonal
     vote_threshold: float = 0.5      # a Gaussian joins the region voted by this share of the photos that see it
     propagate_k: int = 8             # Gaussians seen by no photo take the majority of their k neighbours
 
     def __post_init__(self) -> None:
+        if isinstance(self.requested, str) and self.requested != "auto":
+            raise ValueError(f"effects.requested must be 'auto' or a list of effect names, got {self.requested!r}")
+        if not isinstance(self.requested, str):
+            unknown = [e for e in self.requested if e not in EFFECTS]
+            if unknown:
+                raise ValueError(f"effects.requested: unknown effect(s) {unknown}; the valid effects are {list(EFFECTS)}")
         if self.up not in ("z", "auto"):
             raise ValueError(f"effects.up must be 'z' or 'auto', got {self.up!r}")
         if self.max_photos < 1 or self.max_side < 16:

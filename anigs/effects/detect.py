@@ -22,7 +22,7 @@ region's Gaussians; not detected, ``1 - 0.5 * min(1, max(pixel, Gaussian fractio
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
@@ -78,6 +78,9 @@ class EffectsResult:
     region_of: np.ndarray
     ground: Ground
     cfg: Config
+    candidates: list = field(default_factory=list)  # numbered 3D candidates (anigs.effects.rules.Candidate)
+    rejected_masks: list = field(default_factory=list)  # per photo: int8 [H,W], 1 + region of a rejected candidate's pixel, 0 none
+    fragments: dict = field(default_factory=dict)  # region -> Gaussians of unnumbered small parts the rules set aside
 
     @property
     def detected(self) -> list[str]:
@@ -96,7 +99,10 @@ class EffectsResult:
         """The ``effects.json`` object: effect name -> decision under ``effects``, plus context."""
         return {"effects": {e: r.to_json() for e, r in self.effects.items()}, "detected": self.detected,
                 "num_gaussians": int(len(self.region_of)), "photos": [c.name for c in self.cameras],
-                "ground": self.ground.to_dict(), "config": self.cfg.to_dict()}
+                "ground": self.ground.to_dict(), "config": self.cfg.to_dict(),
+                "candidates": [c.to_json() for c in self.candidates],
+                "rejected": [c.to_json() for c in self.candidates if not c.kept or c.moved_to],
+                "fragments": {k: int(v) for k, v in self.fragments.items()}}
 
     def save(self, out_dir: str | Path) -> None:
         """Write ``effects.json`` and ``regions.npy`` (int8 [N]: index into ``REGIONS``, -1 none)."""
@@ -169,8 +175,55 @@ def _lift(means: np.ndarray, max_scale: np.ndarray, maps: Sequence[PhotoMaps], r
     return out, np.where(decided, top, 0.0)
 
 
+def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground: Ground, radius: float,
+                 maps: Sequence[PhotoMaps], regions: Sequence[PhotoRegions], cfg: Config,
+                 flat: np.ndarray) -> tuple[np.ndarray, list, dict]:
+    """The geometry rules (:mod:`anigs.effects.rules`) on the lifted regions; the photos' masks lose
+    the pixels of rejected candidates and small parts (and sunlit leaves move from flowers to foliage)."""
+    from anigs.effects.rules import check_candidates
+
+    colours = (0.5 + 0.28209479 * g.sh[:, 0, :]).clamp(0, 1).double().numpy()
+    height = cam_h = None
+    if ground.plane is not None:
+        height = means @ ground.plane.normal - ground.plane.offset
+        cam_h = ground.plane.camera_height if ground.plane.camera_height > 0 else 1.0
+    new, cands, fragments = check_candidates(means, colours, region_of, height, cam_h or 1.0, radius, cfg, flat)
+    for name, count in fragments.items():
+        log.info("effects: %d %s Gaussians in parts under %d Gaussians set aside by the rules", count, name,
+                 cfg.min_candidate)
+    changed = [c for c in cands if not c.kept or c.moved_to]
+    for p in maps:
+        p.rejected = np.zeros(p.depth.shape, np.int8)
+    for c in changed:
+        log.info("effects: candidate %d (%s, %d Gaussians) %s: %s", c.number, c.region, len(c.indices),
+                 f"moved to {c.moved_to}" if c.moved_to else "rejected", c.reason)
+    dropped = (new == -1) & (region_of >= 0)  # rejected candidates and small parts
+    if not dropped.any() and not changed:
+        return new, cands, fragments
+    flags = np.zeros((len(means), 3), np.float32)
+    flags[dropped, 0] = 1.0
+    flags[dropped, 1] = region_of[dropped] + 1
+    for c in changed:
+        flags[c.indices, 0] = 1.0
+        flags[c.indices, 1] = REGIONS.index(c.region) + 1
+        if c.moved_to:
+            flags[c.indices, 2] = REGIONS.index(c.moved_to) + 1
+    for p, reg in zip(maps, regions):
+        f = render_features(g, flags, p.camera)[0]
+        hit = f[..., 0] >= 0.5
+        p.rejected = np.where(hit & (f[..., 2] < 0.5), np.round(f[..., 1]), 0).astype(np.int8)
+        for k, name in enumerate(REGIONS):
+            was = hit & (np.abs(f[..., 1] - (k + 1)) < 0.5)
+            reg.masks[name] = reg.masks[name] & ~was
+        for k, name in enumerate(REGIONS):
+            to = hit & (np.abs(f[..., 2] - (k + 1)) < 0.5)
+            if to.any():
+                reg.masks[name] = reg.masks[name] | to
+    return new, cands, fragments
+
+
 def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaussians: Gaussians,
-                   cfg: Config | None = None) -> EffectsResult:
+                   cfg: Config | None = None, kinds: Sequence[str] | None = None) -> EffectsResult:
     """Detect foliage, grass, flowers and water in a scene (see module docstring).
 
     Args:
@@ -178,6 +231,8 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
         cameras: their cameras (any resolution of the same aspect ratio).
         gaussians: the fitted static model.
         cfg: :class:`Config` (defaults documented there).
+        kinds: the regions to localise (those the prompt names); None = all of ``REGIONS``. The
+            others get empty masks and no Gaussians, with the reason.
     Returns an :class:`EffectsResult` with one :class:`EffectResult` per effect of ``EFFECTS``.
     """
     cfg = cfg or Config()
@@ -209,7 +264,17 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
         log.info("effects: ground cut %.3g above the plane (seen ground; the centres' layer reaches %.3g)",
                  ground.cut, ground.plane.cut_height())
     regions = [classify_photo(p, ground, cfg) for p in maps]
+    kinds = list(REGIONS) if kinds is None else list(kinds)
+    unknown = [k for k in kinds if k not in REGIONS]
+    if unknown:
+        raise ValueError(f"detect_effects: unknown kind(s) {unknown}; known: {list(REGIONS)}")
+    for reg in regions:  # kinds the prompt does not name are not localised
+        for name in REGIONS:
+            if name not in kinds:
+                reg.masks[name] = np.zeros_like(reg.masks[name])
     region_of, share = _lift(means, max_scale, maps, regions, ground, cfg)
+    region_of, candidates, fragments = _apply_rules(g, means, region_of, ground, radius, maps, regions, cfg,
+                                                    variation < cfg.wall_max_variation)
     effects: dict[str, EffectResult] = {}
     n_photos = len(maps)
     min_photos = max(2, int(np.ceil(cfg.min_photo_fraction * n_photos))) if n_photos > 1 else 1
@@ -232,8 +297,11 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
             conf = 1.0 - 0.5 * min(1.0, max(pf / cfg.min_pixel_fraction, gf / cfg.min_gaussian_fraction))
         rejected = sum(r.rejected_wall_green for r in regions) / max(sum(m.size for m in masks), 1)
         text = reason(name, ok, pf, gf, with_region, n_photos, cfg, ground, rejected)
+        if name not in kinds:
+            text = f"No {name} ({' and '.join(REGION_EFFECTS[name])} skipped): not looked for, the prompt does not name it."
         for eff in REGION_EFFECTS[name]:
             effects[eff] = EffectResult(eff, name, ok, pf, gf, conf, text, masks, idx, photo_frac, agreement)
-    res = EffectsResult(effects, photos, cams, region_of, ground, cfg)
+    res = EffectsResult(effects, photos, cams, region_of, ground, cfg, candidates,
+                        [getattr(p, "rejected", np.zeros(p.depth.shape, np.int8)) for p in maps], fragments)
     log.info("effects: detected %s", res.detected or "nothing")
     return res

@@ -2,7 +2,11 @@
 
 Layout: one row per chosen photo (those with the most detected region first, spread over the
 capture), one column per region (foliage, grass, flowers, water); a title above each column
-names its effects and the decision, and the reasons are printed below the grid.
+names its effects and the decision, and the reasons are printed below the grid. Every numbered
+candidate (:mod:`anigs.effects.rules`) is labelled with its number at its centre in its region's
+column (white: kept, red: rejected by a geometry rule, whose pixels are hatched red); the
+rejections and their reasons are listed below, so a scene file can drop or force a candidate by
+number (``effects: {drop: [N], force: [N]}``).
 """
 from __future__ import annotations
 
@@ -46,6 +50,25 @@ def _pick_photos(res: EffectsResult, count: int) -> list[int]:
     return order
 
 
+def _numbers(panel: np.ndarray, res: EffectsResult, photo: int, region: str, scale: float) -> None:
+    """Draw the numbers of ``region``'s candidates whose centre photo ``photo`` sees (in place)."""
+    from anigs.masks.lift import project_to_pixels
+
+    cands = [c for c in res.candidates if c.region == region]
+    if not cands:
+        return
+    cam = res.cameras[photo]
+    centres = np.array([c.centre for c in cands])
+    inside, px, py, _ = project_to_pixels(centres, cam)
+    for c, ok, x, y in zip(cands, inside, px, py):
+        if not ok:
+            continue
+        org = (int(x * scale) - 6, int(y * scale) + 4)
+        ink = (255, 255, 255) if c.kept and not c.moved_to else (255, 40, 40)
+        cv2.putText(panel, str(c.number), org, FONT, 0.4, (0, 0, 0), 3, cv2.LINE_AA)
+        cv2.putText(panel, str(c.number), org, FONT, 0.4, ink, 1, cv2.LINE_AA)
+
+
 def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_width: int = 256) -> None:
     """Write the overview PNG of ``res`` to ``path`` (``photos`` rows, one column per region)."""
     rows = []
@@ -69,8 +92,13 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
             tinted = overlay(img, m, COLOURS[r], 0.55 if e.detected else 0.3)
             if not e.detected:
                 tinted = 0.55 * tinted + 0.45 * img.mean(-1, keepdims=True)
+            if res.rejected_masks:
+                rej = res.rejected_masks[i] == REGIONS.index(r) + 1
+                hatch = rej & (((np.arange(h)[:, None] + np.arange(w)[None]) // 2) % 3 == 0)
+                tinted = np.where(hatch[..., None], np.array([0.95, 0.1, 0.1], np.float32), tinted)
             panel = (np.clip(cv2.resize(tinted, (panel_width, ph), interpolation=cv2.INTER_AREA), 0, 1) * 255
                      ).astype(np.uint8)
+            _numbers(panel, res, i, r, panel_width / w)
             cv2.putText(panel, f"{res.cameras[i].name} {100 * m.mean():.1f}%", (4, ph - 6), FONT, 0.38,
                         (255, 255, 255), 1, cv2.LINE_AA)
             panel = panel.astype(np.float32) / 255.0
@@ -82,6 +110,17 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
     lines += [res.effects[REGION_EFFECTS[r][0]].reason for r in REGIONS]
     if res.ground.note:
         lines.append(res.ground.note)
+    changed = [c for c in res.candidates if not c.kept or c.moved_to]
+    if res.candidates:
+        lines.append(f"{len(res.candidates)} numbered candidates; {len(changed)} changed by geometry "
+                     "(drop or force one in the scene file: effects: {drop: [N], force: [N]}):")
+    for c in changed[:12]:
+        lines.append(f"  #{c.number} {c.region} ({len(c.indices)} Gaussians) "
+                     f"{'-> ' + c.moved_to if c.moved_to else 'rejected'}: {c.reason}")
+    if len(changed) > 12:
+        lines.append(f"  ... and {len(changed) - 12} more (effects.json: rejected)")
+    for note in getattr(res, "notes", []):
+        lines.append(note)
     rows.append(_text_block(lines, width))
     rows = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=1.0) for r in rows]
     write_rgb_png(path, np.concatenate(rows, 0))

@@ -114,7 +114,7 @@ def compute_masks(backend: MaskBackend | str, frames: Sequence[Frame], **kwargs:
         if "dynamic" not in res:
             raise RuntimeError(f"mask backend returned no 'dynamic' mask for frame {fr.name!r}")
         res = {k: check_mask_size(v, fr.size, fr.name, k) for k, v in res.items()}
-        for k, v in res.items():
+        for v in res.values():
             res["dynamic"] = res["dynamic"] | v
         out.append(res)
     return out

@@ -134,6 +134,9 @@ def static_fit_fn(fit_params: dict[str, Any] | None = None) -> tuple[FitFn, tupl
     params.setdefault("holdout_every", 0)
     params.setdefault("eval_every", 0)
     params.setdefault("checkpoint_every", 0)
+    # the protocol's fit is the instrument: without the needle regulariser (static.regularize), as
+    # before it existed, so that the figures stay comparable; multiview_fit.regularize turns it on
+    params.setdefault("regularize", {"enabled": False})
     cfg = FitConfig.from_dict(params)
 
     def fit(images, cameras, init_points, init_colors):

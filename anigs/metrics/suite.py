@@ -304,6 +304,7 @@ def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path
     halves can run as separate jobs (the model's beside the final renders; see
     :func:`anigs.stages.eval.merge`).
     """
+    from anigs.metrics.still_labels import moving_labelled_still
     from anigs.device import get_device, seed_everything
 
     if part not in EVAL_PARTS:
@@ -334,6 +335,7 @@ def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path
         t0 = time.perf_counter()
         seed_everything(cfg.seed)  # the same draws whether or not the clips' half ran first
         metrics.update(gt_metrics(P(model), P(canonical), P(gt_dir), P(cameras)))
+        metrics.update(moving_labelled_still(P(model), P(canonical), P(gt_dir), P(cameras)))  # anigs/metrics/still_labels.py
         metrics.update(multiview_metrics(cfg, P(model), P(canonical), P(cameras), P(images), P(points), device))
         log.info("eval: model-based metrics %.1f s", time.perf_counter() - t0)
     return metrics

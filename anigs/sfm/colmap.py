@@ -23,12 +23,12 @@ cameras in the last digits from run to run). The report has wall and CPU seconds
 (``timings_s``, ``cpu_s``: CPU seconds of all the process's threads, less sensitive than wall
 seconds to other work on a shared machine) and what ``auto`` chose (``auto``, ``mapping``).
 
-Failure handling:
-- several models: the one with most registered images is kept, the others are reported;
-- a mapping failure, or a best model under ``min_registered_fraction`` of the images, is
-  retried once with ``init_min_tri_angle = retry_init_min_tri_angle`` (4 degrees
-  reconstructs forward-facing captures) when that is below the first attempt's angle; still
-  too few is an error naming registered/total.
+Failure handling (:mod:`anigs.sfm.escalate`): several models: the one with most registered images
+is kept, the others are reported; a mapping that registers fewer than ``min_registered_fraction``
+of the images escalates (loop and look-alike pairs, every pair, the original photos of a
+downscaled capture, a lower initial angle), then continues partial with the largest model
+(``status: partial``, the photos left out in ``unregistered_images``) when it holds at least
+``partial_min_fraction``, or fails naming the likely cause and the settings to try.
 
 Frame normalisation (downstream works in a z-up world, ground near z=0): without ground
 truth, up is estimated from the cameras held upright (:func:`anigs.sfm.align.estimate_up`) and rotated onto
@@ -63,20 +63,18 @@ from anigs.cameras import Camera, load_cameras, save_cameras
 from anigs.io import write_json, write_npz
 from anigs.photos import check_images, image_headers, list_images, report_unreadable, require_min_images
 from anigs.sfm.config import MAPPERS, MATCHERS, UNDISTORTED_MODELS, SfmConfig
+from anigs.sfm.escalate import Source, SfmError, map_escalating, rescale_model
+from anigs.sfm.rematch import matching_kwargs
 from anigs.sfm.model import (find_model_dir, reconstruction_cameras, reconstruction_points, replace_dir,
                              to_sim3d)
 from anigs.sfm.bundle import adjust_intrinsics, refine_fine_scale
-from anigs.sfm.plan import choose_matcher, initial_pair_angle, resolve_threads, similar_pairs
+from anigs.sfm.plan import choose_matcher, resolve_threads, similar_pairs
 
 __all__ = ["MAPPERS", "MATCHERS", "UNDISTORTED_MODELS", "SfmConfig", "SfmError", "SfmResult", "extract_and_match",
-           "map_with_retries", "reconstruction_cameras", "reconstruction_points", "refine_model", "resolve_config",
+           "reconstruction_cameras", "reconstruction_points", "refine_model", "resolve_config",
            "run_mapper", "run_sfm", "select_model"]
 
 log = logging.getLogger(__name__)
-
-
-class SfmError(RuntimeError):
-    """Structure from motion did not produce a usable reconstruction."""
 
 
 @dataclass
@@ -99,7 +97,7 @@ def resolve_config(cfg: SfmConfig, cli_threads: int | None = None) -> tuple[SfmC
     """``cfg`` with the thread counts resolved (:func:`anigs.sfm.plan.resolve_threads`).
 
     ``matcher: auto`` needs the keypoint count (:func:`extract_and_match` resolves it) and
-    ``init_min_tri_angle: auto`` the matches (:func:`map_with_retries`). Returns the config and
+    ``init_min_tri_angle: auto`` the matches (:func:`anigs.sfm.escalate.map_escalating`). Returns the config and
     the report entry.
     """
     threads = resolve_threads(cfg.num_threads, cli_threads)
@@ -175,12 +173,7 @@ def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: Sf
                                   cfg.exhaustive_max_comparisons, keypoints_per_image)
     if cfg.matcher == "auto":
         log.info("sfm: matcher %s (%s)", matcher, why["reason"])
-    match = pycolmap.FeatureMatchingOptions()
-    match.num_threads = cfg.num_threads
-    match.use_gpu = device == pycolmap.Device.cuda
-    verify = pycolmap.TwoViewGeometryOptions()
-    verify.ransac.random_seed = cfg.seed
-    kw = {"matching_options": match, "verification_options": verify, "device": device}
+    kw = matching_kwargs(cfg, device)
     extra_pairs = 0
     if matcher == "exhaustive":
         pycolmap.match_exhaustive(database, **kw)
@@ -264,69 +257,6 @@ def select_model(models: dict) -> tuple[Any, list[int]]:
     return ranked[0], [int(r.num_reg_images()) for r in ranked]
 
 
-def map_with_retries(database: Path, image_dir: Path, work: Path, cfg: SfmConfig,
-                     names: list[str]) -> tuple[Any, dict]:
-    """Mapping with the retry policy of the module docstring.
-
-    ``init_min_tri_angle: auto`` is resolved from the matches in ``database``
-    (:func:`anigs.sfm.plan.initial_pair_angle`); the retry runs only when its angle is below the
-    first attempt's (or the first attempt was the global mapper).
-    Returns the chosen ``pycolmap.Reconstruction`` and a report with every attempt.
-    Raises :class:`SfmError` naming registered/total when no attempt registers enough.
-    """
-    total = len(names)
-    need = cfg.min_registered_fraction * total
-    angle, auto_angle = cfg.init_min_tri_angle, None
-    if angle == "auto":
-        if cfg.mapper == "incremental":
-            angle, auto_angle = initial_pair_angle(database)
-            log.info("sfm: initial-pair angle %g degrees (largest pair angle %s degrees)", angle,
-                     auto_angle.get("largest_pair_angle_deg"))
-        else:
-            angle = 16.0
-    attempts = [(cfg.mapper, angle)]
-    retry = cfg.retry_init_min_tri_angle
-    if retry is not None and (cfg.mapper != "incremental" or retry < angle):
-        attempts.append(("incremental", retry))
-    tried, best, best_sizes = [], None, []
-    for i, (mapper, angle) in enumerate(attempts):
-        if i > 0:
-            log.warning("retrying mapping with init_min_tri_angle=%g degrees (was %s)", angle,
-                        tried[-1]["result"])
-        t0, c0 = time.perf_counter(), cpu_seconds()
-        entry = {"mapper": mapper, "init_min_tri_angle": angle if mapper == "incremental" else None}
-        try:
-            models = run_mapper(database, image_dir, work / f"mapping{i}", cfg, names, mapper, angle)
-            error = None
-        except Exception as exc:  # COLMAP raises RuntimeError / ValueError on failures
-            models, error = {}, f"{type(exc).__name__}: {exc}"
-        chosen, sizes = select_model(models)
-        reg = sizes[0] if sizes else 0
-        entry.update(seconds=time.perf_counter() - t0, cpu_seconds=cpu_seconds() - c0, models=sizes, registered=reg,
-                     result=error or ("no model" if not sizes else f"registered {reg}/{total}"))
-        tried.append(entry)
-        log.info("mapping attempt %d (%s, init_min_tri_angle=%s): %s, models %s", i + 1, mapper,
-                 entry["init_min_tri_angle"], entry["result"], sizes)
-        if chosen is not None and (best is None or reg > best.num_reg_images()):
-            best, best_sizes = chosen, sizes
-        if chosen is not None and reg >= need:
-            break
-    report = {"attempts": tried, "retries": len(tried) - 1, "init_min_tri_angle_auto": auto_angle}
-    reg = int(best.num_reg_images()) if best is not None else 0
-    if best is None or reg < need:
-        detail = "; ".join(f"attempt {k + 1} ({a['mapper']}, init_min_tri_angle={a['init_min_tri_angle']}): "
-                           f"{a['result']} (models {a['models']})" for k, a in enumerate(tried))
-        raise SfmError(f"structure from motion registered {reg}/{total} images, below "
-                       f"min_registered_fraction={cfg.min_registered_fraction} "
-                       f"(need {int(np.ceil(need))}); {detail}")
-    report["models_found"] = best_sizes
-    if len(best_sizes) > 1:
-        log.warning("mapping produced %d models with %s registered images; keeping the largest (%d/%d)",
-                    len(best_sizes), best_sizes, reg, total)
-    report["other_models"] = best_sizes[1:]
-    return best, report
-
-
 # ---- refinement ------------------------------------------------------------------------------
 
 def refine_model(rec, database: Path, cfg: SfmConfig) -> dict:
@@ -350,11 +280,31 @@ def refine_model(rec, database: Path, cfg: SfmConfig) -> dict:
     return {"applied": True, **report}
 
 
+def larger_originals(originals: str | Path | None, headers: dict) -> Path | None:
+    """``originals`` when it holds a larger photo (after EXIF rotation) for every capture image, else None."""
+    if originals is None or not Path(originals).is_dir():
+        return None
+    from anigs.photos import image_headers, list_images
+
+    by_stem = {p.stem: p for p in list_images(originals)}
+    stems = {Path(n).stem: wh for n, wh in headers.items()}
+    if not set(stems) <= set(by_stem):
+        return None
+    orig = image_headers([by_stem[s] for s in stems])
+    for s, (w, h, _) in stems.items():
+        ow, oh, o = orig[by_stem[s].name]
+        if o in (5, 6, 7, 8):
+            ow, oh = oh, ow
+        if max(ow, oh) <= max(w, h):
+            return None
+    return Path(originals)
+
+
 # ---- the stage -----------------------------------------------------------------------------------
 
 def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = None,
             gt_cameras: str | Path | None = None, model_dir: str | Path | None = None,
-            keep_work: bool = False, threads: int | None = None) -> SfmResult:
+            keep_work: bool = False, threads: int | None = None, originals: str | Path | None = None) -> SfmResult:
     """Run the whole stage; see the module docstring for steps, failures and outputs.
 
     Args:
@@ -366,6 +316,8 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
             and mapping (registration is still checked against the images in ``image_dir``).
         keep_work: keep the COLMAP database and raw models in ``out_dir/work``.
         threads: ``anigs --threads`` (what Snakemake gives the job): the count ``num_threads: -1`` means.
+        originals: folder of the photos ``image_dir`` was downscaled from (same stems): the
+            escalation's ``original_resolution`` step (:mod:`anigs.sfm.escalate`) uses them.
     """
     import pycolmap
 
@@ -410,6 +362,7 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
                 raise SfmError(f"COLMAP model {model_dir} registers {reg}/{total} images, below "
                                f"min_registered_fraction={cfg.min_registered_fraction}")
             report["mapping"] = {"source": str(model_dir), "models_found": [reg], "other_models": [], "retries": 0}
+            report["status"] = "complete"
             report["refine"] = {"applied": False, "reason": "existing model (no feature database)"}
         else:
             stats = extract_and_match(work / "database.db", image_dir, names, cfg, mode)
@@ -420,17 +373,24 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
             report["auto"]["matcher_choice"] = stats.pop("matcher_choice", None)
             report["features"] = stats
             t0, c0 = time.perf_counter(), cpu_seconds()
-            rec, report["mapping"] = map_with_retries(work / "database.db", image_dir, work, cfg, names)
+            first = Source(work / "database.db", image_dir, "capture", report["auto"]["matcher"])
+            outcome = map_escalating(first, work, cfg, names, _device(cfg) if first.database.exists() else None,
+                                     originals=larger_originals(originals, headers), mode=mode)
+            rec, report["mapping"], report["status"] = outcome.rec, outcome.report, outcome.status
             report["timings_s"]["mapping"], report["cpu_s"]["mapping"] = time.perf_counter() - t0, cpu_seconds() - c0
             t0, c0 = time.perf_counter(), cpu_seconds()
-            report["refine"] = refine_model(rec, work / "database.db", cfg)
+            report["refine"] = refine_model(rec, outcome.source.database, cfg)
             if cfg.mapper_holds_distortion() and not report["refine"]["applied"]:
                 report["refine"]["intrinsics_adjustment"] = adjust_intrinsics(rec, cfg.mapper_num_threads)
+            if outcome.source.resolution == "original":
+                report["mapping"]["rescaled_from_original"] = rescale_model(
+                    rec, {n: (w, h) for n, (w, h, _) in headers.items()})
             report["timings_s"]["refine"], report["cpu_s"]["refine"] = time.perf_counter() - t0, cpu_seconds() - c0
         report["registered"] = int(rec.num_reg_images())
         report["registered_fraction"] = report["registered"] / total
         registered = sorted(rec.images[i].name for i in rec.reg_image_ids())
         report["unregistered_images"] = sorted(set(names) - set(registered))
+        report["partial"] = report["status"] == "partial"
 
         # undistortion: every camera the stage writes is PINHOLE / SIMPLE_PINHOLE
         t0, c0 = time.perf_counter(), cpu_seconds()
@@ -499,6 +459,7 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
         for pattern in (".images.*", ".sparse.*"):
             for leftover in out_dir.glob(pattern):
                 shutil.rmtree(leftover, ignore_errors=True)
-    log.info("sfm: registered %d/%d images, %d points, %.1f s", report["registered"], total,
-             report["num_points"], report["timings_s"]["total"])
+    log.info("sfm: registered %d/%d images, %d points, %.1f s%s", report["registered"], total,
+             report["num_points"], report["timings_s"]["total"],
+             f"; PARTIAL, left out: {', '.join(report['unregistered_images'])}" if report["partial"] else "")
     return SfmResult(cams, pts["xyz"], pts["rgb"], report)

@@ -32,7 +32,9 @@ class SfmConfig:
     mapper: str = "incremental"  # incremental | global
     init_min_tri_angle: Union[float, str] = "auto"  # incremental mapper's initial-pair triangulation angle (deg); auto: the largest of 16, 8, 4, 2, 1 that a matched pair reaches (COLMAP would otherwise search all pairs again at each halving)
     retry_init_min_tri_angle: Optional[float] = 4.0  # angle of the retry when the first mapping registers too few (runs only when below the first angle); None disables the retry
-    min_registered_fraction: float = 0.8  # fewer registered images than this fraction is an error
+    min_registered_fraction: float = 0.8  # a model with fewer registered images than this fraction escalates (anigs.sfm.escalate), then continues partial or fails
+    escalate: bool = True  # too few registered: add loop and look-alike pairs, then match every pair, then try the original photos of a downscaled capture, then the lower angle (false: only the lower angle)
+    partial_min_fraction: float = 0.5  # below min_registered_fraction after escalating, continue with the largest model when it holds at least this fraction (the run is marked partial and the photos left out listed); below it, an error naming the likely cause
     refine: bool = True  # after mapping, bundle-adjust the cameras on the finest-scale keypoints (anigs.sfm.bundle)
     refine_max_keypoint_scale: float = 1.3  # refinement keeps keypoints up to this scale (sigma, px of the image SIFT ran on)
     refine_min_observations: int = 60  # refinement keeps at least this many (finest) observations per image
@@ -77,6 +79,8 @@ class SfmConfig:
             raise ValueError(f"sfm.device {self.device!r} not in ('auto', 'cpu', 'cuda')")
         if not 0 < self.min_registered_fraction <= 1:
             raise ValueError(f"sfm.min_registered_fraction must be in (0, 1], got {self.min_registered_fraction}")
+        if not 0 < self.partial_min_fraction <= 1:
+            raise ValueError(f"sfm.partial_min_fraction must be in (0, 1], got {self.partial_min_fraction}")
         if self.camera_height is not None and not self.camera_height > 0:
             raise ValueError(f"sfm.camera_height must be > 0 or null, got {self.camera_height}")
         if not 0 <= self.ground_percentile <= 100:

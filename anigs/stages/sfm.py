@@ -24,7 +24,21 @@ def run(images: str | Path, out: str | Path, cfg: SfmConfig, gt_cameras: str | P
     from anigs.sfm.colmap import run_sfm
 
     return run_sfm(images, out, cfg, gt_cameras=gt_cameras, model_dir=model_dir, keep_work=keep_work,
-                   threads=threads).report
+                   threads=threads, originals=original_photos(images)).report
+
+
+def original_photos(images: str | Path) -> Path | None:
+    """The folder of the user's photos that ``images`` was imported from (``capture.json`` beside
+    ``images``, photos source), when it still exists; the sfm escalation tries them at full size."""
+    import json
+
+    summary = Path(images).parent / "capture.json"
+    try:
+        info = json.loads(summary.read_text())
+    except (OSError, ValueError):
+        return None
+    src = info.get("photos") if info.get("source") == "photos" else None
+    return Path(src) if src and Path(src).is_dir() else None
 
 
 # ---- command line: anigs sfm ----
@@ -48,6 +62,8 @@ def main(args: argparse.Namespace) -> int:
     r = run(args.images, args.out, SfmConfig.from_dict(parse_params(args.params)), gt_cameras=args.gt_cameras,
             model_dir=args.model, keep_work=args.keep_work, threads=getattr(args, "threads", None))
     line = f"registered {r['registered']}/{r['images']} images, {r['num_points']} points"
+    if r.get("partial"):
+        line += f" (PARTIAL: left out {', '.join(r['unregistered_images'])})"
     if "gt_errors" in r:
         e = r["gt_errors"]
         line += (f"; rotation error mean {e['rotation_error_deg']['mean']:.3f} max "

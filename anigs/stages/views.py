@@ -54,6 +54,7 @@ class ViewsInputs:
     motion: str | None = None
     gt_gaussians: str | None = None
     gt_cameras: str | None = None
+    points: str | None = None   # SfM points.npz (xyz): the content test's near-points part
 
 
 def find_mask(masks_dir: Path, cam: Camera) -> Path | None:
@@ -131,8 +132,14 @@ def run(inputs: ViewsInputs, cfg: ViewsConfig, dynamic_labels: list[int] | None 
         fallback = (f"no region of interest ({source} marks none of the {g.num} Gaussians dynamic): "
                     "the views look at the whole scene, and nothing will move")
         log.warning("views: %s", fallback)
+    points = None
+    if inputs.points:
+        from anigs.sfm.model import load_points
+
+        points = load_points(inputs.points)[0]
     plan = plan_views(g, roi if roi.any() else np.ones_like(roi), cameras, cfg,
-                      keep_all=None if fallback is None else "roi_fallback: the ROI is the whole scene")
+                      keep_all=None if fallback is None else "roi_fallback: the ROI is the whole scene",
+                      points=points)
     out.mkdir(parents=True, exist_ok=True)
     payload = plan.to_json()
     payload.update({"roi_source": source, "num_gaussians": g.num, "num_roi": int(roi.sum()),
@@ -164,6 +171,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--dynamic-labels", type=int, nargs="+", default=None,
                    help="label ids that move (with --labels, instead of --motion)")
     p.add_argument("--gt-gaussians", help="PLY the --labels belong to when it is not the canonical set")
+    p.add_argument("--points", help="SfM points.npz (xyz): a sharp Gaussian lies near them (views.near_points)")
     p.add_argument("--gt-cameras", help="cameras in the frame of --gt-gaussians, matched by name to --cameras "
                                         "to align the frames (default: same frame)")
     add_out(p, "output folder (views.json, topdown.png, dynamic.npy)")

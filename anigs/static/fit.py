@@ -27,6 +27,7 @@ from anigs.cameras import Camera
 from anigs.configs import reject_unknown_keys
 from anigs.static.densify import (DensifyConfig, DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
+from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, last_densify_step, prune_rows
 from anigs.device import get_device, seed_everything
 from anigs.fused_ssim import fused_ssim
 from anigs.geometry.extent import scene_extent
@@ -67,6 +68,7 @@ class FitConfig:
     device: str = "auto"
     backend: str = "auto"  # rasterizer backend
     densify: DensifyConfig = field(default_factory=DensifyConfig)
+    regularize: RegularizeConfig = field(default_factory=RegularizeConfig)  # needles / unresolved splats
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "FitConfig":
@@ -74,6 +76,8 @@ class FitConfig:
         reject_unknown_keys(FitConfig, d, "static config", ValueError)
         if "densify" in d and not isinstance(d["densify"], DensifyConfig):
             d["densify"] = DensifyConfig.from_dict(d["densify"])
+        if "regularize" in d and not isinstance(d["regularize"], RegularizeConfig):
+            d["regularize"] = RegularizeConfig.from_dict(d["regularize"])
         if "background" in d:
             d["background"] = tuple(float(x) for x in d["background"])
         cfg = FitConfig(**d)
@@ -96,6 +100,7 @@ class FitConfig:
         if not 0 < self.init_opacity < 1:
             raise ValueError(f"static.init_opacity must be in (0,1), got {self.init_opacity}")
         self.densify.validate()
+        self.regularize.validate()
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -404,6 +409,8 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     densify_cfg = schedule_for(cfg.densify, cfg.iterations)
     means_group = next(g for g in optimizer.param_groups if g["name"] == "means")  # refine keeps the groups
     train_mats = [(c.torch_viewmat(device), c.torch_K(device)) for c in train_cams]
+    reg = NeedleRegularizer(cfg.regularize, extent, train_cams, train_mats)
+    last_densify = last_densify_step(densify_cfg.start, densify_cfg.stop, densify_cfg.every, cfg.iterations)
     step_seconds: list[float] = []  # per step, checkpoints and evaluations excluded
     last_refine = 0  # last step whose refinement changed the set
     for step in range(1, cfg.iterations + 1):
@@ -436,6 +443,9 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         if eval_due:
             curve.append(checkpoint(step, deg))  # before refinement: an opacity reset would hide the progress
         aside = time.perf_counter() - aside
+        reg.after_step(params)
+        if due and step % densify_cfg.every == 0 and step >= densify_cfg.start:
+            reg.decay(params, step, last=step == last_densify)
         params = refine(params, optimizer, dstate, step, densify_cfg, extent, gen)
         if due:
             last_refine = step
@@ -448,6 +458,9 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         bar.close()
     guard.check()
 
+    keep = reg.final_keep(params)
+    if keep is not None:
+        params = prune_rows(params, optimizer, keep)
     final_deg = min(cfg.sh_degree, max(deg, 0))
     if cfg.iterations > 0:
         curve.append(checkpoint(cfg.iterations, final_deg))
@@ -466,7 +479,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         "seconds": time.perf_counter() - t_start, "train_seconds": train_seconds, "eval_seconds": eval_seconds,
         "train_cpu_seconds": curve[-1]["train_cpu_seconds"], "torch_threads": torch.get_num_threads(),
         "scene_extent": extent, "sh_degree": cfg.sh_degree, "active_sh_degree": final_deg,
-        "holdout": [cameras[i].name for i in test_idx], "curve": curve,
+        "holdout": [cameras[i].name for i in test_idx], "curve": curve, "regularize": reg.report(params),
         **_step_summary(step_seconds, last_refine),
     }
     log.info("static fit done: %d Gaussians, held-out PSNR %.2f dB, train PSNR %.2f dB, %.1f s",

@@ -148,7 +148,7 @@ def select_answers(records: Sequence[tuple[str, Any]], manifest: dict[str, Any] 
         by_pid[a["participant"]].append((src, a))
     answers: list[dict[str, Any]] = []
     catch: list[dict[str, Any]] = []
-    for pid, items in by_pid.items():
+    for items in by_pid.values():
         expected = (len(pairs) if pairs else items[0][1]["n_trials"]) * n_questions
         failed = sum(catch_failed(a) for _, a in items)
         checks = [a for _, a in items if is_catch(a)]

@@ -47,6 +47,13 @@ class ViewsConfig:
     match_capture_fov: bool = True    # forward/orbit layouts: FOV at most the capture photos' median FOV
     min_dynamic_fraction: float = 0.005  # a view is queued only if the ROI covers >= this share of its pixels (pixels the masks stage would mark: ROI carries >= 0.5 of the rendered alpha, alpha >= 0.3); 0 queues every view
     topdown_size: int = 720         # pixels of the top-down map (views/topdown.png)
+    min_content: float = 0.5          # min share of a view's pixels dominated by sharp Gaussians (anigs.views.content); 0 disables the test
+    sharp_fraction: float = 0.05      # a capture photo resolves a Gaussian when its largest std dev spans <= this x its width
+    min_sharp_observations: int = 2   # a sharp Gaussian is resolved by >= this many capture photos
+    footprint_ratio: float = 6.0      # ... its largest scale is <= this x the median of its 16 nearest neighbours'
+    near_points: float = 3.0          # ... and its centre lies within this x the local spacing of the nearest SfM point (with --points)
+    min_edge_share: float = 0.0       # min share of a view's render within 4 px of an edge (abs Laplacian of grey > 6 at 0-255); 0: recorded, not applied
+    background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])  # render background of the edge figure (the scene's sky colour)
 
     def __post_init__(self) -> None:
         if self.layout not in ("auto",) + geometry.LAYOUTS:
@@ -79,10 +86,28 @@ class ViewsConfig:
         if self.heading_step_deg <= 0:
             raise ValueError(f"views.heading_step_deg must be > 0, got {self.heading_step_deg}")
         VisibilityConfig(mode=self.visibility)  # validates the mode name
+        if not 0.0 <= self.min_content <= 1.0 or not 0.0 <= self.min_edge_share <= 1.0:
+            raise ValueError(f"views.min_content and views.min_edge_share must be in [0, 1], "
+                             f"got {self.min_content}, {self.min_edge_share}")
+        if self.sharp_fraction <= 0 or self.footprint_ratio <= 0 or self.near_points <= 0 or self.min_sharp_observations < 0:
+            raise ValueError("views.sharp_fraction, footprint_ratio and near_points must be > 0 and "
+                             "min_sharp_observations >= 0")
+        if len(self.background) != 3 or not all(0.0 <= float(x) <= 1.0 for x in self.background):
+            raise ValueError(f"views.background must be 3 values in [0, 1], got {self.background}")
+        self.background = [float(x) for x in self.background]
 
     @staticmethod
     def from_dict(d: dict | None) -> "ViewsConfig":
         return from_dict(ViewsConfig, d, "views config")
+
+    def content_rule(self):
+        """The sharp-Gaussian test and content figure (:class:`anigs.views.content.ContentRule`)."""
+        from anigs.views.content import ContentRule
+
+        return ContentRule(min_content=self.min_content, sharp_fraction=self.sharp_fraction,
+                           min_sharp_observations=self.min_sharp_observations,
+                           footprint_ratio=self.footprint_ratio, near_points=self.near_points,
+                           alpha=self.coverage_alpha, min_weight=self.min_weight)
 
     def visibility_config(self) -> VisibilityConfig:
         return VisibilityConfig(mode=self.visibility, rel_tol=self.rel_tol, scale_tol=self.scale_tol,

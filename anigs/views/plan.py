@@ -19,6 +19,7 @@ from anigs.views.config import ViewsConfig
 from anigs.views.coverage import (DYNAMIC_ALPHA, DYNAMIC_SHARE, _rel_deg, capture_pitch_deg, dynamic_fraction,
                                   observation_counts, replacement_directions, scene_coverage)
 from anigs.masks.lift import VisibilityConfig, visibility
+from anigs.views.content import ContentCheck, sharp_gaussians
 
 log = logging.getLogger("anigs.views")
 
@@ -47,6 +48,7 @@ class ViewPlan:
     up_estimate: dict[str, Any] | None = None      # geometry.estimate_up report (up: auto)
     dropped: list[dict[str, Any]] = field(default_factory=list)   # views left out: negligible dynamic region
     dynamic_rule: dict[str, Any] | None = None     # the negligible-view test (None: min_dynamic_fraction 0)
+    content_rule: dict[str, Any] | None = None     # the content test (anigs.views.content.ContentCheck.to_json)
 
     def dynamic_json(self) -> dict[str, Any]:
         """The ``dynamic_fraction`` section of ``views.json`` (see :func:`drop_negligible`)."""
@@ -60,6 +62,9 @@ class ViewPlan:
             "scene_coverage": {**self.coverage_rule, "per_view": [v.get("coverage") for v in self.views],
                                "rejected": self.rejected},
             **({} if self.dynamic_rule is None else {"dynamic_fraction": self.dynamic_json()}),
+            **({} if self.content_rule is None else {"content": {
+                **self.content_rule, "per_view": [v.get("content") for v in self.views],
+                "edge_share_per_view": [v.get("edge_share") for v in self.views]}}),
             "up_estimate": self.up_estimate,
             "coverage_after": self.coverage_after,
             "frustum_coverage_after": self.frustum_coverage_after,
@@ -114,7 +119,7 @@ def drop_negligible(g: Gaussians, roi: np.ndarray, cams: Sequence[Camera], cfg: 
 
 def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
                cfg: ViewsConfig | None = None, observations: np.ndarray | None = None,
-               keep_all: str | None = None) -> ViewPlan:
+               keep_all: str | None = None, points: np.ndarray | None = None) -> ViewPlan:
     """Build the view queue.
 
     Args:
@@ -125,6 +130,7 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
             ``cameras`` with the configured visibility test when None).
         keep_all: a reason to queue every placed view, whatever its dynamic fraction (the
             stage passes its whole-scene ROI fallback); None applies ``min_dynamic_fraction``.
+        points: the SfM points [P,3] (the content test's ``near_points``; None skips that part).
     """
     cfg = cfg or ViewsConfig()
     roi = np.asarray(roi)
@@ -139,6 +145,9 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
     means = gaussians.means.detach().double().numpy()
     g = gaussians.detach()
     vcfg = cfg.visibility_config()
+    check = content_check(g, cameras, cfg, points)
+    if observations is None and cfg.visibility == "weight":
+        observations = check.sharp.observations  # the same test, counted in the same pass
     if observations is None:
         log.info("views: counting observations of %d Gaussians in %d capture photos", g.num, len(cameras))
         observations = observation_counts(g, cameras, vcfg)
@@ -218,14 +227,16 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
     order = ccw_order(flat(cand[chosen]), flat(centroid), first=0)
     chosen = [chosen[i] for i in order]
 
-    cov_cache: dict[tuple, float] = {}
+    cov_cache: dict[tuple, tuple[float, dict[str, float] | None]] = {}
 
-    def coverage_of(ci: int, yaw: float, pitch: float) -> tuple[Camera, float]:
+    def coverage_of(ci: int, yaw: float, pitch: float) -> tuple[Camera, float, dict[str, float] | None]:
+        """The view's camera, scene coverage and content figures (None when the coverage fails)."""
         cam = view_camera(cand[ci], _heading_vec(heading[ci]), up, yaw, pitch, fov, cfg.width, cfg.height)
         key = (ci, round(_rel_deg(yaw), 6), round(pitch, 6))
         if key not in cov_cache:
-            cov_cache[key] = scene_coverage(g_obs, cam, cfg.coverage_alpha)
-        return cam, cov_cache[key]
+            cov = scene_coverage(g_obs, cam, cfg.coverage_alpha)
+            cov_cache[key] = cov, (check.measure(cam) if cov >= cfg.min_coverage else None)
+        return cam, *cov_cache[key]
 
     def _heading_vec(h_deg: float) -> np.ndarray:
         h = math.radians(h_deg)
@@ -233,6 +244,7 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
 
     rejected: list[dict[str, Any]] = []
     used: dict[int, list[tuple[float, float]]] = {}
+    figures: dict[int, dict[str, float]] = {}  # content figures of the placed cameras (by id)
 
     def place(ci: int, loc: int, yaw: float) -> tuple[Camera, float, float, float] | None:
         """First direction at candidate ``ci`` for requested ``yaw`` that passes the coverage test."""
@@ -241,13 +253,16 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
         for y, p in replacement_directions(yaw, base_pitch, roi_rel, cfg):
             if any(abs(_rel_deg(y - uy)) < 1e-6 and abs(p - up_) < 1e-6 for uy, up_ in used.get(ci, [])):
                 continue
-            cam, cov = coverage_of(ci, y, p)
-            if cov >= cfg.min_coverage:
+            cam, cov, fig = coverage_of(ci, y, p)
+            why = (f"coverage {cov:.2f} < min_coverage {cfg.min_coverage:g}" if fig is None
+                   else check.failure(fig))
+            if why is None:
                 used.setdefault(ci, []).append((y, p))
+                figures[id(cam)] = fig
                 return cam, cov, y, p
             rejected.append({"location": loc, "candidate": int(ci), "requested_yaw": float(yaw), "yaw": float(y),
-                             "pitch": float(p), "coverage": cov, "position": cand[ci].tolist(),
-                             "forward": cam.forward.tolist()})
+                             "pitch": float(p), "coverage": cov, **(fig or {}), "reason": why,
+                             "position": cand[ci].tolist(), "forward": cam.forward.tolist()})
         return None
 
     slots: list[tuple[int, int, float, tuple]] = []   # (location, candidate, requested yaw, placed)
@@ -276,8 +291,9 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
             chosen.append(ci)
     if missing:
         log.warning("views: %d direction(s) (yaw %s) pass the coverage test (>= %.0f%% of pixels on Gaussians "
-                    "seen in >= %d photos) nowhere: left out of the queue", len(missing),
-                    ", ".join(f"{y:+.0f}" for y in missing), 100 * cfg.min_coverage, cfg.min_observations)
+                    "seen in >= %d photos) and the content test (>= %.0f%% of pixels on sharp Gaussians) nowhere: "
+                    "left out of the queue", len(missing), ", ".join(f"{y:+.0f}" for y in missing),
+                    100 * cfg.min_coverage, cfg.min_observations, 100 * cfg.min_content)
     if rejected:
         log.info("views: %d direction(s) rejected by the coverage test and replaced", len(rejected))
     keep, fractions, dyn_rule = drop_negligible(g, roi, [s[3][0] for s in slots], cfg, keep_all)
@@ -323,6 +339,7 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
             "roi_visible": roi_seen, "roi_visible_fraction": roi_seen / n_roi, "visible": n_seen,
             "coverage": cov, "requested_yaw": float(req_yaw), "fov_deg": fov,
             "replaced": bool(abs(yaw - req_yaw) > 1e-9 or abs(pitch - base_pitch) > 1e-9 or loc >= cfg.num_locations),
+            **figures[id(cam)],
         }
         if dyn is not None:
             entry["dynamic_fraction"] = dyn
@@ -349,14 +366,23 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
         views.append(entry)
         cams.append(cam)
         seen_by_view.append(seen)
-    log.info("views: %d views at %d locations (layout %s); scene coverage per view: %s; ROI coverage after each "
-             "view: %s (reachable from all candidates: %.1f%%)", len(views), len(chosen), layout.kind,
-             " ".join(f"{v['coverage']:.2f}" for v in views),
+    log.info("views: %d views at %d locations (layout %s); scene coverage per view: %s; content: %s; edge share: "
+             "%s; ROI coverage after each view: %s (reachable from all candidates: %.1f%%)", len(views), len(chosen),
+             layout.kind, " ".join(f"{v['coverage']:.2f}" for v in views),
+             " ".join(f"{v['content']:.2f}" for v in views),
+             " ".join(f"{v['edge_share']:.2f}" for v in views),
              " ".join(f"{100 * c:.1f}%" for c in coverage_after), 100 * reachable)
     rule = {"min": cfg.min_coverage, "alpha": cfg.coverage_alpha, "min_observations": cfg.min_observations,
             "observed_gaussians": int(observed.sum())}
     return ViewPlan(views, cams, cand, cand_vis, heading, chosen, centroid, up, coverage_after, reachable, seen_by_view,
-                    cand_seen, frustum_after, layout, rejected, rule, up_report, dropped, dyn_rule)
+                    cand_seen, frustum_after, layout, rejected, rule, up_report, dropped, dyn_rule, check.to_json())
+
+
+def content_check(g: Gaussians, cameras: Sequence[Camera], cfg: ViewsConfig,
+                  points: np.ndarray | None) -> ContentCheck:
+    """The content test of the plan (:mod:`anigs.views.content`): its sharp Gaussians from the capture."""
+    sharp = sharp_gaussians(g, cameras, cfg.content_rule(), points)
+    return ContentCheck(g, sharp, cfg.content_rule(), cfg.background, cfg.min_edge_share)
 
 
 def cameras_from_views(data: dict) -> list[Camera]:

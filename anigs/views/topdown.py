@@ -17,6 +17,7 @@ from anigs.views.plan import ViewPlan
 
 # BGR colours
 _REJECTED = (40, 40, 140)
+_NO_CONTENT = (0, 120, 230)  # rejected by the content test (anigs.views.content): orange
 _DROPPED = (150, 150, 40)
 _DIR_COLOURS = [(200, 90, 20), (0, 140, 255), (180, 40, 180), (40, 160, 40), (30, 30, 200)]
 
@@ -89,8 +90,9 @@ def draw_topdown(plan: ViewPlan, means: np.ndarray, roi: np.ndarray, size: int =
         if n < 1e-9:
             continue
         tip = eye + 0.45 * ray * fwd / n
-        cv2.line(img, ipt(eye), ipt(tip), _REJECTED, 1, cv2.LINE_AA)
-        cv2.drawMarker(img, ipt(tip), _REJECTED, cv2.MARKER_TILTED_CROSS, 7, 1, cv2.LINE_AA)
+        col = _NO_CONTENT if str(r.get("reason", "")).startswith(("content", "edge")) else _REJECTED
+        cv2.line(img, ipt(eye), ipt(tip), col, 1, cv2.LINE_AA)
+        cv2.drawMarker(img, ipt(tip), col, cv2.MARKER_TILTED_CROSS, 7, 1, cv2.LINE_AA)
     for d in plan.dropped:  # views left out for a negligible dynamic region: short ray ending in a circle
         eye, fwd = to2(np.asarray(d["position"])), to2(np.asarray(d["forward"]))
         n = np.linalg.norm(fwd)
@@ -104,7 +106,8 @@ def draw_topdown(plan: ViewPlan, means: np.ndarray, roi: np.ndarray, size: int =
         cv2.circle(img, p, 8, (30, 30, 220), -1, cv2.LINE_AA)
         cv2.putText(img, str(i), (p[0] + 9, p[1] - 9), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (30, 30, 220), 2, cv2.LINE_AA)
     y0 = size + 18
-    cv2.putText(img, "grey: scene  green: ROI  circles: candidates  red: locations (CCW order)  x: rejected",
+    cv2.putText(img, "grey: scene  green: ROI  o: candidates  red: locations (CCW)  "
+                "x: rejected (orange: no content)",
                 (8, y0), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
     x = 8
     for j, yaw in enumerate(yaws):
@@ -113,7 +116,9 @@ def draw_topdown(plan: ViewPlan, means: np.ndarray, roi: np.ndarray, size: int =
         x += 90
     if plan.layout is not None:
         dropped = f", {len(plan.dropped)} dropped (o: no dynamic region)" if plan.dropped else ""
-        cv2.putText(img, f"layout {plan.layout.kind}, {len(plan.rejected)} rejected{dropped}", (8, y0 + 38),
+        n_content = sum(str(r.get("reason", "")).startswith(("content", "edge")) for r in plan.rejected)
+        cv2.putText(img, f"layout {plan.layout.kind}, {len(plan.rejected)} rejected ({n_content} for content){dropped}",
+                    (8, y0 + 38),
                     cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
     if plan.coverage_after:
         cv2.putText(img, f"ROI coverage {100 * plan.coverage_after[-1]:.1f}% after {len(plan.views)} views",

@@ -101,7 +101,7 @@ def tiny_fit(images, cameras, init_points, init_colors, iterations: int = 80, se
     opt = torch.optim.Adam([{"params": [means], "lr": 3e-3}, {"params": [col_logit], "lr": 5e-2},
                             {"params": [op_logit], "lr": 5e-2}, {"params": [log_s], "lr": 1e-2}])
     targets = [torch.from_numpy(im) for im in images]
-    for it in range(iterations):
+    for _ in range(iterations):
         v = int(torch.randint(len(cameras), (1,), generator=gen))
         cam = cameras[v]
         rgb, _, _ = rasterize(means, quats, log_s.exp()[:, None].expand(n, 3), torch.sigmoid(op_logit),

@@ -205,7 +205,7 @@ def _tiny_inputs(tmp_path):
     rng = np.random.default_rng(0)
     T, H, W = 12, 32, 40
     x = np.arange(W)
-    for folder, n, seed in (("final", 2, 0), ("ref", 3, 5)):
+    for folder, n in (("final", 2), ("ref", 3)):
         for v in range(n):
             bg = rng.uniform(0, 1, (H, W, 3)).astype(np.float32)
             clip = np.repeat(bg[None], T, 0)

@@ -125,13 +125,13 @@ def test_sds_gradient_reaches_only_the_sampled_frame(tiny_ltx, tau):
 
 @pytest.mark.gpu
 def test_refine_bf16_on_gpu(tiny_ltx):
-    prior = LTXPrior({"model_path": str(tiny_ltx), "device": "cuda", "max_sequence_length": 16, "steps": 3})
-    assert prior.dtype == torch.bfloat16
+    prior = LTXPrior({"model_path": str(tiny_ltx), "device": "auto", "max_sequence_length": 16, "steps": 3})
+    assert prior.device.type == "cuda" and prior.dtype == torch.bfloat16  # auto picks the GPU, bf16 there
     clip = small_clip(17, 64, 96)
     out = prior.refine(clip, None, "trees sway", seed=0, strength=0.7)
     assert out.shape == clip.shape and np.isfinite(out).all()
-    coeffs = torch.zeros(5, device="cuda", requires_grad=True)
-    sub = (torch.from_numpy(clip[:5]).cuda() * (1 + coeffs[:, None, None, None])).clamp(0, 1)
+    coeffs = torch.zeros(5, device=prior.device, requires_grad=True)
+    sub = (torch.from_numpy(clip[:5]).to(prior.device) * (1 + coeffs[:, None, None, None])).clamp(0, 1)
     loss = prior.sds_loss(sub, "trees sway", torch.Generator().manual_seed(0))
     loss.backward()
     assert torch.isfinite(loss) and torch.isfinite(coeffs.grad).all()

@@ -24,7 +24,7 @@ def test_fit_reaches_30db():
         {"params": [means], "lr": 2e-3}, {"params": [quats], "lr": 1e-2}, {"params": [log_s], "lr": 1e-2},
         {"params": [logit_o], "lr": 5e-2}, {"params": [colors], "lr": 5e-2}])
     start = None
-    for it in range(600):
+    for _ in range(600):
         rgb, _, _ = rasterize(means, quats, log_s.exp(), torch.sigmoid(logit_o), torch.sigmoid(colors), viewmat, K, W, H)
         loss = (rgb - target).abs().mean()
         if start is None:

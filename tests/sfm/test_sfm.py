@@ -312,19 +312,25 @@ def test_several_models_keep_the_largest(ring, ring_model, tmp_path, monkeypatch
     assert res.report["refine"] == {"applied": False, "reason": "no feature database (model not mapped here)"}
 
 
-def test_too_few_registered_is_an_error_after_retry(ring, ring_model, tmp_path, monkeypatch):
-    part = _partial(ring_model, 14)  # 14/20 = 0.7 < 0.8
+def test_too_few_registered_goes_on_partial_or_fails_after_retry(ring, ring_model, tmp_path, monkeypatch):
+    part = _partial(ring_model, 14)  # 14/20 = 0.7: below 0.8, at least half
     calls = _patch_colmap(monkeypatch, lambda angle: {0: pycolmap.Reconstruction(part)})
-    with pytest.raises(SfmError, match=r"registered 14/20 images") as err:
-        run_sfm(ring["out"] / "images", tmp_path / "sfm", SfmConfig(camera_model="PINHOLE"))
+    res = run_sfm(ring["out"] / "images", tmp_path / "sfm", SfmConfig(camera_model="PINHOLE"))
     assert calls == [16.0, 4.0]
-    assert "init_min_tri_angle=4.0" in str(err.value)
-    assert not (tmp_path / "sfm" / "cameras.json").exists()
-    # a lower threshold accepts the same model
-    res = run_sfm(ring["out"] / "images", tmp_path / "sfm2",
-                  SfmConfig(camera_model="PINHOLE", min_registered_fraction=0.6))
-    assert res.report["registered"] == 14
-    assert len(res.report["unregistered_images"]) == 6
+    assert res.report["status"] == "partial" and res.report["registered"] == 14
+    assert len(res.report["unregistered_images"]) == 6 and len(res.cameras) == 14
+    # below partial_min_fraction it is an error naming registered/total and both attempts
+    calls = _patch_colmap(monkeypatch, lambda angle: {0: pycolmap.Reconstruction(_partial(ring_model, 9))})
+    with pytest.raises(SfmError, match=r"registered 9/20 images") as err:
+        run_sfm(ring["out"] / "images", tmp_path / "sfm2", SfmConfig(camera_model="PINHOLE"))
+    assert calls == [16.0, 4.0]
+    assert "init_min_tri_angle=4.0" in str(err.value) and "Settings to try" in str(err.value)
+    assert not (tmp_path / "sfm2" / "cameras.json").exists()
+    # a lower threshold accepts the same model as complete
+    res = run_sfm(ring["out"] / "images", tmp_path / "sfm3",
+                  SfmConfig(camera_model="PINHOLE", min_registered_fraction=0.4))
+    assert res.report["registered"] == 9 and res.report["status"] == "complete"
+    assert len(res.report["unregistered_images"]) == 11
 
 
 def test_mapping_failure_retries_with_lower_angle(ring, ring_model, tmp_path, monkeypatch, caplog):
@@ -337,6 +343,7 @@ def test_mapping_failure_retries_with_lower_angle(ring, ring_model, tmp_path, mo
     assert calls == [16.0, 4.0]
     attempts = res.report["mapping"]["attempts"]
     assert res.report["mapping"]["retries"] == 1 and "no good initial image pair" in attempts[0]["result"]
+    assert [a["step"] for a in attempts] == ["first", "lower_angle"]
     assert attempts[1]["registered"] == 20
     assert "retrying mapping with init_min_tri_angle=4" in caplog.text
     # a failure with the retry disabled is an error naming 0/20

@@ -295,7 +295,7 @@ def test_nan_loss_is_detected_with_a_non_fused_optimizer(scene, monkeypatch):
 
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=6)
-    real_loss, real_opt = fit_mod.loss_fn, fit_mod.make_optimizer
+    real_loss = fit_mod.loss_fn
     calls = {"n": 0}
 
     def nan_at_7(pred, target, w):

@@ -15,7 +15,7 @@ from tests.masks.test_lift import toy_scene
 
 # cameras on a ring facing the centre: yaw 0 faces the ROI (centroid heading), and with a 60 deg
 # FOV the +-90 views look along the ring, away from the blobs in the middle
-SIDEWAYS = dict(layout="walk", min_coverage=0.0, width=64, height=48, num_locations=3, fov_deg=60.0,
+SIDEWAYS = dict(layout="walk", min_coverage=0.0, min_content=0.0, width=64, height=48, num_locations=3, fov_deg=60.0,
                 forward="centroid")
 OLD_TOP_KEYS = ["views", "layout", "scene_coverage", "up_estimate", "coverage_after", "frustum_coverage_after",
                 "roi_reachable_fraction", "locations", "roi_centroid", "up", "num_candidates", "convention"]
@@ -78,17 +78,27 @@ def test_dropped_views_drawn_on_the_topdown(scene, plans):
     assert (np.abs(img0.astype(int) - _DROPPED).sum(-1) == 0).sum() == 0
 
 
+def _without_content(data: dict) -> dict:
+    """views.json without the content test's section and per-view figures (present whatever the
+    dynamic threshold: anigs.views.content)."""
+    data.pop("content")
+    for v in data["views"]:
+        v.pop("content"), v.pop("edge_share")
+    return data
+
+
 def test_threshold_zero_is_the_old_queue(scene, plans, monkeypatch):
     """min_dynamic_fraction 0: nothing computed, the views.json content has exactly the old keys;
     a threshold every view passes gives the same queue plus the new section and per-view field."""
     import anigs.views.plan as plan_mod
 
     gs, lab, cams = scene
-    old = plans[0.0].to_json()
+    old = _without_content(plans[0.0].to_json())
     assert list(old) == OLD_TOP_KEYS
     assert all(set(v) == OLD_VIEW_KEYS for v in old["views"])
     monkeypatch.setattr(plan_mod, "dynamic_fraction", lambda g, roi, cam: 0.5)
-    every = plan_views(gs, lab == 4, cams, ViewsConfig(**SIDEWAYS, min_dynamic_fraction=0.5)).to_json()
+    every = _without_content(plan_views(gs, lab == 4, cams,
+                                        ViewsConfig(**SIDEWAYS, min_dynamic_fraction=0.5)).to_json())
     sec = every.pop("dynamic_fraction")
     assert sec["dropped"] == [] and sec["per_view"] == [0.5] * 9
     for v in every["views"]:

@@ -200,6 +200,12 @@ def _refine_extra(wc):
     return {"prompt": s.get("prompt", ""), "effects": _gt_effects(wc.scene) or [], "seed": config["seed"]}
 
 
+def _effects_prompt(wc):
+    """The scene's prompt for the effects stage (with `effects: auto` it names the kinds that may move)."""
+    prompt = ALL_SCENES[wc.scene].get("prompt")
+    return {} if prompt is None else {"prompt": str(prompt)}
+
+
 def _effects_json(wc):
     return [] if _gt_effects(wc.scene) is not None else [f"{stage_dir(wc.scene, 'effects')}/effects.json"]
 

@@ -11,7 +11,8 @@ rule sfm:
         sparse=directory(f"{R}/{{scene}}/sfm/sparse"),
         cameras=f"{R}/{{scene}}/sfm/cameras.json",
         points=f"{R}/{{scene}}/sfm/points.npz",
-        report=f"{R}/{{scene}}/sfm/report.json",
+        report=report(f"{R}/{{scene}}/sfm/report.json", caption="../report/sfm.rst",
+                      category="Structure from motion"),
     params:
         p=jparams("sfm"),
         out=lambda wc: f"{R}/{wc.scene}/sfm",

@@ -7,13 +7,14 @@ checkpoint effects:
         ply=stage_path("static", "canonical.ply"),
         cameras=stage_path("sfm", "cameras.json"),
         images=stage_path("sfm", "images"),  # undistorted: the images sfm/cameras.json describes
+        selections=lambda wc: [s["ply"] for s in sec(wc.scene, "effects")["selections"] if "ply" in s],  # SuperSplat exports
     output:
         effects=f"{R}/{{scene}}/effects/effects.json",
         regions=f"{R}/{{scene}}/effects/regions.npy",
         dynamic=f"{R}/{{scene}}/effects/dynamic.npy",
         overview=report(f"{R}/{{scene}}/effects/overview.png", caption="../report/effects.rst", category="Effects"),
     params:
-        p=jparams("effects"),
+        p=jparams("effects", _effects_prompt),
         out=lambda wc: f"{R}/{wc.scene}/effects",
         version=ANIGS_VERSION,
     log:
@@ -36,6 +37,7 @@ checkpoint views:
     input:
         ply=stage_path("static", "canonical.ply"),
         cameras=stage_path("sfm", "cameras.json"),
+        points=stage_path("sfm", "points.npz"),  # the content test: sharp Gaussians lie near SfM points
         roi=_roi_inputs,
         gt=_gt_inputs,
     output:
@@ -57,7 +59,8 @@ checkpoint views:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} views --canonical {input.ply:q} --cameras {input.cameras:q} {params.roi} "
+        "anigs --threads {threads} views --canonical {input.ply:q} --cameras {input.cameras:q} "
+        "--points {input.points:q} {params.roi} "
         "--out {params.out:q} --params {params.p:q} > {log} 2>&1"
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
 SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
 OUT = ROOT / "config" / "README.md"
 
@@ -34,9 +35,9 @@ Each scene is a file `config/scenes/NAME.yaml` listed under `scenes:`. Keys:
 | `source` | `synthetic` (the embedded demo generator) or `photos` (a folder of your photos) |
 | `synthetic` | parameters of the synthetic generator (see `config/scenes/demo.yaml`) |
 | `photos` | folder of JPEG/PNG photos (for `source: photos`); `${NAME}` is replaced by the environment variable NAME when the scene is loaded (unset: an error naming it), so `config/scenes/photos.yaml` (`photos: ${ANIGS_PHOTOS}`) takes the folder at run time |
-| `effects` | `auto` (the default: every effect the `effects` stage finds) or a list of `foliage_sway`, `leaf_flutter`, `grass_wave`, `flower_bob`, `water_ripple` (only those, where found; a listed effect the scene lacks is reported and skipped); nothing else moves. Shorthand of `effects: {requested: ...}` |
-| `background` | `[r, g, b]` in [0, 1]: the sky colour every rendering stage composites onto (static, masks, render_clip, update, final, view, eval's multiview fits) and the synthetic capture is rendered onto; a stage's own `background` wins |
-| `prompt` | text prompt for the video prior |
+| `effects` | `auto` (the default: the effects the `effects` stage finds among the kinds the `prompt` names, see the vocabulary below; every effect it finds when the scene has no prompt) or a list of `foliage_sway`, `leaf_flutter`, `grass_wave`, `flower_bob`, `water_ripple` (only those, where found, whatever the prompt says; a listed effect the scene lacks is reported and skipped); a misspelt name fails when the workflow is parsed; nothing else moves. Shorthand of `effects: {requested: ...}` |
+| `background` | `[r, g, b]` in [0, 1]: the sky colour every rendering stage composites onto (static, masks, render_clip, update, final, view, views (its edge figure), eval's multiview fits) and the synthetic capture is rendered onto; a stage's own `background` wins |
+| `prompt` | text prompt for the video prior; with `effects: auto` it also names the kinds that may move (a prompt that names none gives a still scene) |
 | any stage section | overrides of that section for this scene (e.g. `static: {iterations: 7000}`) |
 
 The effective section a stage receives is: `config.yaml` section <- scene override <- variant
@@ -81,9 +82,21 @@ def _rows(node: dict, prefix: str, out: list[str]) -> None:
             out.append(f"| `{name}` | {t} | {_fmt(p.get('default'))} | {p.get('description', '')} |")
 
 
+VOCABULARY = """## What the prompt names
+
+With `effects: auto` the `effects` stage localises only the kinds of motion the scene's `prompt`
+names, by these words (whole words, any case; a word after "no", "not" or "without" names
+nothing). `effects.json` records which words matched which kinds under `prompt`. The table is
+generated from `anigs/effects/vocabulary.py`.
+
+"""
+
+
 def build() -> str:
+    from anigs.effects.vocabulary import vocabulary_markdown
+
     schema = yaml.safe_load(SCHEMA.read_text())
-    lines = [INTRO, "## Keys", ""]
+    lines = [INTRO, VOCABULARY + vocabulary_markdown() + "\n", "## Keys", ""]
     top, sections = [], []
     for key, p in schema["properties"].items():
         (sections if p.get("type") == "object" and "properties" in p else top).append((key, p))

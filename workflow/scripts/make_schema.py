@@ -163,6 +163,14 @@ def _type(value, annotation) -> list[str] | str:
     return types[0] if len(types) == 1 else types
 
 
+def _special() -> dict:
+    """Extra schema keywords of single keys: effect names are an enum, so a misspelt one in a scene
+    file's `effects:` list fails when the workflow is parsed, naming the valid effects."""
+    from anigs.effects.config import EFFECTS
+
+    return {"effects.requested": {"pattern": "^auto$", "items": {"type": "string", "enum": list(EFFECTS)}}}
+
+
 # Fields a stage sets itself from its section's top level (not user keys of the nested dict).
 EXCLUDE = {("refine", "procedural", "effects"), ("refine", "ltx", "steps")}
 
@@ -187,7 +195,8 @@ def dataclass_schema(cls, path: tuple[str, ...], nest) -> dict:
             p["description"] = desc
             p["default"] = {}
         else:
-            p = {"type": _type(value, hints.get(f.name, "")), "description": desc, "default": value}
+            p = {"type": _type(value, hints.get(f.name, "")), "description": desc, "default": value,
+                 **_special().get(".".join(path + (f.name,)), {})}
         props[f.name] = p
     return {"type": "object", "additionalProperties": False, "properties": props}
 

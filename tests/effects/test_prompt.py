@@ -1,0 +1,137 @@
+"""The prompt names the kinds that may move (anigs.effects.vocabulary), the effects stage follows it
+with `effects: auto`, an explicit list overrides it, and a misspelt effect name in a scene file
+fails when the workflow is parsed."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from anigs.effects.config import REGIONS
+from anigs.effects.vocabulary import SCENE_WORDS, WORDS, prompt_kinds, vocabulary_markdown
+from anigs.stages.effects import choose
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.parametrize("prompt, regions", [
+    ("a garden with trees, bushes, grass and flowers swaying gently in the wind", ["foliage", "grass", "flowers"]),
+    ("plants, leaves and flowers swaying gently in the wind", ["foliage", "flowers"]),
+    ("a building with trees and lawns in the wind", ["foliage", "grass"]),
+    ("a plant with fronds moving", ["foliage"]),
+    ("an object in a room", []),
+    ("a ROSE by the Fountain", ["flowers", "water"]),
+    ("a park", ["foliage", "grass", "flowers"]),
+    ("a room without plants, lit by a lamp", []),
+    ("no flowers, only trees in the wind", ["foliage"]),
+    ("a meadow and a lake", ["grass", "water"]),
+    ("", []),
+])
+def test_prompt_names_kinds(prompt, regions):
+    assert prompt_kinds(prompt).regions == regions
+
+
+def test_every_vocabulary_word_names_its_kind_and_the_table_lists_it():
+    for region, words in WORDS.items():
+        for w in words:
+            k = prompt_kinds(f"a {w} in the wind")
+            assert region in k.regions and k.matches[w] == [r for r in REGIONS if r in k.regions], (w, k)
+    for w, regions in SCENE_WORDS.items():
+        assert prompt_kinds(w).regions == [r for r in REGIONS if r in regions]
+    table = vocabulary_markdown()
+    assert all(w in table for words in WORDS.values() for w in words)
+    assert "garden" in (ROOT / "config" / "README.md").read_text()  # generated into the config docs
+
+
+def test_words_matched_are_recorded():
+    k = prompt_kinds("Trees and a flower bed")
+    assert k.matches == {"trees": ["foliage"], "flower bed": ["flowers"]}
+    assert k.effects == ["foliage_sway", "leaf_flutter", "flower_bob"]
+
+
+def test_choose_follows_the_prompt_unless_a_list_is_given():
+    detected = ["foliage_sway", "leaf_flutter", "flower_bob"]
+    assert choose(detected, "auto", ["foliage_sway", "leaf_flutter"]) == (["foliage_sway", "leaf_flutter"], [])
+    assert choose(detected, "auto", []) == ([], [])
+    assert choose(detected, "auto", ["water_ripple"]) == ([], ["water_ripple"])
+    assert choose(detected, ["flower_bob"], ["foliage_sway"]) == (["flower_bob"], [])  # the list overrides
+
+
+@pytest.fixture(scope="module")
+def garden_stage(tmp_path_factory):
+    """A small garden capture written as the effects stage's inputs."""
+    from anigs.cameras import save_cameras
+    from anigs.masks import write_rgb_png
+    from anigs.synth import CaptureConfig, SceneConfig, build_scene, camera_path, render_image
+
+    tmp = tmp_path_factory.mktemp("garden")
+    g = build_scene(SceneConfig(num_gaussians=6000), 0)
+    cams = camera_path(CaptureConfig(num_images=8, width=128, height=96), 0)
+    g.save_ply(tmp / "canonical.ply")
+    save_cameras(tmp / "cameras.json", cams)
+    for cam in cams:
+        write_rgb_png(tmp / "images" / cam.name, render_image(g, cam))
+    return tmp
+
+
+def _run(tmp: Path, out: str, params: dict, prompt: str | None = None) -> dict:
+    from anigs.cli import main
+
+    args = ["effects", "--canonical", str(tmp / "canonical.ply"), "--cameras", str(tmp / "cameras.json"),
+            "--images", str(tmp / "images"), "--out", str(tmp / out), "--params", json.dumps(params)]
+    if prompt is not None:
+        args += ["--prompt", prompt]
+    assert main(args) == 0
+    return json.loads((tmp / out / "effects.json").read_text())
+
+
+def test_a_prompt_naming_nothing_that_moves_gives_a_still_scene(garden_stage):
+    doc = _run(garden_stage, "still", {"prompt": "a wooden bench in a courtyard"})
+    assert doc["chosen"] == [] and doc["detected"] == [] and doc["requested_not_found"] == []
+    assert "names nothing that moves" in doc["prompt"]["note"] and doc["prompt"]["used"]
+    assert not np.load(garden_stage / "still" / "dynamic.npy").any()
+    for e, r in doc["effects"].items():
+        assert "the prompt does not name it" in r["reason"], (e, r["reason"])
+
+
+def test_a_prompt_naming_only_trees_never_chooses_flowers(garden_stage):
+    doc = _run(garden_stage, "trees", {}, prompt="tall trees by a pond in the wind")
+    assert doc["chosen"] == ["foliage_sway", "leaf_flutter"]
+    assert doc["prompt"]["words"] == {"trees": ["foliage"], "pond": ["water"]}
+    assert doc["requested_not_found"] == ["water_ripple"]  # named, not in the garden
+    regions = np.load(garden_stage / "trees" / "regions.npy")
+    assert not (regions == REGIONS.index("flowers")).any() and not (regions == REGIONS.index("grass")).any()
+    listed = _run(garden_stage, "listed", {"requested": ["flower_bob"]}, prompt="tall trees in the wind")
+    assert listed["chosen"] == ["flower_bob"] and listed["prompt"]["used"] is False  # the list overrides
+
+
+def test_a_misspelt_effect_in_a_scene_file_fails_at_parse_time(tmp_path):
+    from anigs.config import load_scene
+
+    schema = yaml.safe_load((ROOT / "workflow" / "schemas" / "config.schema.yaml").read_text())
+    (tmp_path / "bad.yaml").write_text("source: synthetic\neffects: [foliage_swayy]\n")
+    with pytest.raises(ValueError, match=r"foliage_swayy.*foliage_sway.*leaf_flutter.*water_ripple"):
+        load_scene(tmp_path, "bad", schema)
+    (tmp_path / "auto.yaml").write_text("source: synthetic\neffects: autoo\n")
+    with pytest.raises(ValueError, match="autoo"):
+        load_scene(tmp_path, "auto", schema)
+    (tmp_path / "good.yaml").write_text("source: synthetic\neffects: [foliage_sway, flower_bob]\n")
+    assert load_scene(tmp_path, "good", schema)["effects"]["requested"] == ["foliage_sway", "flower_bob"]
+
+
+def test_shipped_scene_prompts_name_their_effects():
+    """Each shipped scene file's prompt names the kinds of the effects it lists (the demo's prompt,
+    "a garden with trees, bushes, grass and flowers ...", names foliage, grass and flowers)."""
+    from anigs.effects.config import EFFECT_REGION
+
+    checked = 0
+    for path in sorted((ROOT / "config" / "scenes").glob("*.yaml")):
+        scene = yaml.safe_load(path.read_text()) or {}
+        listed, prompt = scene.get("effects"), scene.get("prompt")
+        if isinstance(listed, list) and prompt:
+            assert {EFFECT_REGION[e] for e in listed} <= set(prompt_kinds(prompt).regions), path.name
+            checked += 1
+    assert checked >= 1
