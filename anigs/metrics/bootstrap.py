@@ -83,16 +83,8 @@ def bootstrap_frechet(f1: np.ndarray, f2: np.ndarray, groups: Sequence[int], res
     g = np.asarray(groups)
     if a.shape != b.shape or g.shape != (a.shape[0],):
         raise ValueError(f"bootstrap_frechet: paired features and groups must agree, got {a.shape}, {b.shape}, {g.shape}")
-    names, inverse = np.unique(g, return_inverse=True)
-    rows_of = [np.flatnonzero(inverse == i) for i in range(len(names))]
-    draws = resample_groups(len(names), resamples, seed)
-    vals = np.empty(len(draws))
-    for r, pick in enumerate(draws):
-        rows = np.concatenate([rows_of[i] for i in pick])
-        vals[r] = frechet_lowrank(a[rows], b[rows])
-    lo, hi = np.percentile(vals, [50 * (1 - level), 50 * (1 + level)])
-    return BootstrapSpread(int(resamples), int(seed), "views (all windows of a drawn view, both sides)", len(names),
-                           float(vals.mean()), float(vals.std(ddof=1)), (float(lo), float(hi)), float(level))
+    return _over_group_resamples(g, lambda rows: frechet_lowrank(a[rows], b[rows]), resamples, seed, level,
+                                 "views (all windows of a drawn view, both sides)")
 
 
 def bootstrap_gap(f_a: np.ndarray, f_b: np.ndarray, f_ref: np.ndarray, groups: Sequence[int], resamples: int = 200,
@@ -105,13 +97,19 @@ def bootstrap_gap(f_a: np.ndarray, f_b: np.ndarray, f_ref: np.ndarray, groups: S
     if not (a.shape == b.shape == r.shape) or g.shape != (a.shape[0],):
         raise ValueError(f"bootstrap_gap: paired features and groups must agree, got {a.shape}, {b.shape}, "
                          f"{r.shape}, {g.shape}")
-    names, inverse = np.unique(g, return_inverse=True)
+    return _over_group_resamples(g, lambda rows: frechet_lowrank(a[rows], r[rows]) - frechet_lowrank(b[rows], r[rows]),
+                                 resamples, seed, level, "views (paired: the same drawn views for both sets)")
+
+
+def _over_group_resamples(groups: np.ndarray, stat, resamples: int, seed: int, level: float,
+                          unit: str) -> BootstrapSpread:
+    """``stat(rows)`` over resamples of whole groups (every row of a drawn group; :func:`resample_groups`)."""
+    names, inverse = np.unique(groups, return_inverse=True)
     rows_of = [np.flatnonzero(inverse == i) for i in range(len(names))]
     draws = resample_groups(len(names), resamples, seed)
     vals = np.empty(len(draws))
     for k, pick in enumerate(draws):
-        rows = np.concatenate([rows_of[i] for i in pick])
-        vals[k] = frechet_lowrank(a[rows], r[rows]) - frechet_lowrank(b[rows], r[rows])
+        vals[k] = stat(np.concatenate([rows_of[i] for i in pick]))
     lo, hi = np.percentile(vals, [50 * (1 - level), 50 * (1 + level)])
-    return BootstrapSpread(int(resamples), int(seed), "views (paired: the same drawn views for both sets)", len(names),
+    return BootstrapSpread(int(resamples), int(seed), unit, len(names),
                            float(vals.mean()), float(vals.std(ddof=1)), (float(lo), float(hi)), float(level))
