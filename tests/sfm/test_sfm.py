@@ -21,11 +21,10 @@ from anigs.sfm import colmap as sfm_mod  # noqa: E402
 from anigs.sfm import plan  # noqa: E402
 from anigs.sfm.align import (Similarity, estimate_up, pose_errors, rotation_angle_deg, rotation_between,  # noqa: E402
                          umeyama)
-from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at, save_cameras  # noqa: E402
+from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at  # noqa: E402
 from anigs.gaussians import Gaussians  # noqa: E402
-from anigs.render import render_gaussians  # noqa: E402
 from anigs.sfm.colmap import SfmConfig, SfmError, run_sfm  # noqa: E402
-from anigs.video import save_png  # noqa: E402
+from _captures import render as render_capture  # noqa: E402
 
 W, H = 320, 240
 # quaternions (w,x,y,z) turning the thin local z axis onto the world x, y, z normals
@@ -77,17 +76,6 @@ def forward_cameras(n: int = 16, spread: float = 0.15, seed: int = 0) -> list[Ca
         target = np.array([0, 0, 0.3]) + 0.1 * rng.standard_normal(3)
         cams.append(Camera(K, look_at([dx, -3.5, 1.6 + dz], target), W, H, f"ff_{i:03d}.png"))
     return cams
-
-
-def render_capture(folder: Path, cams: list[Camera], g: Gaussians) -> tuple[Path, Path]:
-    images = folder / "images"
-    bg = torch.tensor([0.5, 0.5, 0.5])
-    with torch.no_grad():
-        for c in cams:
-            rgb, _, _ = render_gaussians(g, c, background=bg)
-            save_png(images / c.name, rgb)
-    save_cameras(folder / "gt_cameras.json", cams)
-    return images, folder / "gt_cameras.json"
 
 
 @pytest.fixture(scope="module")
