@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 SKIP_DIRS = {"logs", "benchmarks"}
-SKIP_KEYS = {"seconds", "timings_s", "seconds_per_step"}
+SKIP_KEYS = {"seconds", "timings_s", "seconds_per_step", "cpu_s", "cpu_seconds", "load_average", "eval_seconds",
+             "fit_seconds", "train_seconds", "train_cpu_seconds", "step_ms_median", "step_ms_median_final"}
 
 
 def _norm(x, roots: list[str]):
