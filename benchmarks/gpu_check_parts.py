@@ -190,7 +190,8 @@ def part_agree(args) -> dict:
 
 def part_ltx(args) -> dict:
     """The LTX-Video prior (tiny random weights) on ``--device``: dtype, refine and SDS timings."""
-    from anigs.refine.prior.ltx import LTXPrior, save_tiny_random_stack
+    from anigs.refine.prior.ltx import LTXPrior
+    from anigs.refine.prior.ltx_tiny import save_tiny_random_stack
 
     t0 = time.perf_counter()
     model = next((m for m in (args.model, args.model / "model") if (m / "model_index.json").exists()), None)

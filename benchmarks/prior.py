@@ -88,7 +88,8 @@ def bench_strength() -> None:
 def bench_ltx(sizes, frames) -> None:
     import torch
 
-    from anigs.refine.prior.ltx import LTXPrior, save_tiny_random_stack
+    from anigs.refine.prior.ltx import LTXPrior
+    from anigs.refine.prior.ltx_tiny import save_tiny_random_stack
 
     tmp = tempfile.mkdtemp(prefix="anigs_ltx_bench_")
     path = save_tiny_random_stack(tmp)

@@ -30,7 +30,9 @@ from anigs.animate.adam import Adam
 from anigs.animate.frames import render_frame
 from anigs.cameras import Camera
 from anigs.configs import from_dict
-from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, offset_limits, resolve_num_bases, save_model
+from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, resolve_num_bases, save_model
+from anigs.animate.limits import bases_from_config, effect_labels, limits_from_config
+from anigs.animate.trainable import Trainable, first_non_finite, param_groups
 from anigs.device import get_device, seed_everything
 from anigs.geometry.extent import box_diagonal
 from anigs.gaussians import Gaussians
@@ -38,8 +40,10 @@ from anigs.animate.losses import SDSContext, SDSHook, animation_loss, canonical_
 
 log = logging.getLogger("anigs.animate.update")
 
+__all__ = ["PARAM_GROUPS", "UpdateConfig", "UpdateDiverged", "UpdateResult", "ViewData", "bases_from_config",
+           "effect_labels", "limits_from_config", "run_update", "static_references"]
+
 PARAM_GROUPS = ("deformation+positions", "deformation", "all")
-_UNLIMITED = 1e18  # stands for "no limit" in per-Gaussian limit tensors (finite: checkpoints refuse Inf)
 
 
 @dataclass
@@ -135,48 +139,6 @@ class UpdateConfig:
                                  "and by effect name")
 
 
-def effect_labels() -> dict[str, int]:
-    """Effect name -> its label in an int dynamic mask (:func:`anigs.masks.effect_labels.effect_label_ids`)."""
-    from anigs.masks.effect_labels import effect_label_ids
-
-    return effect_label_ids()
-
-
-def bases_from_config(mask: torch.Tensor, cfg: UpdateConfig, num_bases: int) -> torch.Tensor | None:
-    """Bases K_d [D] long each dynamic Gaussian uses, from ``effect_num_bases`` (None when it is empty).
-
-    ``mask`` [N] is bool or integer effect labels (0 = static); keys are labels (as strings) or
-    effect names (:func:`effect_labels`; several effects on one label: the largest K_e, an effect
-    not named counting as ``cfg.num_bases``). Values are clamped to ``num_bases`` (the K resolved for T).
-    """
-    if not cfg.effect_num_bases:
-        return None
-    mask = torch.as_tensor(mask)
-    idx = dynamic_index_from_mask(mask)
-    labels = mask[idx].long() if mask.dtype != torch.bool else torch.ones_like(idx)
-    names = effect_labels()
-    per_label: dict[int, int] = {}
-    by_name = {k: v for k, v in cfg.effect_num_bases.items() if k in names}
-    if by_name and mask.dtype == torch.bool:
-        log.warning("update: effect_num_bases names effects %s but the dynamic mask is bool (no per-Gaussian effect "
-                    "labels: pass --effect-labels, the masks stage's effect_labels.npy): every dynamic Gaussian uses "
-                    "%d bases", sorted(by_name), num_bases)
-        by_name = {}
-        if not any(k not in names for k in cfg.effect_num_bases):
-            return None
-    for name in by_name:
-        lab = names[name]
-        shared = [e for e, lb in names.items() if lb == lab]
-        per_label[lab] = max(int(cfg.effect_num_bases.get(e, cfg.num_bases)) for e in shared)
-    for key, k in cfg.effect_num_bases.items():
-        if key not in names:
-            per_label[int(key)] = int(k)
-    kd = torch.full((idx.numel(),), int(num_bases), dtype=torch.long)
-    for lab, k in per_label.items():
-        kd[labels.cpu() == lab] = min(k, int(num_bases))
-    return kd
-
-
 @dataclass
 class ViewData:
     """One training view: camera, target clip [T,H,W,3] in [0,1], static reference [H,W,3] (optional)."""
@@ -213,80 +175,6 @@ def static_references(canonical: Gaussians, cameras: list[Camera], background=No
         return [render_frame(canonical, None, cam, 0, background, backend) for cam in cameras]
 
 
-def limits_from_config(canonical_means: torch.Tensor, mask: torch.Tensor, cfg: UpdateConfig
-                       ) -> tuple[torch.Tensor | None, torch.Tensor | None]:
-    """Per-dynamic-Gaussian offset [D] and angle [D] limits from the config (None = unlimited).
-
-    ``mask`` [N] is bool or integer effect labels (0 = static); ``effect_limits`` keys are
-    labels (as strings) whose entries override the global limits.
-    """
-    mask = torch.as_tensor(mask)
-    idx = dynamic_index_from_mask(mask, canonical_means.shape[0])
-    labels = mask[idx].long() if mask.dtype != torch.bool else torch.ones_like(idx)
-    d = idx.numel()
-    off = torch.full((d,), _UNLIMITED)
-    ang = torch.full((d,), _UNLIMITED)
-    any_off = any_ang = False
-    for lab in torch.unique(labels).tolist():
-        spec = {"max_offset_frac": cfg.max_offset_frac, "max_offset_abs": cfg.max_offset_abs,
-                "max_angle_deg": cfg.max_angle_deg}
-        spec.update(cfg.effect_limits.get(str(lab), {}))
-        sel = labels == lab
-        lim = offset_limits(canonical_means, idx[sel], spec["max_offset_frac"], spec["max_offset_abs"])
-        if lim is not None:
-            off[sel] = lim.float().cpu()
-            any_off = True
-        if spec["max_angle_deg"] is not None:
-            if spec["max_angle_deg"] <= 0:
-                raise ValueError(f"max_angle_deg must be > 0, got {spec['max_angle_deg']}")
-            ang[sel] = math.radians(spec["max_angle_deg"])
-            any_ang = True
-    return (off if any_off else None), (ang if any_ang else None)
-
-
-class _Trainable:
-    """The trainable canonical state for a parameter group; builds G^0 each step."""
-
-    def __init__(self, canonical: Gaussians, idx: torch.Tensor, group: str) -> None:
-        self.group = group
-        self.idx = idx
-        base = canonical.detach()
-        self.base = base
-        self.params: dict[str, torch.Tensor] = {}
-        if group == "deformation+positions":
-            self.params["dyn_means"] = base.means[idx].clone().requires_grad_(True)
-        elif group == "all":
-            for k, v in base.params().items():
-                self.params[k] = v.clone().requires_grad_(True)
-
-    def canonical(self) -> Gaussians:
-        b = self.base
-        if self.group == "deformation+positions":
-            return Gaussians(b.means.index_copy(0, self.idx, self.params["dyn_means"]), b.quats, b.log_scales,
-                             b.opacity_logits, b.sh, extras=b.extras)
-        if self.group == "all":
-            return Gaussians(**self.params, extras=b.extras)
-        return b
-
-
-def _param_groups(cfg: UpdateConfig, deformation: DCTDeformation, tr: _Trainable, spatial: float) -> list[dict]:
-    groups = [{"params": [deformation.pos_coeffs], "lr": cfg.lr_position_coeffs * spatial, "name": "pos_coeffs"}]
-    if deformation.rot_coeffs is not None:
-        groups.append({"params": [deformation.rot_coeffs], "lr": cfg.lr_rotation_coeffs, "name": "rot_coeffs"})
-    lrs = {"dyn_means": cfg.lr_means * spatial, "means": cfg.lr_means * spatial, "quats": cfg.lr_quats,
-           "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity, "sh": cfg.lr_sh}
-    for k, p in tr.params.items():
-        groups.append({"params": [p], "lr": lrs[k], "name": k})
-    return groups
-
-
-def _all_finite(tensors) -> str | None:
-    for name, t in tensors:
-        if t is not None and not bool(torch.isfinite(t).all()):
-            return name
-    return None
-
-
 def run_update(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData],
                config: UpdateConfig | dict | None = None, init: DCTDeformation | None = None,
                sds_fn: SDSHook | None = None, failure_path: str | Path | None = None,
@@ -307,16 +195,7 @@ def run_update(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[Vie
     """
     cfg = config if isinstance(config, UpdateConfig) else UpdateConfig.from_dict(config)
     cfg.validate()
-    if not views:
-        raise ValueError("run_update: no training views")
-    T = views[0].clip.shape[0]
-    for i, v in enumerate(views):
-        if v.clip.ndim != 4 or v.clip.shape[-1] != 3 or v.clip.shape[0] != T:
-            raise ValueError(f"run_update: view {i} ({v.camera.name!r}) clip has shape {tuple(v.clip.shape)}; "
-                             f"expected [T={T},H,W,3] like view 0")
-        if tuple(v.clip.shape[1:3]) != (v.camera.height, v.camera.width):
-            raise ValueError(f"run_update: view {i} clip is {v.clip.shape[2]}x{v.clip.shape[1]} but its camera is "
-                             f"{v.camera.width}x{v.camera.height}")
+    T = _check_views(views)
     dev = get_device(cfg.device)
     gen = seed_everything(cfg.seed)
     mask = torch.as_tensor(dynamic_mask)
@@ -344,31 +223,59 @@ def run_update(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[Vie
         why = "steps = 0" if cfg.steps == 0 else f"K = 0 bases (T={T} frames)"
         log.info("model update: %s: nothing to train, the update is a no-op", why)
         return UpdateResult(canonical.detach(), deformation, skipped=why)
+    return _Update(canonical, deformation, idx, views, cfg, dev, sds_fn, failure_path).train(gen, progress)
 
-    bg = torch.tensor(cfg.background, dtype=torch.float32, device=dev)
-    canonical = canonical.to(dev)
-    deformation = deformation.to(dev)
-    clips = [v.clip.to(torch.float32) for v in views]  # kept where they are; sampled frames move per step
-    refs: list[torch.Tensor | None] = [None if v.reference is None else v.reference.to(dev, torch.float32)
-                                       for v in views]
-    if cfg.lambda_cano > 0 and any(r is None for r in refs):
-        computed = static_references(canonical, [v.camera for v in views], bg, cfg.backend)
-        refs = [r if r is not None else c for r, c in zip(refs, computed)]
-    cams = [v.camera for v in views]
 
-    tr = _Trainable(canonical, idx.to(dev), cfg.param_groups)
-    spatial = cfg.spatial_lr_scale if cfg.spatial_lr_scale is not None else box_diagonal(canonical.means)
-    gamma = cfg.lr_final_factor ** (1.0 / max(cfg.steps, 1))
-    opt = Adam(_param_groups(cfg, deformation, tr, spatial), eps=1e-15, gamma=gamma)  # torch.optim's, minus 2.7 s of import
-    trainables = [("pos_coeffs", deformation.pos_coeffs), ("rot_coeffs", deformation.rot_coeffs)] + list(tr.params.items())
-    log.info("model update: N=%d Gaussians, D=%d dynamic, %d views, T=%d, K=%d, group=%s, steps=%d, spatial lr scale %.3g",
-             canonical.num, idx.numel(), len(views), T, K, cfg.param_groups, cfg.steps, spatial)
-    if deformation.active_bases is not None:
-        ks, counts = torch.unique(deformation.active_bases.cpu(), return_counts=True)
-        log.info("model update: per-effect capacity: %s", ", ".join(
-            f"{int(c)} Gaussians with K={int(k)}" for k, c in zip(ks, counts)))
+def _check_views(views: list[ViewData]) -> int:
+    """T, the frames of every view's clip [T,H,W,3] (sized as its camera); ValueError otherwise."""
+    if not views:
+        raise ValueError("run_update: no training views")
+    T = views[0].clip.shape[0]
+    for i, v in enumerate(views):
+        if v.clip.ndim != 4 or v.clip.shape[-1] != 3 or v.clip.shape[0] != T:
+            raise ValueError(f"run_update: view {i} ({v.camera.name!r}) clip has shape {tuple(v.clip.shape)}; "
+                             f"expected [T={T},H,W,3] like view 0")
+        if tuple(v.clip.shape[1:3]) != (v.camera.height, v.camera.width):
+            raise ValueError(f"run_update: view {i} clip is {v.clip.shape[2]}x{v.clip.shape[1]} but its camera is "
+                             f"{v.camera.width}x{v.camera.height}")
+    return T
 
-    def save_state(path: Path, it: int, params: dict[str, torch.Tensor] | None = None) -> None:
+
+class _Update:
+    """One model update's training: targets on the device, trainable state, optimiser, the steps."""
+
+    def __init__(self, canonical: Gaussians, deformation: DCTDeformation, idx: torch.Tensor, views: list[ViewData],
+                 cfg: UpdateConfig, dev: torch.device, sds_fn: SDSHook | None,
+                 failure_path: str | Path | None) -> None:
+        self.cfg, self.dev, self.sds_fn, self.failure_path = cfg, dev, sds_fn, failure_path
+        self.T = views[0].clip.shape[0]
+        self.bg = bg = torch.tensor(cfg.background, dtype=torch.float32, device=dev)
+        canonical = canonical.to(dev)
+        self.deformation = deformation = deformation.to(dev)
+        self.clips = [v.clip.to(torch.float32) for v in views]  # kept where they are; sampled frames move per step
+        refs: list[torch.Tensor | None] = [None if v.reference is None else v.reference.to(dev, torch.float32)
+                                           for v in views]
+        if cfg.lambda_cano > 0 and any(r is None for r in refs):
+            computed = static_references(canonical, [v.camera for v in views], bg, cfg.backend)
+            refs = [r if r is not None else c for r, c in zip(refs, computed)]
+        self.refs = refs
+        self.cams = [v.camera for v in views]
+
+        self.tr = tr = Trainable(canonical, idx.to(dev), cfg.param_groups)
+        spatial = cfg.spatial_lr_scale if cfg.spatial_lr_scale is not None else box_diagonal(canonical.means)
+        gamma = cfg.lr_final_factor ** (1.0 / max(cfg.steps, 1))
+        self.opt = Adam(param_groups(cfg, deformation, tr, spatial), eps=1e-15, gamma=gamma)  # torch.optim's, minus 2.7 s of import
+        self.trainables = [("pos_coeffs", deformation.pos_coeffs), ("rot_coeffs", deformation.rot_coeffs)] + list(tr.params.items())
+        log.info("model update: N=%d Gaussians, D=%d dynamic, %d views, T=%d, K=%d, group=%s, steps=%d, spatial lr scale %.3g",
+                 canonical.num, idx.numel(), len(views), self.T, deformation.num_bases, cfg.param_groups, cfg.steps,
+                 spatial)
+        if deformation.active_bases is not None:
+            ks, counts = torch.unique(deformation.active_bases.cpu(), return_counts=True)
+            log.info("model update: per-effect capacity: %s", ", ".join(
+                f"{int(c)} Gaussians with K={int(k)}" for k, c in zip(ks, counts)))
+
+    def save_state(self, path: Path, it: int, params: dict[str, torch.Tensor] | None = None) -> None:
+        cfg, deformation, tr = self.cfg, self.deformation, self.tr
         with torch.no_grad():
             d_state = deformation
             if params is not None:  # restore the snapshot into a copy
@@ -380,77 +287,86 @@ def run_update(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[Vie
             save_model(path, d_state.cpu(), tr.canonical().detach().to("cpu"), cfg.to_dict(),
                        store_all_attributes=cfg.param_groups == "all", extra={"iteration": it, "last_good": True})
 
-    def diverged(it: int, what: str, snapshot=None) -> UpdateDiverged:
-        path = Path(failure_path) if failure_path is not None else None
+    def diverged(self, it: int, what: str, snapshot=None) -> UpdateDiverged:
+        path = Path(self.failure_path) if self.failure_path is not None else None
         if path is not None:
-            save_state(path, it, snapshot)
+            self.save_state(path, it, snapshot)
         where = f"; last good state saved to {path}" if path else " (no failure_path given: state not saved)"
         return UpdateDiverged(f"model update diverged at iteration {it}: {what}{where}", it, path)
 
-    def render_subclip(view: int, start: int, length: int, grad_frame: int | None = None) -> torch.Tensor:
-        g0 = tr.canonical()
+    def render_subclip(self, view: int, start: int, length: int, grad_frame: int | None = None) -> torch.Tensor:
+        g0 = self.tr.canonical()
         frames = []
         for j in range(length):
-            t = min(max(start + j, 0), T - 1)
+            t = min(max(start + j, 0), self.T - 1)
             if grad_frame is not None and j == grad_frame:
-                frames.append(render_frame(g0, deformation, cams[view], t, bg, cfg.backend))
+                frames.append(render_frame(g0, self.deformation, self.cams[view], t, self.bg, self.cfg.backend))
             else:
                 with torch.no_grad():
-                    frames.append(render_frame(g0, deformation, cams[view], t, bg, cfg.backend))
+                    frames.append(render_frame(g0, self.deformation, self.cams[view], t, self.bg, self.cfg.backend))
         return torch.stack(frames)
 
-    history: list[dict] = []
-    t_start = time.perf_counter()
-    from tqdm import tqdm
-
-    bar = tqdm(range(1, cfg.steps + 1), desc="update", disable=not progress, mininterval=1.0, leave=False)
-    V = len(views)
-    for it in bar:
+    def step(self, it: int, gen: torch.Generator) -> dict[str, float]:
+        """One optimisation step: sample views and frames, the losses, backward, Adam; the losses' record."""
+        cfg, T, V, cams, bg = self.cfg, self.T, len(self.cams), self.cams, self.bg
+        deformation, trainables = self.deformation, self.trainables
         perm = torch.randperm(V, generator=gen)
         sel = [int(perm[i % V]) for i in range(cfg.views_per_step)]
         ts = torch.randint(0, T, (len(sel),), generator=gen).tolist()
-        g0 = tr.canonical()
+        g0 = self.tr.canonical()
         renders = torch.stack([render_frame(g0, deformation, cams[v], t, bg, cfg.backend) for v, t in zip(sel, ts)])
-        targets = torch.stack([clips[v][t] for v, t in zip(sel, ts)]).to(dev)
+        targets = torch.stack([self.clips[v][t] for v, t in zip(sel, ts)]).to(self.dev)
         l_ani = animation_loss(renders, targets)
         loss = l_ani
         rec = {"step": it, "l_ani": l_ani.item()}
         if cfg.lambda_cano > 0 and cfg.cano_views_per_step > 0:
             cv = sel[: cfg.cano_views_per_step]
             r0 = torch.stack([render_frame(g0, deformation, cams[v], 0, bg, cfg.backend) for v in cv])
-            l_cano = canonical_loss(r0, torch.stack([refs[v] for v in cv]))
+            l_cano = canonical_loss(r0, torch.stack([self.refs[v] for v in cv]))
             loss = loss + cfg.lambda_cano * l_cano
             rec["l_cano"] = l_cano.item()
-        if cfg.lambda_sds > 0 and sds_fn is not None:
-            l_sds = sds_fn(SDSContext(render_subclip, V, T, gen, it))
+        if cfg.lambda_sds > 0 and self.sds_fn is not None:
+            l_sds = self.sds_fn(SDSContext(self.render_subclip, V, T, gen, it))
             loss = loss + cfg.lambda_sds * l_sds
             rec["l_sds"] = l_sds.item()
         rec["loss"] = loss.item()
         if cfg.nan_guard and not math.isfinite(rec["loss"]):
-            raise diverged(it, f"non-finite loss ({rec})")
-        opt.zero_grad()
+            raise self.diverged(it, f"non-finite loss ({rec})")
+        self.opt.zero_grad()
         loss.backward()
         snapshot = None
         if cfg.nan_guard:
-            bad = _all_finite((n, p.grad) for n, p in trainables if p is not None)
+            bad = first_non_finite((n, p.grad) for n, p in trainables if p is not None)
             if bad:
-                raise diverged(it, f"non-finite gradient of {bad!r}")
+                raise self.diverged(it, f"non-finite gradient of {bad!r}")
             snapshot = {n: p.detach().clone() for n, p in trainables if p is not None}
-        opt.step()
+        self.opt.step()
         if cfg.nan_guard:
-            bad = _all_finite((n, p) for n, p in trainables if p is not None)
+            bad = first_non_finite((n, p) for n, p in trainables if p is not None)
             if bad:
-                raise diverged(it, f"parameter {bad!r} became non-finite after the optimiser step", snapshot)
-        if it % cfg.log_every == 0 or it == cfg.steps or it == 1:
-            history.append(rec)
-            bar.set_postfix(loss=f"{rec['loss']:.4f}")
-            log.debug("update step %d: %s", it, rec)
-    bar.close()
-    seconds = time.perf_counter() - t_start
-    log.info("model update done: %d steps in %.1f s (%.2f steps/s), final loss %.4f",
-             cfg.steps, seconds, cfg.steps / max(seconds, 1e-9), history[-1]["loss"] if history else float("nan"))
-    out_canonical = tr.canonical().detach().to("cpu")
-    deformation = deformation.cpu()
-    for p in deformation.parameters():
-        p.requires_grad_(False)
-    return UpdateResult(out_canonical, deformation, history, cfg.steps, seconds)
+                raise self.diverged(it, f"parameter {bad!r} became non-finite after the optimiser step", snapshot)
+        return rec
+
+    def train(self, gen: torch.Generator, progress: bool) -> UpdateResult:
+        """``cfg.steps`` steps; the result on the CPU with the logged history."""
+        from tqdm import tqdm
+
+        cfg = self.cfg
+        history: list[dict] = []
+        t_start = time.perf_counter()
+        bar = tqdm(range(1, cfg.steps + 1), desc="update", disable=not progress, mininterval=1.0, leave=False)
+        for it in bar:
+            rec = self.step(it, gen)
+            if it % cfg.log_every == 0 or it == cfg.steps or it == 1:
+                history.append(rec)
+                bar.set_postfix(loss=f"{rec['loss']:.4f}")
+                log.debug("update step %d: %s", it, rec)
+        bar.close()
+        seconds = time.perf_counter() - t_start
+        log.info("model update done: %d steps in %.1f s (%.2f steps/s), final loss %.4f",
+                 cfg.steps, seconds, cfg.steps / max(seconds, 1e-9), history[-1]["loss"] if history else float("nan"))
+        out_canonical = self.tr.canonical().detach().to("cpu")
+        deformation = self.deformation.cpu()
+        for p in deformation.parameters():
+            p.requires_grad_(False)
+        return UpdateResult(out_canonical, deformation, history, cfg.steps, seconds)

@@ -48,7 +48,6 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
-import resource
 import shutil
 import tempfile
 import time
@@ -64,15 +63,16 @@ from anigs.io import write_json, write_npz
 from anigs.photos import check_images, image_headers, list_images, report_unreadable, require_min_images
 from anigs.sfm.config import MAPPERS, MATCHERS, UNDISTORTED_MODELS, SfmConfig
 from anigs.sfm.escalate import Source, SfmError, map_escalating, rescale_model
-from anigs.sfm.rematch import matching_kwargs
 from anigs.sfm.model import (find_model_dir, reconstruction_cameras, reconstruction_points, replace_dir,
                              to_sim3d)
-from anigs.sfm.bundle import adjust_intrinsics, refine_fine_scale
-from anigs.sfm.plan import choose_matcher, resolve_threads, similar_pairs
+from anigs.sfm.bundle import adjust_intrinsics
+from anigs.sfm.plan import resolve_threads
+from anigs.sfm.steps import (_device, camera_mode, cpu_seconds, extract_and_match, larger_originals, refine_model,
+                             run_mapper, select_model)
 
-__all__ = ["MAPPERS", "MATCHERS", "UNDISTORTED_MODELS", "SfmConfig", "SfmError", "SfmResult", "extract_and_match",
-           "reconstruction_cameras", "reconstruction_points", "refine_model", "resolve_config",
-           "run_mapper", "run_sfm", "select_model"]
+__all__ = ["MAPPERS", "MATCHERS", "UNDISTORTED_MODELS", "SfmConfig", "SfmError", "SfmResult", "camera_mode",
+           "cpu_seconds", "extract_and_match", "larger_originals", "reconstruction_cameras", "reconstruction_points",
+           "refine_model", "resolve_config", "run_mapper", "run_sfm", "select_model"]
 
 log = logging.getLogger(__name__)
 
@@ -87,12 +87,6 @@ class SfmResult:
     report: dict = field(default_factory=dict)
 
 
-def cpu_seconds() -> float:
-    """CPU seconds (user + system) of this process, all threads."""
-    r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
-
-
 def resolve_config(cfg: SfmConfig, cli_threads: int | None = None) -> tuple[SfmConfig, dict]:
     """``cfg`` with the thread counts resolved (:func:`anigs.sfm.plan.resolve_threads`).
 
@@ -104,200 +98,6 @@ def resolve_config(cfg: SfmConfig, cli_threads: int | None = None) -> tuple[SfmC
     mapper_threads = threads if cfg.mapper_num_threads == -1 else cfg.mapper_num_threads
     return (dataclasses.replace(cfg, num_threads=threads, mapper_num_threads=mapper_threads),
             {"num_threads": threads, "mapper_num_threads": mapper_threads})
-
-
-# ---- COLMAP steps (module-level so tests can replace one) ---------------------------------
-
-def _device(cfg: SfmConfig):
-    import pycolmap
-
-    has_cuda = bool(pycolmap.has_cuda)
-    if cfg.device == "cuda" and not has_cuda:
-        raise RuntimeError("sfm.device is 'cuda' but this pycolmap build has no CUDA support")
-    return pycolmap.Device.cuda if (cfg.device != "cpu" and has_cuda) else pycolmap.Device.cpu
-
-
-def camera_mode(cfg: SfmConfig, sizes: list[tuple[int, int]]) -> str:
-    """COLMAP camera mode for images of ``sizes`` (distinct (width, height)): ``SINGLE`` for one
-    shared camera, ``AUTO`` (one camera per size) when the sizes differ only by a 90-degree turn
-    (portrait and landscape photos of one camera), ``PER_IMAGE`` with ``single_camera: false``;
-    any other mix of sizes is an error naming them."""
-    if not cfg.single_camera:
-        return "PER_IMAGE"
-    if len(sizes) <= 1:
-        return "SINGLE"
-    if len(sizes) == 2 and sizes[0] == sizes[1][::-1]:
-        log.info("sfm: portrait and landscape photos (%dx%d and %dx%d): one camera per orientation",
-                 *sizes[0], *sizes[1])
-        return "AUTO"
-    raise ValueError(f"sfm.single_camera is true but the images have {len(sizes)} sizes {sizes[:5]} that are "
-                     "not one size turned by 90 degrees; set single_camera to false or import them at one size")
-
-
-def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: SfmConfig,
-                      mode: str | None = None) -> dict:
-    """SIFT extraction and matching into ``database`` (``mode``: a :func:`camera_mode`); returns
-    statistics and timings (wall ``*_s``, CPU ``*_cpu_s``), the matcher run and why
-    (``matcher: auto`` is chosen here, from the keypoints found: :func:`anigs.sfm.plan.choose_matcher`).
-    ``cfg.num_threads`` must be a count (:func:`resolve_config`)."""
-    import pycolmap
-
-    if cfg.num_threads < 1:
-        raise ValueError("extract_and_match needs a thread count (sfm.colmap.resolve_config)")
-    device = _device(cfg)
-    pycolmap.set_random_seed(cfg.seed)
-    reader = pycolmap.ImageReaderOptions(camera_model=cfg.camera_model)
-    if cfg.camera_params is not None:
-        reader.camera_params = ",".join(str(float(v)) for v in cfg.camera_params)
-    ext = pycolmap.FeatureExtractionOptions()
-    ext.num_threads = cfg.num_threads
-    ext.max_image_size = cfg.max_image_size
-    ext.sift.max_num_features = cfg.max_num_features
-    ext.sift.peak_threshold = cfg.sift_peak_threshold
-    ext.use_gpu = device == pycolmap.Device.cuda
-    mode = getattr(pycolmap.CameraMode, mode or ("SINGLE" if cfg.single_camera else "PER_IMAGE"))
-    t0, c0 = time.perf_counter(), cpu_seconds()
-    # images enter the database first, one thread, in name order: several extraction threads would
-    # otherwise number them in the order they finish, and the mapper's choices follow the numbers
-    pycolmap.Database.open(str(database)).close()
-    pycolmap.import_images(database, image_dir, camera_mode=mode, image_names=names, options=reader)
-    pycolmap.extract_features(database, image_dir, image_names=names, camera_mode=mode,
-                              reader_options=reader, extraction_options=ext, device=device)
-    t1, c1 = time.perf_counter(), cpu_seconds()
-    db = pycolmap.Database.open(database)
-    try:
-        keypoints_per_image = db.num_keypoints() / max(db.num_images(), 1)
-    finally:
-        db.close()
-    matcher, why = choose_matcher(cfg.matcher, [Path(image_dir) / n for n in names], cfg.exhaustive_max_images,
-                                  cfg.exhaustive_max_comparisons, keypoints_per_image)
-    if cfg.matcher == "auto":
-        log.info("sfm: matcher %s (%s)", matcher, why["reason"])
-    kw = matching_kwargs(cfg, device)
-    extra_pairs = 0
-    if matcher == "exhaustive":
-        pycolmap.match_exhaustive(database, **kw)
-    elif matcher == "sequential":
-        pairing = pycolmap.SequentialPairingOptions()
-        pairing.overlap = cfg.sequential_overlap
-        pairing.quadratic_overlap = True
-        pairing.num_threads = cfg.num_threads
-        pycolmap.match_sequential(database, pairing_options=pairing, **kw)
-        extra = similar_pairs([Path(image_dir) / n for n in names], cfg.sequential_similar, cfg.sequential_overlap)
-        if extra:
-            pairs_file = Path(database).with_name("similar_pairs.txt")
-            pairs_file.write_text("".join(f"{names[i]} {names[j]}\n" for i, j in extra))
-            imported = pycolmap.ImportedPairingOptions()
-            imported.match_list_path = str(pairs_file)
-            pycolmap.match_image_pairs(database, pairing_options=imported, **kw)
-        extra_pairs = len(extra)
-    else:
-        db = pycolmap.Database.open(database)
-        try:
-            n_priors = db.num_pose_priors()
-        finally:
-            db.close()
-        if n_priors == 0:
-            raise ValueError("sfm.matcher 'spatial' needs location priors (EXIF GPS), but none of the "
-                             f"{len(names)} images has one; use 'sequential' or 'exhaustive'")
-        pairing = pycolmap.SpatialPairingOptions()
-        pairing.max_num_neighbors = cfg.spatial_max_neighbors
-        pycolmap.match_spatial(database, pairing_options=pairing, **kw)
-    t2, c2 = time.perf_counter(), cpu_seconds()
-    db = pycolmap.Database.open(database)
-    try:
-        stats = {"keypoints_per_image": db.num_keypoints() / max(db.num_images(), 1),
-                 "verified_pairs": db.num_verified_image_pairs(), "inlier_matches": db.num_inlier_matches()}
-    finally:
-        db.close()
-    stats.update(extract_s=t1 - t0, match_s=t2 - t1, extract_cpu_s=c1 - c0, match_cpu_s=c2 - c1,
-                 device=str(device).split(".")[-1], matcher=matcher, matcher_choice=why, similar_pairs=extra_pairs)
-    return stats
-
-
-def run_mapper(database: Path, image_dir: Path, out_dir: Path, cfg: SfmConfig, names: list[str],
-               mapper: str, init_min_tri_angle: float) -> dict:
-    """One COLMAP mapping run -> ``{model index: pycolmap.Reconstruction}`` (may be empty)."""
-    import pycolmap
-
-    pycolmap.set_random_seed(cfg.seed)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    if mapper == "global":
-        opts = pycolmap.GlobalPipelineOptions()
-        opts.random_seed = cfg.seed
-        opts.num_threads = cfg.mapper_num_threads
-        opts.min_model_size = 3
-        opts.image_names = names
-        cuda = _device(cfg) == pycolmap.Device.cuda
-        opts.mapper.global_positioning.use_gpu = cuda
-        opts.mapper.bundle_adjustment.ceres.use_gpu = cuda
-        return dict(pycolmap.global_mapping(database, image_dir, out_dir, options=opts))
-    opts = pycolmap.IncrementalPipelineOptions()
-    opts.random_seed = cfg.seed
-    opts.num_threads = cfg.mapper_num_threads
-    opts.min_model_size = 3
-    opts.image_names = names
-    opts.ba_global_frames_ratio = opts.ba_global_points_ratio = float(cfg.ba_global_growth)
-    opts.ba_global_max_refinements = int(cfg.ba_global_max_refinements)
-    opts.ba_local_max_refinements = int(cfg.ba_local_max_refinements)
-    opts.ba_refine_extra_params = not cfg.mapper_holds_distortion()
-    opts.mapper.init_min_tri_angle = float(init_min_tri_angle)
-    opts.mapper.random_seed = cfg.seed
-    opts.triangulation.random_seed = cfg.seed
-    return dict(pycolmap.incremental_mapping(database, image_dir, out_dir, options=opts))
-
-
-# ---- model selection -----------------------------------------------------------------------
-
-def select_model(models: dict) -> tuple[Any, list[int]]:
-    """Pick the model with most registered images; returns it and all models' sizes (descending)."""
-    if not models:
-        return None, []
-    ranked = sorted(models.values(), key=lambda r: r.num_reg_images(), reverse=True)
-    return ranked[0], [int(r.num_reg_images()) for r in ranked]
-
-
-# ---- refinement ------------------------------------------------------------------------------
-
-def refine_model(rec, database: Path, cfg: SfmConfig) -> dict:
-    """Fine-scale refinement of the mapped model in place (:mod:`anigs.sfm.bundle`); returns its report.
-
-    Skipped (with the reason in the report) when ``cfg.refine`` is off or the database with
-    the keypoints is missing or does not match the model.
-    """
-    if not cfg.refine:
-        return {"applied": False, "reason": "sfm.refine is false"}
-    if not database.exists():
-        return {"applied": False, "reason": "no feature database (model not mapped here)"}
-    try:
-        report = refine_fine_scale(rec, database, max_keypoint_scale=cfg.refine_max_keypoint_scale,
-                                   min_observations=cfg.refine_min_observations, loss_scale=cfg.refine_loss_scale,
-                                   num_threads=cfg.mapper_num_threads, max_image_size=cfg.max_image_size,
-                                   max_iterations=cfg.refine_max_iterations)
-    except ValueError as exc:
-        log.warning("fine-scale refinement skipped: %s", exc)
-        return {"applied": False, "reason": str(exc)}
-    return {"applied": True, **report}
-
-
-def larger_originals(originals: str | Path | None, headers: dict) -> Path | None:
-    """``originals`` when it holds a larger photo (after EXIF rotation) for every capture image, else None."""
-    if originals is None or not Path(originals).is_dir():
-        return None
-    from anigs.photos import image_headers, list_images
-
-    by_stem = {p.stem: p for p in list_images(originals)}
-    stems = {Path(n).stem: wh for n, wh in headers.items()}
-    if not set(stems) <= set(by_stem):
-        return None
-    orig = image_headers([by_stem[s] for s in stems])
-    for s, (w, h, _) in stems.items():
-        ow, oh, o = orig[by_stem[s].name]
-        if o in (5, 6, 7, 8):
-            ow, oh = oh, ow
-        if max(ow, oh) <= max(w, h):
-            return None
-    return Path(originals)
 
 
 # ---- the stage -----------------------------------------------------------------------------------
@@ -324,22 +124,8 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
     cfg = cfg or SfmConfig()
     t_start, c_start = time.perf_counter(), cpu_seconds()
     image_dir, out_dir = Path(image_dir), Path(out_dir)
-    files = list_images(image_dir)
-    good, bad = check_images(files)
-    report_unreadable(bad, image_dir, cfg.skip_unreadable)
-    require_min_images(len(good), image_dir)
-    names = [p.name for p in good]
+    names, bad, headers, mode = _check_capture(image_dir, cfg, model_dir)
     total = len(names)
-    headers = image_headers(good)
-    rotated = sorted(n for n, (_, _, o) in headers.items() if o != 1)
-    if rotated:
-        log.warning("%d image(s) carry an EXIF rotation that COLMAP ignores (import them with "
-                    "`anigs capture --source photos` to make them upright): %s", len(rotated), ", ".join(rotated[:10]))
-    sizes = sorted({(w, h) for w, h, _ in headers.values()})
-    try:
-        mode = camera_mode(cfg, sizes) if model_dir is None else None
-    except ValueError as exc:
-        raise ValueError(f"{image_dir}: {exc}") from None
     gt = load_cameras(gt_cameras) if gt_cameras else None
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -352,95 +138,16 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
     cfg, report["auto"] = resolve_config(cfg, threads)
     try:
         if model_dir is not None:
-            model_dir = find_model_dir(Path(model_dir))
-            rec = pycolmap.Reconstruction(str(model_dir))
-            unknown = sorted({rec.images[i].name for i in rec.reg_image_ids()} - set(names))
-            if unknown:
-                raise ValueError(f"COLMAP model {model_dir} registers images missing from {image_dir}: {unknown[:5]}")
-            reg = rec.num_reg_images()
-            if reg < cfg.min_registered_fraction * total:
-                raise SfmError(f"COLMAP model {model_dir} registers {reg}/{total} images, below "
-                               f"min_registered_fraction={cfg.min_registered_fraction}")
-            report["mapping"] = {"source": str(model_dir), "models_found": [reg], "other_models": [], "retries": 0}
-            report["status"] = "complete"
-            report["refine"] = {"applied": False, "reason": "existing model (no feature database)"}
+            rec = _existing_model(Path(model_dir), image_dir, names, cfg, report)
         else:
-            stats = extract_and_match(work / "database.db", image_dir, names, cfg, mode)
-            report["camera_mode"] = mode
-            report["timings_s"].update(extract=stats.pop("extract_s"), match=stats.pop("match_s"))
-            report["cpu_s"].update(extract=stats.pop("extract_cpu_s", None), match=stats.pop("match_cpu_s", None))
-            report["auto"]["matcher"] = stats.pop("matcher", cfg.matcher)
-            report["auto"]["matcher_choice"] = stats.pop("matcher_choice", None)
-            report["features"] = stats
-            t0, c0 = time.perf_counter(), cpu_seconds()
-            first = Source(work / "database.db", image_dir, "capture", report["auto"]["matcher"])
-            outcome = map_escalating(first, work, cfg, names, _device(cfg) if first.database.exists() else None,
-                                     originals=larger_originals(originals, headers), mode=mode)
-            rec, report["mapping"], report["status"] = outcome.rec, outcome.report, outcome.status
-            report["timings_s"]["mapping"], report["cpu_s"]["mapping"] = time.perf_counter() - t0, cpu_seconds() - c0
-            t0, c0 = time.perf_counter(), cpu_seconds()
-            report["refine"] = refine_model(rec, outcome.source.database, cfg)
-            if cfg.mapper_holds_distortion() and not report["refine"]["applied"]:
-                report["refine"]["intrinsics_adjustment"] = adjust_intrinsics(rec, cfg.mapper_num_threads)
-            if outcome.source.resolution == "original":
-                report["mapping"]["rescaled_from_original"] = rescale_model(
-                    rec, {n: (w, h) for n, (w, h, _) in headers.items()})
-            report["timings_s"]["refine"], report["cpu_s"]["refine"] = time.perf_counter() - t0, cpu_seconds() - c0
+            rec = _map(work, image_dir, names, cfg, mode, headers, originals, report)
         report["registered"] = int(rec.num_reg_images())
         report["registered_fraction"] = report["registered"] / total
         registered = sorted(rec.images[i].name for i in rec.reg_image_ids())
         report["unregistered_images"] = sorted(set(names) - set(registered))
         report["partial"] = report["status"] == "partial"
-
-        # undistortion: every camera the stage writes is PINHOLE / SIMPLE_PINHOLE
-        t0, c0 = time.perf_counter(), cpu_seconds()
-        models = {rec.cameras[rec.images[i].camera_id].model.name for i in rec.reg_image_ids()}
-        raw_dir = work / "selected"
-        raw_dir.mkdir(exist_ok=True)
-        rec.write(raw_dir)
-        images_tmp = Path(tempfile.mkdtemp(prefix=".images.", dir=out_dir))
-        if not models <= set(UNDISTORTED_MODELS):
-            if not cfg.undistort:
-                raise ValueError(f"camera model(s) {sorted(models)} have distortion and sfm.undistort is false; "
-                                 "the project's cameras are pinhole: enable undistort or use PINHOLE/SIMPLE_PINHOLE")
-            und = work / "undistorted"
-            pycolmap.undistort_images(und, raw_dir, image_dir, image_names=registered, output_type="COLMAP",
-                                      num_threads=cfg.num_threads)
-            rec = pycolmap.Reconstruction(und / "sparse")
-            for n in registered:
-                shutil.copy2(und / "images" / n, images_tmp / n)
-            report["undistorted"] = True
-        else:
-            for n in registered:
-                shutil.copy2(image_dir / n, images_tmp / n)
-            report["undistorted"] = False
-        report["camera_models"] = sorted(models)
-        report["timings_s"]["undistort"], report["cpu_s"]["undistort"] = time.perf_counter() - t0, cpu_seconds() - c0
-
-        # frame normalisation
-        cams = reconstruction_cameras(rec)
-        pts = reconstruction_points(rec)
-        if gt is not None:
-            by_name = {c.name: c for c in gt}
-            missing = [c.name for c in cams if c.name not in by_name]
-            if missing:
-                raise KeyError(f"ground-truth cameras {gt_cameras} have no entry for image(s) {missing[:5]}")
-            sim = umeyama(np.stack([c.center for c in cams]), np.stack([by_name[c.name].center for c in cams]))
-            frame = {"mode": "similarity_to_ground_truth", "gt_cameras": str(gt_cameras)}
-        else:
-            sim, frame = upright_similarity(cams, pts["xyz"], cfg.ground_percentile, cfg.camera_height)
-        frame.update(scale=sim.scale, matrix=sim.matrix())
-        rec.transform(to_sim3d(sim))
-        cams = reconstruction_cameras(rec)
-        pts = reconstruction_points(rec)
-        report["frame"] = frame
-        if gt is not None:
-            report["gt_errors"] = pose_errors(cams, gt)
-        report["num_points"] = int(len(pts["xyz"]))
-        report["mean_reprojection_error_px"] = float(rec.compute_mean_reprojection_error())
-        c0 = cams[0]
-        report["intrinsics_first_camera"] = {"name": c0.name, "fx": c0.K[0, 0], "fy": c0.K[1, 1], "cx": c0.K[0, 2],
-                                             "cy": c0.K[1, 2], "width": c0.width, "height": c0.height}
+        rec, images_tmp = _undistort(rec, work, out_dir, image_dir, registered, cfg, report)
+        cams, pts = _normalise_frame(rec, gt, gt_cameras, cfg, report)
 
         # outputs: folders built under temporary names and renamed; files written atomically
         sparse_tmp = Path(tempfile.mkdtemp(prefix=".sparse.", dir=out_dir))
@@ -448,7 +155,7 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
         rec.write(sparse_tmp / "0")
         replace_dir(sparse_tmp, out_dir / "sparse")
         replace_dir(images_tmp, out_dir / "images")
-        save_cameras(out_dir / "cameras.json", cams, extra={"source": "colmap", "frame": frame["mode"]})
+        save_cameras(out_dir / "cameras.json", cams, extra={"source": "colmap", "frame": report["frame"]["mode"]})
         write_npz(out_dir / "points.npz", **pts)
         report["timings_s"]["total"], report["cpu_s"]["total"] = time.perf_counter() - t_start, cpu_seconds() - c_start
         report["load_average"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
@@ -463,3 +170,134 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
              report["num_points"], report["timings_s"]["total"],
              f"; PARTIAL, left out: {', '.join(report['unregistered_images'])}" if report["partial"] else "")
     return SfmResult(cams, pts["xyz"], pts["rgb"], report)
+
+
+def _check_capture(image_dir: Path, cfg: SfmConfig, model_dir: str | Path | None
+                   ) -> tuple[list[str], list, dict, str | None]:
+    """(readable image names, unreadable ones, headers {name: (w, h, EXIF orientation)}, camera
+    mode): the images checked before COLMAP runs (unreadable, fewer than 3, EXIF rotations, sizes)."""
+    files = list_images(image_dir)
+    good, bad = check_images(files)
+    report_unreadable(bad, image_dir, cfg.skip_unreadable)
+    require_min_images(len(good), image_dir)
+    names = [p.name for p in good]
+    headers = image_headers(good)
+    rotated = sorted(n for n, (_, _, o) in headers.items() if o != 1)
+    if rotated:
+        log.warning("%d image(s) carry an EXIF rotation that COLMAP ignores (import them with "
+                    "`anigs capture --source photos` to make them upright): %s", len(rotated), ", ".join(rotated[:10]))
+    sizes = sorted({(w, h) for w, h, _ in headers.values()})
+    try:
+        mode = camera_mode(cfg, sizes) if model_dir is None else None
+    except ValueError as exc:
+        raise ValueError(f"{image_dir}: {exc}") from None
+    return names, bad, headers, mode
+
+
+def _existing_model(model_dir: Path, image_dir: Path, names: list[str], cfg: SfmConfig, report: dict):
+    """The given COLMAP model (checked against the images and ``min_registered_fraction``)."""
+    import pycolmap
+
+    total = len(names)
+    model_dir = find_model_dir(model_dir)
+    rec = pycolmap.Reconstruction(str(model_dir))
+    unknown = sorted({rec.images[i].name for i in rec.reg_image_ids()} - set(names))
+    if unknown:
+        raise ValueError(f"COLMAP model {model_dir} registers images missing from {image_dir}: {unknown[:5]}")
+    reg = rec.num_reg_images()
+    if reg < cfg.min_registered_fraction * total:
+        raise SfmError(f"COLMAP model {model_dir} registers {reg}/{total} images, below "
+                       f"min_registered_fraction={cfg.min_registered_fraction}")
+    report["mapping"] = {"source": str(model_dir), "models_found": [reg], "other_models": [], "retries": 0}
+    report["status"] = "complete"
+    report["refine"] = {"applied": False, "reason": "existing model (no feature database)"}
+    return rec
+
+
+def _map(work: Path, image_dir: Path, names: list[str], cfg: SfmConfig, mode: str | None, headers: dict,
+         originals: str | Path | None, report: dict):
+    """Extraction, matching, mapping with escalation (:mod:`anigs.sfm.escalate`) and refinement;
+    fills ``report`` (timings, features, mapping, status, refine); returns the model."""
+    stats = extract_and_match(work / "database.db", image_dir, names, cfg, mode)
+    report["camera_mode"] = mode
+    report["timings_s"].update(extract=stats.pop("extract_s"), match=stats.pop("match_s"))
+    report["cpu_s"].update(extract=stats.pop("extract_cpu_s", None), match=stats.pop("match_cpu_s", None))
+    report["auto"]["matcher"] = stats.pop("matcher", cfg.matcher)
+    report["auto"]["matcher_choice"] = stats.pop("matcher_choice", None)
+    report["features"] = stats
+    t0, c0 = time.perf_counter(), cpu_seconds()
+    first = Source(work / "database.db", image_dir, "capture", report["auto"]["matcher"])
+    outcome = map_escalating(first, work, cfg, names, _device(cfg) if first.database.exists() else None,
+                             originals=larger_originals(originals, headers), mode=mode)
+    rec, report["mapping"], report["status"] = outcome.rec, outcome.report, outcome.status
+    report["timings_s"]["mapping"], report["cpu_s"]["mapping"] = time.perf_counter() - t0, cpu_seconds() - c0
+    t0, c0 = time.perf_counter(), cpu_seconds()
+    report["refine"] = refine_model(rec, outcome.source.database, cfg)
+    if cfg.mapper_holds_distortion() and not report["refine"]["applied"]:
+        report["refine"]["intrinsics_adjustment"] = adjust_intrinsics(rec, cfg.mapper_num_threads)
+    if outcome.source.resolution == "original":
+        report["mapping"]["rescaled_from_original"] = rescale_model(
+            rec, {n: (w, h) for n, (w, h, _) in headers.items()})
+    report["timings_s"]["refine"], report["cpu_s"]["refine"] = time.perf_counter() - t0, cpu_seconds() - c0
+    return rec
+
+
+def _undistort(rec, work: Path, out_dir: Path, image_dir: Path, registered: list[str], cfg: SfmConfig,
+               report: dict) -> tuple[Any, Path]:
+    """(model, temporary images folder): every camera the stage writes is PINHOLE / SIMPLE_PINHOLE
+    (undistorted images, or copies when the model has no distortion)."""
+    import pycolmap
+
+    t0, c0 = time.perf_counter(), cpu_seconds()
+    models = {rec.cameras[rec.images[i].camera_id].model.name for i in rec.reg_image_ids()}
+    raw_dir = work / "selected"
+    raw_dir.mkdir(exist_ok=True)
+    rec.write(raw_dir)
+    images_tmp = Path(tempfile.mkdtemp(prefix=".images.", dir=out_dir))
+    if not models <= set(UNDISTORTED_MODELS):
+        if not cfg.undistort:
+            raise ValueError(f"camera model(s) {sorted(models)} have distortion and sfm.undistort is false; "
+                             "the project's cameras are pinhole: enable undistort or use PINHOLE/SIMPLE_PINHOLE")
+        und = work / "undistorted"
+        pycolmap.undistort_images(und, raw_dir, image_dir, image_names=registered, output_type="COLMAP",
+                                  num_threads=cfg.num_threads)
+        rec = pycolmap.Reconstruction(und / "sparse")
+        for n in registered:
+            shutil.copy2(und / "images" / n, images_tmp / n)
+        report["undistorted"] = True
+    else:
+        for n in registered:
+            shutil.copy2(image_dir / n, images_tmp / n)
+        report["undistorted"] = False
+    report["camera_models"] = sorted(models)
+    report["timings_s"]["undistort"], report["cpu_s"]["undistort"] = time.perf_counter() - t0, cpu_seconds() - c0
+    return rec, images_tmp
+
+
+def _normalise_frame(rec, gt: list[Camera] | None, gt_cameras: str | Path | None, cfg: SfmConfig,
+                     report: dict) -> tuple[list[Camera], dict[str, np.ndarray]]:
+    """Frame normalisation of ``rec`` in place (module docstring); returns its cameras and points."""
+    cams = reconstruction_cameras(rec)
+    pts = reconstruction_points(rec)
+    if gt is not None:
+        by_name = {c.name: c for c in gt}
+        missing = [c.name for c in cams if c.name not in by_name]
+        if missing:
+            raise KeyError(f"ground-truth cameras {gt_cameras} have no entry for image(s) {missing[:5]}")
+        sim = umeyama(np.stack([c.center for c in cams]), np.stack([by_name[c.name].center for c in cams]))
+        frame = {"mode": "similarity_to_ground_truth", "gt_cameras": str(gt_cameras)}
+    else:
+        sim, frame = upright_similarity(cams, pts["xyz"], cfg.ground_percentile, cfg.camera_height)
+    frame.update(scale=sim.scale, matrix=sim.matrix())
+    rec.transform(to_sim3d(sim))
+    cams = reconstruction_cameras(rec)
+    pts = reconstruction_points(rec)
+    report["frame"] = frame
+    if gt is not None:
+        report["gt_errors"] = pose_errors(cams, gt)
+    report["num_points"] = int(len(pts["xyz"]))
+    report["mean_reprojection_error_px"] = float(rec.compute_mean_reprojection_error())
+    c0 = cams[0]
+    report["intrinsics_first_camera"] = {"name": c0.name, "fx": c0.K[0, 0], "fy": c0.K[1, 1], "cx": c0.K[0, 2],
+                                         "cy": c0.K[1, 2], "width": c0.width, "height": c0.height}
+    return cams, pts

@@ -18,7 +18,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 import torch
@@ -27,21 +27,23 @@ from anigs.cameras import Camera
 from anigs.configs import reject_unknown_keys
 from anigs.static.densify import (DensifyConfig, DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
+from anigs.static.divergence import DivergenceGuard, FitDivergedError, raise_diverged
+from anigs.static.evaluate import _render, evaluate
+from anigs.static.init import _to_params, init_gaussians, make_optimizer, params_to_gaussians, split_holdout
 from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, last_densify_step, prune_rows
 from anigs.device import get_device, seed_everything
 from anigs.fused_ssim import fused_ssim
 from anigs.geometry.extent import scene_extent
 from anigs.gaussians import Gaussians
-from anigs.render import rasterize
 from anigs.ssim import psnr
+
+__all__ = ["LOG_EVERY", "DivergenceGuard", "FitConfig", "FitDivergedError", "_render", "_to_params", "evaluate",
+           "fit_static", "init_gaussians", "loss_fn", "make_optimizer", "params_to_gaussians", "split_holdout",
+           "train_step"]
 
 log = logging.getLogger(__name__)
 
 LOG_EVERY = 10  # steps between host reads of the loss (progress) and of the divergence record
-
-
-class FitDivergedError(RuntimeError):
-    """The loss or a gradient became non-finite during the fit."""
 
 
 @dataclass
@@ -104,177 +106,12 @@ class FitConfig:
 
 
 # ---------------------------------------------------------------------------- helpers
-def split_holdout(n: int, every: int) -> tuple[list[int], list[int]]:
-    """Indices (train, test): image i is held out when ``every > 0`` and ``i % every == 0``."""
-    test = [i for i in range(n) if every > 0 and i % every == 0]
-    train = [i for i in range(n) if i not in set(test)]
-    if not train:
-        raise ValueError(f"no training images left: {n} images with holdout_every={every}")
-    return train, test
-
-
-def init_gaussians(points: np.ndarray, colors: np.ndarray, extent: float, sh_degree: int = 3,
-                   opacity: float = 0.1) -> Gaussians:
-    """Isotropic Gaussians at SfM ``points`` [P,3] with ``colors`` [P,3] in [0,1].
-
-    Exact duplicate points are merged (colours averaged). Scale = root mean square distance to
-    the 3 nearest neighbours (scipy cKDTree), clamped to [1e-4, 1] x extent; a single point gets
-    0.01 x extent.
-    """
-    from scipy.spatial import cKDTree
-
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
-    if len(points) == 0:
-        raise ValueError("static fit: the SfM point cloud is empty; nothing to initialise from")
-    if len(colors) != len(points):
-        raise ValueError(f"static fit: {len(points)} points but {len(colors)} colours")
-    finite = np.isfinite(points).all(1)
-    if not finite.all():
-        log.warning("dropping %d non-finite SfM points", int((~finite).sum()))
-        points, colors = points[finite], colors[finite]
-        if len(points) == 0:
-            raise ValueError("static fit: every SfM point is non-finite")
-    uniq, inverse = np.unique(points, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    if len(uniq) < len(points):
-        log.info("merged %d duplicate SfM points", len(points) - len(uniq))
-        summed = np.zeros((len(uniq), 3))
-        np.add.at(summed, inverse, colors)
-        colors = summed / np.bincount(inverse, minlength=len(uniq))[:, None]
-        points = uniq
-    n = len(points)
-    if n == 1:
-        dist = np.full(1, 0.01 * extent)
-    else:
-        k = min(3, n - 1)
-        d, _ = cKDTree(points).query(points, k=k + 1)
-        dist = np.sqrt((d[:, 1:] ** 2).mean(1))
-    dist = np.clip(dist, 1e-4 * extent, extent)
-    return Gaussians.from_points(torch.from_numpy(points).float(), torch.from_numpy(np.clip(colors, 0, 1)).float(),
-                                 torch.from_numpy(dist).float(), opacity=opacity, sh_degree=sh_degree)
-
-
-def _to_params(g: Gaussians, device: torch.device) -> dict[str, torch.nn.Parameter]:
-    P = lambda t: torch.nn.Parameter(t.detach().to(device).contiguous())
-    return {"means": P(g.means), "quats": P(g.quats), "log_scales": P(g.log_scales),
-            "opacity_logits": P(g.opacity_logits), "sh_dc": P(g.sh[:, :1]), "sh_rest": P(g.sh[:, 1:])}
-
-
-def params_to_gaussians(params: dict[str, torch.Tensor]) -> Gaussians:
-    """Detached CPU :class:`Gaussians` from the training parameter dict."""
-    sh = torch.cat([params["sh_dc"], params["sh_rest"]], 1)
-    g = Gaussians(params["means"], params["quats"], params["log_scales"], params["opacity_logits"], sh)
-    return g.detach().to("cpu")
-
-
-def _render(params: dict[str, torch.Tensor], cam: Camera, sh_degree: int, bg: torch.Tensor, backend: str,
-            mats: tuple[torch.Tensor, torch.Tensor] | None = None):
-    """Render the parameter dict; only the SH bands up to ``sh_degree`` are passed on (the others
-    get zero gradients, as when the rasterizer ignores them). ``mats``: cached (viewmat, K)."""
-    dev = params["means"].device
-    k = (sh_degree + 1) ** 2
-    sh = torch.cat([params["sh_dc"], params["sh_rest"][:, :k - 1]], 1)
-    viewmat, K = mats if mats is not None else (cam.torch_viewmat(dev), cam.torch_K(dev))
-    return rasterize(params["means"], params["quats"], params["log_scales"].exp(),
-                     torch.sigmoid(params["opacity_logits"]), sh, viewmat, K,
-                     cam.width, cam.height, sh_degree=sh_degree, background=bg, backend=backend)
-
-
 def loss_fn(pred: torch.Tensor, target: torch.Tensor, ssim_weight: float) -> torch.Tensor:
     """``(1-w) L1 + w (1 - SSIM)`` for images [H,W,3] (SSIM: :func:`anigs.fused_ssim.fused_ssim`)."""
     l1 = (pred - target).abs().mean()
     if ssim_weight == 0:
         return l1
     return (1 - ssim_weight) * l1 + ssim_weight * (1 - fused_ssim(pred, target))
-
-
-@torch.no_grad()
-def evaluate(params: dict[str, torch.Tensor], images: Sequence[torch.Tensor], cameras: Sequence[Camera],
-             sh_degree: int, bg: torch.Tensor, backend: str) -> dict[str, float]:
-    """Mean PSNR (dB) and SSIM over the given views (NaN when there are none)."""
-    if not images:
-        return {"psnr": float("nan"), "ssim": float("nan"), "views": 0}
-    ps, ss = [], []
-    for img, cam in zip(images, cameras):
-        rgb, _, _ = _render(params, cam, sh_degree, bg, backend)
-        rgb = rgb.clamp(0, 1)
-        ps.append(psnr(rgb, img))
-        ss.append(float(fused_ssim(rgb, img)))
-    return {"psnr": float(np.mean(ps)), "ssim": float(np.mean(ss)), "views": len(images)}
-
-
-def make_optimizer(params: dict[str, torch.nn.Parameter], lr: dict[str, float]) -> torch.optim.Adam:
-    """Adam with one group per parameter (``"name"`` = its key, learning rate ``lr[key]``), eps 1e-15.
-
-    Fused (one kernel for all groups) where torch has it for the device, else foreach.
-    """
-    groups = [{"params": [params[k]], "lr": lr[k], "name": k} for k in params]
-    dev = next(iter(params.values())).device
-    if dev.type in ("cpu", "cuda"):
-        try:
-            return torch.optim.Adam(groups, lr=0.0, eps=1e-15, fused=True)
-        except (RuntimeError, ValueError):  # an older torch or an unsupported dtype
-            groups = [{"params": [params[k]], "lr": lr[k], "name": k} for k in params]
-    return torch.optim.Adam(groups, lr=0.0, eps=1e-15, foreach=True)
-
-
-class DivergenceGuard:
-    """Non-finite loss or gradient detection without a host read per step.
-
-    :meth:`record` (after ``loss.backward()``) sums every gradient (a non-finite entry makes
-    its sum non-finite; so does a sum beyond float range, itself a divergence) and keeps, on
-    the device, the first iteration where the loss or a sum was not finite, which of them, and
-    the loss. With a fused Adam that step is skipped by the optimizer itself (``found_inf``),
-    so the parameters stay finite until :meth:`check` reads the record and raises; with any
-    other optimizer :meth:`record` checks at once (a host read per step).
-    """
-
-    def __init__(self, optimizer: torch.optim.Optimizer, names: Sequence[str], device: torch.device,
-                 on_failure: Callable[[int, str], None] | None = None):
-        self.names = list(names)
-        self.on_failure = on_failure  # (iteration, what) -> raises; default FitDivergedError
-        self.deferred = bool(optimizer.defaults.get("fused"))
-        self.found_inf = torch.zeros((), device=device)
-        self.first_bad = torch.zeros((), dtype=torch.long, device=device)  # 0: none yet
-        self.bad = torch.zeros(len(self.names) + 1, dtype=torch.bool, device=device)  # [loss, *params]
-        self.loss = torch.zeros((), device=device)
-        if self.deferred:
-            optimizer.found_inf = self.found_inf  # read by Adam.step: skip the update when 1
-
-    def record(self, step: int, loss: torch.Tensor, params: dict[str, torch.Tensor]) -> None:
-        """Record step ``step`` (loss scalar, gradients of ``params`` in ``names`` order)."""
-        sums = [loss.detach().reshape(())]
-        sums += [p.grad.sum() if p.grad is not None else torch.zeros((), device=loss.device)
-                 for p in (params[k] for k in self.names)]
-        bad = ~torch.isfinite(torch.stack(sums))
-        any_bad = bad.any()
-        self.found_inf.copy_(any_bad)
-        first = any_bad & (self.first_bad == 0)
-        self.first_bad = torch.where(first, step, self.first_bad)
-        self.bad = torch.where(first, bad, self.bad)
-        self.loss = torch.where(first, sums[0].float(), self.loss)
-        if not self.deferred:
-            self.check()
-
-    def failure(self) -> tuple[int, str] | None:
-        """(iteration, what) of the first non-finite step, or None (one host read)."""
-        step = int(self.first_bad)
-        if step == 0:
-            return None
-        bad = self.bad.tolist()
-        if bad[0]:
-            return step, f"loss is {float(self.loss)}"
-        return step, f"non-finite gradient of {[n for n, b in zip(self.names, bad[1:]) if b]}"
-
-    def check(self) -> None:
-        """Raise (``on_failure``, else :class:`FitDivergedError`) if a recorded step was not finite."""
-        f = self.failure()
-        if f is None:
-            return
-        if self.on_failure is not None:
-            self.on_failure(*f)
-        raise FitDivergedError(f"static fit diverged at iteration {f[0]}: {f[1]}")
 
 
 def train_step(params: dict[str, torch.nn.Parameter], optimizer: torch.optim.Optimizer, cam: Camera,
@@ -361,49 +198,108 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
              "%s Adam", len(train_idx), len(test_idx), g0.num, extent, cfg.iterations,
              "fused" if optimizer.defaults.get("fused") else "foreach")
 
-    eval_seconds = eval_cpu = 0.0
-
-    def checkpoint(step: int, deg: int) -> dict[str, Any]:
-        nonlocal eval_seconds, eval_cpu
-        t0, c0 = time.perf_counter(), time.process_time()
-        ev = evaluate(params, test_imgs, test_cams, deg, bg, cfg.backend)
-        eval_seconds += time.perf_counter() - t0
-        eval_cpu += time.process_time() - c0
-        row = {"iteration": step, "train_seconds": time.perf_counter() - t_start - eval_seconds,
-               "train_cpu_seconds": time.process_time() - c_start - eval_cpu,
-               "test_psnr": ev["psnr"], "test_ssim": ev["ssim"], "num_gaussians": int(params["means"].shape[0])}
-        log.info("iteration %d: held-out PSNR %.2f dB, SSIM %.3f, %d Gaussians, %.1f s (cpu %.1f s)", step,
-                 row["test_psnr"], row["test_ssim"], row["num_gaussians"], row["train_seconds"],
-                 row["train_cpu_seconds"])
-        return row
-
-    curve = [checkpoint(0, 0)]
-    last_good: dict[str, Any] = {"iteration": None, "path": None}
-
-    def save_checkpoint(step: int) -> None:
-        if checkpoint_path is None:
-            return
-        g = params_to_gaussians(params)
-        try:
-            g.check_finite(f"parameters at iteration {step}")
-        except ValueError as exc:  # keep the previous (good) checkpoint
-            _diverged(str(exc), step, last_good, bar)
-        g.save_ply(checkpoint_path)
-        last_good.update(iteration=step, path=str(checkpoint_path))
-
-    bar = None
-    guard = DivergenceGuard(optimizer, list(params), device,
-                            on_failure=lambda step, what: _diverged(what, step, last_good, bar))
-    save_checkpoint(0)
-    order: list[int] = []
+    run = _FitRun(cfg, params, bg, test_imgs, test_cams, checkpoint_path, t_start, c_start)
+    curve = [run.checkpoint(0, 0)]
+    guard = DivergenceGuard(optimizer, list(params), device, on_failure=lambda step, what: run.diverged(step, what))
+    run.save_checkpoint(0)
     if progress:
         import sys
 
         from tqdm import tqdm
 
         # in a log file (no terminal) refresh rarely, so Snakemake logs stay readable
-        bar = tqdm(total=cfg.iterations, desc="static fit", unit="it", dynamic_ncols=True,
-                   mininterval=0.1 if sys.stderr.isatty() else 10.0)
+        run.bar = tqdm(total=cfg.iterations, desc="static fit", unit="it", dynamic_ncols=True,
+                       mininterval=0.1 if sys.stderr.isatty() else 10.0)
+    deg, reg, step_seconds, last_refine = _train(run, optimizer, guard, gen, train_imgs, train_cams, extent, dstate,
+                                                 curve, device)
+    if run.bar is not None:
+        run.bar.close()
+    guard.check()
+
+    params = run.params
+    keep = reg.final_keep(params)
+    if keep is not None:
+        params = run.params = prune_rows(params, optimizer, keep)
+    final_deg = min(cfg.sh_degree, max(deg, 0))
+    if cfg.iterations > 0:
+        curve.append(run.checkpoint(cfg.iterations, final_deg))
+    train_seconds = curve[-1]["train_seconds"]
+    tr = evaluate(params, train_imgs, train_cams, final_deg, bg, cfg.backend)
+    te = curve[-1]
+    gaussians = params_to_gaussians(params)
+    gaussians.check_finite("static fit result")
+    if final_deg < cfg.sh_degree:  # SH bands above the active degree were never trained
+        gaussians = gaussians.with_sh_degree(final_deg).with_sh_degree(cfg.sh_degree)
+    metrics = {
+        "train_psnr": tr["psnr"], "train_ssim": tr["ssim"], "train_views": tr["views"],
+        "test_psnr": te["test_psnr"], "test_ssim": te["test_ssim"], "test_views": len(test_idx),
+        "init_test_psnr": curve[0]["test_psnr"],
+        "num_gaussians": gaussians.num, "init_gaussians": g0.num, "iterations": cfg.iterations,
+        "seconds": time.perf_counter() - t_start, "train_seconds": train_seconds, "eval_seconds": run.eval_seconds,
+        "train_cpu_seconds": curve[-1]["train_cpu_seconds"], "torch_threads": torch.get_num_threads(),
+        "scene_extent": extent, "sh_degree": cfg.sh_degree, "active_sh_degree": final_deg,
+        "holdout": [cameras[i].name for i in test_idx], "curve": curve, "regularize": reg.report(params),
+        **_step_summary(step_seconds, last_refine),
+    }
+    log.info("static fit done: %d Gaussians, held-out PSNR %.2f dB, train PSNR %.2f dB, %.1f s",
+             gaussians.num, te["test_psnr"], tr["psnr"], metrics["seconds"])
+    return gaussians, metrics
+
+
+class _FitRun:
+    """What the fit's loop, evaluations and checkpoints share: the current parameter dict
+    (replaced by each refinement), the evaluation time to leave out of the training time, the
+    last good checkpoint and the progress bar."""
+
+    def __init__(self, cfg: FitConfig, params: dict[str, torch.nn.Parameter], bg: torch.Tensor,
+                 test_imgs: list[torch.Tensor], test_cams: list[Camera], checkpoint_path: str | Path | None,
+                 t_start: float, c_start: float) -> None:
+        self.cfg, self.params, self.bg = cfg, params, bg
+        self.test_imgs, self.test_cams, self.checkpoint_path = test_imgs, test_cams, checkpoint_path
+        self.t_start, self.c_start = t_start, c_start
+        self.eval_seconds = self.eval_cpu = 0.0
+        self.last_good: dict[str, Any] = {"iteration": None, "path": None}
+        self.bar = None
+
+    def checkpoint(self, step: int, deg: int) -> dict[str, Any]:
+        """A row of the accuracy-versus-time curve: held-out PSNR and SSIM at ``step``."""
+        t0, c0 = time.perf_counter(), time.process_time()
+        ev = evaluate(self.params, self.test_imgs, self.test_cams, deg, self.bg, self.cfg.backend)
+        self.eval_seconds += time.perf_counter() - t0
+        self.eval_cpu += time.process_time() - c0
+        row = {"iteration": step, "train_seconds": time.perf_counter() - self.t_start - self.eval_seconds,
+               "train_cpu_seconds": time.process_time() - self.c_start - self.eval_cpu,
+               "test_psnr": ev["psnr"], "test_ssim": ev["ssim"], "num_gaussians": int(self.params["means"].shape[0])}
+        log.info("iteration %d: held-out PSNR %.2f dB, SSIM %.3f, %d Gaussians, %.1f s (cpu %.1f s)", step,
+                 row["test_psnr"], row["test_ssim"], row["num_gaussians"], row["train_seconds"],
+                 row["train_cpu_seconds"])
+        return row
+
+    def save_checkpoint(self, step: int) -> None:
+        """Write the parameters as the last good PLY (kept as they were when not finite)."""
+        if self.checkpoint_path is None:
+            return
+        g = params_to_gaussians(self.params)
+        try:
+            g.check_finite(f"parameters at iteration {step}")
+        except ValueError as exc:  # keep the previous (good) checkpoint
+            self.diverged(step, str(exc))
+        g.save_ply(self.checkpoint_path)
+        self.last_good.update(iteration=step, path=str(self.checkpoint_path))
+
+    def diverged(self, step: int, what: str) -> None:
+        raise_diverged(what, step, self.last_good, self.bar)
+
+
+def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuard, gen: torch.Generator,
+           train_imgs: list[torch.Tensor], train_cams: list[Camera], extent: float, dstate: DensifyState,
+           curve: list[dict[str, Any]], device: torch.device
+           ) -> tuple[int, NeedleRegularizer, list[float], int]:
+    """The optimisation loop (``run.params`` is replaced by each refinement; held-out rows are
+    appended to ``curve``). Returns (last active SH degree, the regulariser, seconds per step,
+    the last step whose refinement changed the set)."""
+    cfg, bar = run.cfg, run.bar
+    order: list[int] = []
     ema_loss = ema_psnr = None
     deg = 0
     densify_cfg = schedule_for(cfg.densify, cfg.iterations)
@@ -418,13 +314,13 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         deg = min(cfg.sh_degree, (step - 1) // cfg.sh_increase_every)
         means_group["lr"] = _lr_means(step - 1, cfg.iterations, cfg.lr_means * extent, cfg.lr_means_final * extent)
         if not order:
-            order = torch.randperm(len(train_idx), generator=gen).tolist()
+            order = torch.randperm(len(train_cams), generator=gen).tolist()
         v = order.pop()
         cam, target = train_cams[v], train_imgs[v]
-        if params["means"].shape[0] == 0:
+        if run.params["means"].shape[0] == 0:
             raise RuntimeError(f"static fit: no Gaussians left at iteration {step}")
         stats = dstate if stats_needed(densify_cfg, step) else None
-        loss, rgb = train_step(params, optimizer, cam, target, deg, bg, cfg.backend, cfg.ssim_weight,
+        loss, rgb = train_step(run.params, optimizer, cam, target, deg, run.bg, cfg.backend, cfg.ssim_weight,
                                mats=train_mats[v], stats=stats, guard=guard, step=step)
 
         ckpt_due = cfg.checkpoint_every > 0 and step % cfg.checkpoint_every == 0
@@ -439,52 +335,22 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
             ema_psnr = pv if ema_psnr is None else 0.9 * ema_psnr + 0.1 * pv
         aside = time.perf_counter()
         if ckpt_due:
-            save_checkpoint(step)
+            run.save_checkpoint(step)
         if eval_due:
-            curve.append(checkpoint(step, deg))  # before refinement: an opacity reset would hide the progress
+            curve.append(run.checkpoint(step, deg))  # before refinement: an opacity reset would hide the progress
         aside = time.perf_counter() - aside
-        reg.after_step(params)
+        reg.after_step(run.params)
         if due and step % densify_cfg.every == 0 and step >= densify_cfg.start:
-            reg.decay(params, step, last=step == last_densify)
-        params = refine(params, optimizer, dstate, step, densify_cfg, extent, gen)
+            reg.decay(run.params, step, last=step == last_densify)
+        run.params = refine(run.params, optimizer, dstate, step, densify_cfg, extent, gen)
         if due:
             last_refine = step
         step_seconds.append(time.perf_counter() - t_step - aside)
         if bar is not None:
             bar.update(1)
             if log_due:
-                bar.set_postfix(loss=f"{ema_loss:.4f}", psnr=f"{ema_psnr:.2f}", n=int(params["means"].shape[0]))
-    if bar is not None:
-        bar.close()
-    guard.check()
-
-    keep = reg.final_keep(params)
-    if keep is not None:
-        params = prune_rows(params, optimizer, keep)
-    final_deg = min(cfg.sh_degree, max(deg, 0))
-    if cfg.iterations > 0:
-        curve.append(checkpoint(cfg.iterations, final_deg))
-    train_seconds = curve[-1]["train_seconds"]
-    tr = evaluate(params, train_imgs, train_cams, final_deg, bg, cfg.backend)
-    te = curve[-1]
-    gaussians = params_to_gaussians(params)
-    gaussians.check_finite("static fit result")
-    if final_deg < cfg.sh_degree:  # SH bands above the active degree were never trained
-        gaussians = gaussians.with_sh_degree(final_deg).with_sh_degree(cfg.sh_degree)
-    metrics = {
-        "train_psnr": tr["psnr"], "train_ssim": tr["ssim"], "train_views": tr["views"],
-        "test_psnr": te["test_psnr"], "test_ssim": te["test_ssim"], "test_views": len(test_idx),
-        "init_test_psnr": curve[0]["test_psnr"],
-        "num_gaussians": gaussians.num, "init_gaussians": g0.num, "iterations": cfg.iterations,
-        "seconds": time.perf_counter() - t_start, "train_seconds": train_seconds, "eval_seconds": eval_seconds,
-        "train_cpu_seconds": curve[-1]["train_cpu_seconds"], "torch_threads": torch.get_num_threads(),
-        "scene_extent": extent, "sh_degree": cfg.sh_degree, "active_sh_degree": final_deg,
-        "holdout": [cameras[i].name for i in test_idx], "curve": curve, "regularize": reg.report(params),
-        **_step_summary(step_seconds, last_refine),
-    }
-    log.info("static fit done: %d Gaussians, held-out PSNR %.2f dB, train PSNR %.2f dB, %.1f s",
-             gaussians.num, te["test_psnr"], tr["psnr"], metrics["seconds"])
-    return gaussians, metrics
+                bar.set_postfix(loss=f"{ema_loss:.4f}", psnr=f"{ema_psnr:.2f}", n=int(run.params["means"].shape[0]))
+    return deg, reg, step_seconds, last_refine
 
 
 def _step_summary(step_seconds: list[float], last_refine: int) -> dict[str, Any]:
@@ -494,14 +360,3 @@ def _step_summary(step_seconds: list[float], last_refine: int) -> dict[str, Any]
     med = lambda xs: round(float(np.median(xs)) * 1e3, 3) if xs else None
     return {"step_ms_median": med(step_seconds), "step_ms_median_final": med(final),
             "final_steps_from": last_refine + 1 if final else None}
-
-
-def _diverged(what: str, step: int, last_good: dict[str, Any], bar) -> None:
-    if bar is not None:
-        bar.close()
-    if last_good["path"] is not None:
-        where = f"last good checkpoint (iteration {last_good['iteration']}) kept at {last_good['path']}"
-    else:
-        where = "no checkpoint was written (pass checkpoint_path to keep one)"
-    raise FitDivergedError(f"static fit diverged at iteration {step}: {what}; {where}. "
-                           "Lower the learning rates or check the input images for invalid values")

@@ -134,3 +134,25 @@ def score_candidate(g: Gaussians, pos: np.ndarray, roi_idx: np.ndarray, up: np.n
     out = np.zeros_like(seen)
     out[np.nonzero(seen)[0][inside[k]]] = True
     return float(headings[k]), out
+
+
+def roi_azimuth(pos: np.ndarray, centroid: np.ndarray, up: np.ndarray) -> float | None:
+    """Azimuth (deg, horizontal basis of ``up``) from ``pos`` to the ROI ``centroid``; None when
+    the centroid is straight above or below."""
+    d = centroid - pos
+    if np.linalg.norm(d - up * (d @ up)) <= 1e-9:
+        return None
+    return float(azimuth_deg(d, up))
+
+
+def candidate_positions(cameras: Sequence[Camera], up: np.ndarray, cfg: ViewsConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate positions [M,3] and forwards [M,3] (:func:`make_candidates`), at least
+    ``cfg.num_locations`` of them, thinned to ``cfg.max_candidates`` by farthest-point sampling."""
+    cand, cand_fwd = make_candidates(cameras, up, cfg)
+    if len(cand) < cfg.num_locations:
+        raise ValueError(f"views: {len(cand)} candidate positions but num_locations={cfg.num_locations}; "
+                         "lower views.num_locations or add jittered candidates (views.jitter_copies)")
+    if len(cand) > cfg.max_candidates:  # thin by pure farthest-point sampling first
+        keep = sorted(farthest_point_order(cand, np.ones(len(cand)), cfg.max_candidates, 0))
+        cand, cand_fwd = cand[keep], cand_fwd[keep]
+    return cand, cand_fwd

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -13,13 +12,14 @@ import torch
 from anigs import geometry
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
-from anigs.geometry import horizontal_basis
-from anigs.views.candidates import azimuth_deg, ccw_order, farthest_point_order, make_candidates, score_candidate, view_camera
+from anigs.views.candidates import candidate_positions
 from anigs.views.config import ViewsConfig
-from anigs.views.coverage import (DYNAMIC_ALPHA, DYNAMIC_SHARE, _rel_deg, capture_pitch_deg, dynamic_fraction,
-                                  observation_counts, replacement_directions, scene_coverage)
-from anigs.masks.lift import VisibilityConfig, visibility
+from anigs.views.coverage import DYNAMIC_ALPHA, DYNAMIC_SHARE, dynamic_fraction
 from anigs.views.content import ContentCheck, sharp_gaussians
+from anigs.views.entries import queue_entries
+from anigs.views.place import Placer, Slot
+from anigs.views.policy import classify_capture, layout_policy
+from anigs.views.score import choose_locations, score_candidates
 
 log = logging.getLogger("anigs.views")
 
@@ -120,7 +120,9 @@ def drop_negligible(g: Gaussians, roi: np.ndarray, cams: Sequence[Camera], cfg: 
 def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
                cfg: ViewsConfig | None = None, observations: np.ndarray | None = None,
                keep_all: str | None = None, points: np.ndarray | None = None) -> ViewPlan:
-    """Build the view queue.
+    """Build the view queue: classify the capture (:mod:`anigs.views.policy`) -> candidate
+    positions -> score them and choose locations (:mod:`anigs.views.score`) -> place the
+    directions (:mod:`anigs.views.place`) -> drop negligible views -> the queue's entries.
 
     Args:
         gaussians: the canonical Gaussians (N) used for the visibility tests.
@@ -146,156 +148,46 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
     g = gaussians.detach()
     vcfg = cfg.visibility_config()
     check = content_check(g, cameras, cfg, points)
-    if observations is None and cfg.visibility == "weight":
-        observations = check.sharp.observations  # the same test, counted in the same pass
-    if observations is None:
-        log.info("views: counting observations of %d Gaussians in %d capture photos", g.num, len(cameras))
-        observations = observation_counts(g, cameras, vcfg)
-    observations = np.asarray(observations)
-    if observations.shape != (g.num,):
-        raise ValueError(f"views: observation counts must be [{g.num}], got {observations.shape}")
-    observed = observations >= cfg.min_observations
+    frame = classify_capture(g, means, cameras, cfg, check, observations)
+    observed, up, layout = frame.observed, frame.up, frame.layout
     g_obs = g.subset(torch.from_numpy(np.nonzero(observed)[0]))
-    up_report = None
-    if cfg.up == "z":
-        up = np.array([0.0, 0.0, 1.0])
-        est = geometry.estimate_up(cameras, means[observed] if observed.sum() >= 50 else None)
-        if geometry.angle_deg(est.up, up) > 20 and not est.fallback:
-            log.warning("views: the capture's up direction is %.0f deg from +z (%s); the views use +z "
-                        "(views.up: auto uses the estimate)", geometry.angle_deg(est.up, up), est.method)
-    else:
-        est = geometry.estimate_up(cameras, means[observed] if observed.sum() >= 50 else None)
-        up = est.up
-        up_report = est.to_dict()
-        log.info("views: estimated up %s (%.1f deg from +z, %s)", np.round(up, 3),
-                 math.degrees(math.acos(np.clip(up[2], -1, 1))), est.method)
-    layout = geometry.classify_layout(cameras, up, means[observed] if observed.any() else None)
-    if cfg.layout != "auto":
-        layout = geometry.Layout(cfg.layout, {**layout.metrics, "classified_as": geometry.LAYOUTS.index(layout.kind)},
-                                 layout.focus)
-    log.info("views: capture layout %s (%s)", layout.kind,
-             ", ".join(f"{k} {v:.2f}" for k, v in layout.metrics.items()))
-    walk = layout.kind == "walk"
-    forward_mode = cfg.forward if walk else "centroid"
-    base_pitch = float(cfg.pitch_deg) if walk else capture_pitch_deg(cameras, up)
-    fov = float(cfg.fov_deg)
-    if not walk and cfg.match_capture_fov:
-        fov = min(fov, float(np.median([c.fov_x for c in cameras])))
-    if not walk:
-        log.info("views: %s layout: yaw 0 faces the ROI centroid, pitch %.1f deg (capture median), FOV %.1f deg",
-                 layout.kind, base_pitch, fov)
-    cand, cand_fwd = make_candidates(cameras, up, cfg)
-    if len(cand) < cfg.num_locations:
-        raise ValueError(f"views: {len(cand)} candidate positions but num_locations={cfg.num_locations}; "
-                         "lower views.num_locations or add jittered candidates (views.jitter_copies)")
+    policy = layout_policy(layout, cameras, up, cfg)
+
+    cand, cand_fwd = candidate_positions(cameras, up, cfg)
     centroid = means[roi].mean(0)
-    if len(cand) > cfg.max_candidates:  # thin by pure farthest-point sampling first
-        keep = sorted(farthest_point_order(cand, np.ones(len(cand)), cfg.max_candidates, 0))
-        cand, cand_fwd = cand[keep], cand_fwd[keep]
     roi_idx = np.nonzero(roi)[0]
     log.info("views: scoring %d candidate positions (4-view panorama each, %s visibility)", len(cand), cfg.visibility)
-
-    def roi_azimuth(pos: np.ndarray) -> float | None:
-        d = centroid - pos
-        if np.linalg.norm(d - up * (d @ up)) <= 1e-9:
-            return None
-        return float(azimuth_deg(d, up))
-
-    heading = np.zeros(len(cand))
-    cand_seen = np.zeros((len(cand), n_roi), dtype=bool)
-    for m, pos in enumerate(cand):
-        fixed = None
-        if forward_mode == "centroid":
-            az = roi_azimuth(pos)
-            fixed = 0.0 if az is None else az
-        elif forward_mode == "camera":
-            fixed = float(azimuth_deg(cand_fwd[m], up))
-        heading[m], cand_seen[m] = score_candidate(g, pos, roi_idx, up, cfg, vcfg, fixed)
+    heading, cand_seen = score_candidates(g, cand, cand_fwd, roi_idx, centroid, up, policy, cfg, vcfg)
     cand_vis = cand_seen.mean(1)
     reachable = float(cand_seen.any(0).mean())
     log.info("views: candidates see %.1f%% of the ROI on average (best %.1f%%); all together %.1f%%",
              100 * cand_vis.mean(), 100 * cand_vis.max(), 100 * reachable)
     if cand_vis.max() == 0:
         raise ValueError(f"views: none of the {len(cand)} candidate positions sees any of the {n_roi} ROI Gaussians")
+    chosen, extra = choose_locations(cand, cand_vis, centroid, up, cfg)
 
-    start = int(np.argmax(cand_vis))
-    n_extra = min(cfg.extra_locations, len(cand) - cfg.num_locations)
-    fps = farthest_point_order(cand, cand_vis, cfg.num_locations + n_extra, start, cfg.visibility_power)
-    chosen, extra = fps[:cfg.num_locations], fps[cfg.num_locations:]
-    e1, e2 = horizontal_basis(up)
-    flat = lambda p: np.stack([p @ e1, p @ e2], -1)  # noqa: E731
-    order = ccw_order(flat(cand[chosen]), flat(centroid), first=0)
-    chosen = [chosen[i] for i in order]
+    placer = Placer(g_obs, check, cand, heading, centroid, up, policy, cfg)
+    slots, chosen = placer.place_all(chosen, extra)
+    slots, fractions, dropped, dyn_rule = _drop_slots(g, roi, slots, cfg, keep_all)
+    views, cams, seen_by_view, coverage_after, frustum_after = queue_entries(
+        g, roi, slots, fractions, heading, placer.figures, policy, cfg)
+    log.info("views: %d views at %d locations (layout %s); scene coverage per view: %s; content: %s; edge share: "
+             "%s; ROI coverage after each view: %s (reachable from all candidates: %.1f%%)", len(views), len(chosen),
+             layout.kind, " ".join(f"{v['coverage']:.2f}" for v in views),
+             " ".join(f"{v['content']:.2f}" for v in views),
+             " ".join(f"{v['edge_share']:.2f}" for v in views),
+             " ".join(f"{100 * c:.1f}%" for c in coverage_after), 100 * reachable)
+    rule = {"min": cfg.min_coverage, "alpha": cfg.coverage_alpha, "min_observations": cfg.min_observations,
+            "observed_gaussians": int(observed.sum())}
+    return ViewPlan(views, cams, cand, cand_vis, heading, chosen, centroid, up, coverage_after, reachable, seen_by_view,
+                    cand_seen, frustum_after, layout, placer.rejected, rule, frame.up_report, dropped, dyn_rule,
+                    check.to_json())
 
-    cov_cache: dict[tuple, tuple[float, dict[str, float] | None]] = {}
 
-    def coverage_of(ci: int, yaw: float, pitch: float) -> tuple[Camera, float, dict[str, float] | None]:
-        """The view's camera, scene coverage and content figures (None when the coverage fails)."""
-        cam = view_camera(cand[ci], _heading_vec(heading[ci]), up, yaw, pitch, fov, cfg.width, cfg.height)
-        key = (ci, round(_rel_deg(yaw), 6), round(pitch, 6))
-        if key not in cov_cache:
-            cov = scene_coverage(g_obs, cam, cfg.coverage_alpha)
-            cov_cache[key] = cov, (check.measure(cam) if cov >= cfg.min_coverage else None)
-        return cam, *cov_cache[key]
-
-    def _heading_vec(h_deg: float) -> np.ndarray:
-        h = math.radians(h_deg)
-        return math.cos(h) * e1 + math.sin(h) * e2
-
-    rejected: list[dict[str, Any]] = []
-    used: dict[int, list[tuple[float, float]]] = {}
-    figures: dict[int, dict[str, float]] = {}  # content figures of the placed cameras (by id)
-
-    def place(ci: int, loc: int, yaw: float) -> tuple[Camera, float, float, float] | None:
-        """First direction at candidate ``ci`` for requested ``yaw`` that passes the coverage test."""
-        roi_az = roi_azimuth(cand[ci])
-        roi_rel = None if roi_az is None else _rel_deg(roi_az - heading[ci])
-        for y, p in replacement_directions(yaw, base_pitch, roi_rel, cfg):
-            if any(abs(_rel_deg(y - uy)) < 1e-6 and abs(p - up_) < 1e-6 for uy, up_ in used.get(ci, [])):
-                continue
-            cam, cov, fig = coverage_of(ci, y, p)
-            why = (f"coverage {cov:.2f} < min_coverage {cfg.min_coverage:g}" if fig is None
-                   else check.failure(fig))
-            if why is None:
-                used.setdefault(ci, []).append((y, p))
-                figures[id(cam)] = fig
-                return cam, cov, y, p
-            rejected.append({"location": loc, "candidate": int(ci), "requested_yaw": float(yaw), "yaw": float(y),
-                             "pitch": float(p), "coverage": cov, **(fig or {}), "reason": why,
-                             "position": cand[ci].tolist(), "forward": cam.forward.tolist()})
-        return None
-
-    slots: list[tuple[int, int, float, tuple]] = []   # (location, candidate, requested yaw, placed)
-    missing: list[float] = []
-    for loc, ci in enumerate(chosen):
-        for yaw in cfg.directions:
-            got = place(ci, loc, yaw)
-            if got is None:
-                missing.append(yaw)
-            else:
-                slots.append((loc, ci, yaw, got))
-    loc_ids = list(range(len(chosen)))
-    for ci in extra:  # directions no location passed: other locations
-        if not missing:
-            break
-        loc = len(loc_ids)
-        placed_here = False
-        for yaw in list(missing):
-            got = place(ci, loc, yaw)
-            if got is not None:
-                missing.remove(yaw)
-                slots.append((loc, ci, yaw, got))
-                placed_here = True
-        if placed_here:
-            loc_ids.append(loc)
-            chosen.append(ci)
-    if missing:
-        log.warning("views: %d direction(s) (yaw %s) pass the coverage test (>= %.0f%% of pixels on Gaussians "
-                    "seen in >= %d photos) and the content test (>= %.0f%% of pixels on sharp Gaussians) nowhere: "
-                    "left out of the queue", len(missing), ", ".join(f"{y:+.0f}" for y in missing),
-                    100 * cfg.min_coverage, cfg.min_observations, 100 * cfg.min_content)
-    if rejected:
-        log.info("views: %d direction(s) rejected by the coverage test and replaced", len(rejected))
+def _drop_slots(g: Gaussians, roi: np.ndarray, slots: list[Slot], cfg: ViewsConfig, keep_all: str | None
+                ) -> tuple[list[Slot], list[float | None], list[dict[str, Any]], dict[str, Any] | None]:
+    """(kept slots, their dynamic fractions, dropped entries, rule): :func:`drop_negligible` on
+    the placed views, with a ``views.json`` entry per dropped view."""
     keep, fractions, dyn_rule = drop_negligible(g, roi, [s[3][0] for s in slots], cfg, keep_all)
     dropped: list[dict[str, Any]] = []
     if dyn_rule is not None and dyn_rule["applied"]:
@@ -316,66 +208,7 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
                         100 * cfg.min_dynamic_fraction,
                         ", ".join(f"slot {d['slot']} (location {d['location']}, yaw {d['requested_yaw']:+.0f}) "
                                   f"{100 * d['dynamic_fraction']:.3f}%" for d in dropped), len(keep), len(keep) - 1)
-    fractions = [fractions[i] for i in keep]
-    slots = [slots[i] for i in keep]
-
-    views: list[dict[str, Any]] = []
-    cams: list[Camera] = []
-    seen_by_view: list[np.ndarray] = []
-    covered = np.zeros(gaussians.num, dtype=bool)
-    any_seen = np.zeros(gaussians.num, dtype=bool)
-    coverage_after: list[float] = []
-    in_frustum = np.zeros(gaussians.num, dtype=bool)
-    frustum_after: list[float] = []
-    for (loc, ci, req_yaw, (cam, cov, yaw, pitch)), dyn in zip(slots, fractions):
-        vid = f"v{len(views):02d}"
-        cam.name = vid
-        seen = visibility(g, cam, vcfg)
-        n_seen = int(seen.sum())
-        roi_seen = int((seen & roi).sum())
-        entry: dict[str, Any] = {
-            "id": vid, "location": loc, "candidate": int(ci), "yaw": float(yaw), "pitch": float(pitch),
-            "heading_deg": float(heading[ci]), "camera": cam.to_dict(),
-            "roi_visible": roi_seen, "roi_visible_fraction": roi_seen / n_roi, "visible": n_seen,
-            "coverage": cov, "requested_yaw": float(req_yaw), "fov_deg": fov,
-            "replaced": bool(abs(yaw - req_yaw) > 1e-9 or abs(pitch - base_pitch) > 1e-9 or loc >= cfg.num_locations),
-            **figures[id(cam)],
-        }
-        if dyn is not None:
-            entry["dynamic_fraction"] = dyn
-        if views:
-            ov = float((seen & any_seen).sum() / n_seen) if n_seen else 0.0
-            ov_roi = float((seen & roi & covered).sum() / roi_seen) if roi_seen else 0.0
-            entry["overlap_prev"] = ov
-            entry["overlap_prev_roi"] = ov_roi
-            if ov <= cfg.min_overlap:
-                log.warning("views: %s (location %d, yaw %+.0f) overlaps none of the previous views: "
-                            "%d of its %d visible Gaussians were seen before (%.1f%%, min_overlap %.2f)",
-                            vid, loc, yaw, int((seen & any_seen).sum()), n_seen, 100 * ov, cfg.min_overlap)
-        else:
-            entry["overlap_prev"] = None
-            entry["overlap_prev_roi"] = None
-        covered |= seen & roi
-        any_seen |= seen
-        c_after = float(covered.sum() / n_roi)
-        entry["coverage_after"] = c_after
-        in_frustum |= visibility(g, cam, VisibilityConfig(mode="frustum")) & roi
-        frustum_after.append(float(in_frustum.sum() / n_roi))
-        entry["frustum_coverage_after"] = frustum_after[-1]
-        coverage_after.append(c_after)
-        views.append(entry)
-        cams.append(cam)
-        seen_by_view.append(seen)
-    log.info("views: %d views at %d locations (layout %s); scene coverage per view: %s; content: %s; edge share: "
-             "%s; ROI coverage after each view: %s (reachable from all candidates: %.1f%%)", len(views), len(chosen),
-             layout.kind, " ".join(f"{v['coverage']:.2f}" for v in views),
-             " ".join(f"{v['content']:.2f}" for v in views),
-             " ".join(f"{v['edge_share']:.2f}" for v in views),
-             " ".join(f"{100 * c:.1f}%" for c in coverage_after), 100 * reachable)
-    rule = {"min": cfg.min_coverage, "alpha": cfg.coverage_alpha, "min_observations": cfg.min_observations,
-            "observed_gaussians": int(observed.sum())}
-    return ViewPlan(views, cams, cand, cand_vis, heading, chosen, centroid, up, coverage_after, reachable, seen_by_view,
-                    cand_seen, frustum_after, layout, rejected, rule, up_report, dropped, dyn_rule, check.to_json())
+    return [slots[i] for i in keep], [fractions[i] for i in keep], dropped, dyn_rule
 
 
 def content_check(g: Gaussians, cameras: Sequence[Camera], cfg: ViewsConfig,

@@ -43,7 +43,7 @@ def tiny_ltx(tmp_path_factory):
     """A tiny LTXConditionPipeline (random weights, tiny T5, sentencepiece tokenizer) saved to disk."""
     for mod in ("diffusers", "transformers", "sentencepiece"):
         pytest.importorskip(mod, reason=f"{mod} not installed (extra: anigs[ltx])")
-    from anigs.refine.prior.ltx import save_tiny_random_stack
+    from anigs.refine.prior.ltx_tiny import save_tiny_random_stack
 
     return save_tiny_random_stack(tmp_path_factory.mktemp("ltx"))
 
