@@ -14,9 +14,13 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from anigs.configs import from_dict
 from anigs.cli import parse_params
 from anigs.io import write_json
+from anigs.stages import contract
+from anigs.stages.contract import File
 
 log = logging.getLogger("anigs.capture")
 
@@ -38,6 +42,67 @@ class PhotosConfig:
 
 
 Config = PhotosConfig  # the `capture` config section
+
+
+class Outputs(contract.Outputs):
+    """The capture stage's folder: the photos, and for the synthetic scene its ground truth
+    (:mod:`anigs.synth.capture`)."""
+
+    STAGE = "capture"
+    LAYOUT = {
+        "images": File("images/", "the photos (PNG; synthetic: img_000.png, ...; photos: {stem}.png)"),
+        "summary": File("capture.json", "source (synthetic|photos), image names and count; synthetic: "
+                                        "Gaussian and label counts, image size, seconds"),
+        "gt": File("gt/", "synthetic only: the ground truth", optional=True),
+        "gt_cameras": File("gt/cameras.json", "ground-truth cameras (+ background, time)", optional=True),
+        "gt_gaussians": File("gt/gaussians.ply", "ground-truth Gaussians (standard 3DGS layout, SH 0)", optional=True),
+        "gt_labels": File("gt/labels.npy", "int32 [N]: semantic label per ground-truth Gaussian", optional=True),
+        "gt_anchors": File("gt/anchors.npy", "float32 [N,3]: sway anchor per ground-truth Gaussian", optional=True),
+        "gt_motion": File("gt/motion.json", "motion parameters + label/effect tables", optional=True),
+        "gt_scene": File("gt/scene.json", "the full synthetic config, label counts, timing", optional=True),
+    }
+
+    def summary(self) -> dict:
+        """``capture.json``."""
+        return self.json("summary")
+
+    def original_photos(self) -> Path | None:
+        """The folder of the user's photos the images were imported from (photos source), when it
+        still exists; None otherwise (synthetic, or no summary)."""
+        try:
+            info = self.summary()
+        except (OSError, ValueError):
+            return None
+        src = info.get("photos") if info.get("source") == "photos" else None
+        return Path(src) if src and Path(src).is_dir() else None
+
+    def is_synthetic(self) -> bool:
+        """Whether the folder holds the synthetic ground truth (``gt/``)."""
+        return self.path("gt").is_dir()
+
+    def gt_cameras(self) -> list:
+        """The ground-truth cameras (:class:`~anigs.cameras.Camera`)."""
+        from anigs.cameras import load_cameras
+
+        return load_cameras(self.path("gt_cameras"))
+
+    def gt_gaussians(self):
+        """The ground-truth :class:`~anigs.gaussians.Gaussians`."""
+        from anigs.gaussians import Gaussians
+
+        return Gaussians.load_ply(self.path("gt_gaussians"))
+
+    def gt_labels(self, n: int | None = None) -> np.ndarray:
+        """int [N] semantic label per ground-truth Gaussian."""
+        return self.array("gt_labels", "iu", (n,))
+
+    def gt_anchors(self, n: int | None = None) -> np.ndarray:
+        """float32 [N,3] sway anchor per ground-truth Gaussian."""
+        return self.array("gt_anchors", "f", (n, 3))
+
+    def gt_motion(self) -> dict:
+        """``gt/motion.json``: motion parameters and the label/effect tables."""
+        return self.json("gt_motion")
 
 
 def run(out: str | Path, source: str = "synthetic", params: dict | None = None,

@@ -31,8 +31,41 @@ from typing import Sequence
 import numpy as np
 
 from anigs.effects.config import REGION_EFFECTS, Config
+from anigs.stages import contract
+from anigs.stages.contract import File
 
 log = logging.getLogger("anigs.effects")
+
+
+class Outputs(contract.Outputs):
+    """The effects stage's folder: what the scene contains and its region of interest."""
+
+    STAGE = "effects"
+    LAYOUT = {
+        "effects": File("effects.json", "per effect: detected, pixel_fraction, gaussian_fraction, confidence, "
+                                        "reason; requested, chosen, requested_not_found, prompt, corrections, "
+                                        "num_dynamic, dynamic_fraction, config"),
+        "regions": File("regions.npy", "int8 [N]: region of each canonical Gaussian (index into "
+                                       "anigs.effects.config.REGIONS), -1 none"),
+        "dynamic": File("dynamic.npy", "bool [N]: the chosen effects' Gaussians, the region of interest"),
+        "overview": File("overview.png", "uint8 RGB: the numbered candidates over the photos"),
+    }
+
+    def report(self) -> dict:
+        """``effects.json``."""
+        return self.json("effects")
+
+    def chosen(self) -> list[str]:
+        """The effects the stage chose to simulate (may be empty: nothing moves)."""
+        return list(self.report()["chosen"])
+
+    def regions(self, n: int | None = None) -> np.ndarray:
+        """int8 [N] region index of each canonical Gaussian (-1 none); ``n``: the canonical model's size."""
+        return self.array("regions", "i", (n,))
+
+    def dynamic(self, n: int | None = None) -> np.ndarray:
+        """bool [N] the region of interest; ``n``: the canonical model's size."""
+        return self.array("dynamic", "b", (n,))
 
 
 def is_auto(requested: Sequence[str] | str | None) -> bool:

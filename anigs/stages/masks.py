@@ -44,7 +44,63 @@ from anigs.cameras import load_cameras
 from anigs.gaussians import load_ply
 from anigs.io import atomic_path, read_json, write_json
 
+from anigs.stages import contract
+from anigs.stages.contract import File
+
 log = logging.getLogger("anigs.masks")
+
+
+class Outputs(contract.Outputs):
+    """The masks stage's folder: a dynamic mask per queued view and the dynamic Gaussian set."""
+
+    STAGE = "masks"
+    LAYOUT = {
+        "mask": File("{view}.png", "uint8 [H, W] 0/255: the view's dynamic mask (its first frame)"),
+        "effect_mask": File("{view}_{effect}.png", "uint8 [H, W] 0/255: the part of the mask one effect "
+                                                   "moves (when the backend gives several effects)", optional=True),
+        "overlay": File("{view}_overlay.png", "uint8 RGB [H, W, 3]: the mask over the first frame"),
+        "dynamic": File("dynamic.npy", "bool [N]: the canonical Gaussians that move"),
+        "effect_labels": File("effect_labels.npy", "int8 [N]: which effect each dynamic Gaussian belongs to "
+                                                   "(0 static, 1 + region index; anigs.masks.effect_labels); "
+                                                   "with the effects stage's folder", optional=True),
+        "report": File("masks.json", "per-view fractions, the lifting, completion and containment; with "
+                                     "ground truth the IoU and precision/recall against it; the config"),
+    }
+
+    def report(self) -> dict:
+        """``masks.json``."""
+        return self.json("report")
+
+    def has_view_mask(self, view: str) -> bool:
+        return self.exists("mask", view=view)
+
+    def view_mask(self, view: str) -> np.ndarray:
+        """float32 [H, W] in [0, 1]: the dynamic mask of ``view`` (0/1 as written)."""
+        return self._read_mask(self.path("mask", view=view))
+
+    def effect_mask(self, view: str, effect: str) -> np.ndarray | None:
+        """float32 [H, W] in [0, 1]: the part of ``view``'s mask that ``effect`` moves; None when the
+        stage wrote no per-effect mask for it (a single effect, or ``per_effect: false``)."""
+        p = self.path("effect_mask", view=view, effect=effect)
+        return self._read_mask(p) if p.is_file() else None
+
+    def _read_mask(self, p: Path) -> np.ndarray:
+        from anigs.masks import read_mask
+
+        if not p.is_file():
+            raise FileNotFoundError(f"{p}: missing (run the {self.STAGE} stage)")
+        return contract.check_array(read_mask(p), str(p), "f", (None, None))
+
+    def dynamic(self, n: int | None = None) -> np.ndarray:
+        """bool [N]: the canonical Gaussians that move; ``n``: the canonical model's size."""
+        return self.array("dynamic", "b", (n,))
+
+    def has_effect_labels(self) -> bool:
+        return self.exists("effect_labels")
+
+    def effect_labels(self, n: int | None = None) -> np.ndarray:
+        """int8 [N]: 0 static, 1 + region index for each dynamic Gaussian; ``n``: the canonical size."""
+        return self.array("effect_labels", "i", (n,))
 
 
 @dataclass

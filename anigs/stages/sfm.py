@@ -10,9 +10,45 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+
+import numpy as np
+
 from anigs.sfm.config import SfmConfig
+from anigs.stages import contract
+from anigs.stages.contract import File
 
 Config = SfmConfig  # the `sfm` config section
+
+
+class Outputs(contract.Outputs):
+    """The sfm stage's folder, laid out like a COLMAP project (see :mod:`anigs.sfm.colmap`)."""
+
+    STAGE = "sfm"
+    LAYOUT = {
+        "images": File("images/", "the images the cameras describe (undistorted, or copies), named as the cameras"),
+        "sparse": File("sparse/", "sparse/0/: COLMAP binary model in the output frame (PINHOLE after undistortion)"),
+        "cameras": File("cameras.json", "one camera per registered image (anigs convention, name = file name)"),
+        "points": File("points.npz", "xyz [P,3] float32, rgb [P,3] float32 in [0,1], error [P] float32 "
+                                     "(reprojection px), track_length [P] int32"),
+        "report": File("report.json", "registered images, points, mapping, escalation, ground-truth pose errors"),
+        "work": File("work/", "COLMAP database and raw models (--keep-work only)", optional=True),
+    }
+
+    def cameras(self) -> list:
+        """The registered cameras (:class:`~anigs.cameras.Camera`)."""
+        from anigs.cameras import load_cameras
+
+        return load_cameras(self.path("cameras"))
+
+    def points(self) -> tuple[np.ndarray, np.ndarray]:
+        """(xyz [P,3] float64, rgb [P,3] float64 in [0,1]) of the SfM points."""
+        from anigs.sfm.model import load_points
+
+        return load_points(self.path("points"))
+
+    def report(self) -> dict:
+        """``report.json``."""
+        return self.json("report")
 
 
 def run(images: str | Path, out: str | Path, cfg: SfmConfig, gt_cameras: str | Path | None = None,

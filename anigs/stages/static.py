@@ -13,11 +13,38 @@ import argparse
 import logging
 from pathlib import Path
 
+from anigs.stages import contract
+from anigs.stages.contract import File
 from anigs.static.fit import FitConfig
 
 Config = FitConfig  # the `static` config section
 
 log = logging.getLogger("anigs.static")
+
+
+class Outputs(contract.Outputs):
+    """The static stage's folder: the canonical 3DGS."""
+
+    STAGE = "static"
+    LAYOUT = {
+        "canonical": File("canonical.ply", "the canonical 3DGS, standard 3DGS PLY layout (any 3DGS viewer opens it)"),
+        "metrics": File("metrics.json", "held-out and train PSNR/SSIM, Gaussian count, seconds, inputs, config"),
+        "checkpoint": File("checkpoint.ply", "the last good state while the fit runs; removed on success, "
+                                             "kept when the fit diverges", optional=True),
+    }
+
+    def canonical(self):
+        """The canonical :class:`~anigs.gaussians.Gaussians`."""
+        from anigs.gaussians import load_ply
+
+        p = self.path("canonical")
+        if not p.is_file():
+            raise FileNotFoundError(f"{p}: missing (run the {self.STAGE} stage)")
+        return load_ply(p)
+
+    def metrics(self) -> dict:
+        """``metrics.json``."""
+        return self.json("metrics")
 
 def run(images: str | Path, cameras: str | Path, points: str | Path, out: str | Path, cfg: FitConfig,
         progress: bool = False) -> dict:

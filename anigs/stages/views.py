@@ -31,11 +31,45 @@ import numpy as np
 from anigs.cameras import Camera, load_cameras
 from anigs.gaussians import Gaussians, load_ply
 from anigs.io import atomic_path, write_json
+from anigs.stages import contract
+from anigs.stages.contract import File
 from anigs.views import ViewsConfig
 
 Config = ViewsConfig  # the `views` config section
 
 log = logging.getLogger("anigs.views")
+
+
+class Outputs(contract.Outputs):
+    """The views stage's folder: the view queue."""
+
+    STAGE = "views"
+    LAYOUT = {
+        "views": File("views.json", "the queue: per view id (v00, v01, ...), camera (OpenCV, the view's "
+                                    "intrinsics and size), location, coverage, content; the dropped views, "
+                                    "up, roi_centroid, the ROI's source, config"),
+        "topdown": File("topdown.png", "uint8 RGB: top-down map of the ROI, the candidates and the queue"),
+    }
+
+    def report(self) -> dict:
+        """``views.json``."""
+        return self.json("views")
+
+    def views(self) -> list[Camera]:
+        """The queued views' cameras, in queue order, named by view id."""
+        from anigs.views import cameras_from_views
+
+        return cameras_from_views(self.report())
+
+    def count(self) -> int:
+        """The number of queued views (ids v00..v{n-1}; json only, no torch)."""
+        from anigs.views.queue import queued_view_count
+
+        return queued_view_count(self.path("views"))
+
+    def view_ids(self) -> list[str]:
+        """The queued view ids, v00, v01, ..."""
+        return [f"v{i:02d}" for i in range(self.count())]
 
 
 
