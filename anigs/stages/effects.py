@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
@@ -95,20 +96,38 @@ def choose(detected: Sequence[str], requested: Sequence[str] | str | None,
     return chosen, [e for e in requested if e not in detected]
 
 
-def run(canonical: str | Path, cameras: str | Path, images: str | Path, out: str | Path, cfg: Config,
-        requested: Sequence[str] | str | None = "auto") -> dict:
-    """Detect the scene's effects and write the stage's outputs to ``out``; returns ``effects.json``."""
+@dataclass
+class Inputs(contract.Inputs):
+    """What the effects stage reads: the canonical model and the photos the SfM cameras describe."""
+
+    canonical: Path = field(metadata={"help": "canonical 3DGS PLY (static/canonical.ply)"})
+    cameras: Path = field(metadata={"help": "cameras of the photos (sfm/cameras.json)"})
+    images: Path = field(metadata={"help": "the undistorted photos the cameras describe (sfm/images)"})
+    out: Outputs = field(metadata={"help": "output folder (effects.json, regions.npy, dynamic.npy, overview.png)"})
+    requested: list[str] | None = field(default=None, metadata={
+        "help": "effects to simulate, instead of the section's `requested` ('auto': the detected kinds the prompt names)"})
+    prompt: str | None = field(default=None, metadata={"help": "the scene's prompt, instead of the section's `prompt`"})
+
+
+def run(inputs: Inputs, cfg: Config) -> Outputs:
+    """Detect the scene's effects and write the stage's outputs (``inputs.requested`` and
+    ``inputs.prompt``, when given, replace the section's)."""
     from anigs.cameras import load_cameras
     from anigs.effects import detect_effects, save_overview
     from anigs.gaussians import load_ply
     from anigs.images import find_image, load_image
     from anigs.io import atomic_path, write_json
 
-    g = load_ply(canonical)
-    cams = load_cameras(cameras)
+    if inputs.prompt is not None:
+        cfg.prompt = inputs.prompt
+    requested = cfg.requested if inputs.requested is None else inputs.requested  # the section, unless given
+    if requested in ([], ["auto"]):
+        requested = "auto"
+    g = load_ply(inputs.canonical)
+    cams = load_cameras(inputs.cameras)
     if not cams:
-        raise ValueError(f"{cameras}: no cameras")
-    photos = [load_image(find_image(Path(images), c.name)) for c in cams]
+        raise ValueError(f"{inputs.cameras}: no cameras")
+    photos = [load_image(find_image(Path(inputs.images), c.name)) for c in cams]
     from anigs.effects.vocabulary import prompt_kinds
 
     kinds = prompt_kinds(cfg.prompt) if cfg.prompt is not None else None
@@ -129,8 +148,8 @@ def run(canonical: str | Path, cameras: str | Path, images: str | Path, out: str
         log.warning("effects: %s was asked for but the scene does not contain it: skipped (%s)", e,
                     res.effects[e].reason)
     dynamic = res.dynamic(chosen)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = inputs.out
+    out.root.mkdir(parents=True, exist_ok=True)
     payload = res.to_json()
     payload.update({"requested": "auto" if is_auto(requested) else list(requested),
                     "chosen": chosen, "requested_not_found": missing,
@@ -138,17 +157,17 @@ def run(canonical: str | Path, cameras: str | Path, images: str | Path, out: str
                                "used": by_prompt, "note": _prompt_note(kinds, by_prompt, chosen)},
                     "corrections": getattr(res, "notes", [])[1:],
                     "num_dynamic": int(dynamic.sum()), "dynamic_fraction": float(dynamic.mean()) if len(dynamic) else 0.0})
-    with atomic_path(out / "regions.npy") as tmp, open(tmp, "wb") as fh:
+    with atomic_path(out.path("regions")) as tmp, open(tmp, "wb") as fh:
         np.save(fh, res.region_of.astype(np.int8))
-    with atomic_path(out / "dynamic.npy") as tmp, open(tmp, "wb") as fh:
+    with atomic_path(out.path("dynamic")) as tmp, open(tmp, "wb") as fh:
         np.save(fh, dynamic)
-    save_overview(out / "overview.png", res)
-    write_json(out / "effects.json", payload)
+    save_overview(out.path("overview"), res)
+    write_json(out.path("effects"), payload)
     log.info("effects: %s", payload["prompt"]["note"])
     log.info("effects: detected %s; simulating %s (%d of %d Gaussians)%s", res.detected or "nothing",
              chosen or "nothing", int(dynamic.sum()), g.num,
              f"; asked for but not found: {missing}" if missing else "")
-    return payload
+    return out
 
 
 def _prompt_note(kinds, by_prompt: bool, chosen: Sequence[str]) -> str:
@@ -168,26 +187,14 @@ def _prompt_note(kinds, by_prompt: bool, chosen: Sequence[str]) -> str:
 # ---- command line: anigs effects ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params, add_canonical, add_out
+    from anigs.cli import add_params
 
-    add_canonical(p)
-    p.add_argument("--cameras", required=True, help="cameras of the photos (sfm/cameras.json)")
-    p.add_argument("--images", required=True, help="the undistorted photos the cameras describe (sfm/images)")
-    add_out(p, "output folder (effects.json, regions.npy, dynamic.npy, overview.png)")
-    p.add_argument("--requested", nargs="*", default=None,
-                   help="effects to simulate, instead of the section's `requested` ('auto': the detected kinds the prompt names)")
-    p.add_argument("--prompt", default=None, help="the scene's prompt, instead of the section's `prompt`")
+    Inputs.add_arguments(p)
     add_params(p, "effects")
 
 
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
-    cfg = Config.from_dict(parse_params(args.params))
-    if args.prompt is not None:
-        cfg.prompt = args.prompt
-    requested = cfg.requested if args.requested is None else args.requested  # the section, unless given here
-    if requested in ([], ["auto"]):
-        requested = "auto"
-    run(args.canonical, args.cameras, args.images, args.out, cfg, requested)
+    run(Inputs.from_args(args), Config.from_dict(parse_params(args.params)))
     return 0
