@@ -229,7 +229,7 @@ def test_stage_effects_list_restricts_and_reports_what_the_scene_lacks(tmp_path)
     from anigs.cameras import save_cameras
     from anigs.cli import main
     from anigs.masks import write_rgb_png
-    from anigs.stages.effects import choose
+    from anigs.effects.choice import choose
 
     assert choose(["foliage_sway", "flower_bob"], "auto") == (["foliage_sway", "flower_bob"], [])
     assert choose(["foliage_sway"], ["flower_bob", "foliage_sway"]) == (["foliage_sway"], ["flower_bob"])

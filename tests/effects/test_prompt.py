@@ -12,7 +12,7 @@ import yaml
 
 from anigs.effects.config import REGIONS
 from anigs.effects.vocabulary import SCENE_WORDS, WORDS, prompt_kinds, vocabulary_markdown
-from anigs.stages.effects import choose
+from anigs.effects.choice import choose
 
 ROOT = Path(__file__).resolve().parents[2]
 
