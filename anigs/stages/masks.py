@@ -64,14 +64,9 @@ class Outputs(contract.Outputs):
         """float32 [H, W] in [0, 1]: the dynamic mask of ``view`` (0/1 as written)."""
         return self._read_mask(self.path("mask", view=view))
 
-    def effect_mask(self, view: str, effect: str) -> np.ndarray | None:
-        """float32 [H, W] in [0, 1]: the part of ``view``'s mask that ``effect`` moves; None when the
-        stage wrote no per-effect mask for it (a single effect, or ``per_effect: false``)."""
-        p = self.path("effect_mask", view=view, effect=effect)
-        return self._read_mask(p) if p.is_file() else None
-
     def effect_masks(self, view: str) -> dict[str, np.ndarray]:
-        """effect -> float32 [H, W] in [0, 1]: every per-effect mask the stage wrote for ``view``."""
+        """effect -> float32 [H, W] in [0, 1]: the per-effect masks of ``view`` (none: a single effect,
+        or ``per_effect: false``)."""
         prefix = self.path("effect_mask", view=view, effect="").name[: -len(".png")]
         overlay = self.path("overlay", view=view)
         found = sorted(p for p in self.root.glob(f"{prefix}*.png") if p != overlay)
@@ -87,9 +82,6 @@ class Outputs(contract.Outputs):
     def dynamic(self, n: int | None = None) -> np.ndarray:
         """bool [N]: the canonical Gaussians that move; ``n``: the canonical model's size."""
         return self.array("dynamic", "b", (n,))
-
-    def has_effect_labels(self) -> bool:
-        return self.exists("effect_labels")
 
     def effect_labels(self, n: int | None = None) -> np.ndarray:
         """int8 [N]: 0 static, 1 + region index for each dynamic Gaussian; ``n``: the canonical size."""

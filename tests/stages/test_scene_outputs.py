@@ -36,7 +36,6 @@ def test_masks_view_and_effect_masks(tmp_path):
     assert out.has_view_mask("v00") and not out.has_view_mask("v02")
     np.testing.assert_array_equal(out.view_mask("v00"), m.astype(np.float32))
     assert sorted(out.effect_masks("v00")) == ["flower_bob", "grass_wave"] and out.effect_masks("v01") == {}
-    assert out.effect_mask("v00", "leaf_flutter") is None
     with pytest.raises(FileNotFoundError, match="v02.png: missing"):
         out.view_mask("v02")
     np.save(out.path("effect_labels"), np.array([0, 1, 3], np.int8))
