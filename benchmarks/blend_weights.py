@@ -35,24 +35,20 @@ def main(argv: list[str] | None = None) -> dict:
 
     sys.path.insert(0, str(ROOT))
     torch.set_num_threads(args.threads)
-    from anigs.gaussians import load_ply
-    from anigs.io import read_json
-    from anigs.masks import read_mask
     from anigs.masks.lift import _blend_backend, blend_weights, blend_weights_backward
-    from anigs.views import cameras_from_views
+    from anigs.stages.masks import Outputs as MasksOutputs
+    from anigs.stages.static import Outputs as StaticOutputs
+    from anigs.stages.views import Outputs as ViewsOutputs
 
     if _blend_backend() != "cpu":
         raise SystemExit("the cpu rasterizer kernel is not available: nothing to compare")
-    g = load_ply(args.run / "static" / "canonical.ply")
-    cams = cameras_from_views(read_json(args.run / "views" / "views.json"))
+    g = StaticOutputs(args.run / "static").canonical()
+    cams = ViewsOutputs(args.run / "views").views()
     if args.cameras:
         cams = cams[: args.cameras]
-    masks = []
-    for i, cam in enumerate(cams):
-        p = args.run / "masks" / f"{cam.name}.png"
-        if not p.exists():
-            p = args.run / "masks" / f"v{i:02d}.png"
-        masks.append(read_mask(p) >= 0.5 if p.exists() else np.zeros((cam.height, cam.width), bool))
+    run_masks = MasksOutputs(args.run / "masks")
+    masks = [run_masks.view_mask(cam.name) >= 0.5 if run_masks.has_view_mask(cam.name)
+             else np.zeros((cam.height, cam.width), bool) for cam in cams]
 
     paths = {"old (forward+backward)": blend_weights_backward, "new (forward only)": blend_weights}
     wall = {k: [] for k in paths}

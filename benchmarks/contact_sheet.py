@@ -3,16 +3,15 @@
     python benchmarks/contact_sheet.py results/demo [--variant full] [--out PNG] [--scale 2]
 
 One row per final clip (``{scene}/{variant}/final/clips/{view}.npz``): the first frame, the last
-frame, the dynamic mask tinted over the first frame (``{scene}/masks/{view}.png``), and the heat
+frame, the dynamic mask tinted over the first frame (the masks stage's), and the heat
 map of the largest change from frame 0 (:func:`anigs.metrics.contact.heat_colours`). Under each
-row: the view's figures from ``views/views.json`` (scene coverage, content, edge share, pitch)
+row: the view's figures from the views stage's queue (scene coverage, content, edge share, pitch)
 and the edge share of the clip's first frame (:func:`anigs.views.content.edge_share`). Prints one
 line per view with the same numbers. Default output: ``{scene}/{variant}/contact_final.png``.
 """
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import cv2
@@ -20,6 +19,7 @@ import numpy as np
 
 from anigs.io import atomic_path
 from anigs.metrics.contact import MASK_COLOURS, heat_colours, load_rows, max_change, tint
+from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.views.content import edge_share
 
 
@@ -43,7 +43,7 @@ def main() -> int:
     args = ap.parse_args()
     sd = args.scene_dir
     rows = load_rows(sd / args.variant / "final" / "clips", sd / "masks")
-    views = {v["id"]: v for v in json.loads((sd / "views" / "views.json").read_text())["views"]}
+    views = {v["id"]: v for v in ViewsOutputs(sd / "views").report()["views"]}
     parts = []
     for row in rows:
         clip = row.clip

@@ -10,7 +10,7 @@ targets and seed recorded in its ``model.pt`` / ``update.json``, ``--masks`` con
 workflow runs it), once per capacity variant, then ``anigs final``, ``anigs eval`` (the recorded eval
 config; ``multiview_capture`` off: it does not depend on the model) and ``anigs export`` on each.
 The K12 variant is every Gaussian at num_bases (``effect_num_bases: {}``); the others need per-Gaussian
-effect labels. The workflow's own are the masks stage's ``effect_labels.npy`` (from the effects
+effect labels. The workflow's own are the masks stage's effect labels (from the effects
 stage's regions); this script uses ideal ones, the ground-truth labels of
 ``capture/gt`` moved onto the dynamic Gaussians (nearest moving ground-truth Gaussian, after the
 camera alignment the masks stage uses), 1 + region index (foliage 1, grass 2, flowers 3).
@@ -34,6 +34,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from anigs.stages import capture as capture_stage, masks as masks_stage, sfm as sfm_stage, static as static_stage
+from anigs.stages import views as views_stage
 
 VARIANTS: dict[str, dict] = {
     "K12": {},  # today: every dynamic Gaussian uses num_bases = 12
@@ -66,21 +69,18 @@ def _anigs(threads: int) -> list[str]:
 
 def effect_labels_for_demo(demo: Path, out: Path) -> Path:
     """Int dynamic mask [N] (0 static, 1 + region index) of the demo's dynamic set from the GT labels."""
-    from anigs.cameras import load_cameras
     from anigs.effects.config import REGIONS
-    from anigs.gaussians import load_ply
-    from anigs.io import read_json
     from anigs.masks.labels import align_cameras, transfer_labels
 
-    dyn = np.load(demo / "masks" / "dynamic.npy").astype(bool)
-    gt = demo / "capture" / "gt"
-    motion = read_json(gt / "motion.json")
-    gt_labels = np.load(gt / "labels.npy")
+    dyn = masks_stage.Outputs(demo / "masks").dynamic()
+    gt = capture_stage.Outputs(demo / "capture")
+    motion = gt.gt_motion()
+    gt_labels = gt.gt_labels()
     region_of_gt = {int(i): (1 + REGIONS.index(n) if n in REGIONS else 0) for i, n in motion["labels"].items()}
     gt_lab = np.array([region_of_gt[int(x)] for x in gt_labels])
-    sim, _ = align_cameras(load_cameras(gt / "cameras.json"), load_cameras(demo / "sfm" / "cameras.json"))
-    gt_means = sim.apply(load_ply(gt / "gaussians.ply").means.detach().double().numpy())
-    means = load_ply(demo / "static" / "canonical.ply").means.detach().double().numpy()
+    sim, _ = align_cameras(gt.gt_cameras(), sfm_stage.Outputs(demo / "sfm").cameras())
+    gt_means = sim.apply(gt.gt_gaussians().means.detach().double().numpy())
+    means = static_stage.Outputs(demo / "static").canonical().means.detach().double().numpy()
     moving = gt_lab > 0
     labels = np.zeros(len(dyn), np.int64)
     labels[dyn] = transfer_labels(gt_means[moving], gt_lab[moving], means[dyn])
@@ -94,11 +94,8 @@ def per_effect(model: Path, canonical: Path, labels: np.ndarray, demo: Path) -> 
     import torch
 
     from anigs.animate.deform import load_model
-    from anigs.cameras import load_cameras
     from anigs.effects.config import REGIONS
-    from anigs.gaussians import Gaussians
     from anigs.geometry.extent import scene_extent
-    from anigs.io import read_json
     from anigs.metrics.motion import gt_motion_distances
     from anigs.synth.motion import MotionParams, gt_clip_offsets
 
@@ -107,17 +104,17 @@ def per_effect(model: Path, canonical: Path, labels: np.ndarray, demo: Path) -> 
     with torch.no_grad():
         learned = d.trajectories(canon.means, torch.arange(T)).permute(1, 0, 2).double().numpy()  # [D,T,3]
     lab_l = labels[d.dynamic_index.numpy()]
-    gt = demo / "capture" / "gt"
-    motion = read_json(gt / "motion.json")
-    gt_g = Gaussians.load_ply(gt / "gaussians.ply")
-    gt_labels = np.load(gt / "labels.npy")
+    gt = capture_stage.Outputs(demo / "capture")
+    motion = gt.gt_motion()
+    gt_g = gt.gt_gaussians()
+    gt_labels = gt.gt_labels()
     params = MotionParams.from_dict(motion["params"])
-    off = gt_clip_offsets(params, gt_g.means, torch.as_tensor(np.load(gt / "anchors.npy")),
+    off = gt_clip_offsets(params, gt_g.means, torch.as_tensor(gt.gt_anchors()),
                           torch.as_tensor(gt_labels).long())
     moving = (off.abs().amax(dim=(0, 2)) > 0).numpy()
     gt_traj = (gt_g.means[None] + off).permute(1, 0, 2).double().numpy()  # [M,T',3]
-    ext_l = scene_extent(load_cameras(demo / "sfm" / "cameras.json"))
-    ext_g = scene_extent(load_cameras(gt / "cameras.json"))
+    ext_l = scene_extent(sfm_stage.Outputs(demo / "sfm").cameras())
+    ext_g = scene_extent(gt.gt_cameras())
     name_of = {int(i): n for i, n in motion["labels"].items()}
     out = {}
     for region, cycles in REGION_GT_CYCLES.items():
@@ -165,7 +162,9 @@ def main() -> int:
     base_cfg = dict(upd["config"], seed=upd["config"]["seed"] + a.seed_delta)
     labels_path = effect_labels_for_demo(demo, out)
     labels = np.load(labels_path)
-    canonical = demo / "static" / "canonical.ply"
+    canonical = static_stage.Outputs(demo / "static").path("canonical")
+    sfm, masks = sfm_stage.Outputs(demo / "sfm"), masks_stage.Outputs(demo / "masks")
+    views_json = views_stage.Outputs(demo / "views").path("views")
     rows = {}
     for name in a.variants.split(","):
         v_out = out / name
@@ -173,10 +172,10 @@ def main() -> int:
         cfg = dict(base_cfg, effect_num_bases=VARIANTS[name])
         model = v_out / f"round{R}" / "model.pt"
         model.parent.mkdir(exist_ok=True)
-        dyn = demo / "masks" / "dynamic.npy" if not VARIANTS[name] else labels_path
+        dyn = masks.path("dynamic") if not VARIANTS[name] else labels_path
         upd_args = ["update", "--canonical", str(canonical), "--init-model", ref["extra"]["init_model"],
-                    "--targets", *ref["extra"]["targets"], "--view-json", str(demo / "views" / "views.json"),
-                    "--dynamic", str(dyn), "--masks", str(demo / "masks"), "--out", str(model),
+                    "--targets", *ref["extra"]["targets"], "--view-json", str(views_json),
+                    "--dynamic", str(dyn), "--masks", str(masks.root), "--out", str(model),
                     "--log-json", str(model.with_name("update.json")), "--params", json.dumps(cfg, sort_keys=True)]
         row = {"update": _run(_anigs(a.threads) + upd_args, v_out / "logs" / "update.log")}
         info = json.loads(model.with_name("update.json").read_text())
@@ -200,16 +199,16 @@ def main() -> int:
         if not a.no_eval:
             fin = json.loads((vdir / "final" / "final.json").read_text())["config"]
             row["final"] = _run(_anigs(a.threads) + [
-                "final", "--canonical", str(canonical), "--model", str(model), "--views", str(demo / "views" / "views.json"),
-                "--cameras", str(demo / "sfm" / "cameras.json"), "--masks", str(demo / "masks"), "--out", str(v_out / "final"),
+                "final", "--canonical", str(canonical), "--model", str(model), "--views", str(views_json),
+                "--cameras", str(sfm.path("cameras")), "--masks", str(masks.root), "--out", str(v_out / "final"),
                 "--params", json.dumps(fin)], v_out / "logs" / "final.log")
             ev = json.loads((vdir / "eval" / "metrics.json").read_text())["config"]
             ev["multiview_capture"] = False
             row["eval"] = _run(_anigs(a.threads) + [
-                "eval", "--final-dir", str(v_out / "final" / "clips"), "--masks", str(demo / "masks"), "--model", str(model),
-                "--canonical", str(canonical), "--cameras", str(demo / "sfm" / "cameras.json"),
-                "--images", str(demo / "sfm" / "images"), "--points", str(demo / "sfm" / "points.npz"),
-                "--gt-dir", str(demo / "capture" / "gt"), "--scene", "demo", "--method", "Ours", "--variant", name,
+                "eval", "--final-dir", str(v_out / "final" / "clips"), "--masks", str(masks.root), "--model", str(model),
+                "--canonical", str(canonical), "--cameras", str(sfm.path("cameras")),
+                "--images", str(sfm.path("images")), "--points", str(sfm.path("points")),
+                "--gt-dir", str(capture_stage.Outputs(demo / "capture").path("gt")), "--scene", "demo", "--method", "Ours", "--variant", name,
                 "--out", str(v_out / "eval" / "metrics.json"), "--params", json.dumps(ev)], v_out / "logs" / "eval.log")
             m = json.loads((v_out / "eval" / "metrics.json").read_text())["metrics"]
             row["metrics"] = {k: m[k]["value"] for k in m}

@@ -3,8 +3,8 @@
     python benchmarks/effects_detection.py results/demo /tmp/effects_eval ['{"flower_max_behind": 0.2}']
 
 Runs :func:`anigs.effects.detect_effects` on the run's undistorted photos, SfM cameras and fitted
-model with the run's effects config (``effects/effects.json``, overridden by the optional JSON),
-writes ``regions.npy`` and ``overview.png`` to OUT_DIR and prints, per region, the pixel
+model with the run's effects config (the effects stage's report, overridden by the optional JSON),
+writes the detection report, the regions and the overview into OUT_DIR (laid out as the effects stage's folder) and prints, per region, the pixel
 precision / recall / IoU against the ground-truth label maps rendered through the camera alignment,
 and the Gaussian precision / recall against the appearance labels of the fitted Gaussians (what
 the fitted model shows), with what the predicted Gaussians really are.
@@ -14,33 +14,36 @@ from pathlib import Path
 import numpy as np, torch
 torch.set_num_threads(1)
 logging.basicConfig(level=logging.INFO, format="%(message)s")
-from anigs.cameras import load_cameras
-from anigs.gaussians import load_ply
 from anigs.images import find_image, load_image
 from anigs.effects import detect_effects, Config, save_overview, REGIONS
+from anigs.io import write_json
 from anigs.masks.labels import align_cameras, appearance_labels, render_label_map
+from anigs.stages import capture, effects, sfm, static
 
-root, out = Path(sys.argv[1]), Path(sys.argv[2]); out.mkdir(parents=True, exist_ok=True)
+root, out = Path(sys.argv[1]), effects.Outputs(sys.argv[2]); out.root.mkdir(parents=True, exist_ok=True)
 over = json.loads(sys.argv[3]) if len(sys.argv) > 3 else {}
-cfgd = json.load(open(root / "effects/effects.json"))["config"] if (root / "effects/effects.json").exists() else {}
+run_effects = effects.Outputs(root / "effects")
+cfgd = run_effects.report()["config"] if run_effects.exists("effects") else {}
 cfgd.update(over)
 cfg = Config.from_dict(cfgd)
-g = load_ply(root / "static/canonical.ply")
-cams = load_cameras(root / "sfm/cameras.json")
-imgs = [load_image(find_image(root / "sfm/images", c.name)) for c in cams]
+g = static.Outputs(root / "static").canonical()
+run_sfm = sfm.Outputs(root / "sfm")
+cams = run_sfm.cameras()
+imgs = [load_image(find_image(run_sfm.path("images"), c.name)) for c in cams]
 t = time.time()
 res = detect_effects(imgs, cams, g, cfg)
 print(f"detect {time.time()-t:.1f}s; detected {res.detected}; ground {res.ground.to_dict()}")
-res.save(out); save_overview(out / "overview.png", res)
+write_json(out.path("effects"), res.to_json()); np.save(out.path("regions"), res.region_of.astype(np.int8))
+save_overview(out.path("overview"), res)
 for e, r in res.effects.items():
     print(f"  {e:13s} det={r.detected} pf={r.pixel_fraction:.4f} gf={r.gaussian_fraction:.4f} n={len(r.indices)} photos={r.photo_fraction:.2f} conf={r.confidence:.2f}")
-gt = root / "capture/gt"
-if gt.exists():
-    labels = np.load(gt / "labels.npy"); names = json.load(open(gt / "motion.json"))["labels"]
+gt = capture.Outputs(root / "capture")
+if gt.is_synthetic():
+    labels = gt.gt_labels(); names = gt.gt_motion()["labels"]
     ids = {v: int(k) for k, v in names.items()}
-    gg = load_ply(gt / "gaussians.ply")
-    sim, rms = align_cameras(cams, load_cameras(gt / "cameras.json"))
-    cache = out / "appearance_labels.npy"  # the slow part: kept for re-runs into the same OUT_DIR
+    gg = gt.gt_gaussians()
+    sim, rms = align_cameras(cams, gt.gt_cameras())
+    cache = out.root / "appearance_labels.npy"  # the slow part: kept for re-runs into the same OUT_DIR
     if cache.exists():
         app = np.load(cache)
     else:

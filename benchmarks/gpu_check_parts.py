@@ -94,17 +94,17 @@ def part_capture(args) -> dict:
 
 def _load_capture(d: Path):
     """(images, cameras, points [P,3], colours [P,3], background) of a capture written by ``capture``."""
-    from anigs.gaussians import load_ply
     from anigs.images import load_inputs
+    from anigs.stages.capture import Outputs as CaptureOutputs
 
-    imgs, cams = load_inputs(d / "images", d / "gt" / "cameras.json")
-    g = load_ply(d / "gt" / "gaussians.ply")
+    cap = CaptureOutputs(d)
+    imgs, cams = load_inputs(cap.path("images"), cap.path("gt_cameras"))
+    g = cap.gt_gaussians()
     rng = np.random.default_rng(0)
     pts = g.means.numpy()[::6].astype(np.float64)
     pts = pts + rng.normal(0, 0.02, pts.shape)
     cols = g.rgb.clamp(0, 1).numpy()[::6]
-    bg = json.loads((d / "gt" / "cameras.json").read_text()).get("background") or [0.0, 0.0, 0.0]
-    return imgs, cams, pts, cols, [float(x) for x in bg]
+    return imgs, cams, pts, cols, cap.gt_background() or [0.0, 0.0, 0.0]
 
 
 def part_static(args) -> dict:
@@ -149,14 +149,16 @@ def part_agree(args) -> dict:
     from anigs.gaussians import load_ply
     from anigs.images import load_inputs
     from anigs.metrics.image import psnr
+    from anigs.stages.capture import Outputs as CaptureOutputs
 
     from anigs.device import get_device
 
     dev = get_device(args.device)
     fast = "gsplat" if dev.type == "cuda" else "torch"  # the CPU rehearsal: the torch backend stands in
     g = load_ply(args.ply)
-    _, cams = load_inputs(Path(args.dir) / "images", Path(args.dir) / "gt" / "cameras.json")
-    bg = json.loads((Path(args.dir) / "gt" / "cameras.json").read_text()).get("background") or [0.0, 0.0, 0.0]
+    cap = CaptureOutputs(args.dir)
+    _, cams = load_inputs(cap.path("images"), cap.path("gt_cameras"))
+    bg = cap.gt_background() or [0.0, 0.0, 0.0]
     names = ["means", "quats", "scales", "opacities", "sh"]
     rows, worst = [], {n: (1.0, 0.0) for n in names}
     gen = torch.Generator().manual_seed(0)

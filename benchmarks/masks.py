@@ -84,12 +84,16 @@ def main(argv: list[str] | None = None) -> int:
     from anigs.masks.vegetation import VegetationConfig, estimate_ground
     from anigs.views import cameras_from_views
 
+    from anigs.stages import capture as capture_stage, sfm as sfm_stage, static as static_stage
+    from anigs.stages import views as views_stage
+
     scene = Path(args.scene)
-    gt_dir = scene / "capture" / "gt"
-    paths = {"canonical": scene / "static" / "canonical.ply", "views": scene / "views" / "views.json",
-             "cameras": scene / "sfm" / "cameras.json", "labels": gt_dir / "labels.npy",
-             "motion": gt_dir / "motion.json", "gt_gaussians": gt_dir / "gaussians.ply",
-             "gt_cameras": gt_dir / "cameras.json"}
+    cap, sfm_out = capture_stage.Outputs(scene / "capture"), sfm_stage.Outputs(scene / "sfm")
+    paths = {"canonical": static_stage.Outputs(scene / "static").path("canonical"),
+             "views": views_stage.Outputs(scene / "views").path("views"),
+             "cameras": sfm_out.path("cameras"), "labels": cap.path("gt_labels"),
+             "motion": cap.path("gt_motion"), "gt_gaussians": cap.path("gt_gaussians"),
+             "gt_cameras": cap.path("gt_cameras")}
     missing = [str(p) for p in paths.values() if not p.exists()]
     if missing:
         raise SystemExit(f"benchmarks/masks.py: missing {', '.join(missing)}")
@@ -121,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     seconds["masks"] = time.perf_counter() - t
     sfm_cams = load_cameras(paths["cameras"])
     lift_cams, lift_in = [fr.camera for fr in frames], list(direct)
-    images = scene / "sfm" / "images"
+    images = sfm_out.path("images")
     if not args.no_capture and images.is_dir():
         t = time.perf_counter()
         cap = capture_frames(str(images), sfm_cams, g)

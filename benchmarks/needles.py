@@ -44,11 +44,12 @@ def _sparse_inputs():
 
 
 def _sfm_inputs(sfm: Path):
-    from anigs.sfm.model import load_points
     from anigs.images import load_inputs
+    from anigs.stages.sfm import Outputs as SfmOutputs
 
-    imgs, cams = load_inputs(sfm / "images", sfm / "cameras.json")
-    pts, cols = load_points(sfm / "points.npz")
+    out = SfmOutputs(sfm)
+    imgs, cams = load_inputs(out.path("images"), out.path("cameras"))
+    pts, cols = out.points()
     return imgs, cams, pts, cols, None
 
 

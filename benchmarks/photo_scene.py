@@ -50,12 +50,22 @@ def read_json(path: Path) -> dict | None:
     return json.loads(path.read_text()) if path.exists() else None
 
 
+def stage_json(scene_dir: Path, stage: str, key: str) -> dict | None:
+    """A scene stage's JSON file ``key`` (its ``Outputs``), None when the stage has not run."""
+    import importlib
+
+    out = importlib.import_module(f"anigs.stages.{stage}").Outputs(scene_dir / stage)
+    return out.json(key) if out.exists(key) else None
+
+
 def _snakemake(args, scene_dir: Path, variant_dir: Path, *extra: str) -> tuple[list[str], dict]:
     """The snakemake command line up to the variant's eval, and its environment."""
+    from anigs.stages.effects import Outputs as EffectsOutputs
+
     exe = Path(sys.executable).with_name("snakemake")
     cmd = [str(exe) if exe.exists() else "snakemake", "--cores", str(args.cores), *extra,
            "--config", f'scenes=["{args.scene}"]', f"results={args.results}", *args.config,
-           "--", str(variant_dir / "eval" / "metrics.json"), str(scene_dir / "effects" / "effects.json")]
+           "--", str(variant_dir / "eval" / "metrics.json"), str(EffectsOutputs(scene_dir / "effects").path("effects"))]
     env = {**os.environ}
     if args.photos:
         env["ANIGS_PHOTOS"] = str(Path(args.photos).resolve())
@@ -117,16 +127,16 @@ def figures(args, scene_dir: Path, variant_dir: Path) -> dict:
     fig: dict = {"scene": args.scene, "variant": args.variant, "results": str(args.results)}
     photos = Path(args.photos) if args.photos else None
     n_folder = sum(1 for p in photos.iterdir() if p.suffix.lower() in PHOTO_EXT) if photos and photos.is_dir() else None
-    rep = read_json(scene_dir / "sfm" / "report.json")
+    rep = stage_json(scene_dir, "sfm", "report")
     if rep:
         fig["sfm"] = {"registered": rep["registered"], "images": rep["images"], "photos_in_folder": n_folder,
                       "unregistered": rep.get("unregistered_images", []), "points": rep.get("num_points"),
                       "reprojection_px": rep.get("mean_reprojection_error_px")}
-    st = read_json(scene_dir / "static" / "metrics.json")
+    st = stage_json(scene_dir, "static", "metrics")
     if st:
         fig["static"] = {k: st.get(k) for k in ("test_psnr", "test_ssim", "test_views", "train_psnr", "train_views",
                                                  "num_gaussians", "iterations")}
-    vj = read_json(scene_dir / "views" / "views.json")
+    vj = stage_json(scene_dir, "views", "views")
     if vj:
         cov = [v.get("coverage") for v in vj["views"]]
         fig["views"] = {"queued": len(cov), "min_coverage": args.min_coverage,
@@ -134,13 +144,13 @@ def figures(args, scene_dir: Path, variant_dir: Path) -> dict:
                         "coverage": {v["id"]: c for v, c in zip(vj["views"], cov)},
                         "layout": (vj.get("layout") or {}).get("kind", (vj.get("layout") or {}).get("layout")),
                         "rejected": len((vj.get("scene_coverage") or {}).get("rejected", []))}
-    ej = read_json(scene_dir / "effects" / "effects.json")
+    ej = stage_json(scene_dir, "effects", "effects")
     if ej:
         fig["effects"] = {"detected": ej.get("detected"), "chosen": ej.get("chosen"),
                           "dynamic_gaussian_fraction": ej.get("dynamic_fraction"),
                           "pixel_fraction": {e: r["pixel_fraction"] for e, r in ej["effects"].items()},
                           "gaussian_fraction": {e: r["gaussian_fraction"] for e, r in ej["effects"].items()}}
-    mj = read_json(scene_dir / "masks" / "masks.json")
+    mj = stage_json(scene_dir, "masks", "report")
     if mj and mj.get("views"):
         vs = mj["views"]
         effs = sorted({e for v in vs for e in v.get("effects", {})})

@@ -66,11 +66,12 @@ def pose_agreement(cams, ref_cams) -> dict:
 def bench(capture: Path, out: Path, params: dict, label: str, repeats: int = 1, compare_to: str | None = None,
           threads: int | None = None) -> dict:
     """Run the stage ``repeats`` times with ``params`` into ``out``, print its figures, return them."""
-    from anigs.cameras import load_cameras
     from anigs.sfm.colmap import SfmConfig, run_sfm
+    from anigs.stages import capture as capture_stage, sfm as sfm_stage
 
-    images = capture / "images" if (capture / "images").is_dir() else capture
-    gt = capture / "gt" / "cameras.json"
+    cap, sfm_out = capture_stage.Outputs(capture), sfm_stage.Outputs(out)
+    images = cap.path("images") if cap.path("images").is_dir() else capture
+    gt = cap.path("gt_cameras")
     cfg = SfmConfig.from_dict(params)
     load_start = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
     runs = []
@@ -80,7 +81,7 @@ def bench(capture: Path, out: Path, params: dict, label: str, repeats: int = 1, 
     r = runs[-1]
     wall = {k: statistics.median(x["timings_s"][k] for x in runs) for k in r["timings_s"]}
     cpu = {k: statistics.median(x["cpu_s"][k] for x in runs) for k in r["cpu_s"]}
-    with np.load(out / "points.npz") as pts:
+    with np.load(sfm_out.path("points")) as pts:
         track = pts["track_length"]
     auto = r.get("auto", {})
     figures = {
@@ -136,7 +137,7 @@ def bench(capture: Path, out: Path, params: dict, label: str, repeats: int = 1, 
     else:
         print("rotation/centre    no ground truth (gt/cameras.json) in the capture folder")
     if compare_to:
-        agree = pose_agreement(load_cameras(out / "cameras.json"), load_cameras(Path(compare_to) / "cameras.json"))
+        agree = pose_agreement(sfm_out.cameras(), sfm_stage.Outputs(compare_to).cameras())
         figures["agreement"] = {"reference": str(compare_to), **agree}
         if "rotation_deg" in agree:
             print(f"vs reference       {agree['cameras']} cameras: rotation mean {agree['rotation_deg']['mean']:.3f} "

@@ -30,9 +30,13 @@ import numpy as np
 
 
 def run_once(capture: Path, out: Path, params: str, threads: int, keep_work: bool) -> tuple[str, float]:
-    cmd = [sys.executable, "-m", "anigs.cli", "--threads", str(threads), "sfm", "--images", str(capture / "images"),
+    from anigs.stages.capture import Outputs as CaptureOutputs
+    from anigs.stages.sfm import Outputs as SfmOutputs
+
+    cap = CaptureOutputs(capture)
+    cmd = [sys.executable, "-m", "anigs.cli", "--threads", str(threads), "sfm", "--images", str(cap.path("images")),
            "--out", str(out), "--params", params]
-    gt = capture / "gt" / "cameras.json"
+    gt = cap.path("gt_cameras")
     if gt.exists():
         cmd += ["--gt-cameras", str(gt)]
     if keep_work:
@@ -41,7 +45,7 @@ def run_once(capture: Path, out: Path, params: str, threads: int, keep_work: boo
     with open(str(out) + ".log", "w") as log:
         subprocess.run(cmd, check=True, stdout=log, stderr=subprocess.STDOUT)
     seconds = time.perf_counter() - t0
-    return hashlib.md5((out / "cameras.json").read_bytes()).hexdigest(), seconds
+    return hashlib.md5(SfmOutputs(out).path("cameras").read_bytes()).hexdigest(), seconds
 
 
 def repeat(args) -> None:

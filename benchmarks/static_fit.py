@@ -51,41 +51,34 @@ from anigs.static.fit import FitConfig, fit_static  # noqa: E402
 def load_scene(scene: Path | None):
     """(images [H,W,3] list, cameras, points [P,3], colours [P,3], background, description)."""
     from anigs.images import load_inputs
-    from anigs.sfm.model import load_points
+    from anigs.stages.capture import Outputs as CaptureOutputs
+    from anigs.stages.sfm import Outputs as SfmOutputs
 
-    if scene is not None and (scene / "sfm" / "cameras.json").exists():
-        img_dir = scene / "sfm" / "images"
-        if not img_dir.is_dir():
-            img_dir = scene / "capture" / "images"
-        imgs, cams = load_inputs(img_dir, scene / "sfm" / "cameras.json")
-        pts, cols = load_points(scene / "sfm" / "points.npz")
-        bg = _capture_background(scene)
-        return imgs, cams, pts, cols, bg, f"{scene} (SfM cameras and points)"
-    from anigs.gaussians import load_ply
+    sfm = SfmOutputs(scene / "sfm") if scene is not None else None
+    if sfm is not None and sfm.exists("cameras"):
+        cap = CaptureOutputs(scene / "capture")
+        img_dir = sfm.path("images") if sfm.path("images").is_dir() else cap.path("images")
+        imgs, cams = load_inputs(img_dir, sfm.path("cameras"))
+        pts, cols = sfm.points()
+        return imgs, cams, pts, cols, _capture_background(cap), f"{scene} (SfM cameras and points)"
     from anigs.synth import write_capture
 
     tmp = Path(tempfile.mkdtemp(prefix="anigs_bench_static_"))
     print(f"no SfM outputs given: rendering the embedded demo capture to {tmp}")
     write_capture(None, tmp)
-    imgs, cams = load_inputs(tmp / "images", tmp / "gt" / "cameras.json")
-    g = load_ply(tmp / "gt" / "gaussians.ply")
+    cap = CaptureOutputs(tmp)
+    imgs, cams = load_inputs(cap.path("images"), cap.path("gt_cameras"))
+    g = cap.gt_gaussians()
     rng = np.random.default_rng(0)
     pts = g.means.numpy()[::6].astype(np.float64)
     pts = pts + rng.normal(0, 0.02, pts.shape)
     cols = g.rgb.clamp(0, 1).numpy()[::6]
-    bg = _capture_background(tmp.parent, tmp / "gt" / "cameras.json")
-    return imgs, cams, pts, cols, bg, "embedded demo capture, GT cameras, pseudo-SfM points"
+    return imgs, cams, pts, cols, _capture_background(cap), "embedded demo capture, GT cameras, pseudo-SfM points"
 
 
-def _capture_background(scene: Path, cams_json: Path | None = None) -> list[float] | None:
-    import json
-
-    for p in ([cams_json] if cams_json else []) + [scene / "capture" / "gt" / "cameras.json"]:
-        if p is not None and p.exists():
-            bg = json.loads(p.read_text()).get("background")
-            if bg:
-                return [float(x) for x in bg]
-    return None
+def _capture_background(cap) -> list[float] | None:
+    """The synthetic capture's background (None for photos)."""
+    return cap.gt_background() if cap.exists("gt_cameras") else None
 
 
 def _load() -> str:

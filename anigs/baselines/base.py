@@ -236,7 +236,7 @@ def run_baseline(method: str, canonical: str | Path | Gaussians, dynamic: str | 
     Args:
         method: ``lifting`` | ``physics``.
         canonical: canonical 3DGS PLY (or Gaussians).
-        dynamic: ``dynamic.npy`` [N] (bool or int effect labels) or the array itself.
+        dynamic: an ``.npy`` [N] (bool, or int effect labels: the masks stage's sets) or the array itself.
         targets: refined target clips (.npz), one per view (lifting uses all, physics one).
         out: output ``model.pt``.
         params: the baseline's config section (unknown keys rejected).

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Sequence
 
 import cv2
@@ -36,7 +35,6 @@ from anigs.effects.geometry import (Ground, colour_spread, local_shape, render_f
 from anigs.effects.reasons import reason
 from anigs.effects.regions import PhotoMaps, PhotoRegions, classify_photo
 from anigs.gaussians import Gaussians
-from anigs.io import write_json
 from anigs.masks import check_image
 from anigs.masks.capture import camera_for_size
 from anigs.masks.lift import VisibilityConfig, project_to_pixels, propagate_labels, visible_depth
@@ -103,13 +101,6 @@ class EffectsResult:
                 "candidates": [c.to_json() for c in self.candidates],
                 "rejected": [c.to_json() for c in self.candidates if not c.kept or c.moved_to],
                 "fragments": {k: int(v) for k, v in self.fragments.items()}}
-
-    def save(self, out_dir: str | Path) -> None:
-        """Write ``effects.json`` and ``regions.npy`` (int8 [N]: index into ``REGIONS``, -1 none)."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        write_json(out / "effects.json", self.to_json())
-        np.save(out / "regions.npy", self.region_of.astype(np.int8))
 
 
 def _prepare(images: Sequence[np.ndarray], cameras: Sequence[Camera], cfg: Config) -> tuple[list, list]:

@@ -205,9 +205,9 @@ def _view_key(name: str) -> tuple:
 def load_rows(clips_dir: str | Path, masks_dir: str | Path | None, threshold: float = 0.5,
               views: Sequence[str] | None = None) -> list[ContactRow]:
     """Rows from the workflow's folders: ``clips_dir/{view}.npz`` (:func:`anigs.video.load_clip`) and
-    ``masks_dir/{view}.png`` with the per-effect ``{view}_{effect}.png`` (overlays skipped), resized
-    to each clip as eval resizes them (``threshold``: eval's ``mask_threshold``)."""
-    from anigs.masks import read_mask
+    the masks stage's folder ``masks_dir``: each view's mask and per-effect masks, resized to each
+    clip as eval resizes them (``threshold``: eval's ``mask_threshold``)."""
+    from anigs.stages.masks import Outputs as MasksOutputs
     from anigs.video import load_clip
 
     clips_dir = Path(clips_dir)
@@ -220,13 +220,11 @@ def load_rows(clips_dir: str | Path, masks_dir: str | Path | None, threshold: fl
         H, W = clip.shape[1:3]
         dyn, effects = None, {}
         if masks_dir is not None:
-            mdir = Path(masks_dir)
-            if (mdir / f"{name}.png").exists():
-                dyn = resize_mask(read_mask(mdir / f"{name}.png"), H, W, threshold)
-            for p in sorted(mdir.glob(f"{name}_*.png")):
-                effect = p.stem[len(name) + 1:]
-                if effect != "overlay":
-                    effects[effect] = resize_mask(read_mask(p), H, W, threshold)
+            masks = MasksOutputs(masks_dir)
+            if masks.has_view_mask(name):
+                dyn = resize_mask(masks.view_mask(name), H, W, threshold)
+            for effect, m in masks.effect_masks(name).items():
+                effects[effect] = resize_mask(m, H, W, threshold)
         rows.append(ContactRow(name, clip, dyn, effects))
     return rows
 

@@ -41,8 +41,7 @@ def gt_metrics(model: Path | None, canonical: Path | None, gt_dir: Path | None, 
     from anigs.cameras import load_cameras
     from anigs.animate.deform import load_model
     from anigs.geometry.extent import scene_extent
-    from anigs.gaussians import Gaussians
-    from anigs.io import read_json
+    from anigs.stages.capture import Outputs as CaptureOutputs
     from anigs.synth.motion import MotionParams, gt_clip_offsets
 
     canon, deformation, _ = load_model(model, canonical)
@@ -50,17 +49,18 @@ def gt_metrics(model: Path | None, canonical: Path | None, gt_dir: Path | None, 
         return na("the learned model has no dynamic Gaussians")
     T = deformation.num_frames
     learned = deformation.trajectories(canon.means, torch.arange(T)).detach().permute(1, 0, 2).double().numpy()
-    gt_g = Gaussians.load_ply(gt_dir / "gaussians.ply")
-    labels = np.load(gt_dir / "labels.npy")
-    anchors = np.load(gt_dir / "anchors.npy")
-    params = MotionParams.from_dict(read_json(gt_dir / "motion.json")["params"])
+    gt = CaptureOutputs.from_gt(gt_dir)
+    gt_g = gt.gt_gaussians()
+    labels = gt.gt_labels(gt_g.num)
+    anchors = gt.gt_anchors(gt_g.num)
+    params = MotionParams.from_dict(gt.gt_motion()["params"])
     off = gt_clip_offsets(params, gt_g.means, torch.as_tensor(anchors), torch.as_tensor(labels).long())  # [T',N,3]
     moving = off.abs().amax(dim=(0, 2)) > 0
     gt_traj = (gt_g.means[moving][None] + off[:, moving]).permute(1, 0, 2).double().numpy()
     if cameras is None:
         return na("needs --cameras (learned frame) to make amplitudes scale-free")
     ext_l = scene_extent(load_cameras(cameras))
-    ext_g = scene_extent(load_cameras(gt_dir / "cameras.json"))
+    ext_g = scene_extent(gt.gt_cameras())
     d = gt_motion_distances(learned, gt_traj, ext_l, ext_g)
     samples = {"learned_gaussians": d["n_learned"], "gt_gaussians": d["n_gt"], "learned_frames": T,
                "gt_frames": int(off.shape[0])}

@@ -34,10 +34,9 @@ def moving_labelled_still(model: Path | None, canonical: Path | None, gt_dir: Pa
 
     from anigs.animate.deform import load_model
     from anigs.cameras import load_cameras
-    from anigs.gaussians import load_ply
     from anigs.geometry.extent import scene_extent
-    from anigs.io import read_json
     from anigs.masks.labels import align_cameras
+    from anigs.stages.capture import Outputs as CaptureOutputs
     from anigs.synth.motion import LABEL_EFFECTS, WATER_LABEL_EFFECTS
 
     canon, deformation, _ = load_model(model, canonical)
@@ -50,13 +49,15 @@ def moving_labelled_still(model: Path | None, canonical: Path | None, gt_dir: Pa
             traj = deformation.trajectories(canon.means, torch.arange(T)).double().numpy()  # [T,D,3]
         moving = np.zeros(canon.num, bool)
         moving[deformation.dynamic_index.numpy()] = np.abs(traj - traj[:1]).max(axis=(0, 2)) > min_motion * extent
-    names = {int(k): v for k, v in read_json(gt_dir / "motion.json")["labels"].items()}
+    truth = CaptureOutputs.from_gt(gt_dir)
+    names = {int(k): v for k, v in truth.gt_motion()["labels"].items()}
     still_ids = [k for k, v in names.items() if not {**LABEL_EFFECTS, **WATER_LABEL_EFFECTS}.get(v, ())]
-    labels = np.load(gt_dir / "labels.npy")
-    gt = load_ply(gt_dir / "gaussians.ply")
-    sim, _ = align_cameras(cams, load_cameras(gt_dir / "cameras.json"))
+    gt = truth.gt_gaussians()
+    labels = truth.gt_labels(gt.num)
+    gt_cams = truth.gt_cameras()
+    sim, _ = align_cameras(cams, gt_cams)
     pts = sim.apply(canon.means.detach().double().numpy())
-    gt_extent = scene_extent(load_cameras(gt_dir / "cameras.json"))
+    gt_extent = scene_extent(gt_cams)
     dist, idx = cKDTree(gt.means.detach().double().numpy()).query(pts, k=1)
     known = dist <= max_dist * gt_extent
     still = known & np.isin(labels[idx], still_ids)

@@ -5,7 +5,7 @@ available with the reason):
 
 - ``--final-dir DIR`` / ``--clips PATH ...``: the method's camera-fixed clips (``.npz`` from
   :mod:`anigs.video`, or ``.mp4``); directories are searched recursively.
-- ``--masks DIR``: dynamic masks ``<view>.png`` (or ``.npy``) matched to clips by file stem.
+- ``--masks DIR``: the masks stage's folder: each view's dynamic mask, matched to clips by file stem.
 - ``--reference PRIOR=PATH`` (repeatable; paths of one prior pool): the prior's ``generate``
   clips (FVD-PRIOR and FID-PRIOR); ``--fid-reference PRIOR=PATH`` gives FID its own reference
   (the paper pools the generated frames of all scenes for FID).
@@ -151,16 +151,12 @@ def clip_fps(path: Path, default: float = 8.0) -> float:
 
 def load_mask_for(view: str, mask_dir: Path | None, height: int, width: int, threshold: float) -> np.ndarray | None:
     from anigs.metrics.motion import resize_mask
+    from anigs.stages.masks import Outputs as MasksOutputs
 
     if mask_dir is None:
         return None
-    for ext in (".png", ".npy"):
-        p = mask_dir / f"{view}{ext}"
-        if p.exists():
-            from anigs.masks import read_mask
-
-            return resize_mask(read_mask(p), height, width, threshold)
-    return None
+    masks = MasksOutputs(mask_dir)
+    return resize_mask(masks.view_mask(view), height, width, threshold) if masks.has_view_mask(view) else None
 
 
 # ----------------------------------------------------------------------------- metric groups

@@ -11,31 +11,71 @@ from __future__ import annotations
 
 import argparse
 import logging
+from dataclasses import dataclass, field
 from pathlib import Path
 
+from anigs.stages import contract
+from anigs.stages.contract import File
 from anigs.static.fit import FitConfig
 
 Config = FitConfig  # the `static` config section
 
 log = logging.getLogger("anigs.static")
 
-def run(images: str | Path, cameras: str | Path, points: str | Path, out: str | Path, cfg: FitConfig,
-        progress: bool = False) -> dict:
-    """Fit the canonical 3DGS to the posed ``images`` from the SfM ``points``; writes
-    ``out/canonical.ply`` and ``out/metrics.json`` and returns the metrics."""
+
+class Outputs(contract.Outputs):
+    """The static stage's folder: the canonical 3DGS."""
+
+    STAGE = "static"
+    LAYOUT = {
+        "canonical": File("canonical.ply", "the canonical 3DGS, standard 3DGS PLY layout (any 3DGS viewer opens it)"),
+        "metrics": File("metrics.json", "held-out and train PSNR/SSIM, Gaussian count, seconds, inputs, config"),
+        "checkpoint": File("checkpoint.ply", "the last good state while the fit runs; removed on success, "
+                                             "kept when the fit diverges", optional=True),
+    }
+
+    def canonical(self):
+        """The canonical :class:`~anigs.gaussians.Gaussians`."""
+        from anigs.gaussians import load_ply
+
+        p = self.path("canonical")
+        if not p.is_file():
+            raise FileNotFoundError(f"{p}: missing (run the {self.STAGE} stage)")
+        return load_ply(p)
+
+    def metrics(self) -> dict:
+        """``metrics.json``."""
+        return self.json("metrics")
+
+@dataclass
+class Inputs(contract.Inputs):
+    """What the static stage reads: the sfm stage's posed images and points."""
+
+    images: Path = field(metadata={"help": "folder of the input images (sfm/images)"})
+    cameras: Path = field(metadata={"help": "cameras.json (anigs convention), one entry per used image (sfm)"})
+    points: Path = field(metadata={"help": "points.npz with xyz [P,3] and rgb [P,3] (the sfm stage's points)"})
+    out: Outputs = field(metadata={"help": "output folder (canonical.ply, metrics.json)"})
+    no_progress: bool = field(default=False, metadata={"help": "hide the progress bar"})
+
+
+def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
+    """Fit the canonical 3DGS to the sfm stage's posed images from its points; writes the
+    canonical PLY and the metrics (a checkpoint while it runs, kept when the fit diverges)."""
     from anigs.gaussians import load_ply
     from anigs.images import load_inputs
     from anigs.io import write_json
-    from anigs.sfm.model import load_points
     from anigs.static.fit import fit_static
 
-    out = Path(out)
+    from anigs.sfm.model import load_points
+
+    out, images, cameras, points = inputs.out, inputs.images, inputs.cameras, inputs.points
     imgs, cams = load_inputs(images, cameras)
     pts, cols = load_points(points)
-    out.mkdir(parents=True, exist_ok=True)
-    ckpt = out / "checkpoint.ply"
-    gaussians, metrics = fit_static(imgs, cams, pts, cols, cfg, progress=progress, checkpoint_path=ckpt)
-    ply = out / "canonical.ply"
+    out.root.mkdir(parents=True, exist_ok=True)
+    ckpt = out.path("checkpoint")
+    gaussians, metrics = fit_static(imgs, cams, pts, cols, cfg, progress=not inputs.no_progress,
+                                    checkpoint_path=ckpt)
+    ply = out.path("canonical")
     gaussians.save_ply(ply)
     back = load_ply(ply)  # the artifact must round-trip
     if back.num != gaussians.num:
@@ -43,11 +83,11 @@ def run(images: str | Path, cameras: str | Path, points: str | Path, out: str | 
     metrics["inputs"] = {"images": str(images), "cameras": str(cameras), "points": str(points),
                          "num_points": int(len(pts))}
     metrics["config"] = _config_dict(cfg)
-    write_json(out / "metrics.json", metrics)
+    write_json(out.path("metrics"), metrics)
     if ckpt.exists():
         ckpt.unlink()
     log.info("static fit: %d Gaussians -> %s", metrics["num_gaussians"], ply)
-    return metrics
+    return out
 
 
 def _config_dict(cfg) -> dict:
@@ -61,22 +101,18 @@ def _config_dict(cfg) -> dict:
 # ---- command line: anigs static ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params, add_out
+    from anigs.cli import add_params
 
-    p.add_argument("--images", required=True, help="folder of the input images")
-    p.add_argument("--cameras", required=True, help="cameras.json (anigs convention), one entry per used image")
-    p.add_argument("--points", required=True, help="points.npz with xyz [P,3] and rgb [P,3] (SfM points)")
-    add_out(p, "output folder (canonical.ply, metrics.json)")
+    Inputs.add_arguments(p)
     add_params(p, "static")
-    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
-    metrics = run(args.images, args.cameras, args.points, args.out, FitConfig.from_dict(parse_params(args.params)),
-                  progress=not args.no_progress)
+    out = run(Inputs.from_args(args), FitConfig.from_dict(parse_params(args.params)))
+    metrics = out.metrics()
     print(f"static fit: {metrics['num_gaussians']} Gaussians, held-out PSNR {metrics['test_psnr']:.2f} dB "
           f"(SSIM {metrics['test_ssim']:.3f}), train PSNR {metrics['train_psnr']:.2f} dB, "
-          f"{metrics['seconds']:.0f} s -> {Path(args.out) / 'canonical.ply'}")
+          f"{metrics['seconds']:.0f} s -> {out.path('canonical')}")
     return 0

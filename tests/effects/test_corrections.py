@@ -13,6 +13,7 @@ import torch
 
 from anigs.cli import main
 from anigs.effects.config import REGIONS
+from anigs.stages.effects import Outputs as EffectsOutputs
 
 SUPERSPLAT_SEQUENCE = re.compile(r"(.*?)(\d+)(?:\.compressed)?\.ply$")  # SuperSplat's isPlySequence (src/file-handler.ts)
 
@@ -38,7 +39,7 @@ def _run(tmp: Path, out: str, params: dict) -> dict:
     args = ["effects", "--canonical", str(tmp / "canonical.ply"), "--cameras", str(tmp / "cameras.json"),
             "--images", str(tmp / "images"), "--out", str(tmp / out), "--params", json.dumps(params)]
     assert main(args) == 0
-    return json.loads((tmp / out / "effects.json").read_text())
+    return EffectsOutputs(tmp / out).report()
 
 
 def _fails(tmp: Path, params: dict, caplog, pattern: str) -> None:
@@ -81,7 +82,7 @@ def test_box_and_supersplat_selection(room, caplog):
     label = d.gaussians.extras["label"].numpy()
     g.subset(torch.from_numpy(np.flatnonzero(label == 4))).save_ply(tmp / "plant_selection.ply")
     doc = _run(tmp, "sel", {"boxes": [box], "selections": [{"ply": str(tmp / "plant_selection.ply"), "effect": "still"}]})
-    dyn = np.load(tmp / "sel" / "dynamic.npy")
+    dyn = EffectsOutputs(tmp / "sel").dynamic()
     assert doc["chosen"] == ["flower_bob"]  # the rug bobs because the box says so; the plant stays still
     assert dyn[rug].mean() > 0.99 and not dyn[label == 4].any()
     # a selection exported after moving the model in SuperSplat does not match: a clear error

@@ -21,6 +21,7 @@ from anigs.masks import read_rgb_png
 from anigs.masks.labels import render_label_map
 from anigs.synth import LABEL_IDS, CaptureConfig, SceneConfig, build_scene, camera_path, render_image
 from anigs.synth.scene import frame_from_normal, quat_from_matrix
+from anigs.stages.effects import Outputs as EffectsOutputs
 
 TRUTH = {"foliage_sway": "foliage", "leaf_flutter": "foliage", "grass_wave": "grass", "flower_bob": "flowers",
          "water_ripple": "water"}
@@ -97,8 +98,7 @@ def test_bare_courtyard_has_no_effects(tmp_path):
     res = detect_effects(imgs, cams, g, Config())
     assert res.detected == [] and not res.dynamic().any()
     assert all(r.pixel_fraction < Config().min_pixel_fraction for r in res.effects.values())
-    res.save(tmp_path)
-    doc = json.loads((tmp_path / "effects.json").read_text())
+    doc = json.loads(json.dumps(res.to_json()))  # the detection part of the stage's report
     assert set(doc["effects"]) == set(EFFECTS)
     for e in EFFECTS:
         assert {"detected", "pixel_fraction", "gaussian_fraction", "confidence", "reason"} <= set(doc["effects"][e])
@@ -230,7 +230,7 @@ def test_stage_effects_list_restricts_and_reports_what_the_scene_lacks(tmp_path)
     from anigs.cameras import save_cameras
     from anigs.cli import main
     from anigs.masks import write_rgb_png
-    from anigs.stages.effects import choose
+    from anigs.effects.choice import choose
 
     assert choose(["foliage_sway", "flower_bob"], "auto") == (["foliage_sway", "flower_bob"], [])
     assert choose(["foliage_sway"], ["flower_bob", "foliage_sway"]) == (["foliage_sway"], ["flower_bob"])
@@ -244,18 +244,18 @@ def test_stage_effects_list_restricts_and_reports_what_the_scene_lacks(tmp_path)
     base = ["effects", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
             "--images", str(tmp_path / "images")]
     assert main(base + ["--out", str(tmp_path / "auto"), "--params", "{}"]) == 0
-    auto = json.loads((tmp_path / "auto" / "effects.json").read_text())
+    auto = EffectsOutputs(tmp_path / "auto").report()
     assert auto["requested"] == "auto" and auto["chosen"] == auto["detected"] and "water_ripple" in auto["chosen"]
     listed = json.dumps({"requested": ["water_ripple", "grass_wave", "flower_bob"]})
     assert main(base + ["--out", str(tmp_path / "list"), "--params", listed]) == 0
-    doc = json.loads((tmp_path / "list" / "effects.json").read_text())
+    doc = EffectsOutputs(tmp_path / "list").report()
     want = [e for e in ("water_ripple", "grass_wave", "flower_bob") if e in auto["detected"]]
     assert doc["chosen"] == want and doc["requested_not_found"] == [e for e in ("water_ripple", "grass_wave",
                                                                                 "flower_bob") if e not in want]
-    regions = np.load(tmp_path / "list" / "regions.npy")
-    dyn = np.load(tmp_path / "list" / "dynamic.npy")
+    regions = EffectsOutputs(tmp_path / "list").regions()
+    dyn = EffectsOutputs(tmp_path / "list").dynamic()
     assert dyn.shape == (g.num,) and dyn.sum() == doc["num_dynamic"]
-    assert dyn.sum() < np.load(tmp_path / "auto" / "dynamic.npy").sum()
+    assert dyn.sum() < EffectsOutputs(tmp_path / "auto").dynamic().sum()
     foliage = regions == REGIONS.index("foliage")
     assert not (dyn & foliage).any()  # foliage was not asked for: it stays still
     assert (tmp_path / "list" / "overview.png").stat().st_size > 0

@@ -12,7 +12,8 @@ import yaml
 
 from anigs.effects.config import REGIONS
 from anigs.effects.vocabulary import SCENE_WORDS, WORDS, prompt_kinds, vocabulary_markdown
-from anigs.stages.effects import choose
+from anigs.effects.choice import choose
+from anigs.stages.effects import Outputs as EffectsOutputs
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -85,14 +86,14 @@ def _run(tmp: Path, out: str, params: dict, prompt: str | None = None) -> dict:
     if prompt is not None:
         args += ["--prompt", prompt]
     assert main(args) == 0
-    return json.loads((tmp / out / "effects.json").read_text())
+    return EffectsOutputs(tmp / out).report()
 
 
 def test_a_prompt_naming_nothing_that_moves_gives_a_still_scene(garden_stage):
     doc = _run(garden_stage, "still", {"prompt": "a wooden bench in a courtyard"})
     assert doc["chosen"] == [] and doc["detected"] == [] and doc["requested_not_found"] == []
     assert "names nothing that moves" in doc["prompt"]["note"] and doc["prompt"]["used"]
-    assert not np.load(garden_stage / "still" / "dynamic.npy").any()
+    assert not EffectsOutputs(garden_stage / "still").dynamic().any()
     for e, r in doc["effects"].items():
         assert "the prompt does not name it" in r["reason"], (e, r["reason"])
 

@@ -10,6 +10,8 @@ from anigs.cameras import Camera, intrinsics_from_fov
 from anigs.gaussians import Gaussians
 from anigs.masks.contain import contain_dynamic, outside_weights
 from anigs.masks.labels import dynamic_masks
+from anigs.stages.masks import Outputs as MasksOutputs
+from anigs.stages.effects import Outputs as EffectsOutputs
 
 W, H = 64, 48
 BG = (0.62, 0.76, 0.92)
@@ -125,8 +127,8 @@ def test_outside_weights_margin_and_errors(scene):
 
 
 def test_masks_stage_contains_the_effects_set(tmp_path):
-    """`anigs masks`: the halo of the effects stage's set is left out of dynamic.npy (and reported in
-    masks.json); the masks stay the render of the effects set; ``contain: false`` keeps the halo."""
+    """`anigs masks`: the halo of the effects stage's set is left out of the dynamic set (and reported
+    in the masks report); the masks stay the render of the effects set; ``contain: false`` keeps the halo."""
     import json
 
     from anigs.cli import main
@@ -141,20 +143,20 @@ def test_masks_stage_contains_the_effects_set(tmp_path):
     eff.mkdir()
     regions = np.full(g.num, -1, np.int8)
     regions[index["cluster"]] = regions[index["halo"]] = REGIONS.index("foliage")
-    np.save(eff / "regions.npy", regions)
-    np.save(eff / "dynamic.npy", regions >= 0)
-    (eff / "effects.json").write_text(json.dumps({"chosen": ["foliage_sway"]}))
+    np.save(EffectsOutputs(eff).path("regions"), regions)
+    np.save(EffectsOutputs(eff).path("dynamic"), regions >= 0)
+    EffectsOutputs(eff).path("effects").write_text(json.dumps({"chosen": ["foliage_sway"]}))
     args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
             "--effects", str(eff)]
     assert main(args + ["--out", str(tmp_path / "on"), "--params", "{}"]) == 0
     assert main(args + ["--out", str(tmp_path / "off"), "--params", json.dumps({"contain": False})]) == 0
-    on, off = np.load(tmp_path / "on" / "dynamic.npy"), np.load(tmp_path / "off" / "dynamic.npy")
+    on, off = MasksOutputs(tmp_path / "on").dynamic(), MasksOutputs(tmp_path / "off").dynamic()
     np.testing.assert_array_equal(off, regions >= 0)
     assert not on[index["halo"]] and on[index["cluster"]].all() and on.sum() == off.sum() - 1
-    info = json.loads((tmp_path / "on" / "masks.json").read_text())
+    info = MasksOutputs(tmp_path / "on").report()
     assert info["containment"]["frozen"] == 1 and info["containment"]["margin_px"] == 3
-    assert "containment" not in json.loads((tmp_path / "off" / "masks.json").read_text())
-    np.testing.assert_array_equal(read_mask_png(tmp_path / "on" / "v00.png"), read_mask_png(tmp_path / "off" / "v00.png"))
+    assert "containment" not in MasksOutputs(tmp_path / "off").report()
+    np.testing.assert_array_equal(read_mask_png(MasksOutputs(tmp_path / "on").path("mask", view="v00")), read_mask_png(MasksOutputs(tmp_path / "off").path("mask", view="v00")))
     assert main(args + ["--out", str(tmp_path / "x"), "--params", json.dumps({"contain_margin_px": -1})]) == 1
 
 
@@ -228,15 +230,16 @@ def test_update_stage_contains_the_trained_motion(tmp_path, scene):
     g, index, cam, _, mask = scene
     g.save_ply(tmp_path / "canonical.ply")
     (tmp_path / "views.json").write_text(json.dumps({"views": [{"id": "v00", "camera": cam.to_dict()}]}))
-    write_mask_png(tmp_path / "masks" / "v00.png", mask)
+    masks = MasksOutputs(tmp_path / "masks")
+    write_mask_png(masks.path("mask", view="v00"), mask)
     lifted = _flags(g.num, index["cluster"], index["halo"])
-    np.save(tmp_path / "masks" / "dynamic.npy", lifted)
+    np.save(masks.path("dynamic"), lifted)
     with torch.no_grad():  # a target in which everything lifted sways strongly
         target = render_clip(g, _deformation(g, lifted, scale=0.3), cam, 9, BG).numpy()
     save_clip(tmp_path / "v00.npz", target, {"camera": cam.to_dict()})
     params = {"steps": 20, "num_bases": 4, "background": list(BG), "lr_position_coeffs": 0.05, "spatial_lr_scale": 1.0}
     base = ["update", "--canonical", str(tmp_path / "canonical.ply"), "--targets", str(tmp_path / "v00.npz"),
-            "--view-json", str(tmp_path / "views.json"), "--dynamic", str(tmp_path / "masks" / "dynamic.npy")]
+            "--view-json", str(tmp_path / "views.json"), "--dynamic", str(masks.path("dynamic"))]
     assert main(base + ["--out", str(tmp_path / "on.pt"), "--log-json", str(tmp_path / "on.json"),
                         "--masks", str(tmp_path / "masks"), "--params", json.dumps(params)]) == 0
     assert main(base + ["--out", str(tmp_path / "off.pt"), "--params", json.dumps({**params, "contain": False}),

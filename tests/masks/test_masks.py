@@ -11,6 +11,8 @@ from anigs.masks import (Frame, check_image, compute_masks, get_mask_backend, ma
 from anigs.masks.vegetation import (GroundPlane, VegetationConfig, estimate_ground, otsu_threshold, pixel_heights,
                                     vegetation_mask)
 from tests.masks.test_lift import SKY, toy_scene
+from anigs.stages.masks import Outputs as MasksOutputs
+from anigs.stages.effects import Outputs as EffectsOutputs
 
 
 def _synthetic_frame(seed: int = 0, h: int = 96, w: int = 128):
@@ -358,19 +360,19 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
             "--out", str(out), "--labels", str(tmp_path / "labels.npy"), "--motion", str(tmp_path / "motion.json")]
     assert main(args + ["--params", json.dumps({"backend": "labels"})]) == 0
     for v in views:
-        assert read_mask_png(out / f"{v['id']}.png").shape == (60, 80)
-        assert (out / f"{v['id']}_overlay.png").is_file()
-        assert (out / f"{v['id']}_foliage_sway.png").is_file() and (out / f"{v['id']}_leaf_flutter.png").is_file()
-    info = json.loads((out / "masks.json").read_text())
+        assert read_mask_png(MasksOutputs(out).path("mask", view=v["id"])).shape == (60, 80)
+        assert MasksOutputs(out).exists("overlay", view=v["id"])
+        assert MasksOutputs(out).exists("effect_mask", view=v["id"], effect="foliage_sway") and MasksOutputs(out).exists("effect_mask", view=v["id"], effect="leaf_flutter")
+    info = MasksOutputs(out).report()
     assert info["iou_vs_labels"]["min"] == 1.0  # the labels backend is its own yardstick
     lv = info["lift_vs_labels"]
     assert lv["precision"] >= 0.7 and lv["recall"] >= 0.9, lv  # one location only: 3 views
-    dyn = np.load(out / "dynamic.npy")
+    dyn = MasksOutputs(out).dynamic()
     assert dyn.shape == (gs.num,) and dyn.dtype == bool
     # the vegetation backend on the same views, compared with the labels
     veg_params = json.dumps({"backend": "vegetation"})
     assert main(args + ["--out", str(tmp_path / "veg"), "--params", veg_params]) == 0
-    veg = json.loads((tmp_path / "veg" / "masks.json").read_text())
+    veg = MasksOutputs(tmp_path / "veg").report()
     assert veg["backend"] == "vegetation"
     assert veg["views"][0]["iou_vs_labels"] >= 0.5, veg["views"][0]  # the view facing the blobs
     assert all(v["fraction"] <= 0.05 for v in veg["views"][1:]), veg["views"]  # side views: lawn, sky
@@ -381,7 +383,7 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
     for v in views:
         write_rgb_png(tmp_path / "frames" / f"{v['id']}.png", np.full((60, 80, 3), 0.5, np.float32))
     assert main(args + ["--out", str(tmp_path / "grey"), "--frames", str(tmp_path / "frames"), "--params", veg_params]) == 0
-    assert not read_mask_png(tmp_path / "grey" / "v00.png").any()  # an all-grey frame: empty mask, no crash
+    assert not read_mask_png(MasksOutputs(tmp_path / "grey").path("mask", view="v00")).any()  # an all-grey frame: empty mask, no crash
     (tmp_path / "frames" / "v01.png").unlink()
     assert main(args + ["--out", str(tmp_path / "grey2"), "--frames", str(tmp_path / "frames"), "--params", veg_params]) == 1
 
@@ -440,8 +442,8 @@ def test_cli_masks_lifts_over_capture_photos(tmp_path, lawn_scene):
             "--params", json.dumps({"backend": "vegetation", "appearance": True})]
     assert main(base + ["--out", str(tmp_path / "views_only")]) == 0
     assert main(base + ["--out", str(tmp_path / "capture"), "--images", str(tmp_path / "images")]) == 0
-    before = json.loads((tmp_path / "views_only" / "masks.json").read_text())
-    after = json.loads((tmp_path / "capture" / "masks.json").read_text())
+    before = MasksOutputs(tmp_path / "views_only").report()
+    after = MasksOutputs(tmp_path / "capture").report()
     assert after["capture"]["images"] == len(cams) and after["lift"]["num_views"] == len(vcams) + len(cams)
     # one location sees one side of the blobs (the rest is guessed from neighbours: the wall and
     # lawn next to them come along); the ring of photos sees all of them
@@ -454,9 +456,9 @@ def test_cli_masks_lifts_over_capture_photos(tmp_path, lawn_scene):
         assert set(info["lift_appearance"]) >= {"precision", "recall", "num_appearance_dynamic"}
         assert all("iou_appearance" in v for v in info["views"]) and "iou_appearance" in info
     # every queued view's mask contains the pixels its lifted dynamic Gaussians dominate
-    dyn = np.load(tmp_path / "capture" / "dynamic.npy")
+    dyn = MasksOutputs(tmp_path / "capture").dynamic()
     for v, want in zip(views, dynamic_masks(gs, dyn, vcams)):
-        got = read_mask_png(tmp_path / "capture" / f"{v['id']}.png")
+        got = read_mask_png(MasksOutputs(tmp_path / "capture").path("mask", view=v["id"]))
         assert not (want & ~got).any()
     assert len(after["completed_fraction"]) == len(views)
     # photos missing: an error naming the folder; --images without --cameras: an error
@@ -511,35 +513,35 @@ def test_cli_masks_effects_backend_renders_the_effects_stage_sets(tmp_path, lawn
     eff = tmp_path / "effects"
     eff.mkdir()
     regions = np.where(lab == 4, REGIONS.index("foliage"), -1).astype(np.int8)  # the blobs are foliage
-    np.save(eff / "regions.npy", regions)
-    np.save(eff / "dynamic.npy", regions >= 0)
-    (eff / "effects.json").write_text(json.dumps({"chosen": ["foliage_sway", "leaf_flutter"]}))
+    np.save(EffectsOutputs(eff).path("regions"), regions)
+    np.save(EffectsOutputs(eff).path("dynamic"), regions >= 0)
+    EffectsOutputs(eff).path("effects").write_text(json.dumps({"chosen": ["foliage_sway", "leaf_flutter"]}))
     args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
             "--effects", str(eff), "--params", "{}"]
     assert main(args + ["--out", str(tmp_path / "m")]) == 0
-    info = json.loads((tmp_path / "m" / "masks.json").read_text())
+    info = MasksOutputs(tmp_path / "m").report()
     assert info["backend"] == "effects" and info["lift"]["source"].startswith("effects:")
-    np.testing.assert_array_equal(np.load(tmp_path / "m" / "dynamic.npy"), regions >= 0)
+    np.testing.assert_array_equal(MasksOutputs(tmp_path / "m").dynamic(), regions >= 0)
     want = dynamic_masks(gs, regions >= 0, vcams)
     for v, w in zip(views, want):
-        got = read_mask_png(tmp_path / "m" / f"{v['id']}.png")
+        got = read_mask_png(MasksOutputs(tmp_path / "m").path("mask", view=v["id"]))
         assert got.any() == w.any() and (got & w).sum() >= 0.9 * w.sum(), v["id"]
         for e in ("foliage_sway", "leaf_flutter"):  # one mask per chosen effect
-            assert (tmp_path / "m" / f"{v['id']}_{e}.png").is_file()
-    labels = np.load(tmp_path / "m" / "effect_labels.npy")  # each dynamic Gaussian's effect: foliage = 1
+            assert MasksOutputs(tmp_path / "m").exists("effect_mask", view=v["id"], effect=e)
+    labels = MasksOutputs(tmp_path / "m").effect_labels()  # each dynamic Gaussian's effect: foliage = 1
     np.testing.assert_array_equal(labels, np.where(regions >= 0, 1, 0))
     # a backend with one mask per view (vegetation) gets the per-effect masks too, within its own mask
     veg = args[:-2] + ["--params", json.dumps({"backend": "vegetation"}), "--out", str(tmp_path / "veg")]
     assert main(veg) == 0
     for v in views:
-        whole = read_mask_png(tmp_path / "veg" / f"{v['id']}.png")
+        whole = read_mask_png(MasksOutputs(tmp_path / "veg").path("mask", view=v["id"]))
         for e in ("foliage_sway", "leaf_flutter"):
-            m = read_mask_png(tmp_path / "veg" / f"{v['id']}_{e}.png")
+            m = read_mask_png(MasksOutputs(tmp_path / "veg").path("effect_mask", view=v["id"], effect=e))
             assert not (m & ~whole).any(), (v["id"], e)
-    assert any(read_mask_png(tmp_path / "veg" / f"{v['id']}_foliage_sway.png").any() for v in views)
-    (eff / "effects.json").write_text(json.dumps({"chosen": []}))
-    np.save(eff / "dynamic.npy", np.zeros(gs.num, bool))
+    assert any(read_mask_png(MasksOutputs(tmp_path / "veg").path("effect_mask", view=v["id"], effect="foliage_sway")).any() for v in views)
+    EffectsOutputs(eff).path("effects").write_text(json.dumps({"chosen": []}))
+    np.save(EffectsOutputs(eff).path("dynamic"), np.zeros(gs.num, bool))
     assert main(args + ["--out", str(tmp_path / "none")]) == 0
-    assert not any(read_mask_png(tmp_path / "none" / f"{v['id']}.png").any() for v in views)
-    assert not np.load(tmp_path / "none" / "dynamic.npy").any()
+    assert not any(read_mask_png(MasksOutputs(tmp_path / "none").path("mask", view=v["id"])).any() for v in views)
+    assert not MasksOutputs(tmp_path / "none").dynamic().any()
     assert main(args[:-4] + ["--params", "{}", "--out", str(tmp_path / "x")]) == 1  # no --effects: an error

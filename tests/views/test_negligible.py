@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from anigs.cameras import save_cameras
+from anigs.stages.effects import Outputs as EffectsOutputs
+from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.masks.labels import dynamic_masks
 from anigs.views import ViewsConfig, plan_views, queued_view_count
 from tests.masks.test_lift import toy_scene
@@ -122,13 +124,15 @@ def _cli(tmp_path, gs, cams, roi, params) -> dict:
 
     gs.save_ply(tmp_path / "canonical.ply")
     save_cameras(tmp_path / "cameras.json", cams)
-    np.save(tmp_path / "roi.npy", roi)
-    out = tmp_path / "views"
+    eff = EffectsOutputs(tmp_path / "effects")
+    eff.root.mkdir(exist_ok=True)
+    np.save(eff.path("dynamic"), roi)
+    out = ViewsOutputs(tmp_path / "views")
     assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
-                 "--dynamic", str(tmp_path / "roi.npy"), "--out", str(out),
+                 "--effects", str(eff.root), "--out", str(out.root),
                  "--params", json.dumps({**params, "topdown_size": 200})]) == 0
-    assert queued_view_count(out / "views.json") == len(json.loads((out / "views.json").read_text())["views"])
-    return json.loads((out / "views.json").read_text())
+    assert queued_view_count(out.path("views")) == out.count() == len(out.report()["views"])
+    return out.report()
 
 
 def test_stage_drops_but_not_under_the_roi_fallback(tmp_path, scene):

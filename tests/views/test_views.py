@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 
 from anigs.cameras import save_cameras
+from anigs.stages.effects import Outputs as EffectsOutputs
+from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.views import (ViewsConfig, azimuth_deg, ccw_order, farthest_point_order, in_wedges, plan_views,
                          view_camera)
 from tests.masks.test_lift import toy_scene
@@ -163,86 +165,46 @@ def test_cli_views(tmp_path, scene):
                "--labels", str(tmp_path / "labels.npy"), "--motion", str(tmp_path / "motion.json"),
                "--out", str(out), "--params", json.dumps({**SMALL, "num_locations": 2, "topdown_size": 200})])
     assert rc == 0
-    data = json.loads((out / "views.json").read_text())
+    data = ViewsOutputs(out).report()
     assert len(data["views"]) == 6 and len(data["coverage_after"]) == 6
-    assert data["num_roi"] == int((lab == 4).sum())
-    assert (np.load(out / "dynamic.npy") == (lab == 4)).all()
-    assert (out / "topdown.png").is_file()
-    # a bad key is a clear error (exit code 1), not a crash
+    assert data["num_roi"] == int((lab == 4).sum()) and data["roi_source"].startswith("labels:")
+    assert sorted(p.name for p in out.iterdir()) == sorted(f.name for f in ViewsOutputs.LAYOUT.values())
+    # the effects stage's region of interest gives the same queue
+    eff = EffectsOutputs(tmp_path / "effects")
+    eff.root.mkdir()
+    np.save(eff.path("dynamic"), lab == 4)
     assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
-                 "--dynamic", str(out / "dynamic.npy"), "--out", str(tmp_path / "v2"),
+                 "--effects", str(eff.root), "--out", str(tmp_path / "v1"),
+                 "--params", json.dumps({**SMALL, "num_locations": 2, "topdown_size": 200})]) == 0
+    again = ViewsOutputs(tmp_path / "v1").report()
+    assert again["views"] == data["views"] and again["roi_source"] == f"effects:{eff.root}"
+    # a bad key is a clear error (exit code 1), not a crash; so is a ROI of the wrong size
+    assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+                 "--effects", str(eff.root), "--out", str(tmp_path / "v2"),
                  "--params", '{"bogus": 1}']) == 1
+    np.save(eff.path("dynamic"), np.zeros(gs.num + 1, bool))
+    assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+                 "--effects", str(eff.root), "--out", str(tmp_path / "v3")]) == 1
 
 
 def test_nothing_dynamic_gives_views_of_the_whole_scene(tmp_path, scene):
     """No region of interest (nothing to animate) is not a crash: the views look at the whole scene
-    (for the still final renders), views.json says so, and dynamic.npy stays empty."""
+    (for the still final renders), views.json says so."""
     from anigs.cli import main
 
     gs, lab, cams = scene
     gs.save_ply(tmp_path / "canonical.ply")
     save_cameras(tmp_path / "cameras.json", cams)
-    np.save(tmp_path / "none.npy", np.zeros(gs.num, bool))
+    eff = EffectsOutputs(tmp_path / "effects")
+    eff.root.mkdir()
+    np.save(eff.path("dynamic"), np.zeros(gs.num, bool))
     out = tmp_path / "views"
     assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
-                 "--dynamic", str(tmp_path / "none.npy"), "--out", str(out),
+                 "--effects", str(eff.root), "--out", str(out),
                  "--params", json.dumps({**SMALL, "num_locations": 2, "topdown_size": 200})]) == 0
-    data = json.loads((out / "views.json").read_text())
+    data = ViewsOutputs(out).report()
     assert data["num_roi"] == 0 and "nothing will move" in data["roi_fallback"]
-    assert len(data["views"]) >= 1 and not np.load(out / "dynamic.npy").any()
-
-
-@pytest.mark.parametrize("route", ["images", "masks-dir"])
-def test_cli_views_from_2d(tmp_path, route):
-    """Real-scene routes: ROI lifted from vegetation masks of the photos, or from given masks."""
-    from anigs.cli import main
-    from anigs.masks import compute_masks, render_frames, write_mask_png, write_rgb_png
-    from tests.masks.test_lift import SKY
-
-    gs, lab, cams = toy_scene(ring=6, lawn=True)
-    gs.save_ply(tmp_path / "canonical.ply")
-    save_cameras(tmp_path / "cameras.json", cams)
-    frames = render_frames(gs, cams, SKY)
-    src = tmp_path / "src"
-    if route == "images":
-        for f in frames:
-            write_rgb_png(src / f"{f.name}.png", f.image)
-    else:
-        masks = compute_masks("labels", frames, gaussians=gs, labels=lab, dynamic_labels=[4])
-        for f, m in zip(frames, masks):
-            write_mask_png(src / f"{f.name}.png", m["dynamic"])
-    out = tmp_path / "views"
-    rc = main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
-               f"--{route}", str(src), "--out", str(out),
-               "--params", json.dumps({"width": 48, "height": 36, "num_locations": 2, "topdown_size": 200,
-                                            **SCHEDULE})])
-    assert rc == 0
-    data = json.loads((out / "views.json").read_text())
-    roi = np.load(out / "dynamic.npy")
-    truth = lab == 4
-    tp = (roi & truth).sum()
-    assert tp / roi.sum() >= 0.85 and tp / truth.sum() >= 0.85, (tp / roi.sum(), tp / truth.sum(), data["lift"])
-    assert data["lift"]["num_views"] == len(cams) and len(data["views"]) == 6
-
-
-def test_regions_of_interest_lifted_from_capture_photos(tmp_path, scene):
-    """Real scenes: `anigs views --images` segments the photos (vegetation backend, ground cue from
-    the canonical model's depth) and lifts them to 3D; missing or unmatched photos are errors."""
-    from anigs.stages.views import roi_from_masks
-    from anigs.masks import render_frames, write_rgb_png
-
-    gs, lab, cams = scene
-    for fr in render_frames(gs, cams):
-        write_rgb_png(tmp_path / "images" / f"{fr.name}.png", fr.image)
-    roi, info = roi_from_masks(gs, cams, None, str(tmp_path / "images"), tmp_path)
-    truth = lab == 4
-    tp = int((roi & truth).sum())
-    assert tp / max(int(roi.sum()), 1) >= 0.9 and tp / int(truth.sum()) >= 0.8, info
-    with pytest.raises(FileNotFoundError, match="nope"):
-        roi_from_masks(gs, cams, None, str(tmp_path / "nope"), tmp_path)
-    (tmp_path / "empty").mkdir()
-    with pytest.raises(ValueError, match="has a photo"):
-        roi_from_masks(gs, cams, None, str(tmp_path / "empty"), tmp_path)
+    assert len(data["views"]) >= 1
 
 
 # ---- layouts and the scene-coverage test ----------------------------------------------------
@@ -359,6 +321,6 @@ def test_views_command_accepts_only_the_views_section(tmp_path, caplog):
     with pytest.raises(ValueError, match="lift"):
         ViewsConfig.from_dict({"lift": {}})
     assert main(["views", "--canonical", str(tmp_path / "c.ply"), "--cameras", str(tmp_path / "c.json"),
-                 "--dynamic", str(tmp_path / "d.npy"), "--out", str(tmp_path / "v"),
+                 "--effects", str(tmp_path / "e"), "--out", str(tmp_path / "v"),
                  "--params", '{"vegetation": {}}']) == 1
     assert "unknown keys ['vegetation']" in caplog.text

@@ -210,7 +210,8 @@ def test_photo_scenes_pair_the_sfm_cameras_with_the_undistorted_images(tmp_path)
         assert images.endswith("/sfm/images"), c
     # the region of interest is computed once, by the effects stage, and the views stage takes it
     views = next(line for line in res.stdout.splitlines() if " views --canonical" in line)
-    assert "--dynamic " in views and "/effects/dynamic.npy" in views and "--images" not in views, views
+    assert "--effects " in views and views.split("--effects ", 1)[1].split()[0].endswith("/ph/effects"), views
+    assert "--images" not in views and "--labels" not in views, views
 
 
 def test_one_scene_background_reaches_every_rendering_stage(tmp_path):

@@ -18,6 +18,7 @@ pytestmark = pytest.mark.slow
 
 def test_bare_courtyard_runs_no_round(tmp_path):
     from anigs.animate.deform import load_model
+    from anigs.stages.effects import Outputs as EffectsOutputs
     from anigs.video import load_clip
 
     results = tmp_path / "results"
@@ -30,7 +31,7 @@ def test_bare_courtyard_runs_no_round(tmp_path):
         logs = "\n".join(f"--- {p}\n{p.read_text()[-3000:]}" for p in results.rglob("*.log"))
         pytest.fail(f"snakemake failed:\n{res.stderr[-6000:]}\n{logs[-12000:]}")
     scene = results / "tiny_courtyard"
-    effects = json.loads((scene / "effects" / "effects.json").read_text())
+    effects = EffectsOutputs(scene / "effects").report()
     assert effects["chosen"] == [] and effects["detected"] == []
     variant = scene / "full"
     ran = {line.split("rule ", 1)[1].rstrip(":") for line in res.stdout.splitlines() + res.stderr.splitlines()

@@ -13,6 +13,11 @@ import cv2
 import numpy as np
 import pytest
 
+from anigs.stages.effects import Outputs as EffectsOutputs
+from anigs.stages.masks import Outputs as MasksOutputs
+from anigs.stages.static import Outputs as StaticOutputs
+from anigs.stages.views import Outputs as ViewsOutputs
+
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.slow
 
@@ -38,18 +43,17 @@ def run(tmp_path_factory):
 
 def test_artifacts_exist_and_are_sane(run):
     from anigs.animate.deform import load_model
-    from anigs.gaussians import load_ply
     from anigs.video import load_clip
 
     scene = run / "tiny"
-    g = load_ply(scene / "static" / "canonical.ply")
+    g = StaticOutputs(scene / "static").canonical()
     g.check_finite()
-    views = json.loads((scene / "views" / "views.json").read_text())["views"]
+    views = ViewsOutputs(scene / "views").report()["views"]
     assert [v["id"] for v in views] == ["v00", "v01", "v02"]
-    canonical, deformation, _ = load_model(scene / "full" / "round2" / "model.pt", scene / "static" / "canonical.ply")
+    canonical, deformation, _ = load_model(scene / "full" / "round2" / "model.pt", StaticOutputs(scene / "static").path("canonical"))
     assert deformation.num_frames == 9 and deformation.num_dynamic > 0
     assert deformation.num_dynamic < canonical.num, "only the dynamic Gaussians carry coefficients"
-    dyn = np.load(scene / "masks" / "dynamic.npy")
+    dyn = MasksOutputs(scene / "masks").dynamic()
     assert dyn.shape == (g.num,) and 0 < dyn.sum() < g.num
     for v in ("v00", "v01", "v02"):
         clip, _ = load_clip(scene / "full" / "round2" / "target" / f"{v}.npz")
@@ -64,7 +68,7 @@ def test_artifacts_exist_and_are_sane(run):
     assert exp["frames"] == [] and (scene / "full" / "export" / "animated.ply").exists()
     assert (scene / "full" / "export" / exp["compact"]).stat().st_size > 0
     assert (scene / "full" / "viewer" / "index.html").is_file()
-    effects = json.loads((scene / "effects" / "effects.json").read_text())
+    effects = EffectsOutputs(scene / "effects").report()
     assert set(effects["effects"]) == {"foliage_sway", "leaf_flutter", "grass_wave", "flower_bob", "water_ripple"}
     metrics = json.loads((scene / "full" / "eval" / "metrics.json").read_text())
     assert metrics
@@ -81,11 +85,10 @@ def test_static_pixels_still_dynamic_regions_move(run):
     from anigs.animate.deform import load_model
     from anigs.render import render_gaussians
     from anigs.video import load_clip
-    from anigs.views import cameras_from_views
 
     scene = run / "tiny"
-    canonical, deformation, _ = load_model(scene / "full" / "round2" / "model.pt", scene / "static" / "canonical.ply")
-    cams = {c.name: c for c in cameras_from_views(json.loads((scene / "views" / "views.json").read_text()))}
+    canonical, deformation, _ = load_model(scene / "full" / "round2" / "model.pt", StaticOutputs(scene / "static").path("canonical"))
+    cams = {c.name: c for c in ViewsOutputs(scene / "views").views()}
     moved, checked = 0.0, 0
     for v in ("v00", "v01", "v02"):
         clip, _ = load_clip(scene / "full" / "final" / "clips" / f"{v}.npz")
@@ -119,9 +122,9 @@ def test_nothing_outside_the_masks_moves(run):
     bad = {v: s for v, s in still["per_view"].items() if not s >= 0.995}
     assert not bad, f"pixels outside the masks change: {still['per_view']}"
     assert metrics["dynamic_abs_diff"]["value"] > 10 * metrics["static_abs_diff"]["value"], metrics["dynamic_abs_diff"]
-    contained = json.loads((scene / "masks" / "masks.json").read_text())["containment"]
+    contained = MasksOutputs(scene / "masks").report()["containment"]
     assert 0 < contained["dynamic_after"] <= contained["dynamic_before"]
-    assert contained["dynamic_after"] == int(np.load(scene / "masks" / "dynamic.npy").sum())
+    assert contained["dynamic_after"] == int(MasksOutputs(scene / "masks").dynamic().sum())
     # the update contains the trained motion in the final round only (update.contain_rounds: final)
     rounds = sorted((scene / "full").glob("round*/update.json"), key=lambda p: int(p.parent.name[5:]))
     assert len(rounds) >= 2

@@ -4,12 +4,12 @@
 
 rule capture_synthetic:
     output:
-        images=directory(f"{R}/{{scene}}/capture/images"),
-        summary=f"{R}/{{scene}}/capture/capture.json",
-        gt_cameras=f"{R}/{{scene}}/capture/gt/cameras.json",
-        gt_gaussians=f"{R}/{{scene}}/capture/gt/gaussians.ply",
-        gt_labels=f"{R}/{{scene}}/capture/gt/labels.npy",
-        gt_motion=f"{R}/{{scene}}/capture/gt/motion.json",
+        images=directory(stage_out("capture", "images")),
+        summary=stage_out("capture", "summary"),
+        gt_cameras=stage_out("capture", "gt_cameras"),
+        gt_gaussians=stage_out("capture", "gt_gaussians"),
+        gt_labels=stage_out("capture", "gt_labels"),
+        gt_motion=stage_out("capture", "gt_motion"),
     wildcard_constraints:
         scene=SYNTH_SCENES,
     params:
@@ -32,8 +32,8 @@ rule capture_synthetic:
 
 rule capture_photos:
     output:
-        images=directory(f"{R}/{{scene}}/capture/images"),
-        summary=f"{R}/{{scene}}/capture/capture.json",
+        images=directory(stage_out("capture", "images")),
+        summary=stage_out("capture", "summary"),
     wildcard_constraints:
         scene=PHOTO_SCENES,
     params:

@@ -133,7 +133,7 @@ def final_targets():
         for v in config["variants"]:
             out += [f"{R}/{s}/{v}/final/final.json", f"{R}/{s}/{v}/export/animated.json",
                     f"{R}/{s}/{v}/eval/metrics.json", f"{R}/{s}/{v}/viewer"]
-        out.append(f"{R}/{s}/effects/effects.json")
+        out.append(stage_out("effects", "effects", s))
     return out
 
 
@@ -149,32 +149,6 @@ if workflow.local_exec and str(config["device"]).startswith("cuda"):
 # ---- input/param helpers of the stage rules ----
 
 VARIANT_DIR = f"{R}/{{scene}}/{{variant}}"
-
-
-def _roi_args(wc):
-    """Regions of interest: ground-truth labels on synthetic scenes, else the effects stage's
-    dynamic set (the effects the scene contains, found in the undistorted photos)."""
-    if is_synthetic(wc.scene):
-        return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
-                f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')}")
-    return f"--dynamic {stage_dir(wc.scene, 'effects')}/dynamic.npy"
-
-
-def _roi_inputs(wc):
-    return [] if is_synthetic(wc.scene) else [f"{stage_dir(wc.scene, 'effects')}/dynamic.npy"]
-
-
-def _gt_inputs(wc):
-    if not is_synthetic(wc.scene):
-        return []
-    return [gt_file(wc.scene, n) for n in ("labels.npy", "motion.json", "gaussians.ply", "cameras.json")]
-
-
-def _mask_gt_args(wc):
-    if not is_synthetic(wc.scene):
-        return ""
-    return (f"--labels {gt_file(wc.scene, 'labels.npy')} --motion {gt_file(wc.scene, 'motion.json')} "
-            f"--gt-gaussians {gt_file(wc.scene, 'gaussians.ply')} --gt-cameras {gt_file(wc.scene, 'cameras.json')}")
 
 
 def _render_model(wc):
@@ -207,7 +181,7 @@ def _effects_prompt(wc):
 
 
 def _effects_json(wc):
-    return [] if _gt_effects(wc.scene) is not None else [f"{stage_dir(wc.scene, 'effects')}/effects.json"]
+    return [] if _gt_effects(wc.scene) is not None else [stage_file_of(wc.scene, "effects", "effects")]
 
 
 # A round's render and refine work: one job per round (one Python start-up) for local runs, one
@@ -340,3 +314,48 @@ def tradeoff_points():
     if not any(v for v in config.get("tradeoff", {}).get("knobs", {}).values()):
         raise ValueError("config: tradeoff.knobs is empty; name the knobs to sweep (see config/README.md)")
     return TRADEOFF
+
+
+# ---- the scene stages' files, named by their Outputs (anigs/stages/<name>.py: LAYOUT) ----
+import importlib as _importlib
+
+
+def stage_outputs(stage):
+    """The ``Outputs`` type of ``stage`` (its folder's layout and loaders)."""
+    return _importlib.import_module(f"anigs.stages.{stage}").Outputs
+
+
+def stage_out(stage, key, scene="{scene}"):
+    """Rule output: file ``key`` of ``stage``'s folder of ``scene`` (a wildcard by default)."""
+    return stage_outputs(stage).pattern(key, f"{R}/{scene}/{stage}").rstrip("/")
+
+
+def stage_file_of(scene, stage, key):
+    """File ``key`` of the ``stage`` folder that ``scene`` uses (:func:`stage_dir`)."""
+    return stage_outputs(stage).pattern(key, stage_dir(scene, stage)).rstrip("/")
+
+
+def stage_file(stage, key):
+    """Input function: :func:`stage_file_of` for the job's scene."""
+    return lambda wc: stage_file_of(wc.scene, stage, key)
+
+
+GT_KEYS = ("gt_labels", "gt_motion", "gt_gaussians", "gt_cameras")  # what masks and views compare with
+
+
+def gt_of(scene, key):
+    """A ground-truth file of the capture stage (``gt_cameras``, ``gt_labels``, ...) of ``scene``."""
+    return stage_file_of(scene, "capture", key)
+
+
+def gt_inputs(wc):
+    """Synthetic scenes: the ground truth the views and masks stages read."""
+    return [gt_of(wc.scene, k) for k in GT_KEYS] if is_synthetic(wc.scene) else []
+
+
+def gt_args(wc):
+    """``--labels --motion --gt-gaussians --gt-cameras`` of a synthetic scene (views and masks)."""
+    if not is_synthetic(wc.scene):
+        return ""
+    flags = ("--labels", "--motion", "--gt-gaussians", "--gt-cameras")
+    return " ".join(f"{f} {shlex.quote(gt_of(wc.scene, k))}" for f, k in zip(flags, GT_KEYS))

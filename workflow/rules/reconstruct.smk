@@ -3,20 +3,20 @@
 
 rule sfm:
     input:
-        images=f"{R}/{{scene}}/capture/images",
-        summary=f"{R}/{{scene}}/capture/capture.json",
-        gt=lambda wc: [gt_file(wc.scene, "cameras.json")] if is_synthetic(wc.scene) else [],
+        images=stage_out("capture", "images"),
+        summary=stage_out("capture", "summary"),
+        gt=lambda wc: [gt_of(wc.scene, "gt_cameras")] if is_synthetic(wc.scene) else [],
     output:
-        images=directory(f"{R}/{{scene}}/sfm/images"),  # the images the cameras describe (undistorted)
-        sparse=directory(f"{R}/{{scene}}/sfm/sparse"),
-        cameras=f"{R}/{{scene}}/sfm/cameras.json",
-        points=f"{R}/{{scene}}/sfm/points.npz",
-        report=report(f"{R}/{{scene}}/sfm/report.json", caption="../report/sfm.rst",
+        images=directory(stage_out("sfm", "images")),  # the images the cameras describe (undistorted)
+        sparse=directory(stage_out("sfm", "sparse")),
+        cameras=stage_out("sfm", "cameras"),
+        points=stage_out("sfm", "points"),
+        report=report(stage_out("sfm", "report"), caption="../report/sfm.rst",
                       category="Structure from motion"),
     params:
         p=jparams("sfm"),
         out=lambda wc: f"{R}/{wc.scene}/sfm",
-        gt=lambda wc: f"--gt-cameras {gt_file(wc.scene, 'cameras.json')}" if is_synthetic(wc.scene) else "",
+        gt=lambda wc: f"--gt-cameras {gt_of(wc.scene, 'gt_cameras')}" if is_synthetic(wc.scene) else "",
         version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/logs/sfm.log",
@@ -35,12 +35,12 @@ rule sfm:
 
 rule static:
     input:
-        images=stage_path("sfm", "images"),
-        cameras=stage_path("sfm", "cameras.json"),
-        points=stage_path("sfm", "points.npz"),
+        images=stage_file("sfm", "images"),
+        cameras=stage_file("sfm", "cameras"),
+        points=stage_file("sfm", "points"),
     output:
-        ply=f"{R}/{{scene}}/static/canonical.ply",
-        metrics=f"{R}/{{scene}}/static/metrics.json",
+        ply=stage_out("static", "canonical"),
+        metrics=stage_out("static", "metrics"),
     params:
         p=jparams("static", lambda wc: {"device": config["device"], "seed": config["seed"]}),
         out=lambda wc: f"{R}/{wc.scene}/static",

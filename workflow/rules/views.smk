@@ -4,15 +4,15 @@
 
 checkpoint effects:
     input:
-        ply=stage_path("static", "canonical.ply"),
-        cameras=stage_path("sfm", "cameras.json"),
-        images=stage_path("sfm", "images"),  # undistorted: the images sfm/cameras.json describes
+        ply=stage_file("static", "canonical"),
+        cameras=stage_file("sfm", "cameras"),
+        images=stage_file("sfm", "images"),  # undistorted: the images the sfm cameras describe
         selections=lambda wc: [s["ply"] for s in sec(wc.scene, "effects")["selections"] if "ply" in s],  # SuperSplat exports
     output:
-        effects=f"{R}/{{scene}}/effects/effects.json",
-        regions=f"{R}/{{scene}}/effects/regions.npy",
-        dynamic=f"{R}/{{scene}}/effects/dynamic.npy",
-        overview=report(f"{R}/{{scene}}/effects/overview.png", caption="../report/effects.rst", category="Effects"),
+        effects=stage_out("effects", "effects"),
+        regions=stage_out("effects", "regions"),
+        dynamic=stage_out("effects", "dynamic"),
+        overview=report(stage_out("effects", "overview"), caption="../report/effects.rst", category="Effects"),
     params:
         p=jparams("effects", _effects_prompt),
         out=lambda wc: f"{R}/{wc.scene}/effects",
@@ -32,17 +32,27 @@ checkpoint effects:
         "--images {input.images:q} --out {params.out:q} --params {params.p:q} > {log} 2>&1"
 
 
+def _roi_args(wc):
+    """The region of interest: ground-truth labels on synthetic scenes, else the effects stage's
+    (the effects the scene contains, found in the undistorted photos)."""
+    return gt_args(wc) if is_synthetic(wc.scene) else f"--effects {shlex.quote(stage_dir(wc.scene, 'effects'))}"
+
+
+def _roi_inputs(wc):
+    return [] if is_synthetic(wc.scene) else [stage_file_of(wc.scene, "effects", "dynamic")]
+
+
 # a checkpoint: the queue's length (views with a negligible dynamic region are left out) sets the rounds
 checkpoint views:
     input:
-        ply=stage_path("static", "canonical.ply"),
-        cameras=stage_path("sfm", "cameras.json"),
-        points=stage_path("sfm", "points.npz"),  # the content test: sharp Gaussians lie near SfM points
+        ply=stage_file("static", "canonical"),
+        cameras=stage_file("sfm", "cameras"),
+        points=stage_file("sfm", "points"),  # the content test: sharp Gaussians lie near SfM points
         roi=_roi_inputs,
-        gt=_gt_inputs,
+        gt=gt_inputs,
     output:
-        views=f"{R}/{{scene}}/views/views.json",
-        topdown=report(f"{R}/{{scene}}/views/topdown.png", caption="../report/views.rst", category="Views"),
+        views=stage_out("views", "views"),
+        topdown=report(stage_out("views", "topdown"), caption="../report/views.rst", category="Views"),
     params:
         p=jparams("views"),
         roi=_roi_args,
@@ -66,21 +76,22 @@ checkpoint views:
 
 rule masks:
     input:
-        ply=stage_path("static", "canonical.ply"),
-        views=stage_path("views", "views.json"),
+        ply=stage_file("static", "canonical"),
+        views=stage_file("views", "views"),
         # the capture photos are segmented too: the lift to 3D votes over them and the queued views
-        images=stage_path("sfm", "images"),
-        cameras=stage_path("sfm", "cameras.json"),
-        effects=stage_path("effects", "effects.json"),
-        gt=_gt_inputs,
+        images=stage_file("sfm", "images"),
+        cameras=stage_file("sfm", "cameras"),
+        effects=stage_file("effects", "effects"),
+        gt=gt_inputs,
     output:
-        # {view}.png, {view}_overlay.png (+ per-effect masks), dynamic.npy, masks.json
-        masks=report(directory(f"{R}/{{scene}}/masks"), patterns=["{name}_overlay.png"],
+        # the whole folder: a mask (+ overlay, per-effect masks) per queued view, the dynamic set, the
+        # report (anigs.stages.masks.Outputs)
+        masks=report(directory(f"{R}/{{scene}}/masks"), patterns=[stage_outputs("masks").pattern("overlay").replace("{view}", "{name}")],
                      caption="../report/masks.rst", category="Masks", subcategory="{scene}"),
     params:
         p=jparams("masks"),
         effects=lambda wc: stage_dir(wc.scene, "effects"),
-        gt=_mask_gt_args,
+        gt=gt_args,
         out=lambda wc: f"{R}/{wc.scene}/masks",
         version=ANIGS_VERSION,
     log:
