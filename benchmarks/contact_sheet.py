@@ -42,7 +42,9 @@ def main() -> int:
     ap.add_argument("--scale", type=int, default=2, help="pixel zoom of each panel")
     args = ap.parse_args()
     sd = args.scene_dir
-    rows = load_rows(sd / args.variant / "final" / "clips", sd / "masks")
+    from anigs.stages.final import Outputs as FinalOutputs
+
+    rows = load_rows(FinalOutputs(sd / args.variant / "final").path("clips"), sd / "masks")
     views = {v["id"]: v for v in json.loads((sd / "views" / "views.json").read_text())["views"]}
     parts = []
     for row in rows:

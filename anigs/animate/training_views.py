@@ -53,6 +53,26 @@ def target_cameras(targets: list[str], metas: list[dict], views_json: str | Path
     return cams
 
 
+def training_views(canonical, targets: list[str], views_json: str | Path | None, view_ids: list[str] | None,
+                   camera_json: list[str] | None, static_refs: list[str] | None, cfg) -> list:
+    """One :class:`anigs.animate.update.ViewData` per target clip: its frames, its camera
+    (:func:`target_cameras`) and its static reference for L_cano (``static_refs``, else renders of the
+    ``canonical`` Gaussians when ``cfg.lambda_cano > 0``, else none). ``cfg``: the update config."""
+    from anigs.animate.update import ViewData, static_references
+    from anigs.video import load_clip
+
+    clips, metas = zip(*[load_clip(t) for t in targets])
+    cams = target_cameras(targets, list(metas), views_json, view_ids, camera_json)
+    refs: list[torch.Tensor | None] = [None] * len(clips)
+    if static_refs:
+        if len(static_refs) != len(clips):
+            raise ValueError(f"update: {len(static_refs)} --static-refs for {len(clips)} targets")
+        refs = [load_reference(p) for p in static_refs]
+    elif cfg.lambda_cano > 0:
+        refs = static_references(canonical, cams, torch.tensor(cfg.background, dtype=torch.float32), cfg.backend)
+    return [ViewData(c, torch.from_numpy(clip), r) for c, clip, r in zip(cams, clips, refs)]
+
+
 def dynamic_set(dynamic: np.ndarray, num_gaussians: int, where: str, labels: np.ndarray | None = None,
                 labels_where: str = "") -> torch.Tensor:
     """The dynamic selection of an update: bool [N] (or int effect labels [N], 0 = static). With

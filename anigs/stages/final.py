@@ -68,6 +68,11 @@ class Outputs(contract.Outputs):
               "slice_frame": File("slices/{view}_frame.png", "frame 0 with that row and column marked"),
               "path": File("path.mp4", "moving-camera video with time running", optional=True)}
 
+    def videos(self) -> dict[str, Path]:
+        """{view: its camera-fixed video} in the folder (the moving-camera video is no view's)."""
+        suffix = Path(self.LAYOUT["video"].name).suffix
+        return {p.stem: p for p in sorted(self.root.glob(f"*{suffix}")) if p != self.path("path")}
+
     def clip(self, view: str) -> tuple[np.ndarray, dict]:
         """(frames float32 [T,H,W,3], metadata) of ``view``'s final clip."""
         from anigs.video import load_clip

@@ -104,6 +104,12 @@ class Inputs(contract.Inputs):
     info: Path | None = field(default=None, metadata={"help": "JSON file of what was done (sigmas, seed, timing)"})
 
 
+def listed_effects(synthetic: bool, requested: str | list[str]) -> list[str] | None:
+    """The effects to synthesise by name: a synthetic scene's explicitly listed effects are its ground
+    truth (whatever the effects stage found); None: the effects stage's choice (``--effects``)."""
+    return list(requested) if synthetic and requested != "auto" else None
+
+
 def run(inputs: Inputs, cfg: RefineConfig, priors: dict | None = None) -> Outputs:
     """Refine ``inputs.view``'s rendered clip into the round's target; ``priors``: as in
     :func:`anigs.refine.job.refine_clip`."""

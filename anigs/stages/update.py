@@ -20,8 +20,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import torch
-
 from anigs.animate.update import UpdateConfig
 from anigs.stages import contract
 from anigs.stages.masks import Outputs as MasksOutputs
@@ -79,6 +77,11 @@ def contains(cfg: UpdateConfig, round_: int | None, rounds: int | None) -> bool:
     return cfg.contain and (cfg.contain_rounds == "every" or round_ is None or rounds is None or round_ == rounds)
 
 
+def round_seed(seed: int, round_: int) -> int:
+    """The seed of round ``round_``'s update (each round draws its own view order and noise)."""
+    return seed + 1000 * round_
+
+
 def baseline_params(animate: dict[str, Any], update: dict[str, Any]) -> dict[str, Any] | None:
     """A baseline variant's fit config (``animate.<method>`` with the update's ``num_bases``); None for ours."""
     m = animate["method"]
@@ -97,11 +100,10 @@ def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
     from anigs.animate.containment import contain_result
     from anigs.animate.deform import save_model
     from anigs.animate.losses import prior_sds_hook
-    from anigs.animate.training_views import dynamic_set, load_reference, target_cameras
-    from anigs.animate.update import ViewData, run_update, static_references
+    from anigs.animate.training_views import dynamic_set, training_views
+    from anigs.animate.update import run_update
     from anigs.gaussians import Gaussians
     from anigs.io import write_json
-    from anigs.video import load_clip
 
     out = Outputs(inputs.out)
     canonical_path, masks = inputs.static.path("canonical"), inputs.masks
@@ -111,17 +113,10 @@ def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
     has_labels = masks.exists("effect_labels")
     dynamic = dynamic_set(masks.array("dynamic", shape=(None,)), canonical_ply.num, str(masks.path("dynamic")),
                           masks.array("effect_labels", "iu") if has_labels else None, str(masks.path("effect_labels")))
-    clips, metas = zip(*[load_clip(t) for t in inputs.targets])
     views_json = inputs.views.path("views") if inputs.views else None
-    cams = target_cameras(inputs.targets, list(metas), views_json, inputs.view_ids, inputs.camera_json)
-    refs: list[torch.Tensor | None] = [None] * len(clips)
-    if inputs.static_refs:
-        if len(inputs.static_refs) != len(clips):
-            raise ValueError(f"update: {len(inputs.static_refs)} --static-refs for {len(clips)} targets")
-        refs = [load_reference(p) for p in inputs.static_refs]
-    elif cfg.lambda_cano > 0:
-        refs = static_references(canonical_ply, cams, torch.tensor(cfg.background, dtype=torch.float32), cfg.backend)
-    views = [ViewData(c, torch.from_numpy(clip), r) for c, clip, r in zip(cams, clips, refs)]
+    views = training_views(canonical_ply, inputs.targets, views_json, inputs.view_ids, inputs.camera_json,
+                           inputs.static_refs, cfg)
+    cams = [v.camera for v in views]
     canonical, init = canonical_ply, None
     if inputs.init is not None:
         canonical, init, _ = inputs.init.load(canonical_ply)

@@ -220,6 +220,7 @@ def test_cli_builds_viewer(tmp_path, capsys):
     canonical, deformation = animated_scene(n=100, d=10)
     canonical.save_ply(tmp_path / "static" / "canonical.ply")
     save_model(tmp_path / "model" / "model.pt", deformation, canonical)
+    (tmp_path / "views").mkdir()
     _views_json(tmp_path / "views" / "views.json")
     parser = argparse.ArgumentParser()
     viewer_cli.add_arguments(parser)

@@ -198,10 +198,11 @@ def _frames(wc):
 
 
 def _gt_effects(scene):
-    """A synthetic scene's explicitly listed effects are its ground truth (the refine step
-    synthesises them whatever the effects stage found); None: the effects stage chooses."""
-    requested = sec(scene, "effects")["requested"]
-    return list(requested) if is_synthetic(scene) and requested != "auto" else None
+    """The effects refine synthesises by name (anigs.stages.refine.listed_effects); None: the effects
+    stage's choice."""
+    from anigs.stages.refine import listed_effects
+
+    return listed_effects(is_synthetic(scene), sec(scene, "effects")["requested"])
 
 
 def _refine_extra(wc):
@@ -258,7 +259,9 @@ def _init_model(wc):
 
 
 def _update_extra(wc):
-    return {"device": config["device"], "seed": config["seed"] + 1000 * int(wc.round)}
+    from anigs.stages.update import round_seed
+
+    return {"device": config["device"], "seed": round_seed(config["seed"], int(wc.round))}
 
 
 # ---- stage commands: built from each stage's Inputs (anigs/stages/<name>.py: Inputs.argv), so a
