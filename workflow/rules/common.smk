@@ -207,7 +207,7 @@ def _gt_effects(scene):
 
 def _refine_extra(wc):
     """The scene's prompt and effects: a synthetic scene's listed effects, else the effects stage's
-    choice, read at run time (--effects-json)."""
+    choice, read at run time (--effects)."""
     s = ALL_SCENES[wc.scene]
     return {"prompt": s.get("prompt", ""), "effects": _gt_effects(wc.scene) or [], "seed": config["seed"]}
 

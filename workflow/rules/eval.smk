@@ -68,7 +68,8 @@ rule tables:
 
 
 def _tradeoff_metrics(wc):
-    return [f"{R}/{p.scene(s)}/{p.variant}/eval/metrics.json" for s, pts in tradeoff_points().items() for p in pts]
+    return [out_path("eval", f"{R}/{p.scene(s)}/{p.variant}/eval", "metrics") for s, pts in tradeoff_points().items()
+            for p in pts]
 
 
 def _tradeoff_points(wc):

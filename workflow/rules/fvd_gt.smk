@@ -12,7 +12,9 @@ def fvd_gt_wanted(scene, variant="full", target="tables"):
 
 def _fvd_gt_eval_input(wc):
     """eval: the FVD-GT record joins metrics.json with fvd_gt.when: always."""
-    return [f"{R}/{wc.scene}/{wc.variant}/eval/fvd_gt.json"] if fvd_gt_wanted(wc.scene, wc.variant, "eval") else []
+    if not fvd_gt_wanted(wc.scene, wc.variant, "eval"):
+        return []
+    return [out_path("fvd_gt", f"{R}/{wc.scene}/{wc.variant}/eval", "record")]
 
 
 def fvd_gt_table_inputs():
