@@ -36,7 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from anigs.stages import capture as capture_stage, masks as masks_stage, sfm as sfm_stage, static as static_stage
-from anigs.stages import views as views_stage
+from anigs.stages.eval import Outputs as EvalOutputs
+from anigs.stages.final import Outputs as FinalOutputs
+from anigs.stages.update import Outputs as UpdateOutputs
 
 VARIANTS: dict[str, dict] = {
     "K12": {},  # today: every dynamic Gaussian uses num_bases = 12
@@ -87,6 +89,22 @@ def effect_labels_for_demo(demo: Path, out: Path) -> Path:
     path = out / "dynamic_labels.npy"
     np.save(path, labels)
     return path
+
+
+def masks_folder(demo: Path, out: Path, labels: Path | None) -> Path:
+    """The demo's masks folder as the update reads it, with ``labels`` (int [N]) as its effect labels, or
+    with none (links to the demo's files)."""
+    from anigs.stages.masks import Outputs as MasksOutputs
+
+    src, dst = MasksOutputs(demo / "masks"), MasksOutputs(out)
+    out.mkdir(parents=True, exist_ok=True)
+    for p in src.root.iterdir():
+        if p.name != src.path("effect_labels").name and not (out / p.name).exists():
+            (out / p.name).symlink_to(p.resolve())
+    dst.path("effect_labels").unlink(missing_ok=True)
+    if labels is not None:
+        np.save(dst.path("effect_labels"), np.load(labels).astype(np.int8))
+    return out
 
 
 def per_effect(model: Path, canonical: Path, labels: np.ndarray, demo: Path) -> dict[str, dict]:
@@ -156,61 +174,59 @@ def main() -> int:
     demo, out = a.demo, a.out
     out.mkdir(parents=True, exist_ok=True)
     vdir = demo / a.variant_dir
-    R = max(int(p.name[5:]) for p in vdir.glob("round*") if (p / "model.pt").exists())
-    ref = torch.load(vdir / f"round{R}" / "model.pt", map_location="cpu", weights_only=True)
-    upd = json.loads((vdir / f"round{R}" / "update.json").read_text())
+    R = max(int(p.name[5:]) for p in vdir.glob("round*") if UpdateOutputs(p).exists("model"))
+    demo_round = UpdateOutputs(vdir / f"round{R}")
+    ref = torch.load(demo_round.path("model"), map_location="cpu", weights_only=True)
+    upd = demo_round.json("log")
     base_cfg = dict(upd["config"], seed=upd["config"]["seed"] + a.seed_delta)
     labels_path = effect_labels_for_demo(demo, out)
     labels = np.load(labels_path)
     canonical = static_stage.Outputs(demo / "static").path("canonical")
-    sfm, masks = sfm_stage.Outputs(demo / "sfm"), masks_stage.Outputs(demo / "masks")
-    views_json = views_stage.Outputs(demo / "views").path("views")
     rows = {}
     for name in a.variants.split(","):
         v_out = out / name
         (v_out / "logs").mkdir(parents=True, exist_ok=True)
         cfg = dict(base_cfg, effect_num_bases=VARIANTS[name])
-        model = v_out / f"round{R}" / "model.pt"
+        rd = UpdateOutputs(v_out / f"round{R}")
+        model = rd.path("model")
         model.parent.mkdir(exist_ok=True)
-        dyn = masks.path("dynamic") if not VARIANTS[name] else labels_path
-        upd_args = ["update", "--canonical", str(canonical), "--init-model", ref["extra"]["init_model"],
-                    "--targets", *ref["extra"]["targets"], "--view-json", str(views_json),
-                    "--dynamic", str(dyn), "--masks", str(masks.root), "--out", str(model),
-                    "--log-json", str(model.with_name("update.json")), "--params", json.dumps(cfg, sort_keys=True)]
+        masks = masks_folder(demo, out / ("masks_labelled" if VARIANTS[name] else "masks_plain"),
+                             labels_path if VARIANTS[name] else None)
+        init = Path(ref["extra"]["init_model"]).parent
+        upd_args = ["update", "--static", str(demo / "static"), "--init", str(init), "--targets", *ref["extra"]["targets"],
+                    "--views", str(demo / "views"), "--masks", str(masks), "--out", str(rd.root),
+                    "--params", json.dumps(cfg, sort_keys=True)]
         row = {"update": _run(_anigs(a.threads) + upd_args, v_out / "logs" / "update.log")}
-        info = json.loads(model.with_name("update.json").read_text())
+        info = rd.json("log")
         row["train_s"] = round(info["seconds"], 2)
         row["contain_s"] = info.get("containment", {}).get("seconds")
         row["dynamic_after"] = info.get("containment", {}).get("dynamic_after", info["num_dynamic"])
         row["model_bytes"] = model.stat().st_size
-        row["same_bytes_as_demo"] = model.read_bytes() == (vdir / f"round{R}" / "model.pt").read_bytes()
+        row["same_bytes_as_demo"] = model.read_bytes() == demo_round.path("model").read_bytes()
         if name == "K12" and a.identity_tree is not None:
-            old = v_out / "identity" / "model.pt"
-            old.parent.mkdir(exist_ok=True)
+            old = UpdateOutputs(v_out / "identity")
             env = dict(os.environ, PYTHONPATH=str(a.identity_tree))
-            args = [x if x != str(model) else str(old) for x in upd_args]
-            args[args.index("--log-json") + 1] = str(old.with_name("update.json"))
+            args = [x if x != str(rd.root) else str(old.root) for x in upd_args]
             row["identity_update"] = _run(_anigs(a.threads) + args, v_out / "logs" / "identity.log", env)
-            row["identical_to_before"] = old.read_bytes() == model.read_bytes()
+            row["identical_to_before"] = old.path("model").read_bytes() == model.read_bytes()
         exp = v_out / "export"
-        row["export"] = _run(_anigs(a.threads) + ["export", "--canonical", str(canonical), "--model", str(model),
+        row["export"] = _run(_anigs(a.threads) + ["export", "--static", str(demo / "static"), "--model", str(rd.root),
                                                    "--out", str(exp), "--params", "{}"], v_out / "logs" / "export.log")
         row["export_bytes"] = {p.name: p.stat().st_size for p in sorted(exp.iterdir()) if p.is_file()}
         if not a.no_eval:
-            fin = json.loads((vdir / "final" / "final.json").read_text())["config"]
+            fin = FinalOutputs(vdir / "final").json("summary")["config"]
             row["final"] = _run(_anigs(a.threads) + [
-                "final", "--canonical", str(canonical), "--model", str(model), "--views", str(views_json),
-                "--cameras", str(sfm.path("cameras")), "--masks", str(masks.root), "--out", str(v_out / "final"),
+                "final", "--static", str(demo / "static"), "--model", str(rd.root), "--views", str(demo / "views"),
+                "--sfm", str(demo / "sfm"), "--masks", str(demo / "masks"), "--out", str(v_out / "final"),
                 "--params", json.dumps(fin)], v_out / "logs" / "final.log")
-            ev = json.loads((vdir / "eval" / "metrics.json").read_text())["config"]
+            ev = EvalOutputs(vdir / "eval").record()["config"]
             ev["multiview_capture"] = False
             row["eval"] = _run(_anigs(a.threads) + [
-                "eval", "--final-dir", str(v_out / "final" / "clips"), "--masks", str(masks.root), "--model", str(model),
-                "--canonical", str(canonical), "--cameras", str(sfm.path("cameras")),
-                "--images", str(sfm.path("images")), "--points", str(sfm.path("points")),
-                "--gt-dir", str(capture_stage.Outputs(demo / "capture").path("gt")), "--scene", "demo", "--method", "Ours", "--variant", name,
-                "--out", str(v_out / "eval" / "metrics.json"), "--params", json.dumps(ev)], v_out / "logs" / "eval.log")
-            m = json.loads((v_out / "eval" / "metrics.json").read_text())["metrics"]
+                "eval", "--final", str(v_out / "final"), "--masks", str(demo / "masks"), "--model", str(rd.root),
+                "--static", str(demo / "static"), "--sfm", str(demo / "sfm"), "--capture", str(demo / "capture"),
+                "--scene", "demo", "--method", "Ours", "--variant", name,
+                "--out", str(v_out / "eval"), "--params", json.dumps(ev)], v_out / "logs" / "eval.log")
+            m = EvalOutputs(v_out / "eval").record()["metrics"]
             row["metrics"] = {k: m[k]["value"] for k in m}
         row["effects"] = per_effect(model, canonical, labels, demo)
         rows[name] = row
@@ -233,7 +249,9 @@ def _print(rows: dict, R: int, threads: int, seed: int) -> None:
     line("load before update", ["/".join(f"{x:.1f}" for x in r["update"]["load"]) for r in rows.values()])
     line("dynamic after containment", [r["dynamic_after"] for r in rows.values()])
     line("model.pt bytes", [r["model_bytes"] for r in rows.values()])
-    for f in ("animated.ply", "scene.anigs"):
+    from anigs.stages.export import Outputs as ExportOutputs
+
+    for f in (ExportOutputs.LAYOUT["ply"].name, ExportOutputs.LAYOUT["compact"].name):
         line(f"export {f} bytes", [r["export_bytes"].get(f, "-") for r in rows.values()])
     if all("metrics" in r for r in rows.values()):
         for k, fmt in (("gt/amplitude_w1", ".6f"), ("gt/frequency_w1", ".5f"), ("gt/rms_amplitude_ratio", ".4f"),

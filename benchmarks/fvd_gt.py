@@ -17,13 +17,19 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from anigs.stages.fvd_gt import Outputs, ReferenceOutputs  # noqa: E402
+
+
+def _records(scene_dir: Path) -> list[Outputs]:
+    """The variants' FVD-GT folders of a scene (those with a record)."""
+    return [o for o in (Outputs(p / "eval") for p in sorted(scene_dir.iterdir()) if p.is_dir()) if o.exists("record")]
 
 
 def rows(scene_dir: Path) -> list[dict]:
     out = []
-    ref_path = scene_dir / "fvd_gt" / "reference.json"
-    if ref_path.exists():
-        ref = json.loads(ref_path.read_text())
+    refs = ReferenceOutputs(scene_dir / "fvd_gt")
+    if refs.exists("reference"):
+        ref = refs.json("reference")
         secs = ref.get("seconds") or {}
         out.append({"run": "ground truth (reference)", "value": None, "clips": ref.get("clips"),
                     "views": ref.get("views"), "render_s": secs.get("render"), "features_s": secs.get("features"),
@@ -31,8 +37,8 @@ def rows(scene_dir: Path) -> list[dict]:
         still = ref.get("still_control")
         if still:
             out.append(_line("static scene, no motion (control)", still, still.get("seconds") or {}))
-    for p in sorted(scene_dir.glob("*/eval/fvd_gt.json")):
-        rec = json.loads(p.read_text())
+    for o in _records(scene_dir):
+        rec = o.json("record")
         m = rec["metrics"]["fvd/gt"]
         label = rec["method"] if rec.get("variant", "full") == "full" else f"{rec['method']} {rec['variant']}"
         out.append(_line(label, m, m.get("seconds") or {}, rec.get("seconds")))
@@ -95,19 +101,21 @@ def paired_gaps(scene_dir: Path) -> list[dict]:
 
     from anigs.metrics.bootstrap import bootstrap_gap
 
-    ref_dir = scene_dir / "fvd_gt"
-    if not (ref_dir / "features.npz").exists():
+    refs = ReferenceOutputs(scene_dir / "fvd_gt")
+    if not refs.exists("features"):
         return []
-    ref = json.loads((ref_dir / "reference.json").read_text())
-    cfg = ref["config"]
-    with np.load(ref_dir / "features.npz") as z:
+    cfg = refs.json("reference")["config"]
+    with np.load(refs.path("features")) as z:
         f_gt, views = z["features"], z["views"]
     sets = {}
-    if (ref_dir / "still_features.npz").exists():
-        with np.load(ref_dir / "still_features.npz") as z:
+    if refs.exists("still_features"):
+        with np.load(refs.path("still_features")) as z:
             sets["no motion"] = z["features"]
-    for p in sorted(scene_dir.glob("*/eval/fvd_gt_features.npz")):
-        rec = json.loads((p.parent / "fvd_gt.json").read_text())
+    for o in _records(scene_dir):
+        if not o.exists("features"):
+            continue
+        p = o.path("features")
+        rec = o.json("record")
         label = rec["method"] if rec.get("variant", "full") == "full" else f"{rec['method']} {rec['variant']}"
         with np.load(p) as z:
             if z["features"].shape != f_gt.shape:  # made against another reference: not paired

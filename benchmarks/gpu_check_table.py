@@ -94,7 +94,10 @@ def _demo(work: Path) -> str:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from anigs.benchmark_tsv import benchmark_files, rule_breakdown
 
-    parts = [f"{len(list(res.glob('*/*/final/final.json')))} final.json"]
+    from anigs.stages.final import Outputs as FinalOutputs
+
+    summary = FinalOutputs.LAYOUT["summary"].name
+    parts = [f"{len(list(res.glob(f'*/*/final/{summary}')))} {summary}"]
     for m in sorted(res.glob("*/static/metrics.json")):
         parts.append(f"static held-out PSNR {_f(json.loads(m.read_text()).get('test_psnr'), '.2f')} dB")
     rows = rule_breakdown(benchmark_files(res))

@@ -43,6 +43,10 @@ from collections import defaultdict
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from anigs.stages.eval import Outputs as EvalOutputs  # noqa: E402
+from anigs.stages.final import Outputs as FinalOutputs  # noqa: E402
+
 PHOTO_EXT = (".jpg", ".jpeg", ".png")
 
 
@@ -65,7 +69,7 @@ def _snakemake(args, scene_dir: Path, variant_dir: Path, *extra: str) -> tuple[l
     exe = Path(sys.executable).with_name("snakemake")
     cmd = [str(exe) if exe.exists() else "snakemake", "--cores", str(args.cores), *extra,
            "--config", f'scenes=["{args.scene}"]', f"results={args.results}", *args.config,
-           "--", str(variant_dir / "eval" / "metrics.json"), str(EffectsOutputs(scene_dir / "effects").path("effects"))]
+           "--", str(EvalOutputs(variant_dir / "eval").path("metrics")), str(EffectsOutputs(scene_dir / "effects").path("effects"))]
     env = {**os.environ}
     if args.photos:
         env["ANIGS_PHOTOS"] = str(Path(args.photos).resolve())
@@ -157,7 +161,7 @@ def figures(args, scene_dir: Path, variant_dir: Path) -> dict:
         fig["masks"] = {"views": len(vs), "dynamic_mean": sum(v["fraction"] for v in vs) / len(vs),
                         "dynamic_per_view": {v["id"]: v["fraction"] for v in vs},
                         "effect_mean": {e: sum(v.get("effects", {}).get(e, 0.0) for v in vs) / len(vs) for e in effs}}
-    ev = read_json(variant_dir / "eval" / "metrics.json")
+    ev = read_json(EvalOutputs(variant_dir / "eval").path("metrics"))
     if ev:
         rec = ev["metrics"].get("static_outside_mask_still")
         if rec is None:
@@ -177,11 +181,11 @@ def contact(args, variant_dir: Path, scene_dir: Path, fig: dict) -> None:
     from anigs.metrics.contact import load_rows, save_contact_sheet
     from anigs.metrics.suite import EvalConfig
 
-    clips = variant_dir / "final" / "clips"
+    clips = FinalOutputs(variant_dir / "final").path("clips")
     if not clips.is_dir():
         print(f"contact sheet: no final clips in {clips}")
         return
-    ev = read_json(variant_dir / "eval" / "metrics.json") or {}
+    ev = read_json(EvalOutputs(variant_dir / "eval").path("metrics")) or {}
     cfg = {**EvalConfig().__dict__, **(ev.get("config") or {})}  # eval's margin, tolerance and threshold
     rows = load_rows(clips, scene_dir / "masks", threshold=cfg["mask_threshold"])
     sheet = Path(args.sheet) if args.sheet else variant_dir / "contact_sheet.png"

@@ -36,9 +36,12 @@ def _versions(files: list[Path], root: Path) -> str:
     trade-off CSV's runs; empty when none is found."""
     import json
 
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from anigs.stages.tables import Outputs as TablesOutputs
+
     found: set[str] = set()
     for f in files:
-        listing = f.parent / "tables.json"
+        listing = TablesOutputs(f.parent).path("index")
         paths = json.loads(listing.read_text()).get("metrics", []) if listing.is_file() else []
         for p in paths:
             q = Path(p)

@@ -25,7 +25,9 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=2)
     a = ap.parse_args()
     torch.set_num_threads(1)
-    files = find_clips([a.variant_dir / "final" / "clips"])
+    from anigs.stages.final import Outputs as FinalOutputs
+
+    files = find_clips([FinalOutputs(a.variant_dir / "final").path("clips")])
     clips = {v: load_any_clip(p) for v, p in files.items()}
     cfg = EvalConfig.from_dict({})
     for _ in range(a.repeat):

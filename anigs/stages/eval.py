@@ -3,14 +3,13 @@
 The metrics and their inputs are described in :mod:`anigs.metrics.suite`; the schema of the
 output in :mod:`anigs.tables`.
 
-    anigs eval --final-dir final/ --masks masks/ --model round4/model.pt --canonical static/canonical.ply \
-        --cameras sfm/cameras.json --images sfm/images --points sfm/points.npz [--gt-dir capture/gt] \
-        --scene demo --variant full --out eval/metrics.json --params '{...eval section...}'
+    anigs eval --final final/ --masks masks/ --model round4/ --static static/ --sfm sfm/ \\
+        [--capture capture/] --scene demo --variant full --out eval/ --params '{...eval section...}'
 
 The workflow runs it in two halves: ``--part model`` (the ground-truth motion and the multiview
 protocol, which need the model but not the final clips) in a job beside the final renders, and
-``--part clips`` in the final job after the videos; :func:`merge` (``anigs eval --merge CLIPS
-MODEL --out metrics.json``) joins the two records into the one a ``--part all`` run writes.
+``--part clips`` in the final job after the videos; ``anigs eval --merge --out eval/`` (or
+:func:`merge_parts` inside Snakemake) joins the two records into the one a ``--part all`` run writes.
 """
 from __future__ import annotations
 
@@ -20,129 +19,81 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from anigs.metrics.suite import EvalConfig
+from anigs.stages import contract
+from anigs.stages.capture import Outputs as CaptureOutputs
+from anigs.stages.masks import Outputs as MasksOutputs
+from anigs.stages.sfm import Outputs as SfmOutputs
+from anigs.stages.static import Outputs as StaticOutputs
+from anigs.stages.contract import File
+from anigs.stages.final import Outputs as FinalOutputs
+from anigs.stages.update import Outputs as UpdateOutputs
 
 Config = EvalConfig  # the `eval` config section
 
 log = logging.getLogger("anigs.eval")
 
+PART_FILE = {"all": "metrics", "clips": "clip_metrics", "model": "model_metrics"}  # --part -> its record
+
+
+class Outputs(contract.Outputs):
+    """The evaluation folder of a variant (``eval/``; ``fvd_gt``'s record lies beside, its own Outputs)."""
+
+    STAGE = "eval"
+    LAYOUT = {"metrics": File("metrics.json", "the record of every metric: schema, scene, dataset, method, variant, "
+                                              "config, inputs, metrics {name: {value, available, reason, ...}}"),
+              "clip_metrics": File("clip_metrics.json", "the record of the final clips' metrics (--part clips)"),
+              "model_metrics": File("model_metrics.json", "the record of the model's metrics (--part model)")}
+
+    def record(self, key: str = "metrics") -> dict[str, Any]:
+        """A metrics record, checked to have the ``metrics.json`` schema."""
+        from anigs.tables import SCHEMA
+
+        rec = self.json(key)
+        if not isinstance(rec, dict) or rec.get("schema") != SCHEMA or not isinstance(rec.get("metrics"), dict):
+            raise ValueError(f"{self.path(key)}: not a metrics record of schema {SCHEMA} (re-run the eval stage)")
+        return rec
+
 
 @dataclass
-class EvalInputs:
-    """What one evaluation reads (every input but the clips is optional; a metric whose inputs are
-    missing is recorded as not available, with the reason)."""
-
-    clips: list[str] = field(default_factory=list)  # final-dir and/or clip files
-    masks: str | None = None
-    reference: dict[str, list[str]] = field(default_factory=dict)  # prior -> its generated clips (FVD/FID)
-    fid_reference: dict[str, list[str]] = field(default_factory=dict)
-    model: str | None = None
-    canonical: str | None = None
-    cameras: str | None = None
-    images: str | None = None
-    points: str | None = None
-    gt_dir: str | None = None
-    part: str = "all"                   # all | clips | model (anigs.metrics.suite.evaluate)
-
-
-def run(inputs: EvalInputs, cfg: EvalConfig, out: str | Path, scene: str, method: str = "Ours",
-        variant: str = "full", dataset: str = "anigs") -> dict:
-    """Evaluate and write the ``metrics.json`` record to ``out``; returns the record."""
-    from anigs import __version__
-    from anigs.io import write_json
-    from anigs.metrics.suite import evaluate
-    from anigs.tables import SCHEMA
-
-    t0 = time.perf_counter()
-    metrics = evaluate(cfg, inputs.clips, inputs.masks, inputs.reference, inputs.model, inputs.canonical,
-                       inputs.cameras, inputs.images, inputs.points, inputs.gt_dir, inputs.fid_reference,
-                       part=inputs.part)
-    record = {"schema": SCHEMA, "scene": scene, "dataset": dataset, "method": method,
-              "variant": variant, "part": inputs.part, "anigs_version": __version__,
-              "config": dataclasses.asdict(cfg),
-              "inputs": {"clips": inputs.clips, "masks": inputs.masks, "reference": inputs.reference,
-                         "fid_reference": inputs.fid_reference, "model": inputs.model,
-                         "canonical": inputs.canonical, "cameras": inputs.cameras, "images": inputs.images,
-                         "points": inputs.points, "gt_dir": inputs.gt_dir},
-              "seconds": round(time.perf_counter() - t0, 2), "metrics": metrics}
-    write_json(out, record)
-    n_ok = sum(1 for m in metrics.values() if m["available"])
-    log.info("eval: %d/%d metrics available -> %s", n_ok, len(metrics), out)
-    for name, m in metrics.items():
-        log.info("  %-26s %s", name, f"{m['value']:.4g}" if m["available"] else f"n/a ({m['reason']})")
-    return record
+class Inputs(contract.Inputs):
+    out: Path = field(metadata={"help": "the evaluation folder (metrics.json, or a half's record with --part)"})
+    scene: str | None = field(default=None, metadata={"help": "scene name (table column; required unless --merge)"})
+    final: FinalOutputs | None = field(default=None, metadata={"help": "the final stage's folder (its clips)"})
+    clips: list[str] | None = field(default=None, metadata={"help": "more clip files or folders (.npz/.mp4)"})
+    masks: MasksOutputs | None = None
+    reference: list[str] | None = field(default=None, metadata={"help": "PRIOR=PATH: reference clips of a prior's "
+                                                                        "generate (FVD-/FID-PRIOR; repeated priors pool)"})
+    fid_reference: list[str] | None = field(default=None, metadata={"help": "PRIOR=PATH: FID reference clips instead "
+                                                                            "of --reference for that prior"})
+    model: UpdateOutputs | None = field(default=None, metadata={"help": "the model's folder (multiview protocol, "
+                                                                        "GT motion comparison)"})
+    static: StaticOutputs | None = None
+    sfm: SfmOutputs | None = field(default=None, metadata={"help": "the sfm stage's folder: training cameras, "
+                                                                   "undistorted images, points (multiview protocol)"})
+    capture: CaptureOutputs | None = field(default=None, metadata={"help": "the capture stage's folder: synthetic "
+                                                                           "ground truth"})
+    method: str = field(default="Ours", metadata={"help": "method name (table row)"})
+    variant: str = field(default="full", metadata={"help": "ablation variant id (Table 5)"})
+    dataset: str = field(default="anigs", metadata={"help": "scene group (one FVD table per dataset)"})
+    part: str = field(default="all", metadata={"help": "all | clips | model: all metrics, or a half's (two jobs)"})
+    merge: bool = field(default=False, metadata={"help": "join the clips and model halves in --out into metrics.json"})
 
 
-def merge(clips_record: str | Path, model_record: str | Path, out: str | Path,
-          extra: list[str | Path] | None = None) -> dict:
-    """``metrics.json`` from the two halves of an evaluation: a ``--part clips`` record (the final
-    clips' metrics) and a ``--part model`` record (the model's), checked to be of the same scene,
-    variant and method; the metrics in the order of one ``--part all`` run. ``extra``: further
-    records of the same evaluation to join (``anigs fvd_gt``'s, ``part: fvd_gt``). No torch: the
-    workflow runs it inside Snakemake."""
-    from anigs.io import read_json, write_json
+def table_row(method: str, variant: str) -> tuple[str, str]:
+    """(method, variant) of a variant's table row: ours under its variant (Table 5), a baseline under
+    its method's name (Tables 1-3). ``method``: ``animate.method``."""
+    from anigs.animate.plan import METHODS
 
-    clips, model = read_json(clips_record), read_json(model_record)
-    more = [(p, read_json(p)) for p in (extra or [])]
-    for path, rec, part in ((clips_record, clips, "clips"), (model_record, model, "model")):
-        if not isinstance(rec, dict) or rec.get("part") != part or not isinstance(rec.get("metrics"), dict):
-            raise ValueError(f"eval merge: {path} is not the record of an `anigs eval --part {part}` run")
-    key = ("scene", "variant", "method", "dataset")
-    if tuple(clips.get(k) for k in key) != tuple(model.get(k) for k in key):
-        raise ValueError(f"eval merge: {clips_record} and {model_record} are of different evaluations "
-                         f"({[clips.get(k) for k in key]} against {[model.get(k) for k in key]})")
-    inputs = {k: v if v not in (None, [], {}) else model.get("inputs", {}).get(k)
-              for k, v in clips.get("inputs", {}).items()}
-    for path, rec in more:
-        if not isinstance(rec, dict) or rec.get("part") != "fvd_gt" or not isinstance(rec.get("metrics"), dict):
-            raise ValueError(f"eval merge: {path} is not the record of an `anigs fvd_gt` run")
-        if tuple(rec.get(k) for k in key) != tuple(clips.get(k) for k in key):
-            raise ValueError(f"eval merge: {path} is of another evaluation ({[rec.get(k) for k in key]})")
-    metrics = {**clips["metrics"], **model["metrics"]}
-    for _, rec in more:
-        metrics.update(rec["metrics"])
-    record = dict(clips, part="all", inputs=inputs, seconds=round(clips.get("seconds", 0) + model.get("seconds", 0)
-                                                                  + sum(r.get("seconds", 0) for _, r in more), 2),
-                  metrics=metrics)
-    write_json(out, record)
-    return record
+    return ("Ours", variant) if method == "anigs" else (METHODS[method], "full")
 
 
-# ---- command line: anigs eval ----
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params, add_canonical, add_out
-
-    parser.add_argument("--final-dir", help="folder with the method's camera-fixed clips (.npz/.mp4, recursive)")
-    parser.add_argument("--clips", nargs="*", default=[], help="more clip files or folders")
-    parser.add_argument("--masks", help="folder of dynamic masks <view>.png")
-    parser.add_argument("--reference", action="append", default=[], metavar="PRIOR=PATH",
-                        help="reference clips of a prior's generate (repeatable; repeated priors pool): FVD-/FID-PRIOR")
-    parser.add_argument("--fid-reference", action="append", default=[], metavar="PRIOR=PATH",
-                        help="FID reference clips instead of --reference for that prior (e.g. pooled over scenes)")
-    parser.add_argument("--model", help="animated model.pt (multiview protocol, GT motion comparison)")
-    add_canonical(parser, required=False, help="canonical.ply the model animates")
-    parser.add_argument("--cameras", help="training cameras.json (multiview protocol, learned scene extent)")
-    parser.add_argument("--images", help="capture images named by camera (multiview reference row)")
-    parser.add_argument("--points", help="SfM points.npz (xyz, rgb) initialising the multiview fits")
-    parser.add_argument("--gt-dir", help="synthetic ground truth folder (capture/gt)")
-    parser.add_argument("--scene", help="scene name (table column; required unless --merge)")
-    parser.add_argument("--method", default="Ours", help="method name (table row)")
-    parser.add_argument("--variant", default="full", help="ablation variant id (Table 5)")
-    parser.add_argument("--dataset", default="anigs", help="scene group (one FVD table per dataset)")
-    parser.add_argument("--part", default="all", choices=("all", "clips", "model"),
-                        help="all metrics, or only those of the final clips or of the model (two jobs)")
-    parser.add_argument("--merge", nargs=2, metavar=("CLIPS", "MODEL"),
-                        help="join the records of a --part clips and a --part model run into --out (nothing computed)")
-    add_out(parser, "metrics.json to write")
-    add_params(parser, "eval")
-
-
-def _pairs(items: list[str], opt: str) -> dict[str, list[str]]:
+def _pairs(items: list[str] | None, opt: str) -> dict[str, list[str]]:
     """``PRIOR=PATH`` options -> {prior: [paths]}."""
     out: dict[str, list[str]] = {}
-    for item in items:
+    for item in items or []:
         if "=" not in item or not item.split("=", 1)[0].strip():
             raise ValueError(f"{opt} expects PRIOR=PATH, got {item!r}")
         prior, path = item.split("=", 1)
@@ -150,19 +101,69 @@ def _pairs(items: list[str], opt: str) -> dict[str, list[str]]:
     return out
 
 
+def _record_inputs(inputs: Inputs) -> dict[str, Any]:
+    """The paths an evaluation reads, as ``metrics.json`` records them (the clips half reads no images or points)."""
+    s = lambda o, key: str(o.path(key)) if o is not None else None  # noqa: E731
+    whole = inputs.part != "clips"
+    return {"clips": ([str(inputs.final.path("clips"))] if inputs.final else []) + list(inputs.clips or []),
+            "masks": str(inputs.masks.root) if inputs.masks else None,
+            "reference": _pairs(inputs.reference, "--reference"),
+            "fid_reference": _pairs(inputs.fid_reference, "--fid-reference"),
+            "model": s(inputs.model, "model"), "canonical": s(inputs.static, "canonical"),
+            "cameras": s(inputs.sfm, "cameras"), "images": s(inputs.sfm, "images") if whole else None,
+            "points": s(inputs.sfm, "points") if whole else None, "gt_dir": s(inputs.capture, "gt")}
+
+
+def run(inputs: Inputs, cfg: EvalConfig) -> Outputs:
+    """Evaluate and write the record of ``inputs.part`` into the evaluation folder."""
+    from anigs import __version__
+    from anigs.io import write_json
+    from anigs.metrics.suite import evaluate
+    from anigs.tables import SCHEMA
+
+    if inputs.part not in PART_FILE:
+        raise ValueError(f"eval: --part {inputs.part!r}; choose {sorted(PART_FILE)}")
+    if not inputs.scene:
+        raise ValueError("eval: --scene is required (the table column)")
+    t0 = time.perf_counter()
+    i = _record_inputs(inputs)
+    metrics = evaluate(cfg, i["clips"], i["masks"], i["reference"], i["model"], i["canonical"], i["cameras"],
+                       i["images"], i["points"], i["gt_dir"], i["fid_reference"], part=inputs.part)
+    record = {"schema": SCHEMA, "scene": inputs.scene, "dataset": inputs.dataset, "method": inputs.method,
+              "variant": inputs.variant, "part": inputs.part, "anigs_version": __version__,
+              "config": dataclasses.asdict(cfg), "inputs": i,
+              "seconds": round(time.perf_counter() - t0, 2), "metrics": metrics}
+    out = Outputs(inputs.out)
+    write_json(out.path(PART_FILE[inputs.part]), record)
+    n_ok = sum(1 for m in metrics.values() if m["available"])
+    log.info("eval: %d/%d metrics available -> %s", n_ok, len(metrics), out.path(PART_FILE[inputs.part]))
+    for name, m in metrics.items():
+        log.info("  %-26s %s", name, f"{m['value']:.4g}" if m["available"] else f"n/a ({m['reason']})")
+    return out
+
+
+def merge_parts(out: Outputs, extra: list[str | Path] | None = None) -> dict:
+    """``metrics.json`` of ``out`` from its clips and model halves (and ``extra`` records, e.g. FVD-GT's)."""
+    from anigs.metrics.records import merge_records
+
+    return merge_records(out.path("clip_metrics"), out.path("model_metrics"), out.path("metrics"), extra)
+
+
+# ---- command line: anigs eval ----
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from anigs.cli import add_params
+
+    Inputs.add_arguments(parser)
+    add_params(parser, "eval")
+
+
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
-    if args.merge:
-        merge(args.merge[0], args.merge[1], args.out)
+    inputs = Inputs.from_args(args)
+    if inputs.merge:
+        merge_parts(Outputs(inputs.out))
         return 0
-    if not args.scene:
-        raise ValueError("eval: --scene is required (the table column)")
-    inputs = EvalInputs(clips=([args.final_dir] if args.final_dir else []) + list(args.clips), masks=args.masks,
-                        reference=_pairs(args.reference, "--reference"),
-                        fid_reference=_pairs(args.fid_reference, "--fid-reference"), model=args.model,
-                        canonical=args.canonical, cameras=args.cameras, images=args.images, points=args.points,
-                        gt_dir=args.gt_dir, part=args.part)
-    run(inputs, EvalConfig.from_dict(parse_params(args.params)), args.out, args.scene, args.method, args.variant,
-        args.dataset)
+    run(inputs, EvalConfig.from_dict(parse_params(args.params)))
     return 0

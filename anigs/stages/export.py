@@ -1,5 +1,7 @@
 """Stage ``export``: the animated scene for other tools.
 
+    anigs export --static static/ --model round4/ --out export/ --params '{...export section...}'
+
 ``scene.anigs`` (the compact format of :mod:`anigs.viewer.compact`: the canonical Gaussians once,
 DCT motion coefficients of the moving ones only; ``load_compact(path).frame(t)`` reproduces the
 library's frame t exactly), ``animated.ply`` (the standard 3DGS PLY plus per-Gaussian DCT
@@ -9,15 +11,35 @@ from __future__ import annotations
 
 import argparse
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from anigs.configs import from_dict
+from anigs.stages import contract
+from anigs.stages.static import Outputs as StaticOutputs
+from anigs.stages.contract import File
+from anigs.stages.update import Outputs as UpdateOutputs
 
 log = logging.getLogger("anigs.export")
 
-COMPACT_FILE = "scene.anigs"  # the compact animated scene (anigs.viewer.compact): canonical once, motion of the moving
+
+class Outputs(contract.Outputs):
+    """The export folder of a variant (``export/``)."""
+
+    STAGE = "export"
+    LAYOUT = {"compact": File("scene.anigs", "compact animated scene (anigs.viewer.compact): canonical once, "
+                                            "DCT motion of the moving Gaussians"),
+              "ply": File("animated.ply", "standard 3DGS PLY + per-Gaussian DCT properties"),
+              "sidecar": File("animated.json", "the PLY's sidecar: K, T, fps, dynamic count, frames, compact"),
+              "frames": File("frames/", "with export.frames: one 3DGS PLY per frame", optional=True)}
+
+
+@dataclass
+class Inputs(contract.Inputs):
+    static: StaticOutputs
+    model: UpdateOutputs = field(metadata={"help": "the model's folder (model.pt)"})
+    out: Path = field(metadata={"help": "the export folder"})
 
 
 @dataclass
@@ -39,40 +61,37 @@ class ExportConfig:
 Config = ExportConfig  # the `export` config section
 
 
-def run(canonical_path: str | Path, model_path: str | Path, out: str | Path, cfg: ExportConfig) -> dict:
-    """Export the model at ``model_path`` into ``out``; returns the ``animated.json`` sidecar."""
-    from anigs.animate.deform import load_model
+def run(inputs: Inputs, cfg: ExportConfig) -> Outputs:
+    """Export the model into the export folder (``animated.json`` holds what was written)."""
     from anigs.export import save_animated_ply, sidecar
     from anigs.io import write_json
     from anigs.viewer.compact import save_compact, write_frame_plys
 
-    canonical, deformation, _ = load_model(model_path, canonical_path)
-    out = Path(out)
-    names = write_frame_plys(out, canonical, deformation, cfg.frame_step) if cfg.frames else []
-    save_compact(out / COMPACT_FILE, canonical, deformation, cfg.fps)
-    extra = save_animated_ply(out / "animated.ply", canonical, deformation)
-    meta = sidecar(deformation, cfg.fps, "animated.ply", extra)
+    canonical, deformation, _ = inputs.model.load(inputs.static.path("canonical"))
+    out = Outputs(inputs.out)
+    names = write_frame_plys(out.root, canonical, deformation, cfg.frame_step) if cfg.frames else []
+    save_compact(out.path("compact"), canonical, deformation, cfg.fps)
+    extra = save_animated_ply(out.path("ply"), canonical, deformation)
+    meta = sidecar(deformation, cfg.fps, Outputs.LAYOUT["ply"].name, extra)
     meta["frames"] = names
-    meta["compact"] = COMPACT_FILE
-    write_json(out / "animated.json", meta)
+    meta["compact"] = Outputs.LAYOUT["compact"].name
+    write_json(out.path("sidecar"), meta)
     log.info("export: %d frame PLYs and animated.ply (%d dynamic of %d Gaussians, K=%d, T=%d) -> %s",
-             len(names), deformation.num_dynamic, canonical.num, deformation.num_bases, deformation.num_frames, out)
-    return meta
+             len(names), deformation.num_dynamic, canonical.num, deformation.num_bases, deformation.num_frames, out.root)
+    return out
 
 
 # ---- command line: anigs export ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params, add_canonical, add_out
+    from anigs.cli import add_params
 
-    add_canonical(p, help="canonical 3DGS PLY")
-    p.add_argument("--model", required=True, help="trained model.pt")
-    add_out(p, "output folder")
+    Inputs.add_arguments(p)
     add_params(p, "export")
 
 
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
-    run(args.canonical, args.model, args.out, ExportConfig.from_dict(parse_params(args.params)))
+    run(Inputs.from_args(args), ExportConfig.from_dict(parse_params(args.params)))
     return 0

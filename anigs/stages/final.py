@@ -1,10 +1,11 @@
 """Stage ``final``: the animated scene played back for people.
 
 Camera-fixed videos of every queued view, a moving-camera video with time running, and x-t /
-y-t space-time slices of the most animated patch (the paper's figures).
+y-t space-time slices of the most animated patch (the paper's figures;
+:mod:`anigs.animate.final_videos`).
 
-    anigs final --canonical static/canonical.ply --model round4/model.pt --views views/views.json \
-        [--cameras sfm/cameras.json] [--masks masks/] --out final/ --params '{...final section...}'
+    anigs final --static static/ --model round4/ --views views/ [--sfm sfm/] [--masks masks/] \\
+        --out final/ --params '{...final section...}'
 """
 from __future__ import annotations
 
@@ -17,9 +18,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 
 from anigs.configs import from_dict
+from anigs.stages import contract
+from anigs.stages.masks import Outputs as MasksOutputs
+from anigs.stages.sfm import Outputs as SfmOutputs
+from anigs.stages.static import Outputs as StaticOutputs
+from anigs.stages.views import Outputs as ViewsOutputs
+from anigs.stages.contract import File
+from anigs.stages.update import Outputs as UpdateOutputs
 
 log = logging.getLogger("anigs.final")
 
@@ -46,26 +53,66 @@ class FinalConfig:
 Config = FinalConfig  # the `final` config section
 
 
-def run(canonical_path: str | Path, views_path: str | Path, out: str | Path, cfg: FinalConfig,
-        model_path: str | Path | None = None, cameras_path: str | Path | None = None,
-        masks_dir: str | Path | None = None) -> dict:
-    """Write the final videos, clips and slices into ``out``; returns the ``final.json`` summary."""
-    from anigs.animate.deform import load_model
-    from anigs.animate.frames import render_clip
-    from anigs.animate.playback import camera_path, highlight, most_animated_row_col, pingpong_times, \
-        slice_images, static_change
+class Outputs(contract.Outputs):
+    """The final folder of a variant (``final/``)."""
+
+    STAGE = "final"
+    LAYOUT = {"summary": File("final.json", "per view: row, col, peak_temporal_std, static_max_change, "
+                                            "dynamic_fraction; frames, config, path"),
+              "video": File("{view}.mp4", "camera-fixed video of a view (H.264)"),
+              "clips": File("clips/", "the videos' frames as clips (the eval stage reads them)"),
+              "clip": File("clips/{view}.npz", "float [T,H,W,3] in [0,1] + metadata (camera, fps)"),
+              "slices": File("slices/", "space-time slices"),
+              "slice_xt": File("slices/{view}_xt.png", "x-t slice of the most animated row"),
+              "slice_yt": File("slices/{view}_yt.png", "y-t slice of the most animated column"),
+              "slice_frame": File("slices/{view}_frame.png", "frame 0 with that row and column marked"),
+              "path": File("path.mp4", "moving-camera video with time running", optional=True)}
+
+    def videos(self) -> dict[str, Path]:
+        """{view: its camera-fixed video} in the folder (the moving-camera video is no view's)."""
+        suffix = Path(self.LAYOUT["video"].name).suffix
+        return {p.stem: p for p in sorted(self.root.glob(f"*{suffix}")) if p != self.path("path")}
+
+    def clip(self, view: str) -> tuple[np.ndarray, dict]:
+        """(frames float32 [T,H,W,3], metadata) of ``view``'s final clip."""
+        from anigs.video import load_clip
+
+        p = self.path("clip", view=view)
+        if not p.is_file():
+            raise FileNotFoundError(f"{p}: missing (run the final stage)")
+        return load_clip(p)
+
+
+@dataclass
+class Inputs(contract.Inputs):
+    static: StaticOutputs
+    views: ViewsOutputs
+    out: Path = field(metadata={"help": "the final folder"})
+    model: UpdateOutputs | None = field(default=None, metadata={"help": "the model's folder (omit: the static scene)"})
+    sfm: SfmOutputs | None = field(default=None, metadata={"help": "the sfm stage's folder: its cameras for the "
+                                                                   "moving-camera path"})
+    masks: MasksOutputs | None = field(default=None, metadata={"help": "the masks stage's folder: slices inside, "
+                                                                       "stillness outside"})
+
+
+def run(inputs: Inputs, cfg: FinalConfig) -> Outputs:
+    """Write the final videos, clips and slices and the ``final.json`` summary."""
+    import torch
+
+    from anigs.animate.final_videos import path_video, view_video
+    from anigs.animate.playback import pingpong_times
     from anigs.cameras import load_cameras
     from anigs.device import get_device
     from anigs.gaussians import Gaussians
     from anigs.io import read_json, write_json
-    from anigs.video import save_clip, save_png, write_mp4
     from anigs.views import cameras_from_views
 
     dev = get_device(cfg.device)
     t0 = time.perf_counter()
     still = None  # why nothing moves, when the model says so (anigs.animate.still)
-    if model_path:
-        canonical, deformation, payload = load_model(model_path, canonical_path)
+    canonical_path = inputs.static.path("canonical")
+    if inputs.model is not None:
+        canonical, deformation, payload = inputs.model.load(canonical_path)
         if payload.get("extra", {}).get("still"):
             still = payload["extra"]["reason"]
             log.info("final: nothing moves: %s", still)
@@ -78,66 +125,38 @@ def run(canonical_path: str | Path, views_path: str | Path, out: str | Path, cfg
     period = deformation.num_frames if deformation is not None else 1
     times = pingpong_times(T, period)
     bg = torch.tensor(cfg.background, dtype=torch.float32, device=dev)
-    out = Path(out)
+    out = Outputs(inputs.out)
     summary: dict = {"config": dataclasses.asdict(cfg), "frames": T, "views": {}}
     if still:
         summary["nothing_moves"] = still
-    for cam in cameras_from_views(read_json(views_path)):
+    masks = inputs.masks
+    for cam in cameras_from_views(read_json(inputs.views.path("views"))):
         if cfg.scale != 1.0:
             cam = cam.scaled(max(1, round(cam.width * cfg.scale)), max(1, round(cam.height * cfg.scale)))
-        clip = render_clip(canonical, deformation, cam, T, bg, times=times).cpu().numpy()
-        mask = None
-        if masks_dir and (Path(masks_dir) / f"{cam.name}.png").exists():
-            from anigs.masks import read_mask
-
-            mask = read_mask(Path(masks_dir) / f"{cam.name}.png") >= 0.5
-            if mask.shape != clip.shape[1:3]:
-                mask = None  # scaled videos: no pixel-exact mask
-        save_clip(out / "clips" / f"{cam.name}.npz", clip, {"camera": cam.to_dict(), "fps": cfg.fps})
-        write_mp4(out / f"{cam.name}.mp4", clip, fps=cfg.fps)
-        row, col, peak = most_animated_row_col(clip, mask)
-        xt, yt = slice_images(clip, row, col, cfg.slice_upsample)
-        save_png(out / "slices" / f"{cam.name}_xt.png", xt)
-        save_png(out / "slices" / f"{cam.name}_yt.png", yt)
-        save_png(out / "slices" / f"{cam.name}_frame.png", highlight(clip[0], row, col))
-        summary["views"][cam.name] = {"row": row, "col": col, "peak_temporal_std": peak,
-                                      "static_max_change": static_change(clip, mask) if mask is not None else None,
-                                      "dynamic_fraction": float(mask.mean()) if mask is not None else None}
-        log.info("final: %s (%dx%d, %d frames) peak motion std %.4f", cam.name, cam.width, cam.height, T, peak)
-    if cameras_path:
-        path = camera_path(load_cameras(cameras_path), cfg.path_frames, cfg.path_views)
-        speed = cfg.path_loops * 2 * max(period - 1, 1) / max(cfg.path_frames, 1)
-        ptimes = pingpong_times(cfg.path_frames, period, speed)
-        frames = []
-        with torch.no_grad():
-            for cam, t in zip(path, ptimes):
-                frames.append(render_clip(canonical, deformation, cam, 1, bg, times=t[None])[0].cpu().numpy())
-        write_mp4(out / "path.mp4", np.stack(frames), fps=cfg.fps)
-        summary["path"] = {"frames": cfg.path_frames, "loops": cfg.path_loops}
+        mask = masks.view_mask(cam.name) >= 0.5 if masks is not None and masks.exists("mask", view=cam.name) else None
+        summary["views"][cam.name] = view_video(canonical, deformation, cam, times, bg, mask, out, cfg.fps,
+                                                cfg.slice_upsample)
+    if inputs.sfm is not None:
+        summary["path"] = path_video(canonical, deformation, load_cameras(inputs.sfm.path("cameras")), period, bg,
+                                     out.path("path"), cfg)
     summary["seconds"] = time.perf_counter() - t0
-    write_json(out / "final.json", summary)
+    write_json(out.path("summary"), summary)
     log.info("final: wrote %d view videos%s in %.1f s to %s", len(summary["views"]),
-             " and path.mp4" if cameras_path else "", summary["seconds"], out)
-    return summary
+             " and path.mp4" if inputs.sfm is not None else "", summary["seconds"], out.root)
+    return out
 
 
 # ---- command line: anigs final ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params, add_canonical, add_out
+    from anigs.cli import add_params
 
-    add_canonical(p, help="canonical 3DGS PLY")
-    p.add_argument("--model", default=None, help="trained model.pt (omit: the static scene)")
-    p.add_argument("--views", required=True, help="views.json (camera-fixed videos of every queued view)")
-    p.add_argument("--cameras", default=None, help="cameras.json for the moving-camera path (sfm/cameras.json)")
-    p.add_argument("--masks", default=None, help="masks folder ({view}.png): slices inside, stillness outside")
-    add_out(p, "output folder")
+    Inputs.add_arguments(p)
     add_params(p, "final")
 
 
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
-    run(args.canonical, args.views, args.out, FinalConfig.from_dict(parse_params(args.params)), model_path=args.model,
-        cameras_path=args.cameras, masks_dir=args.masks)
+    run(Inputs.from_args(args), FinalConfig.from_dict(parse_params(args.params)))
     return 0

@@ -1,20 +1,18 @@
 """Stage ``refine``: ComposedV2V refinement of one rendered camera-fixed clip.
 
-    anigs refine --clip results/demo/round1/render/v003.npz --mask results/demo/masks/v003.png \\
-                 --out results/demo/round1/target/v003.npz --params '{"prior": "procedural", "strength": 0.5}'
+    anigs refine --render-clip round1/ --view v003 --masks masks/ [--effects effects/] \\
+                 --out round1/ --params '{"prior": "procedural", "strength": 0.5}'
 
-``--mask`` takes one mask (all configured effects inside it) or repeated ``EFFECT=PATH``
-for per-effect masks. The noise seed combines the config's global ``seed``, the round and
-the view id (parsed from ``.../round{R}/render/{view}.npz`` unless ``--round``/``--view``
-are given), so every view and round draws independent noise.
+Reads ``round1/render/v003.npz`` and ``masks/v003.png`` and writes ``round1/target/v003.npz``.
+``--mask`` gives masks instead (one, all effects inside it, or repeated ``EFFECT=PATH`` per
+effect). ``--effects``: synthesise the effects stage's chosen effects instead of the listed
+ones. The noise seed combines the config's ``seed``, the round (``--round``, else parsed from the
+``round{R}`` folder) and the view, so every view and round draws independent noise.
 """
 from __future__ import annotations
 
 import argparse
 import logging
-import re
-import time
-import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -22,6 +20,11 @@ from typing import Any, Mapping
 import numpy as np
 
 from anigs.configs import from_dict
+from anigs.stages import contract
+from anigs.stages.effects import Outputs as EffectsOutputs
+from anigs.stages.masks import Outputs as MasksOutputs
+from anigs.stages.contract import File
+from anigs.stages.render_clip import Outputs as RenderClipOutputs
 
 log = logging.getLogger("anigs.refine")
 
@@ -52,12 +55,10 @@ class RefineConfig:
             raise ValueError("set `steps` at the top level of the refine params, not in `ltx`")
         return cfg
 
-    def with_effects_json(self, path: str | Path | None) -> "RefineConfig":
-        """With the effects stage's chosen effects (its ``effects.json``) instead of the listed ones."""
-        if path:
-            from anigs.io import read_json
-
-            self.effects = list(read_json(path)["chosen"])
+    def with_effects(self, effects: EffectsOutputs | None) -> "RefineConfig":
+        """With the effects stage's chosen effects instead of the listed ones (``effects``: None keeps them)."""
+        if effects is not None:
+            self.effects = effects.chosen()
         return self
 
     def prior_config(self) -> dict[str, Any]:
@@ -71,104 +72,76 @@ class RefineConfig:
 Config = RefineConfig  # the `refine` config section
 
 
-def view_seed(seed: int, round_: int, view: str) -> int:
-    """Independent 31-bit seed per (global seed, round, view)."""
-    ss = np.random.SeedSequence([int(seed) & 0xFFFFFFFF, int(round_), zlib.crc32(str(view).encode())])
-    return int(ss.generate_state(1)[0] & 0x7FFFFFFF)
+class Outputs(contract.Outputs):
+    """A round's folder (``round{r}/``): the refined target clips of its views."""
+
+    STAGE = "refine"
+    LAYOUT = {"targets": File("target/", "the round's target clips"),
+              "target": File("target/{view}.npz", "refined clip float [T,H,W,3] in [0,1]; metadata: the rendered "
+                                                  "clip's + refine (seed, sigmas, view, round)")}
+
+    def target(self, view: str) -> tuple[np.ndarray, dict]:
+        """(frames float32 [T,H,W,3], metadata) of ``view``'s target clip."""
+        from anigs.video import load_clip
+
+        p = self.path("target", view=view)
+        if not p.is_file():
+            raise FileNotFoundError(f"{p}: missing (run the refine stage)")
+        return load_clip(p)
 
 
-def load_mask(path: str | Path) -> np.ndarray:
-    """Mask from PNG (0/255 or 0/1) or .npy -> float32 [H,W] in [0,1] (:func:`anigs.masks.read_mask`)."""
-    from anigs.masks import read_mask
+@dataclass
+class Inputs(contract.Inputs):
+    render_clip: RenderClipOutputs
+    view: str = field(metadata={"help": "view id"})
+    out: Path = field(metadata={"help": "the round's folder (the target goes to target/{view}.npz)"})
+    masks: MasksOutputs | None = None
+    mask: list[str] | None = field(default=None, metadata={"help": "[EFFECT=]PATH mask files instead of --masks' "
+                                                                   "(several: one per effect)"})
+    effects: EffectsOutputs | None = field(default=None, metadata={"help": "the effects stage's folder: synthesise its "
+                                                                           "chosen effects"})
+    round: int | None = field(default=None, metadata={"help": "round number (default: from the round{R} folder)"})
+    info: Path | None = field(default=None, metadata={"help": "JSON file of what was done (sigmas, seed, timing)"})
 
-    return read_mask(path)
+
+def listed_effects(synthetic: bool, requested: str | list[str]) -> list[str] | None:
+    """The effects to synthesise by name: a synthetic scene's explicitly listed effects are its ground
+    truth (whatever the effects stage found); None: the effects stage's choice (``--effects``)."""
+    return list(requested) if synthetic and requested != "auto" else None
 
 
-def parse_masks(values: list[str]) -> np.ndarray | dict[str, np.ndarray]:
-    """``--mask PATH`` (one) or ``--mask EFFECT=PATH`` (several) -> mask or {effect: mask}."""
-    if not values:
-        raise ValueError("at least one --mask is required")
-    named = [v for v in values if "=" in v and not Path(v).exists()]
-    if not named:
-        if len(values) > 1:
-            raise ValueError(f"several masks need EFFECT=PATH form, got {values}")
-        return load_mask(values[0])
-    if len(named) != len(values):
-        raise ValueError(f"mix of plain and EFFECT=PATH masks: {values}")
-    out = {}
-    for v in values:
-        name, path = v.split("=", 1)
-        if name in out:
-            raise ValueError(f"effect {name!r} given twice in --mask")
-        out[name] = load_mask(path)
+def run(inputs: Inputs, cfg: RefineConfig, priors: dict | None = None) -> Outputs:
+    """Refine ``inputs.view``'s rendered clip into the round's target; ``priors``: as in
+    :func:`anigs.refine.job.refine_clip`."""
+    from anigs.refine.job import parse_masks, refine_clip
+
+    if inputs.mask:
+        masks = parse_masks(inputs.mask)
+    elif inputs.masks is not None:
+        masks = inputs.masks.view_mask(inputs.view)
+    else:
+        raise ValueError("refine: give --masks DIR (the masks stage's folder) or --mask PATH")
+    out = Outputs(inputs.out)
+    info = refine_clip(inputs.render_clip.path("clip", view=inputs.view), masks, out.path("target", view=inputs.view),
+                       cfg.with_effects(inputs.effects), inputs.round, inputs.view, priors)
+    if inputs.info:
+        from anigs.io import write_json
+
+        write_json(inputs.info, info)
     return out
-
-
-def run(clip_path: str | Path, masks: np.ndarray | dict[str, np.ndarray], out: str | Path, cfg: RefineConfig,
-        round_: int | None = None, view: str | None = None, priors: dict | None = None) -> dict:
-    """ComposedV2V refinement of the clip at ``clip_path`` (``masks``: one [H,W] mask or one per
-    effect) into ``out``; returns what was done (seed, sigmas, seconds). ``priors``: a dict kept
-    across calls, so that a process refining several clips builds (loads) each prior once."""
-    import json
-
-    from anigs.refine.prior import get_prior
-    from anigs.refine.compose import ComposeConfig, composed_v2v
-    from anigs.video import load_clip, save_clip
-
-    clip_path = Path(clip_path)
-    view = view if view is not None else clip_path.stem
-    if round_ is None:
-        m = re.search(r"round(\d+)", str(clip_path.parent))
-        round_ = int(m.group(1)) if m else 0
-    seed = view_seed(cfg.seed, round_, view)
-    clip, meta = load_clip(clip_path)
-    prior_cfg = cfg.prior_config()
-    if cfg.prior == "procedural" and "fps" in meta and "fps" not in prior_cfg:
-        prior_cfg["fps"] = float(meta["fps"])
-    key = json.dumps([cfg.prior, prior_cfg], sort_keys=True, default=str)
-    prior = priors.get(key) if priors is not None else None
-    if prior is None:
-        prior = get_prior(cfg.prior, prior_cfg)
-        if priors is not None:
-            priors[key] = prior
-    t0 = time.perf_counter()
-    refined, info = composed_v2v(prior, clip, masks, cfg.prompt, seed, cfg.strength,
-                                 ComposeConfig(compose=cfg.compose, feather_px=cfg.feather_px,
-                                               dilate_px=cfg.dilate_px, repaste_static=cfg.repaste_static))
-    info.update({"seconds": round(time.perf_counter() - t0, 3), "view": view, "round": round_,
-                 "global_seed": cfg.seed, **{k: v for k, v in getattr(prior, "last_info", {}).items()
-                                             if isinstance(v, (int, float, str, list))}})
-    log.info("refined %s (round %d, view %s, seed %d) with %s in %.2fs -> %s", clip_path, round_, view, seed,
-             cfg.prior, info["seconds"], out)
-    # wall time goes to the log, not into the artifact: the same inputs give the same file
-    stored = {k: v for k, v in info.items() if k != "seconds"}
-    save_clip(out, refined, {**meta, "refine": stored})
-    return info
 
 
 # ---- command line: anigs refine ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params, add_out
+    from anigs.cli import add_params
 
-    p.add_argument("--clip", required=True, help="rendered clip (.npz), e.g. round1/render/v003.npz")
-    p.add_argument("--mask", action="append", default=[], metavar="[EFFECT=]PATH",
-                   help="dynamic mask PNG/.npy; repeat as EFFECT=PATH for per-effect masks")
-    add_out(p, "refined target clip (.npz)")
+    Inputs.add_arguments(p)
     add_params(p, "refine")
-    p.add_argument("--round", type=int, default=None, help="round number (default: from the clip path roundR/)")
-    p.add_argument("--view", default=None, help="view id (default: the clip file's stem)")
-    p.add_argument("--info", default=None, help="optional JSON file with what was done (sigmas, seed, timing)")
-    p.add_argument("--effects-json", default=None,
-                   help="effects.json of the effects stage: synthesise its chosen effects (replaces params effects)")
 
 
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
-    from anigs.io import write_json
 
-    cfg = RefineConfig.from_dict(parse_params(args.params)).with_effects_json(args.effects_json)
-    info = run(args.clip, parse_masks(args.mask), args.out, cfg, round_=args.round, view=args.view)
-    if args.info:
-        write_json(args.info, info)
+    run(Inputs.from_args(args), RefineConfig.from_dict(parse_params(args.params)))
     return 0

@@ -1,12 +1,11 @@
 """Stage ``render_clip``: render the camera-fixed clip of one view with a round's model.
 
-    anigs render_clip --canonical static/canonical.ply [--model round{r-1}/model.pt] \\
-        (--view-json views/views.json --view-id ID | --camera-json cam.json) \\
-        --out round{r}/render/ID.npz --params '{"num_frames": 25}'
+    anigs render_clip --static static/ [--model round{r-1}/] (--views views/ --view-id ID | --camera-json cam.json) \\
+        --out round{r}/ --params '{"num_frames": 25}'
 
-Without ``--model`` (round 0) every frame is the static canonical render. Output: a clip
-npz (:func:`anigs.video.save_clip`) whose metadata holds the camera, view id, model path,
-number of frames and background.
+Without ``--model`` (round 0) every frame is the static canonical render. Output: the clip
+``round{r}/render/{view}.npz`` (:func:`anigs.video.save_clip`) whose metadata holds the camera,
+view id, model path, number of frames and background.
 """
 from __future__ import annotations
 
@@ -16,10 +15,16 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from anigs.cameras import Camera
 from anigs.configs import from_dict
+from anigs.stages import contract
+from anigs.stages.static import Outputs as StaticOutputs
+from anigs.stages.views import Outputs as ViewsOutputs
+from anigs.stages.contract import File
+from anigs.stages.update import Outputs as UpdateOutputs
 
 log = logging.getLogger("anigs.render_clip")
 
@@ -44,6 +49,35 @@ class RenderClipConfig:
 
 
 Config = RenderClipConfig  # the `render_clip` config section
+
+
+class Outputs(contract.Outputs):
+    """A round's folder (``round{r}/``): the rendered clips of its views."""
+
+    STAGE = "render_clip"
+    LAYOUT = {"clips": File("render/", "the round's rendered clips"),
+              "clip": File("render/{view}.npz", "camera-fixed clip float [T,H,W,3] in [0,1] + metadata "
+                                                "(camera, view_id, model, num_frames, background)")}
+
+    def clip(self, view: str) -> tuple[np.ndarray, dict]:
+        """(frames float32 [T,H,W,3], metadata) of ``view``'s rendered clip."""
+        from anigs.video import load_clip
+
+        p = self.path("clip", view=view)
+        if not p.is_file():
+            raise FileNotFoundError(f"{p}: missing (run the render_clip stage)")
+        return load_clip(p)
+
+
+@dataclass
+class Inputs(contract.Inputs):
+    static: StaticOutputs
+    out: Path = field(metadata={"help": "the round's folder (the clip goes to render/{view}.npz)"})
+    model: UpdateOutputs | None = field(default=None, metadata={"help": "the folder of the model that renders "
+                                                                        "(omit for round 0: static)"})
+    views: ViewsOutputs | None = None
+    view_id: str | None = field(default=None, metadata={"help": "id of the view in --views"})
+    camera_json: Path | None = field(default=None, metadata={"help": "one camera JSON instead of --views/--view-id"})
 
 
 def load_scene(canonical_path: str | Path, cfg: RenderClipConfig, model_path: str | Path | None = None):
@@ -85,38 +119,37 @@ def render_view(scene: tuple, camera: Camera, out: str | Path, cfg: RenderClipCo
     return meta
 
 
-def run(canonical_path: str | Path, camera: Camera, out: str | Path, cfg: RenderClipConfig,
-        model_path: str | Path | None = None, view_id: str | None = None) -> dict:
-    """Render ``camera``'s clip with the model at ``model_path`` (none: the static canonical scene)
-    and save it to ``out``; returns the clip's metadata."""
-    scene = load_scene(canonical_path, cfg, model_path)
-    return render_view(scene, camera, out, cfg, canonical_path, model_path, view_id)
+def run(inputs: Inputs, cfg: RenderClipConfig, scene: tuple | None = None) -> Outputs:
+    """Render the clip of ``inputs``' camera with its model (none: the static canonical scene);
+    ``scene``: the :func:`load_scene` of these inputs, when a caller renders several views."""
+    from anigs.cameras import load_camera_json, load_view_camera
+
+    if inputs.camera_json:
+        camera = load_camera_json(inputs.camera_json)
+    elif inputs.views is not None and inputs.view_id is not None:
+        camera = load_view_camera(inputs.views.path("views"), inputs.view_id)
+    else:
+        raise ValueError("render_clip: give --camera-json FILE, or --views DIR with --view-id ID")
+    out = Outputs(inputs.out)
+    model = inputs.model.path("model") if inputs.model is not None else None
+    canonical = inputs.static.path("canonical")
+    scene = scene if scene is not None else load_scene(canonical, cfg, model)
+    render_view(scene, camera, out.path("clip", view=inputs.view_id or camera.name), cfg, canonical, model,
+                inputs.view_id)
+    return out
 
 
 # ---- command line: anigs render_clip ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params, add_canonical, add_out
+    from anigs.cli import add_params
 
-    add_canonical(p)
-    p.add_argument("--model", default=None, help="model.pt of the previous round (omit for round 0: static)")
-    p.add_argument("--view-json", default=None, help="views JSON (with --view-id)")
-    p.add_argument("--view-id", default=None, help="id of the view in --view-json")
-    p.add_argument("--camera-json", default=None, help="a single camera JSON instead of --view-json/--view-id")
-    add_out(p, "output clip .npz")
+    Inputs.add_arguments(p)
     add_params(p, "render_clip")
 
 
 def main(args: argparse.Namespace) -> int:
-    from anigs.cameras import load_camera_json, load_view_camera
     from anigs.cli import parse_params
 
-    cfg = RenderClipConfig.from_dict(parse_params(args.params))
-    if args.camera_json:
-        camera = load_camera_json(args.camera_json)
-    elif args.view_json and args.view_id is not None:
-        camera = load_view_camera(args.view_json, args.view_id)
-    else:
-        raise ValueError("render_clip: give --camera-json FILE, or --view-json FILE with --view-id ID")
-    run(args.canonical, camera, args.out, cfg, model_path=args.model, view_id=args.view_id)
+    run(Inputs.from_args(args), RenderClipConfig.from_dict(parse_params(args.params)))
     return 0

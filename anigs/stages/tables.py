@@ -1,13 +1,18 @@
-"""Stage ``tables``: the paper's tables (CSV, Markdown, LaTeX) from metrics.json files."""
+"""Stage ``tables``: the paper's tables (CSV, Markdown, LaTeX) from metrics.json files.
+
+    anigs tables --metrics results/demo/full/eval/metrics.json ... --out results/tables
+"""
 from __future__ import annotations
 
 import argparse
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from anigs.configs import from_dict
+from anigs.stages import contract
+from anigs.stages.contract import File
 
 log = logging.getLogger("anigs.tables")
 
@@ -26,31 +31,46 @@ class TablesConfig:
 Config = TablesConfig  # the `tables` config section
 
 
-def run(metrics: list[str | Path], out: str | Path, cfg: TablesConfig) -> list[Path]:
-    """Write the tables of the ``metrics`` files into ``out`` (and ``tables.json``); returns the files."""
+class Outputs(contract.Outputs):
+    """The tables folder (``results/tables``)."""
+
+    STAGE = "tables"
+    LAYOUT = {"index": File("tables.json", "records read, the metrics files, the files written"),
+              "table": File("{name}.{ext}", "one table (anigs.tables: main, fvd, ablation, weightfree, fvd_gt, ...) "
+                                            "as csv, md or tex")}
+
+
+@dataclass
+class Inputs(contract.Inputs):
+    metrics: list[str] = field(metadata={"help": "metrics.json files (one per scene/method/variant)"})
+    out: Path = field(metadata={"help": "output folder (e.g. results/tables)"})
+
+
+def run(inputs: Inputs, cfg: TablesConfig) -> Outputs:
+    """Write the tables of the metrics files (and ``tables.json``)."""
     from anigs.io import write_json
     from anigs.tables import load_metrics, write_tables
 
-    records = load_metrics(metrics)
-    paths = write_tables(records, out, cfg.ablation_prior)
-    write_json(Path(out) / "tables.json", {"records": len(records), "metrics": list(map(str, metrics)),
-                                           "files": sorted(str(p) for p in paths)})
-    log.info("tables: %d records -> %d files in %s", len(records), len(paths), out)
-    return paths
+    out = Outputs(inputs.out)
+    records = load_metrics(inputs.metrics)
+    paths = write_tables(records, out.root, cfg.ablation_prior)
+    write_json(out.path("index"), {"records": len(records), "metrics": list(map(str, inputs.metrics)),
+                                   "files": sorted(str(p) for p in paths)})
+    log.info("tables: %d records -> %d files in %s", len(records), len(paths), out.root)
+    return out
 
 
 # ---- command line: anigs tables ----
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params, add_out
+    from anigs.cli import add_params
 
-    parser.add_argument("--metrics", nargs="+", required=True, help="metrics.json files (one per scene/method/variant)")
-    add_out(parser, "output folder (e.g. results/tables)")
+    Inputs.add_arguments(parser)
     add_params(parser, "tables")
 
 
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
-    run(args.metrics, args.out, TablesConfig.from_dict(parse_params(args.params)))
+    run(Inputs.from_args(args), TablesConfig.from_dict(parse_params(args.params)))
     return 0

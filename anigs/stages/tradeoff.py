@@ -15,13 +15,52 @@ from __future__ import annotations
 
 import argparse
 import logging
+from dataclasses import dataclass, field
 from pathlib import Path
+
+from anigs.stages import contract
+from anigs.stages.contract import File
+from anigs.stages.eval import Outputs as EvalOutputs
 
 log = logging.getLogger("anigs.tradeoff")
 
 
-def run(scene: str, points: list, results: str | Path, out_csv: str | Path, plot_metrics: list[str]) -> Path:
-    """Write the report of one scene's sweep ``points`` (:class:`anigs.tradeoff.SweepPoint`); returns the CSV."""
+class Outputs(contract.Outputs):
+    """The report folder of a sweep (``results/tradeoff``)."""
+
+    STAGE = "tradeoff"
+    LAYOUT = {"csv": File("{scene}.csv", "scene, knob, value, variant, seconds, variant_seconds, jobs, every metric, "
+                                         "front"),
+              "md": File("{scene}.md", "the table and the settings on the front"),
+              "plot": File("{scene}_{knob}.png", "the plotted metrics against seconds, one knob")}
+
+
+@dataclass
+class Inputs(contract.Inputs):
+    results: Path = field(metadata={"help": "results folder (holds {scene}/{variant}/...)"})
+    points: str = field(metadata={"help": "sweep points as JSON or @file: {scene: [{variant, knob, value, scene_tag}]}"})
+    out: Path = field(metadata={"help": "report folder (results/tradeoff)"})
+    plot_metrics: list[str] | None = field(default=None, metadata={"help": "metrics plotted against seconds"})
+
+
+def run(inputs: Inputs, cfg: None = None) -> Outputs:
+    """The report of every scene of the sweep points (the stage has no config section)."""
+    from anigs.cli import parse_params
+    from anigs.tradeoff import SweepPoint
+
+    raw = parse_params(inputs.points)
+    if not isinstance(raw, dict) or not raw:
+        raise ValueError("--points must map each scene to its sweep points: {scene: [{variant, knob, value}]}")
+    out = Outputs(inputs.out)
+    for scene, pts in raw.items():
+        points = [SweepPoint(p["variant"], p["knob"], p["value"], {}, scene_tag=p.get("scene_tag", "")) for p in pts]
+        report(scene, points, inputs.results, out, list(inputs.plot_metrics or []))
+    return out
+
+
+def report(scene: str, points: list, results: str | Path, out: Outputs, plot_metrics: list[str]) -> Path:
+    """Write the report of one scene's sweep ``points`` (:class:`anigs.tradeoff.SweepPoint`) into ``out``;
+    returns the CSV."""
     from anigs.io import atomic_path, read_json
     from anigs.tradeoff import (front_section, knob_filename, mark_fronts, markdown_report, metric_directions,
                                 plot_knob, report_fronts, report_rows, write_csv)
@@ -31,7 +70,7 @@ def run(scene: str, points: list, results: str | Path, out_csv: str | Path, plot
     metrics = {}
     for p in points:
         run_dir = f"{p.scene(scene)}/{p.variant}"
-        path = Path(results) / run_dir / "eval" / "metrics.json"
+        path = EvalOutputs(Path(results) / run_dir / "eval").path("metrics")
         if not path.exists():
             raise FileNotFoundError(f"{path}: metrics of sweep point {p.knob}={p.value} missing (run the eval rule)")
         metrics[run_dir] = read_json(path)
@@ -39,15 +78,15 @@ def run(scene: str, points: list, results: str | Path, out_csv: str | Path, plot
     directions = metric_directions(metrics)
     fronts = report_fronts(rows, plot_metrics, directions)
     mark_fronts(rows, fronts)
-    out = write_csv(rows, out_csv)
-    log.info("tradeoff: wrote %s (%d points)", out, len(rows))
-    md = out.with_suffix(".md")
+    csv = write_csv(rows, out.path("csv", scene=scene))
+    log.info("tradeoff: wrote %s (%d points)", csv, len(rows))
+    md = out.path("md", scene=scene)
     with atomic_path(md) as tmp:
         Path(tmp).write_text(markdown_report(rows, plot_metrics, fronts, directions,
                                              title=f"Accuracy versus time: {scene}"), encoding="utf-8")
     log.info("tradeoff: wrote %s", md)
     for knob in dict.fromkeys(p.knob for p in points):
-        png = out.parent / f"{scene}_{knob_filename(knob)}.png"
+        png = out.path("plot", scene=scene, knob=knob_filename(knob))
         plot_knob(rows, knob, plot_metrics, png, fronts=fronts)
         log.info("tradeoff: wrote %s", png)
     for r in rows:
@@ -55,29 +94,15 @@ def run(scene: str, points: list, results: str | Path, out_csv: str | Path, plot
         log.info("tradeoff: %s=%s (%s)  %.0f s  %s", r["knob"], r["value"], r["run"], r["seconds"], shown)
     for line in front_section(rows, fronts, directions, plot_metrics).splitlines():
         log.info("tradeoff: %s", line)
-    return out
+    return csv
 
 
 # ---- command line: anigs tradeoff ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_out
-
-    p.add_argument("--results", required=True, help="results folder (holds {scene}/{variant}/...)")
-    p.add_argument("--points", required=True,
-                   help="sweep points as JSON or @file: {scene: [{variant, knob, value, scene_tag}]}")
-    add_out(p, "report folder (results/tradeoff): {scene}.csv and plots")
-    p.add_argument("--plot-metrics", nargs="*", default=[], help="metrics plotted against seconds")
+    Inputs.add_arguments(p)
 
 
 def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-    from anigs.tradeoff import SweepPoint
-
-    raw = parse_params(args.points)
-    if not isinstance(raw, dict) or not raw:
-        raise ValueError("--points must map each scene to its sweep points: {scene: [{variant, knob, value}]}")
-    for scene, pts in raw.items():
-        points = [SweepPoint(p["variant"], p["knob"], p["value"], {}, scene_tag=p.get("scene_tag", "")) for p in pts]
-        run(scene, points, args.results, Path(args.out) / f"{scene}.csv", args.plot_metrics)
+    run(Inputs.from_args(args))
     return 0

@@ -3,8 +3,8 @@
 Writes a self-contained folder (``index.html``, its JavaScript, the compact scene) that plays
 the animation in any browser, offline, from the file system or served on 127.0.0.1.
 
-    anigs view --model results/demo/full/round4/model.pt --canonical results/demo/static/canonical.ply \\
-               --views results/demo/views/views.json --out results/demo/full/viewer [--serve]
+    anigs view --model results/demo/full/round4 --static results/demo/static \\
+               --views results/demo/views --out results/demo/full/viewer [--serve]
 """
 from __future__ import annotations
 
@@ -16,6 +16,11 @@ from pathlib import Path
 from typing import Any
 
 from anigs.configs import from_dict
+from anigs.stages import contract
+from anigs.stages.static import Outputs as StaticOutputs
+from anigs.stages.views import Outputs as ViewsOutputs
+from anigs.stages.contract import File
+from anigs.stages.update import Outputs as UpdateOutputs
 
 log = logging.getLogger("anigs.view")
 
@@ -37,39 +42,67 @@ class ViewConfig:
 Config = ViewConfig  # the `view` config section
 
 
-def run(model: str | Path, out: str | Path, cfg: ViewConfig, canonical: str | Path | None = None,
-        views: str | Path | None = None) -> dict:
-    """Write the viewer folder of ``model`` (a model.pt, or a compact .anigs file); returns its summary."""
+class Outputs(contract.Outputs):
+    """The viewer folder of a variant (``viewer/``; the names are :mod:`anigs.viewer.build`'s)."""
+
+    STAGE = "view"
+    LAYOUT = {"index": File("index.html", "the viewer page (with its .js and .css beside it)"),
+              "scene": File("scene.anigs", "the compact animated scene the page loads"),
+              "embed": File("scene.js", "the scene as base64, for file:// (view.embed)", optional=True),
+              "config": File("config.js", "start camera, view list, background, fps, title")}
+
+
+@dataclass
+class Inputs(contract.Inputs):
+    out: Path = field(metadata={"help": "viewer folder to write"})
+    model: UpdateOutputs | None = field(default=None, metadata={"help": "the model's folder (model.pt)"})
+    compact: Path | None = field(default=None, metadata={"help": "a compact .anigs file instead of --model"})
+    static: StaticOutputs | None = field(default=None, metadata={"help": "the static stage's folder (the canonical "
+                                                                         "scene the model was trained on)"})
+    views: ViewsOutputs | None = field(default=None, metadata={"help": "the views stage's folder (start camera, "
+                                                                       "view list)"})
+    serve: bool = field(default=False, metadata={"help": "then serve the folder on 127.0.0.1 until Ctrl-C"})
+    port: int = field(default=8000, metadata={"help": "port for --serve (0: any free port)"})
+    serve_seconds: float | None = field(default=None, metadata={"help": "stop serving after this many seconds"})
+
+
+def build(inputs: Inputs, cfg: ViewConfig) -> dict[str, Any]:
+    """Write the viewer folder of the model (or compact file); returns its summary (sizes, counts)."""
     from anigs.viewer.build import build_viewer
 
-    summary = build_viewer(model, out, views_json=views, canonical=canonical, background=cfg.background,
-                           fps=cfg.fps, embed=cfg.embed, title=cfg.title)
-    log.info("view: %s", {k: v for k, v in summary.items() if k != "files"})
+    if (inputs.model is None) == (inputs.compact is None):
+        raise ValueError("view: give --model DIR (a model's folder) or --compact FILE (.anigs)")
+    model = inputs.model.path("model") if inputs.model is not None else inputs.compact
+    summary = build_viewer(model, inputs.out, views_json=inputs.views.path("views") if inputs.views else None,
+                           canonical=inputs.static.path("canonical") if inputs.static else None,
+                           background=cfg.background, fps=cfg.fps, embed=cfg.embed, title=cfg.title)
+    summary = {k: v for k, v in summary.items() if k != "files"}
+    log.info("view: %s", summary)
     return summary
+
+
+def run(inputs: Inputs, cfg: ViewConfig) -> Outputs:
+    """Write the viewer folder of the model (or compact file)."""
+    build(inputs, cfg)
+    return Outputs(inputs.out)
 
 
 # ---- command line: anigs view ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params, add_canonical, add_out
+    from anigs.cli import add_params
 
-    p.add_argument("--model", required=True, help="trained model.pt, or a compact .anigs file")
-    add_canonical(p, required=False, help="canonical 3DGS PLY the model was trained on")
-    p.add_argument("--views", default=None, help="views.json of the views stage (start camera, view list)")
-    add_out(p, "viewer folder to write")
+    Inputs.add_arguments(p)
     add_params(p, "view")
-    p.add_argument("--serve", action="store_true", help="then serve the folder on 127.0.0.1 until Ctrl-C")
-    p.add_argument("--port", type=int, default=8000, help="port for --serve (0: any free port)")
-    p.add_argument("--serve-seconds", type=float, default=None, help="stop serving after this many seconds")
 
 
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
-    summary = run(args.model, args.out, ViewConfig.from_dict(parse_params(args.params)), args.canonical, args.views)
-    print(json.dumps({k: v for k, v in summary.items() if k != "files"}))
-    if args.serve:
+    inputs = Inputs.from_args(args)
+    print(json.dumps(build(inputs, ViewConfig.from_dict(parse_params(args.params)))))
+    if inputs.serve:
         from anigs.viewer.serve import serve_folder
 
-        serve_folder(args.out, port=args.port, duration=args.serve_seconds)
+        serve_folder(inputs.out, port=inputs.port, duration=inputs.serve_seconds)
     return 0

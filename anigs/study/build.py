@@ -29,7 +29,6 @@ from anigs.study.catch import CATCH, make_catch_video
 from anigs.study.schema import MANIFEST_SCHEMA, QUESTIONS
 
 ASSETS = Path(__file__).with_name("assets")
-NOT_VIEWS = {"path"}  # final/path.mp4 is the moving-camera video, not a camera-fixed view
 
 
 @dataclass
@@ -49,10 +48,13 @@ class StudyOptions:
 
 def find_final_videos(results: str | Path, scenes: Sequence[str],
                       variants: Sequence[str] | None = None) -> dict[tuple[str, str], dict[str, Path]]:
-    """Camera-fixed videos under ``results/{scene}/{variant}/final/{view}.mp4`` -> {(scene, variant): {view: path}}.
+    """Camera-fixed videos of the final stage's folders ``results/{scene}/{variant}/final``
+    (:meth:`anigs.stages.final.Outputs.videos`) -> {(scene, variant): {view: path}}.
 
     ``variants`` None takes every variant folder that has a ``final/`` folder.
     """
+    from anigs.stages.final import Outputs as FinalOutputs
+
     root = Path(results)
     found: dict[tuple[str, str], dict[str, Path]] = {}
     for scene in scenes:
@@ -62,7 +64,7 @@ def find_final_videos(results: str | Path, scenes: Sequence[str],
         names = variants if variants is not None else sorted(p.parent.name for p in sdir.glob("*/final"))
         for v in names:
             fdir = sdir / v / "final"
-            videos = {p.stem: p for p in sorted(fdir.glob("*.mp4")) if p.stem not in NOT_VIEWS}
+            videos = FinalOutputs(fdir).videos()
             if not videos:
                 raise FileNotFoundError(f"study: no camera-fixed videos in {fdir} (run the final stage of "
                                         f"scene {scene!r}, variant {v!r} first)")

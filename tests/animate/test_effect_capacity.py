@@ -160,8 +160,8 @@ def test_model_bytes_without_the_key_do_not_depend_on_it(tmp_path):
 
 
 def test_update_stage_reads_effect_labels_and_refuses_labels_that_disagree(tmp_path, caplog):
-    """`anigs update --effect-labels`: the masks stage's int labels drive the per-effect capacity;
-    labels that do not mark exactly the --dynamic set are an error naming the file."""
+    """`anigs update --masks`: the masks stage's int labels (effect_labels.npy) drive the per-effect
+    capacity; labels that do not mark exactly its dynamic set are an error naming the file."""
     import json
 
     import numpy as np
@@ -170,23 +170,26 @@ def test_update_stage_reads_effect_labels_and_refuses_labels_that_disagree(tmp_p
     from anigs.video import save_clip
 
     G, labels, views = _problem()
-    G.save_ply(tmp_path / "canonical.ply")
-    np.save(tmp_path / "dynamic.npy", (labels > 0).numpy())
-    np.save(tmp_path / "labels.npy", labels.numpy().astype(np.int8))
+    (tmp_path / "static").mkdir()
+    G.save_ply(tmp_path / "static" / "canonical.ply")
+    for name in ("masks", "bad"):
+        (tmp_path / name).mkdir()
+        np.save(tmp_path / name / "dynamic.npy", (labels > 0).numpy())
+    np.save(tmp_path / "masks" / "effect_labels.npy", labels.numpy().astype(np.int8))
     for k, v in enumerate(views):
         save_clip(tmp_path / f"v{k}.npz", v.clip.numpy(), {"camera": v.camera.to_dict()})
-    params = {"steps": 6, "num_bases": K, "lr_position_coeffs": 0.05, "effect_num_bases": {"grass_wave": 2}}
-    base = ["update", "--canonical", str(tmp_path / "canonical.ply"), "--targets",
-            *[str(tmp_path / f"v{k}.npz") for k in range(len(views))], "--dynamic", str(tmp_path / "dynamic.npy"),
-            "--params", json.dumps(params)]
-    assert main(base + ["--effect-labels", str(tmp_path / "labels.npy"), "--out", str(tmp_path / "m.pt")]) == 0
-    _, d, _ = load_model(tmp_path / "m.pt", G)
+    params = {"steps": 6, "num_bases": K, "lr_position_coeffs": 0.05, "effect_num_bases": {"grass_wave": 2},
+              "contain": False}
+    base = ["update", "--static", str(tmp_path / "static"), "--targets",
+            *[str(tmp_path / f"v{k}.npz") for k in range(len(views))], "--params", json.dumps(params)]
+    assert main(base + ["--masks", str(tmp_path / "masks"), "--out", str(tmp_path / "m")]) == 0
+    _, d, _ = load_model(tmp_path / "m" / "model.pt", G)
     grass = (labels[d.dynamic_index] == 2)
     assert grass.any() and bool((d.pos_coeffs[grass][:, :, 2:] == 0).all())
     assert bool((d.pos_coeffs[~grass][:, :, 2:] != 0).any())
     bad = labels.clone()
     bad[(labels == 0).nonzero()[0, 0]] = 1  # a static Gaussian labelled
-    np.save(tmp_path / "bad.npy", bad.numpy().astype(np.int8))
-    assert main(base + ["--effect-labels", str(tmp_path / "bad.npy"), "--out", str(tmp_path / "x.pt")]) != 0
-    assert "bad.npy (effect labels" in caplog.text and "re-run the masks stage" in caplog.text
-    assert not (tmp_path / "x.pt").exists()
+    np.save(tmp_path / "bad" / "effect_labels.npy", bad.numpy().astype(np.int8))
+    assert main(base + ["--masks", str(tmp_path / "bad"), "--out", str(tmp_path / "x")]) != 0
+    assert "effect_labels.npy (effect labels" in caplog.text and "re-run the masks stage" in caplog.text
+    assert not (tmp_path / "x" / "model.pt").exists()

@@ -38,14 +38,15 @@ def test_update_command_still_needs_no_targets_and_clamps_k(tmp_path):
     from anigs.stages import update
 
     g, _ = sway_scene()
-    g.save_ply(tmp_path / "c.ply")
+    (tmp_path / "static").mkdir()
+    g.save_ply(tmp_path / "static" / "canonical.ply")
     p = argparse.ArgumentParser()
     update.add_arguments(p)
-    args = p.parse_args(["--canonical", str(tmp_path / "c.ply"), "--still", "no effect", "--frames", "5",
-                         "--out", str(tmp_path / "m.pt"), "--params", '{"num_bases": 16}'])
+    args = p.parse_args(["--static", str(tmp_path / "static"), "--still", "no effect", "--frames", "5",
+                         "--out", str(tmp_path / "still"), "--params", '{"num_bases": 16}'])
     assert update.main(args) == 0
-    _, deformation, _ = load_model(tmp_path / "m.pt")
+    _, deformation, _ = load_model(tmp_path / "still" / "model.pt")
     assert deformation.num_bases == 4 and deformation.num_dynamic == 0  # K <= T-1
-    bad = p.parse_args(["--canonical", str(tmp_path / "c.ply"), "--out", str(tmp_path / "x.pt")])
-    with pytest.raises(ValueError, match="--targets and --dynamic are required"):
+    bad = p.parse_args(["--static", str(tmp_path / "static"), "--out", str(tmp_path / "x")])
+    with pytest.raises(ValueError, match="--targets and --masks are required"):
         update.main(bad)

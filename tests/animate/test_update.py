@@ -234,17 +234,20 @@ def test_cli_render_clip_and_update_round_trip(tmp_path):
     gt = sway_motion(G, mask, T, K=3, amplitude=0.08)
     ply = tmp_path / "static" / "canonical.ply"
     G.save_ply(ply)
-    np.save(tmp_path / "dyn.npy", mask.numpy())
+    (tmp_path / "masks").mkdir()
+    np.save(tmp_path / "masks" / "dynamic.npy", mask.numpy())
     cams = ring_cameras(2, 48, 36)
     views = [{"id": f"v{i}", "camera": c.to_dict()} for i, c in enumerate(cams)]
-    (tmp_path / "views.json").write_text(json.dumps({"views": views}))
+    (tmp_path / "views").mkdir()
+    (tmp_path / "views" / "views.json").write_text(json.dumps({"views": views}))
     (tmp_path / "cam0.json").write_text(json.dumps(cams[0].to_dict()))
     params = json.dumps({"num_frames": T})
+    static, masks, vdir = str(tmp_path / "static"), str(tmp_path / "masks"), str(tmp_path / "views")
 
     # round 0: no model -> every frame is the static canonical render
     r0 = tmp_path / "round0" / "render" / "v0.npz"
-    assert main(["render_clip", "--canonical", str(ply), "--camera-json", str(tmp_path / "cam0.json"),
-                 "--out", str(r0), "--params", params]) == 0
+    assert main(["render_clip", "--static", static, "--camera-json", str(tmp_path / "cam0.json"), "--view-id", "v0",
+                 "--out", str(tmp_path / "round0"), "--params", params]) == 0
     clip0, meta0 = load_clip(r0)
     assert clip0.shape == (T, 36, 48, 3) and all(np.array_equal(clip0[0], f) for f in clip0)
     assert meta0["camera"]["width"] == 48 and meta0["model"] is None
@@ -255,38 +258,39 @@ def test_cli_render_clip_and_update_round_trip(tmp_path):
         save_clip(p, render_clip(G, gt, c, T), {"camera": c.to_dict()})
         targets.append(str(p))
     out = tmp_path / "round1" / "model.pt"
-    upd = json.dumps({"steps": 3, "num_bases": 3, "views_per_step": 1})
-    assert main(["update", "--canonical", str(ply), "--targets", *targets, "--view-json", str(tmp_path / "views.json"),
-                 "--dynamic", str(tmp_path / "dyn.npy"), "--out", str(out), "--log-json",
-                 str(tmp_path / "round1" / "update.json"), "--params", upd]) == 0
+    upd = json.dumps({"steps": 3, "num_bases": 3, "views_per_step": 1, "contain": False})
+    assert main(["update", "--static", static, "--targets", *targets, "--views", vdir, "--masks", masks,
+                 "--out", str(tmp_path / "round1"), "--params", upd]) == 0
     canon, d, payload = load_model(out, ply)
     assert d.num_dynamic == int(mask.sum()) and (d.num_frames, d.num_bases) == (T, 3)
     assert json.loads((tmp_path / "round1" / "update.json").read_text())["steps"] == 3
+    assert payload["extra"]["init_model"] is None
 
     # round 2: init from round 1, cameras from the targets' metadata
     out2 = tmp_path / "round2" / "model.pt"
-    assert main(["update", "--canonical", str(ply), "--init-model", str(out), "--targets", *targets,
-                 "--dynamic", str(tmp_path / "dyn.npy"), "--out", str(out2), "--params", upd]) == 0
+    assert main(["update", "--static", static, "--init", str(tmp_path / "round1"), "--targets", *targets,
+                 "--masks", masks, "--out", str(tmp_path / "round2"), "--params", upd]) == 0
+    assert load_model(out2, ply)[2]["extra"]["init_model"] == str(out)
     r2 = tmp_path / "round2" / "render" / "v1.npz"
-    assert main(["render_clip", "--canonical", str(ply), "--model", str(out2), "--view-json",
-                 str(tmp_path / "views.json"), "--view-id", "v1", "--out", str(r2), "--params", params]) == 0
+    assert main(["render_clip", "--static", static, "--model", str(tmp_path / "round2"), "--views", vdir,
+                 "--view-id", "v1", "--out", str(tmp_path / "round2"), "--params", params]) == 0
     clip2, meta2 = load_clip(r2)
     assert clip2.shape == (T, 36, 48, 3) and not np.array_equal(clip2[0], clip2[T // 2])
-    assert meta2["view_id"] == "v1"
+    assert meta2["view_id"] == "v1" and meta2["model"] == str(out2)
 
     # a baseline variant's update job fits the baseline instead (same inputs, same model.pt format)
     out_b = tmp_path / "baseline" / "model.pt"
-    assert main(["update", "--canonical", str(ply), "--targets", *targets, "--view-json", str(tmp_path / "views.json"),
-                 "--dynamic", str(tmp_path / "dyn.npy"), "--out", str(out_b), "--params", upd,
+    assert main(["update", "--static", static, "--targets", *targets, "--views", vdir, "--masks", masks,
+                 "--out", str(tmp_path / "baseline"), "--params", upd,
                  "--method", "lifting", "--method-params", json.dumps({"num_bases": 3})]) == 0
     _, db, _ = load_model(out_b, ply)
     assert db.num_dynamic == int(mask.sum()) and db.num_bases == 3 and db.pos_coeffs.abs().sum() > 0
 
     # clear errors: unknown view id, unknown config key, frame-count mismatch
-    assert main(["render_clip", "--canonical", str(ply), "--view-json", str(tmp_path / "views.json"),
-                 "--view-id", "nope", "--out", str(tmp_path / "x.npz"), "--params", params]) == 1
-    assert main(["update", "--canonical", str(ply), "--targets", *targets, "--dynamic", str(tmp_path / "dyn.npy"),
-                 "--out", str(tmp_path / "y.pt"), "--params", json.dumps({"stepz": 1})]) == 1
-    assert main(["render_clip", "--canonical", str(ply), "--model", str(out2), "--camera-json",
-                 str(tmp_path / "cam0.json"), "--out", str(tmp_path / "z.npz"), "--params", '{"num_frames": 5}']) == 1
-    assert not (tmp_path / "x.npz").exists() and not (tmp_path / "y.pt").exists()
+    assert main(["render_clip", "--static", static, "--views", vdir, "--view-id", "nope", "--out",
+                 str(tmp_path / "x"), "--params", params]) == 1
+    assert main(["update", "--static", static, "--targets", *targets, "--masks", masks,
+                 "--out", str(tmp_path / "y"), "--params", json.dumps({"stepz": 1})]) == 1
+    assert main(["render_clip", "--static", static, "--model", str(tmp_path / "round2"), "--camera-json",
+                 str(tmp_path / "cam0.json"), "--out", str(tmp_path / "z"), "--params", '{"num_frames": 5}']) == 1
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists() and not (tmp_path / "z").exists()

@@ -218,7 +218,8 @@ def test_motion_that_leaves_the_mask_moves_less_or_stops(scene):
 
 def test_update_stage_contains_the_trained_motion(tmp_path, scene):
     """`anigs update --masks`: the trained model keeps only Gaussians whose motion stays inside the
-    dilated masks; update.json reports the containment; frozen Gaussians are back at the static fit."""
+    dilated masks; update.json reports the containment; frozen Gaussians are back at the static fit.
+    With a round plan, only the final round contains (update.contain_rounds: final)."""
     import json
 
     from anigs.animate.deform import load_model
@@ -228,8 +229,10 @@ def test_update_stage_contains_the_trained_motion(tmp_path, scene):
     from anigs.video import save_clip
 
     g, index, cam, _, mask = scene
-    g.save_ply(tmp_path / "canonical.ply")
-    (tmp_path / "views.json").write_text(json.dumps({"views": [{"id": "v00", "camera": cam.to_dict()}]}))
+    (tmp_path / "static").mkdir()
+    g.save_ply(tmp_path / "static" / "canonical.ply")
+    (tmp_path / "views").mkdir()
+    (tmp_path / "views" / "views.json").write_text(json.dumps({"views": [{"id": "v00", "camera": cam.to_dict()}]}))
     masks = MasksOutputs(tmp_path / "masks")
     write_mask_png(masks.path("mask", view="v00"), mask)
     lifted = _flags(g.num, index["cluster"], index["halo"])
@@ -238,16 +241,19 @@ def test_update_stage_contains_the_trained_motion(tmp_path, scene):
         target = render_clip(g, _deformation(g, lifted, scale=0.3), cam, 9, BG).numpy()
     save_clip(tmp_path / "v00.npz", target, {"camera": cam.to_dict()})
     params = {"steps": 20, "num_bases": 4, "background": list(BG), "lr_position_coeffs": 0.05, "spatial_lr_scale": 1.0}
-    base = ["update", "--canonical", str(tmp_path / "canonical.ply"), "--targets", str(tmp_path / "v00.npz"),
-            "--view-json", str(tmp_path / "views.json"), "--dynamic", str(masks.path("dynamic"))]
-    assert main(base + ["--out", str(tmp_path / "on.pt"), "--log-json", str(tmp_path / "on.json"),
-                        "--masks", str(tmp_path / "masks"), "--params", json.dumps(params)]) == 0
-    assert main(base + ["--out", str(tmp_path / "off.pt"), "--params", json.dumps({**params, "contain": False}),
-                        "--masks", str(tmp_path / "masks")]) == 0
-    c_on, d_on, _ = load_model(tmp_path / "on.pt", g)
-    c_off, d_off, _ = load_model(tmp_path / "off.pt", g)
+    base = ["update", "--static", str(tmp_path / "static"), "--targets", str(tmp_path / "v00.npz"),
+            "--views", str(tmp_path / "views"), "--masks", str(tmp_path / "masks")]
+    assert main(base + ["--out", str(tmp_path / "on"), "--round", "2", "--rounds", "2",
+                        "--params", json.dumps(params)]) == 0
+    assert main(base + ["--out", str(tmp_path / "off"), "--params", json.dumps({**params, "contain": False})]) == 0
+    assert main(base + ["--out", str(tmp_path / "early"), "--round", "1", "--rounds", "2",
+                        "--params", json.dumps(params)]) == 0
+    c_on, d_on, _ = load_model(tmp_path / "on" / "model.pt", g)
+    c_off, d_off, _ = load_model(tmp_path / "off" / "model.pt", g)
     assert d_off.num_dynamic == int(lifted.sum())
-    info = json.loads((tmp_path / "on.json").read_text())["containment"]
+    early = json.loads((tmp_path / "early" / "update.json").read_text())
+    assert "containment" not in early and early["num_dynamic"] == d_off.num_dynamic
+    info = json.loads((tmp_path / "on" / "update.json").read_text())["containment"]
     assert info["frozen"] >= 1 and info["dynamic_after"] == d_on.num_dynamic == d_off.num_dynamic - info["frozen"]
     assert index["halo"] not in set(d_on.dynamic_index.tolist())
     frozen = sorted(set(d_off.dynamic_index.tolist()) - set(d_on.dynamic_index.tolist()))

@@ -1,5 +1,5 @@
 """FVD against the ground-truth motion: evaluation-only views, the reference and a method's record
-(anigs.metrics.eval_views, anigs.stages.fvd_gt), with a tiny random-weight I3D stand-in."""
+(anigs.metrics.eval_views, anigs.metrics.fvd_gt, anigs.stages.fvd_gt), with a tiny random-weight I3D stand-in."""
 from __future__ import annotations
 
 import sys
@@ -11,7 +11,9 @@ import torch
 
 from anigs.metrics.eval_views import Placement, moving_labels, place_eval_views, window_starts
 from anigs.metrics.suite import EvalConfig
-from anigs.stages.fvd_gt import i3d_detector as REAL_DETECTOR
+from anigs.metrics.fvd_gt import i3d_detector as REAL_DETECTOR
+from anigs.stages.capture import Outputs as CaptureOutputs
+from anigs.stages.fvd_gt import FvdGtConfig, ReferenceOutputs
 
 sys.path.insert(0, str(Path(__file__).parent))
 from _tiny_i3d import TinyI3D  # noqa: E402
@@ -29,10 +31,14 @@ def gt_dir(tmp_path_factory):
     return out / "gt"
 
 
-def _gt(gt_dir):
-    from anigs.stages.fvd_gt import _load_gt
+def CAP(gt_dir):  # noqa: N802
+    return CaptureOutputs(gt_dir.parent)
 
-    return _load_gt(gt_dir)
+
+def _gt(gt_dir):
+    from anigs.metrics.fvd_gt import _load_gt
+
+    return _load_gt(CaptureOutputs(gt_dir.parent))
 
 
 def test_window_starts():
@@ -90,13 +96,14 @@ def _gt_motion_model(gt_dir, out: Path, T: int, move: bool) -> Path:
 
 @pytest.fixture(scope="module")
 def reference(gt_dir, tmp_path_factory, monkeypatch_module):
-    from anigs.stages import fvd_gt as F
+    from anigs.metrics import fvd_gt as F
 
     monkeypatch_module.setattr(F, "i3d_detector", lambda ecfg, dev: TinyI3D())
     out = tmp_path_factory.mktemp("ref")
     torch.set_num_threads(1)
-    ref = F.run_reference(gt_dir, gt_dir / "cameras.json", gt_dir / "gaussians.ply", 25, out,
-                          F.FvdGtConfig.from_dict(SMALL), EvalConfig.from_dict({"fvd_crop_size": 64}))
+    ref = F.run_reference(CaptureOutputs(gt_dir.parent), gt_dir / "cameras.json", gt_dir / "gaussians.ply", 25,
+                          ReferenceOutputs(out),
+                          FvdGtConfig.from_dict(SMALL), EvalConfig.from_dict({"fvd_crop_size": 64}))
     return out, ref
 
 
@@ -108,16 +115,16 @@ def monkeypatch_module():
 
 
 def test_reference_and_method_records(reference, gt_dir, tmp_path):
-    from anigs.stages import fvd_gt as F
+    from anigs.metrics import fvd_gt as F
 
     out, ref = reference
     assert ref["available"] and ref["clips"] == 12 and ref["views"] == 6 and ref["window_starts"] == [0, 17]
     assert (out / "views.png").exists() and (out / "features.npz").exists()
     still = ref["still_control"]
     assert still["available"] and still["samples"] == {"test": 12, "reference": 12, "views": 6}
-    cfg, ecfg = F.FvdGtConfig.from_dict(SMALL), EvalConfig.from_dict({"fvd_crop_size": 64})
+    cfg, ecfg = FvdGtConfig.from_dict(SMALL), EvalConfig.from_dict({"fvd_crop_size": 64})
     exact = _gt_motion_model(gt_dir, tmp_path / "exact.pt", 25, move=True)
-    rec, firsts = F.run_method(out, exact, gt_dir / "gaussians.ply", gt_dir / "cameras.json", gt_dir, cfg, ecfg)
+    rec, firsts = F.run_method(ReferenceOutputs(out), exact, gt_dir / "gaussians.ply", gt_dir / "cameras.json", CAP(gt_dir), cfg, ecfg)
     m = rec["fvd/gt"]
     assert m["available"] and len(firsts) == 6
     # the ground-truth motion itself, rendered through the methods' path: ~0, far below the still scene
@@ -126,53 +133,53 @@ def test_reference_and_method_records(reference, gt_dir, tmp_path):
     assert (out / "still_features.npz").exists() and m["gap_to_still"]["interval"][1] < 0  # motion beats no motion
     assert m["_features"].shape == (12, 400)
     still_model = _gt_motion_model(gt_dir, tmp_path / "still.pt", 25, move=False)
-    rec2, _ = F.run_method(out, still_model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", gt_dir, cfg, ecfg)
+    rec2, _ = F.run_method(ReferenceOutputs(out), still_model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", CAP(gt_dir), cfg, ecfg)
     # a still model through the methods' path gives the reference's still control, bit for bit
     assert rec2["fvd/gt"]["value"] == still["value"]
     assert rec2["fvd/gt"]["bootstrap"] == still["bootstrap"]
     assert rec2["fvd/gt"]["gap_to_still"]["mean"] == 0
-    rec3, _ = F.run_method(out, still_model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", gt_dir, cfg, ecfg)
+    rec3, _ = F.run_method(ReferenceOutputs(out), still_model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", CAP(gt_dir), cfg, ecfg)
     assert rec3["fvd/gt"]["value"] == rec2["fvd/gt"]["value"]  # same clips, same FVD, bit for bit
 
 
 def test_method_with_other_views_is_refused(reference, gt_dir, tmp_path):
-    from anigs.stages import fvd_gt as F
+    from anigs.metrics import fvd_gt as F
 
     out, _ = reference
     model = _gt_motion_model(gt_dir, tmp_path / "m.pt", 25, move=False)
     with pytest.raises(ValueError, match="other views"):
-        F.run_method(out, model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", gt_dir,
-                     F.FvdGtConfig.from_dict(dict(SMALL, num_views=7)), EvalConfig.from_dict({}))
+        F.run_method(ReferenceOutputs(out), model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", CAP(gt_dir),
+                     FvdGtConfig.from_dict(dict(SMALL, num_views=7)), EvalConfig.from_dict({}))
 
 
 def test_nan_render_is_an_error_naming_the_clip(reference, gt_dir):
-    from anigs.stages import fvd_gt as F
+    from anigs.metrics import fvd_gt as F
 
-    cams = F._load_gt(gt_dir)[4][:2]
+    cams = _gt(gt_dir)[4][:2]
     bad = lambda cam: np.full((25, 48, 64, 3), np.nan, np.float32)  # noqa: E731
     with pytest.raises(ValueError, match=r"clip 'method img_000"):
-        F._feature_loop("method", cams, bad, [0], F.FvdGtConfig.from_dict(SMALL), EvalConfig.from_dict({}),
+        F._feature_loop("method", cams, bad, [0], FvdGtConfig.from_dict(SMALL), EvalConfig.from_dict({}),
                         TinyI3D(), "cpu")
 
 
 def test_missing_network_is_not_available(gt_dir, tmp_path, monkeypatch):
-    from anigs.stages import fvd_gt as F
+    from anigs.metrics import fvd_gt as F
 
     monkeypatch.setattr(F, "i3d_detector", REAL_DETECTOR)
 
-    ref = F.run_reference(gt_dir, gt_dir / "cameras.json", gt_dir / "gaussians.ply", 25, tmp_path,
-                          F.FvdGtConfig.from_dict(dict(SMALL, num_views=2)),
+    ref = F.run_reference(CaptureOutputs(gt_dir.parent), gt_dir / "cameras.json", gt_dir / "gaussians.ply", 25,
+                          ReferenceOutputs(tmp_path),
+                          FvdGtConfig.from_dict(dict(SMALL, num_views=2)),
                           EvalConfig.from_dict({"i3d_path": str(tmp_path / "none.pt")}))
     assert not ref["available"] and "none.pt" in ref["reason"]
     model = _gt_motion_model(gt_dir, tmp_path / "m.pt", 25, move=False)
-    rec, _ = F.run_method(tmp_path, model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", gt_dir,
-                          F.FvdGtConfig.from_dict(dict(SMALL, num_views=2)), EvalConfig.from_dict({}))
+    rec, _ = F.run_method(ReferenceOutputs(tmp_path), model, gt_dir / "gaussians.ply", gt_dir / "cameras.json",
+                          CAP(gt_dir),
+                          FvdGtConfig.from_dict(dict(SMALL, num_views=2)), EvalConfig.from_dict({}))
     assert not rec["fvd/gt"]["available"] and "none.pt" in rec["fvd/gt"]["reason"]
 
 
 def test_config_checks():
-    from anigs.stages.fvd_gt import FvdGtConfig
-
     with pytest.raises(ValueError, match="when"):
         FvdGtConfig.from_dict({"when": "sometimes"})
     with pytest.raises(ValueError):

@@ -211,7 +211,7 @@ def _tiny_inputs(tmp_path):
             clip = np.repeat(bg[None], T, 0)
             for t in range(T):
                 clip[t, :, W // 2:] = (0.5 + 0.4 * np.sin(2 * np.pi * (x[W // 2:] / 8 - 0.25 * t)))[None, :, None]
-            save_clip(tmp_path / folder / f"view_{v}.npz", clip)
+            save_clip(tmp_path / folder / ("clips" if folder == "final" else "") / f"view_{v}.npz", clip)
             if folder == "final":
                 m = np.zeros((H, W), bool)
                 m[:, W // 2:] = True
@@ -219,20 +219,20 @@ def _tiny_inputs(tmp_path):
     pts = rng.uniform(-1, 1, (300, 3)).astype(np.float32)
     cols = rng.uniform(0, 1, (300, 3)).astype(np.float32)
     gs = Gaussians.from_points(torch.from_numpy(pts), torch.from_numpy(cols), 0.12, opacity=0.9)
-    gs.save_ply(tmp_path / "canonical.ply")
+    gs.save_ply(tmp_path / "static" / "canonical.ply")
     d = DCTDeformation(torch.arange(100), T, 3, rotation=False, num_gaussians=gs.num)
     with torch.no_grad():
         d.pos_coeffs.normal_(0, 0.05, generator=torch.Generator().manual_seed(0))
-    save_model(tmp_path / "model.pt", d, gs)
+    save_model(tmp_path / "model" / "model.pt", d, gs)
     cams = [Camera(intrinsics_from_fov(60, 32, 24), look_at((4 * np.cos(a), 4 * np.sin(a), 1.5), (0, 0, 0)), 32, 24,
                    f"img_{i:03d}.png") for i, a in enumerate(np.linspace(0, 2 * np.pi, 6, endpoint=False))]
-    save_cameras(tmp_path / "cameras.json", cams)
+    save_cameras(tmp_path / "sfm" / "cameras.json", cams)
     from anigs.video import save_png
 
     for c in cams:
         with torch.no_grad():
-            save_png(tmp_path / "images" / c.name, render_gaussians(gs, c)[0].clamp(0, 1))
-    write_npz(tmp_path / "points.npz", xyz=pts, rgb=cols)
+            save_png(tmp_path / "sfm" / "images" / c.name, render_gaussians(gs, c)[0].clamp(0, 1))
+    write_npz(tmp_path / "sfm" / "points.npz", xyz=pts, rgb=cols)
     return tmp_path
 
 
@@ -256,10 +256,9 @@ def test_eval_cli_writes_schema_and_tables_read_it(tmp_path):
               "fvd_window_stride": 2, "flow_preset": "ultrafast",
               "multiview_fit": {"iterations": 10, "sh_degree": 0, "device": "cpu"}}
     out = d / "eval" / "metrics.json"
-    argv = ["eval", "--final-dir", str(d / "final"), "--masks", str(d / "masks"), "--reference",
-            f"procedural={d / 'ref'}", "--model", str(d / "model.pt"), "--canonical", str(d / "canonical.ply"),
-            "--cameras", str(d / "cameras.json"), "--images", str(d / "images"), "--points", str(d / "points.npz"),
-            "--scene", "demo", "--out", str(out), "--params", json.dumps(params)]
+    argv = ["eval", "--final", str(d / "final"), "--masks", str(d / "masks"), "--reference",
+            f"procedural={d / 'ref'}", "--model", str(d / "model"), "--static", str(d / "static"),
+            "--sfm", str(d / "sfm"), "--scene", "demo", "--out", str(out.parent), "--params", json.dumps(params)]
     assert main(argv) == 0
     rec = read_json(out)
     assert rec["schema"] == SCHEMA and rec["scene"] == "demo" and rec["variant"] == "full"
@@ -277,7 +276,7 @@ def test_eval_cli_writes_schema_and_tables_read_it(tmp_path):
     # an ablation variant with the weights missing altogether
     params2 = dict(params, i3d_path="", multiview=False)
     out2 = d / "eval_abl" / "metrics.json"
-    argv2 = [a if a != str(out) else str(out2) for a in argv]
+    argv2 = [a if a != str(out.parent) else str(out2.parent) for a in argv]
     argv2 = argv2[:argv2.index("--params")] + ["--variant", "no_composed_v2v", "--params", json.dumps(params2)]
     assert main(argv2) == 0
     m2 = read_json(out2)["metrics"]
@@ -307,8 +306,8 @@ def test_eval_fid_reference_pools_paths(tmp_path):
     torch.jit.script(StandInInception()).save(str(d / "inc.pt"))
     cfg = EvalConfig.from_dict({"inception_path": str(d / "inc.pt"), "fid_size": 32, "multiview": False,
                                 "i3d_path": ""})  # FVD off: its reason says so
-    m = evaluate(cfg, [d / "final"], d / "masks", {"ltx": [d / "ref"]},
-                 fid_references={"ltx": [d / "ref", d / "final"]})
+    m = evaluate(cfg, [d / "final" / "clips"], d / "masks", {"ltx": [d / "ref"]},
+                 fid_references={"ltx": [d / "ref", d / "final" / "clips"]})
     assert m["fid/ltx"]["available"] and m["fid/ltx"]["samples"] == {"test": 2 * 12, "reference": 5 * 12}
     assert m["fid/ltx"]["feature_dim"] == 6
     assert not m["fvd/ltx"]["available"] and "no weights path" in m["fvd/ltx"]["reason"]
@@ -326,29 +325,32 @@ def test_eval_in_two_parts_gives_the_same_record_as_in_one(tmp_path, caplog):
     d = _tiny_inputs(tmp_path)
     params = json.dumps({"flow_preset": "ultrafast", "multiview_fit": {"iterations": 10, "sh_degree": 0,
                                                                        "device": "cpu"}})
-    common = ["--masks", str(d / "masks"), "--model", str(d / "model.pt"), "--canonical", str(d / "canonical.ply"),
-              "--cameras", str(d / "cameras.json"), "--images", str(d / "images"), "--points", str(d / "points.npz"),
-              "--scene", "demo", "--params", params]
-    final = ["--final-dir", str(d / "final")]
-    assert main(["eval", *final, *common, "--out", str(d / "one.json")]) == 0
-    assert main(["eval", "--part", "model", *common, "--out", str(d / "model.json")]) == 0
-    assert main(["eval", "--part", "clips", *final, *common, "--out", str(d / "clips.json")]) == 0
-    assert main(["eval", "--merge", str(d / "clips.json"), str(d / "model.json"), "--out", str(d / "two.json")]) == 0
-    one, half, clips, two = (read_json(d / f) for f in ("one.json", "model.json", "clips.json", "two.json"))
+    common = ["--masks", str(d / "masks"), "--model", str(d / "model"), "--static", str(d / "static"),
+              "--sfm", str(d / "sfm"), "--scene", "demo", "--params", params]
+    final = ["--final", str(d / "final")]
+    assert main(["eval", *final, *common, "--out", str(d / "one")]) == 0
+    assert main(["eval", "--part", "model", *common, "--out", str(d / "two")]) == 0
+    assert main(["eval", "--part", "clips", *final, *common, "--out", str(d / "two")]) == 0
+    assert main(["eval", "--merge", "--out", str(d / "two")]) == 0
+    one, half, clips, two = (read_json(d / f) for f in ("one/metrics.json", "two/model_metrics.json",
+                                                        "two/clip_metrics.json", "two/metrics.json"))
     assert half["part"] == "model" and set(half["metrics"]) == {k for k in one["metrics"] if k.startswith("multiview/")}
     assert clips["part"] == "clips" and not any(k.startswith("multiview/") for k in clips["metrics"])
     assert one["part"] == two["part"] == "all"
     assert list(two["metrics"]) == list(one["metrics"])
     assert {k: m["value"] for k, m in two["metrics"].items()} == {k: m["value"] for k, m in one["metrics"].items()}
-    assert two["inputs"] == one["inputs"]
+    assert two["inputs"] == one["inputs"] and clips["inputs"]["images"] is None
     # a model half is no table record; halves of different evaluations, or not halves, are refused
-    assert main(["tables", "--metrics", str(d / "model.json"), "--out", str(d / "tables")]) == 1
+    assert main(["tables", "--metrics", str(d / "two" / "model_metrics.json"), "--out", str(d / "tables")]) == 1
     assert "holds only the model's metrics" in caplog.text
-    write_json(d / "other.json", dict(half, variant="no_composed_v2v"))
-    assert main(["eval", "--merge", str(d / "clips.json"), str(d / "other.json"), "--out", str(d / "x.json")]) == 1
+    (d / "x").mkdir()
+    write_json(d / "x" / "clip_metrics.json", clips)
+    write_json(d / "x" / "model_metrics.json", dict(half, variant="no_composed_v2v"))
+    assert main(["eval", "--merge", "--out", str(d / "x")]) == 1
     assert "are of different evaluations" in caplog.text
-    assert main(["eval", "--merge", str(d / "clips.json"), str(d / "one.json"), "--out", str(d / "x.json")]) == 1
-    assert "one.json is not the record of an `anigs eval --part model` run" in caplog.text
-    assert not (d / "x.json").exists()
-    assert main(["eval", *final, "--out", str(d / "x.json")]) == 1
+    write_json(d / "x" / "model_metrics.json", one)
+    assert main(["eval", "--merge", "--out", str(d / "x")]) == 1
+    assert "model_metrics.json is not the record of an `anigs eval --part model` run" in caplog.text
+    assert not (d / "x" / "metrics.json").exists()
+    assert main(["eval", *final, "--out", str(d / "x")]) == 1
     assert "--scene is required" in caplog.text

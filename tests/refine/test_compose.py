@@ -130,7 +130,7 @@ def test_dilation_grows_the_dynamic_region():
 
 def test_refine_command_end_to_end(tmp_path):
     from anigs.cli import main
-    from anigs.stages.refine import view_seed
+    from anigs.refine.job import view_seed
     from anigs.video import load_clip, save_clip, save_png
 
     frame = np.random.default_rng(0).random((H, W, 3)).astype(np.float32)
@@ -142,14 +142,14 @@ def test_refine_command_end_to_end(tmp_path):
     save_png(tmp_path / "e.png", empty)
     out = tmp_path / "round2" / "target" / "v001.npz"
     params = '{"strength": 1.0, "effects": ["foliage_sway", "grass_wave"], "seed": 5}'
-    rc = main(["refine", "--clip", str(src), "--mask", f"foliage_sway={tmp_path / 'm.png'}",
-               "--mask", f"grass_wave={tmp_path / 'e.png'}", "--out", str(out), "--params", params,
-               "--info", str(tmp_path / "info.json")])
+    rd = str(tmp_path / "round2")
+    rc = main(["refine", "--render-clip", rd, "--view", "v001", "--mask", f"foliage_sway={tmp_path / 'm.png'}",
+               f"grass_wave={tmp_path / 'e.png'}", "--out", rd, "--params", params, "--info", str(tmp_path / "info.json")])
     assert rc == 0
     target, meta = load_clip(out)
     assert target.shape == clip.shape and meta["refine"]["seed"] == view_seed(5, 2, "v001")
     assert meta["refine"]["round"] == 2 and meta["refine"]["view"] == "v001"
     assert np.abs(target[:, mask_box() == 1] - clip[:, mask_box() == 1]).max() > 0.01
     assert len({view_seed(5, 2, "v001"), view_seed(5, 2, "v002"), view_seed(5, 3, "v001"), view_seed(6, 2, "v001")}) == 4
-    assert main(["refine", "--clip", str(src), "--mask", str(tmp_path / "m.png"), "--out", str(out),
+    assert main(["refine", "--render-clip", rd, "--view", "v001", "--mask", str(tmp_path / "m.png"), "--out", rd,
                  "--params", '{"strenght": 1}']) == 1

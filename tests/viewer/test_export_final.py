@@ -43,10 +43,10 @@ def test_animated_ply_roundtrip(tmp_path):
 
 def test_export_cli(tmp_path):
     g, d = _scene(), _deformation()
-    g.save_ply(tmp_path / "c.ply")
-    save_model(tmp_path / "m.pt", d, g, {})
-    assert cli(["export", "--canonical", str(tmp_path / "c.ply"), "--model", str(tmp_path / "m.pt"),
-                "--out", str(tmp_path / "exp"), "--params", '{"frames": true, "frame_step": 4}']) == 0
+    g.save_ply(tmp_path / "static" / "canonical.ply")
+    save_model(tmp_path / "round1" / "model.pt", d, g, {})
+    src = ["export", "--static", str(tmp_path / "static"), "--model", str(tmp_path / "round1")]
+    assert cli([*src, "--out", str(tmp_path / "exp"), "--params", '{"frames": true, "frame_step": 4}']) == 0
     meta = json.loads((tmp_path / "exp" / "animated.json").read_text())
     assert meta["frames"] == ["frames/frame_0000.ply", "frames/frame_0004.ply", "frames/frame_0008.ply"]
     f4 = load_ply(tmp_path / "exp" / meta["frames"][1])
@@ -61,8 +61,7 @@ def test_export_cli(tmp_path):
     scene = load_compact(tmp_path / "exp" / "scene.anigs")
     assert torch.equal(scene.frame(4).means, d(g, 4).means)
     # per-frame PLYs only on request (export.frames)
-    assert cli(["export", "--canonical", str(tmp_path / "c.ply"), "--model", str(tmp_path / "m.pt"),
-                "--out", str(tmp_path / "exp2")]) == 0
+    assert cli([*src, "--out", str(tmp_path / "exp2")]) == 0
     meta2 = json.loads((tmp_path / "exp2" / "animated.json").read_text())
     assert meta2["frames"] == [] and not (tmp_path / "exp2" / "frames").exists()
     assert (tmp_path / "exp2" / "scene.anigs").stat().st_size < sum(

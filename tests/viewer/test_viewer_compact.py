@@ -218,17 +218,19 @@ def test_server_serves_folder_on_loopback_and_stops(tmp_path):
 
 def test_cli_builds_viewer(tmp_path, capsys):
     canonical, deformation = animated_scene(n=100, d=10)
-    canonical.save_ply(tmp_path / "c.ply")
-    save_model(tmp_path / "model.pt", deformation, canonical)
+    canonical.save_ply(tmp_path / "static" / "canonical.ply")
+    save_model(tmp_path / "model" / "model.pt", deformation, canonical)
+    (tmp_path / "views").mkdir()
+    _views_json(tmp_path / "views" / "views.json")
     parser = argparse.ArgumentParser()
     viewer_cli.add_arguments(parser)
-    args = parser.parse_args(["--model", str(tmp_path / "model.pt"), "--canonical", str(tmp_path / "c.ply"),
-                              "--views", str(_views_json(tmp_path / "views.json")), "--out", str(tmp_path / "v"),
+    args = parser.parse_args(["--model", str(tmp_path / "model"), "--static", str(tmp_path / "static"),
+                              "--views", str(tmp_path / "views"), "--out", str(tmp_path / "v"),
                               "--params", '{"fps": 6, "embed": false}'])
     assert viewer_cli.main(args) == 0
     assert json.loads(capsys.readouterr().out)["num_dynamic"] == 10
     assert (tmp_path / "v" / "index.html").is_file() and not (tmp_path / "v" / "scene.js").exists()
-    bad = parser.parse_args(["--model", str(tmp_path / "model.pt"), "--out", str(tmp_path / "w"),
+    bad = parser.parse_args(["--model", str(tmp_path / "model"), "--out", str(tmp_path / "w"),
                              "--params", '{"colour": 1}'])
     with pytest.raises(KeyError, match="colour"):
         viewer_cli.main(bad)

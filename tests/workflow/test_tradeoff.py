@@ -267,7 +267,7 @@ def test_plot_draws_the_front(tmp_path):
 def test_stage_writes_the_front_into_csv_markdown_and_log(tmp_path, caplog):
     import logging
 
-    from anigs.stages.tradeoff import run
+    from anigs.stages.tradeoff import Outputs, report
 
     res = tmp_path / "results"
     _tsv(res / "demo" / "benchmarks" / "static.tsv", [100.0])
@@ -284,7 +284,7 @@ def test_stage_writes_the_front_into_csv_markdown_and_log(tmp_path, caplog):
     pts = [SweepPoint("t40", "update.steps", 40, {}), SweepPoint("full", "update.steps", 120, {}),
            SweepPoint("k6", "update.num_bases", 6, {}), SweepPoint("full", "update.num_bases", 12, {})]
     with caplog.at_level(logging.INFO, logger="anigs.tradeoff"):
-        out = run("demo", pts, res, tmp_path / "tradeoff" / "demo.csv", ["gt/amplitude_w1", "multiview/psnr_novel"])
+        out = report("demo", pts, res, Outputs(tmp_path / "tradeoff"), ["gt/amplitude_w1", "multiview/psnr_novel"])
     with open(out) as f:
         got = list(csv.DictReader(f))
     assert [g["front"] for g in got] == ["gt/amplitude_w1", "gt/amplitude_w1; multiview/psnr_novel",

@@ -4,7 +4,8 @@
 # - view: render_clip and refine jobs per view (fan-out: independent GPU jobs on a cluster), then
 #   an update job;
 # - round: one `round` job per round writes the same files into round{r}/render, round{r}/target
-#   and round{r}/model.pt (anigs round ... --then update ...: one Python and torch start-up).
+#   and round{r}/model.pt: the round stage's command, then the update rule's own command
+#   (anigs round ... --then update ...: one Python and torch start-up).
 
 
 rule render_clip:
@@ -15,8 +16,7 @@ rule render_clip:
     output:
         f"{VARIANT_DIR}/round{{round}}/render/{{view}}.npz",
     params:
-        p=jparams("render_clip", _frames),
-        model=lambda wc, input: f"--model {input.model[0]}" if input.model else "",
+        cmd=render_clip_command,
         version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/render_clip_{{view}}.log",
@@ -29,8 +29,7 @@ rule render_clip:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} render_clip --canonical {input.ply:q} {params.model} --view-json {input.views:q} "
-        "--view-id {wildcards.view} --out {output:q} --params {params.p:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 rule refine:
@@ -41,8 +40,7 @@ rule refine:
     output:
         f"{VARIANT_DIR}/round{{round}}/target/{{view}}.npz",
     params:
-        p=jparams("refine", _refine_extra),
-        effects=lambda wc, input: f"--effects-json {input.effects}" if input.effects else "",
+        cmd=refine_command,
         version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/refine_{{view}}.log",
@@ -56,8 +54,7 @@ rule refine:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} refine --clip {input.clip:q} --mask {input.masks}/{wildcards.view}.png "
-        "--round {wildcards.round} --view {wildcards.view} {params.effects} --out {output:q} --params {params.p:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 rule round:
@@ -75,16 +72,7 @@ rule round:
         model=f"{VARIANT_DIR}/round{{round}}/model.pt",
         log_json=f"{VARIANT_DIR}/round{{round}}/update.json",
     params:
-        views=lambda wc: ",".join(round_views(wc.scene, wc.variant, int(wc.round))),
-        render=jparams("render_clip", _frames),
-        refine=jparams("refine", _refine_extra),
-        model=lambda wc, input: f"--model {input.model[0]}" if input.model else "",
-        effects=lambda wc, input: f"--effects-json {input.effects}" if input.effects else "",
-        p=jparams("update", _update_extra),
-        init=lambda wc, input: f"--init-model {input.init[0]}" if input.init else "",
-        method=_method_args,
-        contain=_contain_args,
-        targets=_target_files,
+        cmd=lambda wc, input: f"{round_command(wc, input)} --then {update_command(wc, input)}",
         version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/round.log",
@@ -98,14 +86,7 @@ rule round:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} round --canonical {input.ply:q} {params.model} --view-json {input.views:q} "
-        "--views {params.views} --masks-dir {input.masks:q} --round {wildcards.round} {params.effects} "
-        "--render-dir {output.render:q} --target-dir {output.target:q} "
-        "--render-params {params.render:q} --refine-params {params.refine:q} "
-        "--then update --canonical {input.ply:q} {params.init} --targets {params.targets} "
-        "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy --effect-labels {input.masks}/effect_labels.npy "
-        "{params.contain} --out {output.model:q} --log-json {output.log_json:q} --params {params.p:q} {params.method} "
-        "> {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 # One model per round: the round job above trains it in the same process (round_jobs: round), or
@@ -130,11 +111,7 @@ rule update:
         model=f"{VARIANT_DIR}/round{{round}}/model.pt",
         log_json=f"{VARIANT_DIR}/round{{round}}/update.json",
     params:
-        p=jparams("update", _update_extra),
-        init=lambda wc, input: f"--init-model {input.init[0]}" if input.init else "",
-        method=_method_args,
-        contain=_contain_args,
-        targets=_target_files,
+        cmd=update_command,
         version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/update.log",
@@ -148,9 +125,7 @@ rule update:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} update --canonical {input.ply:q} {params.init} --targets {params.targets} "
-        "--view-json {input.views:q} --dynamic {input.masks}/dynamic.npy --effect-labels {input.masks}/effect_labels.npy {params.contain} --out {output.model:q} "
-        "--log-json {output.log_json:q} --params {params.p:q} {params.method} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 # Nothing to animate (the effects stage chose no effect): one cheap job writes a model in which
@@ -162,9 +137,10 @@ rule still:
     output:
         f"{VARIANT_DIR}/still/model.pt",
     params:
-        p=jparams("update", lambda wc: {"device": config["device"], "seed": config["seed"]}),
-        frames=lambda wc: sec(wc.scene, "animate", wc.variant)["frames"],
-        reason=_still_reason,
+        cmd=lambda wc, output: stage_command(
+            "update", jparams("update", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc),
+            static=stage_dir(wc.scene, "static"), out=os.path.dirname(output[0]), still=_still_reason(wc),
+            frames=sec(wc.scene, "animate", wc.variant)["frames"]),
         version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/still.log",
@@ -174,5 +150,4 @@ rule still:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} update --canonical {input.ply:q} --still {params.reason:q} --frames {params.frames} "
-        "--out {output:q} --params {params.p:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"

@@ -102,8 +102,19 @@ def method_of(scene, variant):
     return sec(scene, "animate", variant)["method"]
 
 
+def round_dir(scene, variant, r):
+    return f"{R}/{scene}/{variant}/round{r}"
+
+
+def out_path(stage, root, key, **fields):
+    """A file of ``stage``'s folder ``root`` (its Outputs' layout; imported when a job's inputs are asked)."""
+    import importlib
+
+    return str(importlib.import_module(f"anigs.stages.{stage}").Outputs(root).path(key, **fields))
+
+
 def model_path(scene, variant, r):
-    return f"{R}/{scene}/{variant}/round{r}/model.pt"
+    return out_path("update", f"{R}/{scene}/{variant}/round{r}", "model")
 
 
 def stage_dir(scene, stage):
@@ -161,15 +172,16 @@ def _frames(wc):
 
 
 def _gt_effects(scene):
-    """A synthetic scene's explicitly listed effects are its ground truth (the refine step
-    synthesises them whatever the effects stage found); None: the effects stage chooses."""
-    requested = sec(scene, "effects")["requested"]
-    return list(requested) if is_synthetic(scene) and requested != "auto" else None
+    """The effects refine synthesises by name (anigs.stages.refine.listed_effects); None: the effects
+    stage's choice."""
+    from anigs.stages.refine import listed_effects
+
+    return listed_effects(is_synthetic(scene), sec(scene, "effects")["requested"])
 
 
 def _refine_extra(wc):
     """The scene's prompt and effects: a synthetic scene's listed effects, else the effects stage's
-    choice, read at run time (--effects-json)."""
+    choice, read at run time (--effects)."""
     s = ALL_SCENES[wc.scene]
     return {"prompt": s.get("prompt", ""), "effects": _gt_effects(wc.scene) or [], "seed": config["seed"]}
 
@@ -200,10 +212,10 @@ def _targets(wc):
     """Target clips of round r's update: files of per-view refine jobs, or round jobs' folders."""
     p = plan(wc.scene, wc.variant)
     r = int(wc.round)
-    base = f"{R}/{wc.scene}/{wc.variant}"
+    rd = lambda v: round_dir(wc.scene, wc.variant, p.target_round(r, v))  # noqa: E731
     if ROUND_JOBS == "round":
-        return sorted({f"{base}/round{p.target_round(r, v)}/target" for v in p.dataset(r)})
-    return [f"{base}/round{p.target_round(r, v)}/target/{v}.npz" for v in p.dataset(r)]
+        return sorted({out_path("refine", rd(v), "targets") for v in p.dataset(r)})
+    return [out_path("refine", rd(v), "target", view=v) for v in p.dataset(r)]
 
 
 def _earlier_targets(wc):
@@ -211,16 +223,8 @@ def _earlier_targets(wc):
     trains on (its own folder is the job's output); none in view mode (the update job's inputs)."""
     if ROUND_JOBS != "round":
         return []
-    own = f"{R}/{wc.scene}/{wc.variant}/round{wc.round}/target"
+    own = out_path("refine", round_dir(wc.scene, wc.variant, wc.round), "targets")
     return [t for t in _targets(wc) if t != own]
-
-
-def _target_files(wc):
-    """The update's --targets: one clip per view of round r's dataset."""
-    p = plan(wc.scene, wc.variant)
-    r = int(wc.round)
-    return " ".join(shlex.quote(f"{R}/{wc.scene}/{wc.variant}/round{p.target_round(r, v)}/target/{v}.npz")
-                    for v in p.dataset(r))
 
 
 def _init_model(wc):
@@ -229,27 +233,68 @@ def _init_model(wc):
 
 
 def _update_extra(wc):
-    return {"device": config["device"], "seed": config["seed"] + 1000 * int(wc.round)}
+    from anigs.stages.update import round_seed
+
+    return {"device": config["device"], "seed": round_seed(config["seed"], int(wc.round))}
 
 
-def _contain_args(wc, input):
-    """``--masks`` for the update jobs that contain the motion (``update.contain``,
-    ``update.contain_rounds``: the final round, or every round)."""
-    u = sec(wc.scene, "update", wc.variant)
-    if not u["contain"]:
-        return ""
-    if u["contain_rounds"] == "every" or int(wc.round) == plan(wc.scene, wc.variant).num_rounds:
-        return f"--masks {shlex.quote(str(input.masks))}"
-    return ""
+# ---- stage commands: built from each stage's Inputs (anigs/stages/<name>.py: Inputs.argv), so a
+# rule names the upstream stages' folders and scalars, and one artifact has one flag everywhere ----
 
 
-def _method_args(wc):
-    """A baseline variant's update job fits the baseline (its config: animate.<method>) instead of ours."""
-    a = sec(wc.scene, "animate", wc.variant)
-    if a["method"] == "anigs":
-        return ""
-    params = {"num_bases": sec(wc.scene, "update", wc.variant)["num_bases"], **a[a["method"]]}
-    return f"--method {a['method']} --method-params {shlex.quote(json.dumps(params, sort_keys=True))}"
+def stage_command(stage, params=None, **inputs):
+    """``STAGE --flag value ...`` (shell-quoted) from ``anigs.stages.<stage>.Inputs(**inputs)``, with
+    ``--params`` (the stage's config section as JSON) when given."""
+    import importlib
+
+    argv = [stage, *importlib.import_module(f"anigs.stages.{stage}").Inputs(**inputs).argv()]
+    if params is not None:
+        argv += ["--params", params]
+    return " ".join(shlex.quote(str(a)) for a in argv)
+
+
+def _folder(files):
+    """The folder of an input's first file (a model.pt: its round's folder), None when there is none."""
+    return os.path.dirname(files[0]) if files else None
+
+
+def render_clip_command(wc, input):
+    return stage_command("render_clip", jparams("render_clip", _frames)(wc), static=stage_dir(wc.scene, "static"),
+                         out=round_dir(wc.scene, wc.variant, wc.round), model=_folder(input.model),
+                         views=stage_dir(wc.scene, "views"), view_id=wc.view)
+
+
+def refine_command(wc, input):
+    rd = round_dir(wc.scene, wc.variant, wc.round)
+    return stage_command("refine", jparams("refine", _refine_extra)(wc), render_clip=rd, view=wc.view, out=rd,
+                         masks=stage_dir(wc.scene, "masks"), effects=_folder(input.effects), round=int(wc.round))
+
+
+def round_command(wc, input):
+    """The round's render and refine work in one process (then its update: see the round rule)."""
+    return stage_command("round", static=stage_dir(wc.scene, "static"), views=stage_dir(wc.scene, "views"),
+                         masks=stage_dir(wc.scene, "masks"), view_ids=round_views(wc.scene, wc.variant, int(wc.round)),
+                         round=int(wc.round), out=round_dir(wc.scene, wc.variant, wc.round), model=_folder(input.model),
+                         effects=_folder(input.effects), render_params=jparams("render_clip", _frames)(wc),
+                         refine_params=jparams("refine", _refine_extra)(wc))
+
+
+def update_command(wc, input):
+    """Round r's model update: trains on one target clip per view of its dataset; the update stage
+    decides from --round/--rounds whether it contains the motion (update.contain_rounds)."""
+    from anigs.stages.update import baseline_params
+
+    p = plan(wc.scene, wc.variant)
+    r = int(wc.round)
+    baseline = baseline_params(sec(wc.scene, "animate", wc.variant), sec(wc.scene, "update", wc.variant))
+    return stage_command(
+        "update", jparams("update", _update_extra)(wc), static=stage_dir(wc.scene, "static"),
+        out=round_dir(wc.scene, wc.variant, r), masks=stage_dir(wc.scene, "masks"),
+        targets=[out_path("refine", round_dir(wc.scene, wc.variant, p.target_round(r, v)), "target", view=v)
+                 for v in p.dataset(r)],
+        init=_folder(input.init), views=stage_dir(wc.scene, "views"), round=r, rounds=p.num_rounds,
+        method=method_of(wc.scene, wc.variant) if baseline else None,
+        method_params=json.dumps(baseline, sort_keys=True) if baseline else None)
 
 
 def _chosen_effects(scene):
@@ -268,7 +313,7 @@ def animates(scene):
 def final_model_of(scene, variant):
     """The model the final stages use: the last round's, or the still model when nothing moves."""
     if not animates(scene):
-        return f"{R}/{scene}/{variant}/still/model.pt"
+        return out_path("update", f"{R}/{scene}/{variant}/still", "model")
     return model_path(scene, variant, plan(scene, variant).num_rounds)
 
 
@@ -277,22 +322,23 @@ def final_model(wc):
 
 
 def _still_reason(wc):
-    e = _chosen_effects(wc.scene)
-    req = e.get("requested")
-    return (f"the effects stage chose no effect (requested: {req if isinstance(req, str) else ', '.join(req) or 'none'}; "
-            f"detected: {', '.join(e.get('detected') or []) or 'none'}), so nothing moves and no round ran")
+    from anigs.stages.update import still_reason
+
+    return still_reason(_chosen_effects(wc.scene))
 
 
-def _eval_method(wc):
-    """The table row: ours under its variant (Table 5), a baseline under its method name (Tables 1-3)."""
-    m = method_of(wc.scene, wc.variant)
-    if m == "anigs":
-        return f"--method Ours --variant {wc.variant}"
-    return f"--method {METHODS[m]} --variant full"
+def _table_row(wc):
+    """(method, variant) of the variant's table row (anigs.stages.eval.table_row)."""
+    from anigs.stages.eval import table_row
+
+    return table_row(method_of(wc.scene, wc.variant), wc.variant)
 
 
-def _eval_gt(wc):
-    return f"--gt-dir {stage_dir(wc.scene, 'capture')}/gt" if is_synthetic(wc.scene) else ""
+def eval_command(wc, part, **inputs):
+    method, variant = _table_row(wc)
+    params = jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc)
+    return stage_command("eval", params, out=f"{R}/{wc.scene}/{wc.variant}/eval", scene=wc.scene, method=method,
+                         variant=variant, part=part, **inputs)
 
 
 # ---- accuracy versus time: the sweep's points are variants, or derived scenes for per-scene

@@ -14,9 +14,9 @@ rule eval_model:
     output:
         f"{R}/{{scene}}/{{variant}}/eval/model_metrics.json",
     params:
-        p=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
-        gt=_eval_gt,
-        method=_eval_method,
+        cmd=lambda wc, input: eval_command(wc, "model", model=_folder([input.model]), static=stage_dir(wc.scene, "static"),
+                                           sfm=stage_dir(wc.scene, "sfm"),
+                                           capture=stage_dir(wc.scene, "capture") if is_synthetic(wc.scene) else None),
         version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/{{variant}}/logs/eval_model.log",
@@ -30,10 +30,7 @@ rule eval_model:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} eval --part model --model {input.model:q} --canonical {input.ply:q} "
-        "--cameras {input.cameras:q} --images {input.images:q} --points {input.points:q} "
-        "{params.gt} --scene {wildcards.scene} {params.method} --out {output:q} "
-        "--params {params.p:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 # metrics.json: the two halves merged (inside Snakemake: a JSON merge, no process start-up).
@@ -48,9 +45,9 @@ rule eval:
     params:
         version=ANIGS_VERSION,
     run:
-        from anigs.stages.eval import merge
+        from anigs.stages.eval import Outputs, merge_parts
 
-        merge(input.clips, input.model, output[0], extra=list(input.fvd_gt))
+        merge_parts(Outputs(os.path.dirname(output[0])), extra=list(input.fvd_gt))
 
 
 rule tables:
@@ -60,18 +57,19 @@ rule tables:
     output:
         f"{R}/tables/tables.json",
     params:
-        out=lambda wc, output: os.path.dirname(output[0]),
+        cmd=lambda wc, input, output: stage_command("tables", metrics=list(input), out=os.path.dirname(output[0])),
         version=ANIGS_VERSION,
     log:
         f"{R}/logs/tables.log",
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs tables --metrics {input} --out {params.out:q} > {log} 2>&1"
+        "anigs {params.cmd} > {log} 2>&1"
 
 
 def _tradeoff_metrics(wc):
-    return [f"{R}/{p.scene(s)}/{p.variant}/eval/metrics.json" for s, pts in tradeoff_points().items() for p in pts]
+    return [out_path("eval", f"{R}/{p.scene(s)}/{p.variant}/eval", "metrics") for s, pts in tradeoff_points().items()
+            for p in pts]
 
 
 def _tradeoff_points(wc):
@@ -95,16 +93,15 @@ rule tradeoff:
         md=[f"{R}/tradeoff/{s}.md" for s in SCENES],
         plots=_tradeoff_plots(),
     params:
-        points=_tradeoff_points,
-        metrics=lambda wc: " ".join(config.get("tradeoff", {}).get("plot_metrics", [])),
+        cmd=lambda wc: stage_command("tradeoff", results=R, points=_tradeoff_points(wc), out=f"{R}/tradeoff",
+                                     plot_metrics=list(config.get("tradeoff", {}).get("plot_metrics", []))),
         version=ANIGS_VERSION,
     log:
         f"{R}/logs/tradeoff.log",
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs tradeoff --results {R:q} --points {params.points:q} --out {R:q}/tradeoff "
-        "--plot-metrics {params.metrics} > {log} 2>&1"
+        "anigs {params.cmd} > {log} 2>&1"
 
 
 def _study_variants():

@@ -16,10 +16,13 @@ rule final:
                     subcategory="{scene} {variant}"),
         clip_metrics=f"{R}/{{scene}}/{{variant}}/eval/clip_metrics.json",
     params:
-        p=jparams("final", lambda wc: {"device": config["device"]}),
-        out=lambda wc: f"{R}/{wc.scene}/{wc.variant}/final",
-        ep=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
-        method=_eval_method,
+        cmd=lambda wc, input: stage_command(
+            "final", jparams("final", lambda wc: {"device": config["device"]})(wc), static=stage_dir(wc.scene, "static"),
+            views=stage_dir(wc.scene, "views"), out=f"{R}/{wc.scene}/{wc.variant}/final", model=_folder([input.model]),
+            sfm=stage_dir(wc.scene, "sfm"), masks=stage_dir(wc.scene, "masks")),
+        eval=lambda wc, input: eval_command(wc, "clips", final=f"{R}/{wc.scene}/{wc.variant}/final",
+                                            masks=stage_dir(wc.scene, "masks"), model=_folder([input.model]),
+                                            static=stage_dir(wc.scene, "static"), sfm=stage_dir(wc.scene, "sfm")),
         version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/{{variant}}/logs/final.log",
@@ -33,11 +36,7 @@ rule final:
         "../../envs/anigs.yaml"
     # the final clips' metrics (the eval stage's clips half) in the same process: one start-up less
     shell:
-        "anigs --threads {threads} final --canonical {input.ply:q} --model {input.model:q} --views {input.views:q} "
-        "--cameras {input.cameras:q} --masks {input.masks:q} --out {params.out:q} --params {params.p:q} "
-        "--then eval --part clips --final-dir {params.out:q}/clips --masks {input.masks:q} --model {input.model:q} "
-        "--canonical {input.ply:q} --cameras {input.cameras:q} --scene {wildcards.scene} {params.method} "
-        "--out {output.clip_metrics:q} --params {params.ep:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} --then {params.eval} > {log} 2>&1"
 
 
 rule export:
@@ -49,8 +48,8 @@ rule export:
         ply=f"{R}/{{scene}}/{{variant}}/export/animated.ply",
         compact=f"{R}/{{scene}}/{{variant}}/export/scene.anigs",
     params:
-        p=jparams("export"),
-        out=lambda wc: f"{R}/{wc.scene}/{wc.variant}/export",
+        cmd=lambda wc, input: stage_command("export", jparams("export")(wc), static=stage_dir(wc.scene, "static"),
+                                            model=_folder([input.model]), out=f"{R}/{wc.scene}/{wc.variant}/export"),
         version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/{{variant}}/logs/export.log",
@@ -63,8 +62,7 @@ rule export:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} export --canonical {input.ply:q} --model {input.model:q} --out {params.out:q} "
-        "--params {params.p:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 rule view:
@@ -76,7 +74,9 @@ rule view:
         report(directory(f"{R}/{{scene}}/{{variant}}/viewer"), htmlindex="index.html", caption="../report/viewer.rst",
                category="Viewer", subcategory="{scene} {variant}"),
     params:
-        p=jparams("view"),
+        cmd=lambda wc, input, output: stage_command("view", jparams("view")(wc), out=output[0],
+                                                    model=_folder([input.model]), static=stage_dir(wc.scene, "static"),
+                                                    views=stage_dir(wc.scene, "views")),
         version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/{{variant}}/logs/view.log",
@@ -89,5 +89,4 @@ rule view:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs view --model {input.model:q} --canonical {input.ply:q} --views {input.views:q} --out {output:q} "
-        "--params {params.p:q} > {log} 2>&1"
+        "anigs {params.cmd} > {log} 2>&1"

@@ -12,7 +12,9 @@ def fvd_gt_wanted(scene, variant="full", target="tables"):
 
 def _fvd_gt_eval_input(wc):
     """eval: the FVD-GT record joins metrics.json with fvd_gt.when: always."""
-    return [f"{R}/{wc.scene}/{wc.variant}/eval/fvd_gt.json"] if fvd_gt_wanted(wc.scene, wc.variant, "eval") else []
+    if not fvd_gt_wanted(wc.scene, wc.variant, "eval"):
+        return []
+    return [out_path("fvd_gt", f"{R}/{wc.scene}/{wc.variant}/eval", "record")]
 
 
 def fvd_gt_table_inputs():
@@ -20,6 +22,14 @@ def fvd_gt_table_inputs():
 
 
 FVD_GT_REF = f"{R}/{{scene}}/fvd_gt"
+
+
+def _fvd_gt_scene(wc):
+    """The fvd_gt stage's scene inputs (the capture's ground truth, the reconstruction's frame and
+    canonical scene) and the eval section (its I3D network)."""
+    return {"capture": stage_dir(wc.scene, "capture"), "sfm": stage_dir(wc.scene, "sfm"),
+            "static": stage_dir(wc.scene, "static"),
+            "eval_params": jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc)}
 
 
 rule fvd_gt_reference:
@@ -32,11 +42,9 @@ rule fvd_gt_reference:
         ref=f"{FVD_GT_REF}/reference.json",
         views=f"{FVD_GT_REF}/views.json",
     params:
-        p=jparams("fvd_gt", lambda wc: {"seed": config["seed"]}),
-        ep=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
-        frames=lambda wc: sec(wc.scene, "animate")["frames"],
-        gt=lambda wc: f"{stage_dir(wc.scene, 'capture')}/gt",
-        out=lambda wc: f"{R}/{wc.scene}/fvd_gt",
+        cmd=lambda wc: stage_command("fvd_gt", jparams("fvd_gt", lambda wc: {"seed": config["seed"]})(wc),
+                                     **_fvd_gt_scene(wc), out=f"{R}/{wc.scene}/fvd_gt", reference=True,
+                                     frames=sec(wc.scene, "animate")["frames"]),
         version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/logs/fvd_gt_reference.log",
@@ -49,9 +57,7 @@ rule fvd_gt_reference:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} fvd_gt --reference --gt-dir {params.gt:q} --cameras {input.cameras:q} "
-        "--canonical {input.ply:q} --frames {params.frames} --out {params.out:q} --params {params.p:q} "
-        "--eval-params {params.ep:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 rule fvd_gt:
@@ -65,11 +71,10 @@ rule fvd_gt:
     output:
         f"{R}/{{scene}}/{{variant}}/eval/fvd_gt.json",
     params:
-        p=jparams("fvd_gt", lambda wc: {"seed": config["seed"]}),
-        ep=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
-        gt=lambda wc: f"{stage_dir(wc.scene, 'capture')}/gt",
-        refdir=lambda wc: f"{R}/{wc.scene}/fvd_gt",
-        method=_eval_method,
+        cmd=lambda wc, input: stage_command("fvd_gt", jparams("fvd_gt", lambda wc: {"seed": config["seed"]})(wc),
+                                            **_fvd_gt_scene(wc), out=f"{R}/{wc.scene}/{wc.variant}/eval",
+                                            reference_dir=f"{R}/{wc.scene}/fvd_gt", model=_folder([input.model]),
+                                            scene=wc.scene, method=_table_row(wc)[0], variant=_table_row(wc)[1]),
         version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/{{variant}}/logs/fvd_gt.log",
@@ -82,6 +87,4 @@ rule fvd_gt:
     conda:
         "../../envs/anigs.yaml"
     shell:
-        "anigs --threads {threads} fvd_gt --reference-dir {params.refdir:q} --model {input.model:q} "
-        "--canonical {input.ply:q} --cameras {input.cameras:q} --gt-dir {params.gt:q} --scene {wildcards.scene} "
-        "{params.method} --out {output:q} --params {params.p:q} --eval-params {params.ep:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
