@@ -43,6 +43,10 @@ import numpy as np
 from anigs.cameras import load_cameras
 from anigs.gaussians import load_ply
 from anigs.io import atomic_path, read_json, write_json
+from anigs.masks.labels import LabelsConfig
+from anigs.masks.lift import LiftConfig
+from anigs.masks.sam2 import Sam2Config
+from anigs.masks.vegetation import VegetationConfig
 
 log = logging.getLogger("anigs.masks")
 
@@ -53,18 +57,24 @@ class MasksConfig:
 
     backend: str = "effects"                   # effects (the effects stage's regions) | vegetation | labels | sam2
     background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # render background (RGB)
-    vegetation: dict = field(default_factory=dict)  # VegetationConfig keys
-    labels: dict = field(default_factory=dict)      # {threshold, min_alpha} of the labels backend
-    sam2: dict = field(default_factory=dict)        # Sam2Config keys
-    lift: dict = field(default_factory=dict)        # LiftConfig keys
+    vegetation: VegetationConfig = field(default_factory=VegetationConfig)  # the vegetation backend
+    labels: LabelsConfig = field(default_factory=LabelsConfig)  # the labels backend (and the effects backend's renders)
+    sam2: Sam2Config = field(default_factory=Sam2Config)        # the SAM2 backend
+    lift: LiftConfig = field(default_factory=LiftConfig)        # lifting the 2D masks to the Gaussians
     per_effect: bool = True                    # write one mask per effect type when there are several
     compare: bool = True                       # with --labels: IoU / precision / recall vs ground truth
-    appearance: bool = False                   # with --labels, --gt-*, --cameras: also vs appearance labels (a diagnostic: 0.25 s per photo, 12 s of the demo's 24 s masks job; benchmarks/masks.py reports it too)
+    #: with --labels, --gt-*, --cameras: also vs appearance labels (a diagnostic: 0.25 s per photo, 12 s of the demo's
+    #: 24 s masks job; benchmarks/masks.py reports it too)
+    appearance: bool = False
     capture_ground_layer: float = 0.5          # with --images: vegetation ground_layer on the capture photos
     complete_masks: bool = True                # add the pixels the lifted dynamic Gaussians dominate to each mask
-    contain: bool = True                       # move only the Gaussians whose footprint stays inside every view's dilated mask; halos and floaters stay still (anigs.masks.contain)
-    contain_margin_px: int = 3                 # containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
-    contain_max_outside_px: float = 0.05       # containment: most blending weight (in pixels) a moving Gaussian may put outside the dilated mask of any view
+    #: move only the Gaussians whose footprint stays inside every view's dilated mask; halos and floaters stay still
+    #: (anigs.masks.contain)
+    contain: bool = True
+    #: containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
+    contain_margin_px: int = 3
+    #: containment: most blending weight (in pixels) a moving Gaussian may put outside the dilated mask of any view
+    contain_max_outside_px: float = 0.05
 
     @staticmethod
     def from_dict(d: dict | None) -> "MasksConfig":
@@ -149,7 +159,7 @@ def _effects_backend(effects_dir: str | None, cfg: MasksConfig, g):
         raise ValueError(f"{d}/dynamic.npy: shape {dynamic.shape} does not match the {g.num} Gaussians of the "
                          "canonical model (re-run the effects stage)")
     effects = {e: [REGIONS.index(EFFECT_REGION[e])] for e in chosen}
-    return (LabelsBackend(g, regions, effects, **cfg.labels) if effects else None), dynamic
+    return (LabelsBackend(g, regions, effects, **dataclasses.asdict(cfg.labels)) if effects else None), dynamic
 
 
 def _labels_backend(args: MasksInputs, cfg: MasksConfig, g, effects):
@@ -165,8 +175,8 @@ def _labels_backend(args: MasksInputs, cfg: MasksConfig, g, effects):
                 raise ValueError("--gt-cameras needs --cameras (the reconstruction's cameras) to align the frames")
             sim, rms = align_cameras(load_cameras(args.cameras), load_cameras(args.gt_cameras))
             log.info("masks: camera frame -> ground-truth frame: scale %.4g, centre RMS %.3g", sim.scale, rms)
-        return LabelsBackend(lg, labels, effects, to_gaussians_frame=sim, **cfg.labels)
-    return LabelsBackend(g, labels, effects, **cfg.labels)
+        return LabelsBackend(lg, labels, effects, to_gaussians_frame=sim, **dataclasses.asdict(cfg.labels))
+    return LabelsBackend(g, labels, effects, **dataclasses.asdict(cfg.labels))
 
 
 def _appearance_yardstick(args: MasksInputs, cfg: MasksConfig, g, effects, capture_cams, frames):
@@ -177,7 +187,7 @@ def _appearance_yardstick(args: MasksInputs, cfg: MasksConfig, g, effects, captu
     labels = np.load(args.labels)
     sim, _ = align_cameras(capture_cams, load_cameras(args.gt_cameras))
     app, _, _ = appearance_labels(g, load_ply(args.gt_gaussians), labels, capture_cams, to_labels_frame=sim)
-    masks = [r["dynamic"] for r in compute_masks(LabelsBackend(g, app, effects, **cfg.labels), frames)]
+    masks = [r["dynamic"] for r in compute_masks(LabelsBackend(g, app, effects, **dataclasses.asdict(cfg.labels)), frames)]
     return np.isin(app, dynamic_label_ids(effects)), masks
 
 
@@ -274,7 +284,7 @@ def run(inputs: MasksInputs, cfg: MasksConfig) -> dict:
     if inputs.effects:  # which effect each dynamic Gaussian belongs to; per-effect masks for every backend
         labels, info["effect_labels"], chosen = _effect_labels(Path(inputs.effects), dyn, g)
         if cfg.backend not in ("labels", "effects") and chosen:
-            _add_effect_masks(g, labels, chosen, frames, results, cfg.labels)
+            _add_effect_masks(g, labels, chosen, frames, results, dataclasses.asdict(cfg.labels))
 
     truth = app_truth = app_dynamic = None
     if inputs.labels and cfg.compare:

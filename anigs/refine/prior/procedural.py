@@ -69,7 +69,8 @@ class ProceduralConfig:
     amplitude_scale: float = 1.0      # global amplitude multiplier
     edge: float = 0.03                # mask-edge taper width, fraction of the shorter side
     flow_preset: str = "medium"       # DIS preset for the motion estimate: ultrafast | fast | medium
-    use_prompt: bool = True           # effects from prompt keywords when `effects` is empty; intensity words scale amplitude
+    #: effects from prompt keywords when `effects` is empty; intensity words scale amplitude
+    use_prompt: bool = True
     # diffusion-prior flaws (module docstring); 0 = off, the clean prior
     view_phase_frames: float = 0.0    # std of a per-view time shift of the motion kept from the clip (frames)
     view_amplitude_log: float = 0.0   # std of the per-view log-gain of the refined motion
