@@ -63,7 +63,7 @@ log = logging.getLogger(__name__)
 class ProceduralConfig:
     """Config of the procedural prior (section ``procedural`` of the refine stage)."""
 
-    effects: list[str] = field(default_factory=lambda: ["foliage_sway", "leaf_flutter"])
+    effects: list[str] = field(default_factory=lambda: ["foliage_sway", "leaf_flutter"])  # effect types to synthesise
     fps: float = 24.0                 # frames per second of the clips (frequencies are in Hz)
     effect_params: dict[str, dict[str, Any]] = field(default_factory=dict)  # per-effect EffectSpec overrides
     amplitude_scale: float = 1.0      # global amplitude multiplier
