@@ -218,3 +218,22 @@ def test_the_stage_folders_of_the_layout_are_the_rules_folders():
         if s.command:
             folder = docs.stage_folder(s).replace("{k}", "{round}").rstrip("/")
             assert folder in rules, (s.name, folder)
+
+
+def test_workflow_comments_do_not_list_the_stages():
+    """The stage list is STAGES (anigs/stages/__init__.py): the comments of the Snakefile and the
+    profiles refer to it instead of copying it (the copies went stale)."""
+    import re
+
+    names = {s.name for s in STAGES}
+    for path in [ROOT / "Snakefile", *sorted((ROOT / "workflow/profiles").rglob("*.yaml"))]:
+        blocks, block = [], []
+        for line in path.read_text().splitlines() + [""]:
+            if line.lstrip().startswith("#"):
+                block.append(line)
+            elif block:
+                blocks.append(" ".join(block))
+                block = []
+        for text in blocks:
+            found = names & set(re.findall(r"[a-z_]+", text))
+            assert len(found) < 6, f"{path.name}: a comment lists the stages {sorted(found)}; refer to STAGES"
