@@ -33,7 +33,7 @@ log = logging.getLogger("anigs.refine")
 class RefineConfig:
     """The ``refine`` stage's config section."""
 
-    prior: str = "procedural"        # procedural | ltx
+    prior: str = "procedural"        # procedural (offline, CPU) | ltx (LTX-Video, local weights, GPU)
     strength: float = 0.5            # 0 = keep the clip's motion, 1 = new motion (LTX: starting sigma)
     steps: int = 8                   # LTX Euler steps (procedural: unused)
     compose: bool = True             # False = "w/o ComposedV2V" ablation
