@@ -95,7 +95,8 @@ def multiview_metrics(cfg: EvalConfig, model: Path | None, canonical: Path | Non
     from anigs.metrics.multiview import multiview_consistency, novel_timestep, static_fit_fn
 
     protocol = {"split": cfg.multiview_split, "train_fraction": cfg.multiview_train_fraction,
-                "max_cameras": cfg.multiview_max_cameras, "scale": cfg.multiview_scale, "fit": asdict(cfg.multiview_fit),
+                "max_cameras": cfg.multiview_max_cameras, "scale": cfg.multiview_scale,
+                "fit": asdict(cfg.multiview_fit),
                 "psnr": "mean over held-out cameras"}
     keys = ["multiview/psnr_novel", "multiview/ssim_novel"] + (
         ["multiview/psnr_capture", "multiview/ssim_capture"] if cfg.multiview_capture else [])

@@ -146,7 +146,8 @@ def multiview_consistency(images: Sequence[np.ndarray], cameras: Sequence[Camera
                            num_gaussians=int(getattr(gaussians, "num", 0)))
 
 
-def static_fit_fn(fit_params: MultiviewFitConfig | dict[str, Any] | None = None) -> tuple[FitFn, tuple[float, float, float]]:
+def static_fit_fn(fit_params: MultiviewFitConfig | dict[str, Any] | None = None
+                  ) -> tuple[FitFn, tuple[float, float, float]]:
     """``anigs.static.fit.fit_static`` as a :data:`FitFn` (no internal hold-out: this protocol splits).
 
     Returns (fit_fn, background used by the fit). Raises ModuleNotFoundError naming

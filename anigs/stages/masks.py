@@ -187,7 +187,8 @@ def _appearance_yardstick(args: MasksInputs, cfg: MasksConfig, g, effects, captu
     labels = np.load(args.labels)
     sim, _ = align_cameras(capture_cams, load_cameras(args.gt_cameras))
     app, _, _ = appearance_labels(g, load_ply(args.gt_gaussians), labels, capture_cams, to_labels_frame=sim)
-    masks = [r["dynamic"] for r in compute_masks(LabelsBackend(g, app, effects, **dataclasses.asdict(cfg.labels)), frames)]
+    backend = LabelsBackend(g, app, effects, **dataclasses.asdict(cfg.labels))
+    masks = [r["dynamic"] for r in compute_masks(backend, frames)]
     return np.isin(app, dynamic_label_ids(effects)), masks
 
 

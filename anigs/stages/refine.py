@@ -44,7 +44,8 @@ class RefineConfig:
     #: effect types to synthesise (the workflow passes the scene's effects)
     effects: list[str] = field(default_factory=lambda: ["foliage_sway", "leaf_flutter"])
     seed: int = 0                    # global seed (combined with round and view)
-    procedural: ProceduralConfig = field(default_factory=ProceduralConfig)  # the procedural prior (its effects: this section's)
+    #: the procedural prior (its effects: this section's)
+    procedural: ProceduralConfig = field(default_factory=ProceduralConfig)
     ltx: LTXConfig = field(default_factory=LTXConfig)  # the LTX-Video prior (its steps: this section's)
 
     # Keys of the nested sections that the stage sets from this section's top level (not user keys).

@@ -233,7 +233,8 @@ def main() -> int:
     args = ap.parse_args()
     text = dump(build())
     if MISSING:
-        print("fields without a doc (add a trailing comment, or #: lines above the field):\n  " + "\n  ".join(MISSING), file=sys.stderr)
+        print("fields without a doc (add a trailing comment, or #: lines above the field):\n  "
+              + "\n  ".join(MISSING), file=sys.stderr)
         return 1
     if args.check:
         if not SCHEMA.exists() or SCHEMA.read_text() != text:
