@@ -41,7 +41,7 @@ class MultiviewFitConfig(FitConfig):
     checkpoint_every: int = 0  # no checkpoint PLYs
     device: str | None = None  # torch device of the fit (null = the eval section's device)
     #: needles / unresolved splats: off by default, as before the regulariser existed, so that the
-    #: figures stay comparable (``regularize: {enabled: true}`` turns it on)
+    #: figures stay comparable (`regularize: {enabled: true}` turns it on)
     regularize: RegularizeConfig = field(default_factory=lambda: RegularizeConfig(enabled=False))
 
     @classmethod
