@@ -105,10 +105,7 @@ def multiview_metrics(cfg: EvalConfig, model: Path | None, canonical: Path | Non
     missing = [n for n, v in (("--cameras", cameras_path), ("--points", points_path)) if v is None]
     if missing:
         return {k: not_available(f"multiview protocol needs {' and '.join(missing)}", True, "dB", protocol) for k in keys}
-    try:
-        fit, background = static_fit_fn(replace(cfg.multiview_fit, device=cfg.multiview_fit.device or cfg.device))
-    except ModuleNotFoundError as exc:
-        return {k: not_available(f"static fit unavailable: {exc}", True, "dB", protocol) for k in keys}
+    fit, background = static_fit_fn(replace(cfg.multiview_fit, device=cfg.multiview_fit.device or cfg.device))
     cams = load_cameras(cameras_path)
     if cfg.multiview_max_cameras and len(cams) > cfg.multiview_max_cameras:
         keep = np.unique(np.linspace(0, len(cams) - 1, cfg.multiview_max_cameras).round().astype(int))

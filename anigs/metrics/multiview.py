@@ -10,8 +10,9 @@ capture images.
 
 The static fit is a callable ``fit_fn(images, cameras, init_points, init_colors) -> Gaussians``
 (``images``: list of float32 [H,W,3] in [0,1]; ``init_points`` [P,3], ``init_colors`` [P,3]
-in [0,1], numpy), e.g. ``anigs.static.fit.fit_static`` wrapped with its config; it is passed in so
-this module does not depend on the fitting code and tests can pass a cheap stand-in.
+in [0,1], numpy), e.g. ``anigs.static.fit.fit_static`` wrapped with its config
+(:func:`static_fit_fn`, configured by :class:`MultiviewFitConfig`); it is passed in so that
+tests can pass a cheap stand-in.
 """
 from __future__ import annotations
 
