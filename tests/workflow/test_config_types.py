@@ -132,22 +132,26 @@ def test_the_schema_is_the_types():
         return {f.name: tree(hints[f.name], derived.get(f.name, ())) if dataclasses.is_dataclass(hints[f.name]) else {}
                 for f in dataclasses.fields(cls) if f.name not in skip}
 
-    def defaults(cls, node):
-        for f in dataclasses.fields(cls):
+    def defaults(obj, node, path):
+        """The schema's defaults are those of the section's default instance, nested ones included
+        (a nested section's default in its parent may differ from its class's own defaults)."""
+        for f in dataclasses.fields(obj):
             p = node["properties"].get(f.name)
             if p is None:
                 continue
-            value = getattr(cls(), f.name)
+            value = getattr(obj, f.name)
             if dataclasses.is_dataclass(value):
-                assert p["type"] == "object" and p["additionalProperties"] is False, f.name
-                defaults(type(value), p)
+                assert p["type"] == "object" and p["additionalProperties"] is False, f"{path}.{f.name}"
+                defaults(value, p, f"{path}.{f.name}")
             else:
-                assert p["default"] == (list(value) if isinstance(value, tuple) else value), f.name
+                assert p["default"] == (list(value) if isinstance(value, tuple) else value), f"{path}.{f.name}"
 
     for s in STAGES:
         if s.section:
             assert _keys(schema[s.name]) == tree(s.config_class()), s.name
-            defaults(s.config_class(), schema[s.name])
+            defaults(s.config_class()(), schema[s.name], s.name)
+    assert schema["eval"]["properties"]["multiview_fit"]["properties"]["regularize"]["properties"]["enabled"][
+        "default"] is False  # the protocol's fit: no regulariser unless asked
     for section, key in NESTED:
         assert schema[section]["properties"][key]["properties"], (section, key)
 

@@ -82,20 +82,6 @@ def _own_docs(cls) -> dict[str, str]:
     return out
 
 
-def _default(f: dataclasses.Field):
-    if f.default is not dataclasses.MISSING:
-        v = f.default
-    elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
-        v = f.default_factory()  # type: ignore[misc]
-    else:
-        return None
-    if dataclasses.is_dataclass(v):
-        v = dataclasses.asdict(v)
-    if isinstance(v, tuple):
-        v = list(v)
-    return v
-
-
 def _type(value, annotation) -> list[str] | str:
     ann = str(annotation)
     types = []
@@ -134,10 +120,12 @@ def _special() -> dict:
     return {"effects.requested": {"pattern": "^auto$", "items": {"type": "string", "enum": list(EFFECTS)}}}
 
 
-def dataclass_schema(cls, path: tuple[str, ...], skip: tuple[str, ...] = ()) -> dict:
+def dataclass_schema(cls, path: tuple[str, ...], skip: tuple[str, ...] = (), defaults=None) -> dict:
     """The object schema of dataclass ``cls`` at config ``path``: one property per field (nested
     dataclasses recursively), minus ``skip`` (keys the parent section sets itself: its
-    ``DERIVED`` class attribute, nested section -> keys)."""
+    ``DERIVED`` class attribute, nested section -> keys). ``defaults``: the instance whose values
+    are the defaults (a nested section's default in its parent may differ from its class's)."""
+    defaults = cls() if defaults is None else defaults
     docs = field_docs(cls)
     hints = typing.get_type_hints(cls)
     derived = getattr(cls, "DERIVED", {})
@@ -151,12 +139,13 @@ def dataclass_schema(cls, path: tuple[str, ...], skip: tuple[str, ...] = ()) -> 
         if not desc:
             MISSING.append(f"{key} ({cls.__module__}.{cls.__name__}.{f.name})")
             desc = ""
+        value = getattr(defaults, f.name)
         if dataclasses.is_dataclass(hints[f.name]):
-            p = dataclass_schema(hints[f.name], path + (f.name,), tuple(derived.get(f.name, ())))
+            p = dataclass_schema(hints[f.name], path + (f.name,), tuple(derived.get(f.name, ())), value)
             p["description"] = desc
             p["default"] = {}
         else:
-            value = _default(f)
+            value = list(value) if isinstance(value, tuple) else value
             p = {"type": _type(value, hints[f.name]), "description": desc, "default": value, **special.get(key, {})}
         props[f.name] = p
     return {"type": "object", "additionalProperties": False, "properties": props}
