@@ -23,9 +23,8 @@ include: "workflow/rules/fvd_gt.smk"
 include: "workflow/rules/eval.smk"
 
 
-# Named targets. A stage's rule carries the stage's name (static, views, masks, render_clip, refine,
-# update, final, export, eval; tables and tradeoff, which combine scenes, are targets
-# themselves: see anigs/stages/__init__.py); the targets that
+# Named targets. A stage's rule carries the stage's name (the stages: STAGES in
+# anigs/stages/__init__.py; those that combine scenes are targets themselves); the targets that
 # build one stage for every scene and variant are all_<stage>.
 localrules:
     all,

@@ -71,15 +71,6 @@ class Camera:
         """Horizontal field of view in degrees."""
         return math.degrees(2 * math.atan(self.width / (2 * self.K[0, 0])))
 
-    @property
-    def fov_y(self) -> float:
-        """Vertical field of view in degrees."""
-        return math.degrees(2 * math.atan(self.height / (2 * self.K[1, 1])))
-
-    def camtoworld(self) -> np.ndarray:
-        """Camera-to-world transform [4,4]."""
-        return np.linalg.inv(self.viewmat)
-
     def torch_viewmat(self, device: torch.device | str = "cpu") -> torch.Tensor:
         """viewmat as float32 tensor [4,4]."""
         return torch.as_tensor(self.viewmat, dtype=torch.float32, device=device)

@@ -1,7 +1,11 @@
-"""Shared check of the stages' config dataclasses: unknown keys are an error naming them."""
+"""Shared check of the stages' config dataclasses: unknown keys are an error naming them.
+
+A field typed with a config dataclass is a nested section (``masks.vegetation``): its mapping is
+parsed into that dataclass, and an unknown key in it fails naming its whole path."""
 from __future__ import annotations
 
 import dataclasses
+import typing
 from typing import Any, Mapping
 
 
@@ -17,17 +21,42 @@ def from_dict(cls: type, d: Mapping[str, Any] | None, where: str, error: type[Ex
               check_types: bool = False):
     """Build dataclass ``cls`` from a config mapping; unknown keys raise ``error`` naming them.
 
+    A ``cls`` instance is returned as it is. Fields typed with a dataclass (nested sections) are
+    parsed from their mapping: unknown keys fail naming ``where.field``, then the nested class's own
+    ``from_dict`` (when it has one) checks the values.
+
     ``check_types``: also check each value against the type of the field's default (bool, int,
     float, fixed-length tuple; ints are accepted for floats) and raise ValueError naming the key."""
+    if isinstance(d, cls):
+        return d
     if d is not None and not isinstance(d, Mapping):
         raise error(f"{where}: expected a mapping, got {type(d).__name__}")
     d = dict(d or {})
     reject_unknown_keys(cls, d, where, error)
+    for key, sub in nested_sections(cls).items():
+        if key in d and not isinstance(d[key], sub):
+            d[key] = _nested(sub, d[key], f"{where}.{key}", error)
     if check_types:
         defaults = cls()
         for key, value in list(d.items()):
             d[key] = _typed(getattr(defaults, key), value, f"{where}.{key}")
     return cls(**d)
+
+
+def nested_sections(cls: type) -> dict[str, type]:
+    """Field name -> dataclass type, for the fields of dataclass ``cls`` that are nested sections."""
+    hints = typing.get_type_hints(cls)
+    return {f.name: hints[f.name] for f in dataclasses.fields(cls) if dataclasses.is_dataclass(hints[f.name])}
+
+
+def _nested(sub: type, value: Any, where: str, error: type[Exception]):
+    """Nested section ``sub`` from its mapping: unknown keys named with their path, then checked by
+    ``sub.from_dict`` where it has one (its own validation), else built here."""
+    if value is not None and not isinstance(value, Mapping):
+        raise error(f"{where}: expected a mapping, got {type(value).__name__}")
+    reject_unknown_keys(sub, value or {}, where, error)
+    own = getattr(sub, "from_dict", None)
+    return own(value) if own is not None else from_dict(sub, value, where, error)
 
 
 def _typed(ref: Any, value: Any, where: str) -> Any:

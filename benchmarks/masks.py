@@ -35,6 +35,7 @@ import argparse
 import json
 import logging
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -80,8 +81,8 @@ def main(argv: list[str] | None = None) -> int:
         dynamic_masks,
         effects_from_motion,
     )
-    from anigs.masks.lift import LiftConfig, lift_masks_report
-    from anigs.masks.vegetation import VegetationConfig, estimate_ground
+    from anigs.masks.lift import lift_masks_report
+    from anigs.masks.vegetation import estimate_ground
     from anigs.views import cameras_from_views
 
     from anigs.stages import capture as capture_stage, sfm as sfm_stage, static as static_stage
@@ -99,8 +100,7 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"benchmarks/masks.py: missing {', '.join(missing)}")
     params = parse_params(args.params) or {}
     cfg = MasksConfig.from_dict({"backend": "vegetation", **params})
-    veg = VegetationConfig.from_dict(cfg.vegetation)
-    lift_cfg = LiftConfig.from_dict(cfg.lift)
+    veg, lift_cfg = cfg.vegetation, cfg.lift
     seconds: dict[str, float] = {}
 
     t = time.perf_counter()
@@ -142,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     to_gt, _ = align_cameras(sfm_cams, gt_cams)
     t = time.perf_counter()
     truth = [r["dynamic"] for r in compute_masks(LabelsBackend(gt, labels, effects, to_gaussians_frame=to_gt,
-                                                               **cfg.labels), frames)]
+                                                               **asdict(cfg.labels)), frames)]
     nn_dynamic = roi_from_labels(g, str(paths["labels"]), str(paths["motion"]), None, str(paths["gt_gaussians"]),
                                  str(paths["gt_cameras"]), sfm_cams)
     seconds["labels_yardstick"] = time.perf_counter() - t
@@ -152,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
         t = time.perf_counter()
         app_lab, _, _ = appearance_labels(g, gt, labels, sfm_cams, to_labels_frame=to_gt)
         app_dynamic = np.isin(app_lab, ids)
-        app_truth = [r["dynamic"] for r in compute_masks(LabelsBackend(g, app_lab, effects, **cfg.labels), frames)]
+        app_truth = [r["dynamic"] for r in compute_masks(LabelsBackend(g, app_lab, effects, **asdict(cfg.labels)), frames)]
         seconds["appearance_yardstick"] = time.perf_counter() - t
 
     t = time.perf_counter()

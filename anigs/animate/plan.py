@@ -14,6 +14,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from anigs.animate.method_config import LiftingConfig, PhysicsConfig
+
 
 @dataclass(frozen=True)
 class RoundPlan:
@@ -83,8 +85,8 @@ class AnimateConfig:
     view_expansion: bool = True  # false: every view from round 1 (ablation "w/o viewpoint expansion")
     dataset_update: bool = True  # false: targets generated once from the static model (ablation)
     method: str = "anigs"  # anigs (ours) | lifting (Gaussians2Life-style) | physics (PhysDreamer-style baseline)
-    lifting: dict = field(default_factory=dict)  # LiftingConfig keys of the lifting baseline
-    physics: dict = field(default_factory=dict)  # PhysicsConfig keys of the physics baseline
+    lifting: LiftingConfig = field(default_factory=LiftingConfig)  # the lifting baseline (method: lifting)
+    physics: PhysicsConfig = field(default_factory=PhysicsConfig)  # the physics baseline (method: physics)
 
     @staticmethod
     def from_dict(d: dict | None) -> "AnimateConfig":

@@ -50,39 +50,57 @@ PARAM_GROUPS = ("deformation+positions", "deformation", "all")
 class UpdateConfig:
     """Hyper-parameters of one model update (the ``update`` config section)."""
 
-    steps: int = 600
-    views_per_step: int = 2
-    cano_views_per_step: int = 1
-    num_bases: int = 16
-    rotation: bool = True
+    steps: int = 600  # optimisation steps per round
+    views_per_step: int = 2  # (view, t) samples per step for the animation loss
+    cano_views_per_step: int = 1  # views per step for the canonical loss (frame 0 vs the static render)
+    num_bases: int = 16  # K: DCT bases per motion channel (clamped to T-1)
+    rotation: bool = True  # learn per-Gaussian rotation offsets as well as position offsets
+    #: trainable parameters: deformation+positions (paper) | deformation | all
     param_groups: str = "deformation+positions"
-    lr_position_coeffs: float = 2e-3
-    lr_rotation_coeffs: float = 5e-3
-    lr_means: float = 2e-4
-    lr_quats: float = 1e-3
-    lr_scales: float = 5e-3
-    lr_opacity: float = 2.5e-2
-    lr_sh: float = 2.5e-3
-    lr_final_factor: float = 0.1
+    lr_position_coeffs: float = 2e-3  # learning rate of the position DCT coefficients (times spatial_lr_scale)
+    lr_rotation_coeffs: float = 5e-3  # learning rate of the rotation DCT coefficients
+    lr_means: float = 2e-4  # learning rate of the canonical positions (times spatial_lr_scale)
+    lr_quats: float = 1e-3  # learning rate of the rotations
+    lr_scales: float = 5e-3  # learning rate of the log-scales
+    lr_opacity: float = 2.5e-2  # learning rate of the opacity logits
+    lr_sh: float = 2.5e-3  # learning rate of the SH coefficients (param_groups all)
+    lr_final_factor: float = 0.1  # learning rates decay exponentially to this fraction at the last step
+    #: length scale of position learning rates (null = 1-99 percentile scene extent)
     spatial_lr_scale: float | None = None
-    lambda_cano: float = 0.1
-    lambda_sds: float = 0.0
-    sds_frames: int = 9
+    lambda_cano: float = 0.1  # weight of the canonical loss
+    lambda_sds: float = 0.0  # weight of the SDS loss (needs a prior with a score: ltx)
+    sds_frames: int = 9  # frames of the SDS sub-clip (4m+1)
+    #: smooth limit on offsets as a fraction of the height above the ground (null = none)
     max_offset_frac: float | None = None
-    max_offset_abs: float | None = None
-    max_angle_deg: float | None = None
-    effect_limits: dict = field(default_factory=dict)
-    effect_num_bases: dict = field(default_factory=lambda: {"grass_wave": 6, "flower_bob": 6})  # per-effect capacity, {key: K_e <= num_bases}: the Gaussians of that effect use only the first K_e DCT bases (the rest stay zero); key = a label of an int --dynamic mask ("1", "2", ...; with a bool mask every dynamic Gaussian is "1") or an effect name (foliage_sway, leaf_flutter: label 1, grass_wave 2, flower_bob 3, water_ripple 4 = 1 + the effects stage's region index; effects sharing a label take their largest K_e, unnamed ones count as num_bases); {} = all use num_bases. Default: grass and flowers 6 (demo, labels from the masks stage: their amplitude W1 2.1x / 2.7x and frequency W1 1.8x / 1.9x lower than at 12, foliage unchanged, the same time: benchmarks/README.md)
-    background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    seed: int = 0
-    device: str = "auto"
-    backend: str = "auto"
-    log_every: int = 25
-    nan_guard: bool = True
-    contain: bool = True  # with the masks: after training, a Gaussian whose motion carries its footprint out of a view's dilated mask moves less (1/2, 1/4) or stays still
-    contain_margin_px: int = 3  # containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
-    contain_max_outside_px: float = 0.01  # containment: most blending weight (in pixels) a moving Gaussian may put outside, in any frame and view (0.05 left 1-3 levels of change on flower-llff)
-    contain_rounds: str = "final"  # which rounds' updates contain the motion (the workflow passes --masks to them): final (the model that is rendered, exported and evaluated; an earlier round's model only renders the next round's clips, whose static pixels ComposedV2V pastes back from frame 0) or every
+    max_offset_abs: float | None = None  # smooth absolute limit on offsets in world units (null = none)
+    max_angle_deg: float | None = None  # smooth limit on rotation offsets in degrees (null = none)
+    effect_limits: dict = field(default_factory=dict)  # per-effect-label overrides of the three limits
+    #: per-effect capacity, {key: K_e <= num_bases}: the Gaussians of that effect use only the first K_e DCT bases (the
+    #: rest stay zero); key = a label of an int --dynamic mask ("1", "2", ...; with a bool mask every dynamic Gaussian
+    #: is "1") or an effect name (foliage_sway, leaf_flutter: label 1, grass_wave 2, flower_bob 3, water_ripple 4 = 1 +
+    #: the effects stage's region index; effects sharing a label take their largest K_e, unnamed ones count as
+    #: num_bases); {} = all use num_bases. Default: grass and flowers 6 (demo, labels from the masks stage: their
+    #: amplitude W1 2.1x / 2.7x and frequency W1 1.8x / 1.9x lower than at 12, foliage unchanged, the same time:
+    #: benchmarks/README.md)
+    effect_num_bases: dict = field(default_factory=lambda: {"grass_wave": 6, "flower_bob": 6})
+    background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])  # background colour (RGB in [0,1])
+    seed: int = 0  # random seed (the workflow passes the global seed)
+    device: str = "auto"  # torch device: auto picks CUDA when present (the workflow passes the global device)
+    backend: str = "auto"  # rasterizer backend: auto | cpu | torch | gsplat
+    log_every: int = 25  # log the loss every this many steps
+    nan_guard: bool = True  # stop on NaN loss or gradients, saving the last good state
+    #: with the masks: after training, a Gaussian whose motion carries its footprint out of a view's dilated mask moves
+    #: less (1/2, 1/4) or stays still
+    contain: bool = True
+    #: containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
+    contain_margin_px: int = 3
+    #: containment: most blending weight (in pixels) a moving Gaussian may put outside, in any frame and view (0.05
+    #: left 1-3 levels of change on flower-llff)
+    contain_max_outside_px: float = 0.01
+    #: which rounds' updates contain the motion (the workflow passes --masks to them): final (the model that is
+    #: rendered, exported and evaluated; an earlier round's model only renders the next round's clips, whose static
+    #: pixels ComposedV2V pastes back from frame 0) or every
+    contain_rounds: str = "final"
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "UpdateConfig":

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -33,50 +33,12 @@ import torch
 
 from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, resolve_num_bases, save_model
 from anigs.animate.update import ViewData
-from anigs.configs import from_dict
 from anigs.gaussians import Gaussians
 
 log = logging.getLogger("anigs.baselines")
 
 BASELINES = ("lifting", "physics")
 MODEL_KIND = "baseline"
-
-
-@dataclass
-class CommonConfig:
-    """The keys both baselines' configs share, and their ``from_dict`` (unknown keys rejected),
-    ``to_dict`` and checks."""
-
-    num_bases: int = 16            # DCT K of the output model (clamped to T-1)
-    flow_preset: str = "medium"    # OpenCV DIS preset of the 2D motion: ultrafast | fast | medium
-    fb_threshold_px: float = 1.0   # forward-backward flow check: tracks whose loop error exceeds this (px) are dropped
-    depth_tol: float = 0.05        # visibility: projected depth <= rendered depth * (1 + depth_tol)
-    min_alpha: float = 0.5         # visibility: rendered opacity at the Gaussian's pixel at least this
-    background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])  # background colour of the visibility renders
-    backend: str = "auto"          # rasterizer backend of the visibility renders
-    device: str = "auto"           # torch device of the visibility renders
-    seed: int = 0                  # random seed (the fits are deterministic; kept for uniformity)
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any] | None):
-        cfg = from_dict(cls, d, f"{cls.__name__}", KeyError)
-        cfg.validate()
-        return cfg
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-    def validate(self) -> None:
-        from anigs.flow import _PRESETS
-
-        if self.num_bases < 0:
-            raise ValueError(f"{type(self).__name__}: num_bases must be >= 0, got {self.num_bases}")
-        if self.flow_preset not in _PRESETS:
-            raise ValueError(f"{type(self).__name__}: flow_preset {self.flow_preset!r} not in {sorted(_PRESETS)}")
-        if not self.fb_threshold_px > 0 or not self.depth_tol >= 0 or not 0 <= self.min_alpha < 1:
-            raise ValueError(f"{type(self).__name__}: fb_threshold_px > 0, depth_tol >= 0, 0 <= min_alpha < 1 required")
-        if len(self.background) != 3:
-            raise ValueError(f"{type(self).__name__}: background must be 3 numbers")
 
 
 @dataclass

@@ -40,33 +40,18 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 import torch
 
 from anigs.animate.update import ViewData
-from anigs.baselines.base import BaselineResult, CommonConfig, finish, prepare
+from anigs.animate.method_config import LiftingConfig
+from anigs.baselines.base import BaselineResult, finish, prepare
 from anigs.baselines.tracks import observe_view
 from anigs.gaussians import Gaussians
 
 log = logging.getLogger("anigs.baselines.lifting")
-
-
-@dataclass
-class LiftingConfig(CommonConfig):
-    """The lifting baseline's config (its workflow config section)."""
-
-    ridge: float = 1e-3          # Tikhonov weight relative to the mean squared Jacobian gain (px^2 per unit^2)
-    fill_neighbors: int = 8      # Gaussians seen by no view: IDW mean of this many observed neighbours (0 = still)
-
-    def validate(self) -> None:
-        super().validate()
-        if not self.ridge > 0:
-            raise ValueError(f"LiftingConfig: ridge must be > 0, got {self.ridge}")
-        if self.fill_neighbors < 0:
-            raise ValueError(f"LiftingConfig: fill_neighbors must be >= 0, got {self.fill_neighbors}")
 
 
 def lift_displacements(jac: np.ndarray, disp: np.ndarray, weight: np.ndarray, ridge: float = 1e-3

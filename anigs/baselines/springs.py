@@ -41,6 +41,8 @@ from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
+from anigs.animate.method_config import INTEGRATORS
+
 
 @dataclass
 class SpringGraph:
@@ -142,7 +144,7 @@ def stiffness_matrix(graph: SpringGraph, stiffness: np.ndarray | float) -> sp.cs
     return sp.csc_matrix((vals, (rows, cols)), shape=(D, D))
 
 
-SCHEMES = ("midpoint", "euler")
+SCHEMES = INTEGRATORS  # (defined with the physics baseline's config)
 
 
 class ImplicitIntegrator:

@@ -29,39 +29,52 @@ class Config:
     resolution; heights are fractions of the cameras' median height above the fitted ground.
     """
 
-    requested: list | str = "auto"  # effects to simulate: auto (the detected kinds the prompt names; every detected one without a prompt) or a list of effect names, which overrides the prompt; a listed effect the scene lacks is reported and skipped
-    prompt: str | None = None        # the scene's prompt (the workflow passes the scene file's prompt): with requested auto only the kinds it names are localised (anigs/effects/vocabulary.py); null = no prompt
+    #: effects to simulate: auto (the detected kinds the prompt names; every detected one without a prompt) or a list
+    #: of effect names, which overrides the prompt; a listed effect the scene lacks is reported and skipped
+    requested: list | str = "auto"
+    #: the scene's prompt (the workflow passes the scene file's prompt): with requested auto only the kinds it names
+    #: are localised (anigs/effects/vocabulary.py); null = no prompt
+    prompt: str | None = None
     # photos
     max_photos: int = 24             # photos analysed (evenly spaced over the capture)
     max_side: int = 400              # photos are downscaled to this longest side (px)
     min_alpha: float = 0.5           # pixels where the fitted model is thinner than this are empty (sky)
     # geometry
-    up: str = "z"                    # world up: "z" (the SfM stage writes z-up) or "auto" (estimated from the cameras and points)
+    #: world up: "z" (the SfM stage writes z-up) or "auto" (estimated from the cameras and points)
+    up: str = "z"
     neighbour_radius: float = 0.06   # 3D neighbourhood radius for planarity, x the median photo depth
     neighbours: int = 32             # at most this many neighbours per Gaussian
     wall_max_variation: float = 0.04  # surface variation below this = locally planar (walls, floors, pictures)
     wall_max_upness: float = 0.35    # |normal . up| below this = vertical
     floor_min_upness: float = 0.85   # |normal . up| above this = horizontal
     ground_margin: float = 0.03      # ground layer: surfaces below this x camera height are ground
-    ground_seen_quantile: float = 0.9  # ... and below this quantile of how deep the photos see under the ground plane, mirrored upwards (the top of the seen ground)
+    #: ... and below this quantile of how deep the photos see under the ground plane, mirrored upwards (the top of the
+    #: seen ground)
+    ground_seen_quantile: float = 0.9
     ground_min_support: float = 0.03  # the ground plane counts when this fraction of Gaussians lies on it
     ground_max_below: float = 0.1    # ... and at most this fraction lies clearly under it
-    grass_max_height: float = 0.2    # plants rising above this x camera height are trees and bushes (foliage); lower ones grass or flower beds
-    foliage_reach_frac: float = 0.03  # ... and so are plant pixels within this (x photo diagonal) of such a part of the same plant (a bush's lowest leaves)
+    #: plants rising above this x camera height are trees and bushes (foliage); lower ones grass or flower beds
+    grass_max_height: float = 0.2
+    #: ... and so are plant pixels within this (x photo diagonal) of such a part of the same plant (a bush's lowest
+    #: leaves)
+    foliage_reach_frac: float = 0.03
     # colour
     green_hue: tuple = (62.0, 170.0)  # hue band of vegetation (degrees)
     green_min_saturation: float = 0.16  # HSV saturation a vegetation pixel needs at least
     min_value: float = 0.03          # darker pixels carry no colour (dark foliage is still found above this)
     flower_min_saturation: float = 0.45  # HSV saturation a blossom pixel needs at least
     flower_min_value: float = 0.4    # brightest channel of a blossom (darker saturated: soil, bark)
-    flower_green_hue: tuple = (68.0, 215.0)  # blossoms are saturated colours outside this band (red, yellow, blue, violet)
+    #: blossoms are saturated colours outside this band (red, yellow, blue, violet)
+    flower_green_hue: tuple = (68.0, 215.0)
     white_flowers: bool = True       # bright near-white blobs inside vegetation count as blossoms
     flower_radius_frac: float = 0.025  # a blossom lies within this of vegetation
     flower_min_ring: float = 0.25    # share of a blossom's surroundings that must be vegetation
-    flower_max_behind: float = 0.1   # a blossom lies at most this x its depth behind that vegetation (a wall seen past a bush lies farther)
+    #: a blossom lies at most this x its depth behind that vegetation (a wall seen past a bush lies farther)
+    flower_max_behind: float = 0.1
     flower_bed_frac: float = 0.015   # closing radius joining blossoms (and the stems between them) into beds
     flower_rim_frac: float = 0.008  # blossoms grow this far over their blended, less saturated rim
-    flower_bed_share: float = 0.1    # low plant components (and low plant pixels' surroundings) with blossoms on this share of their area are beds
+    #: low plant components (and low plant pixels' surroundings) with blossoms on this share of their area are beds
+    flower_bed_share: float = 0.1
     max_rectangularity: float = 0.9  # green components filling >= this of their bounding rectangle are pictures
     # water
     water_hue: tuple = (165.0, 265.0)  # bluish / cyan hues of water (sky reflection, depth)
@@ -74,12 +87,18 @@ class Config:
     link_frac: float = 1.0           # a region's Gaussians within this x neighbour radius form one numbered candidate
     min_candidate: int = 10          # parts with fewer Gaussians are checked by the rules but not numbered
     plane_tol: float = 0.25          # a Gaussian within this x neighbour radius of a plane lies on it
-    plane_max_share: float = 0.6     # foliage / flowers with this share on a large plane lie on a wall, floor, facade, picture, rug or lawn: still
+    #: foliage / flowers with this share on a large plane lie on a wall, floor, facade, picture, rug or lawn: still
+    plane_max_share: float = 0.6
     plane_min_extent: float = 2.0    # ... on up to 3 planes each spanning at least this x neighbour radius
-    plane_max_outside: float = 0.2   # ... each a surface: its band from 1 to 2 plane_tol off holds at most this x its Gaussians (a slice through flower heads holds more)
-    min_attached: float = 0.3        # flowers: this share of a candidate must lie within the link of leaves or stems (held by a plant)
-    leaf_hue_margin: float = 20.0    # flowers: a median hue this many degrees below the green band, high in a crown, is sunlit leaves (foliage)
-    crown_min_height: float = 0.4    # ... high in a crown: most of it above this x camera height (flower heads stay lower)
+    #: ... each a surface: its band from 1 to 2 plane_tol off holds at most this x its Gaussians (a slice through
+    #: flower heads holds more)
+    plane_max_outside: float = 0.2
+    #: flowers: this share of a candidate must lie within the link of leaves or stems (held by a plant)
+    min_attached: float = 0.3
+    #: flowers: a median hue this many degrees below the green band, high in a crown, is sunlit leaves (foliage)
+    leaf_hue_margin: float = 20.0
+    #: ... high in a crown: most of it above this x camera height (flower heads stay lower)
+    crown_min_height: float = 0.4
     # regions and decisions
     min_component_frac: float = 0.0004  # components smaller than this share of the photo are dropped
     min_pixel_fraction: float = 0.002   # an effect needs this share of the photos' pixels ...
@@ -89,9 +108,12 @@ class Config:
     # the user's corrections (anigs/effects/corrections.py; numbers as in overview.png)
     drop: list = field(default_factory=list)  # numbered candidates of overview.png that must not move
     force: list = field(default_factory=list)  # numbered candidates a geometry rule set aside that move all the same
-    boxes: list = field(default_factory=list)  # 3D boxes {min: [x, y, z], max: [x, y, z], effect: NAME or still} in the frame of static/canonical.ply
-    selections: list = field(default_factory=list)  # SuperSplat selection exports {ply: PATH, effect: NAME or still}, matched to the fitted Gaussians by position
-    selection_tol: float = 0.0001    # a selected splat matches the fitted Gaussian within this x the model's bounding-box diagonal
+    #: 3D boxes {min: [x, y, z], max: [x, y, z], effect: NAME or still} in the frame of static/canonical.ply
+    boxes: list = field(default_factory=list)
+    #: SuperSplat selection exports {ply: PATH, effect: NAME or still}, matched to the fitted Gaussians by position
+    selections: list = field(default_factory=list)
+    #: a selected splat matches the fitted Gaussian within this x the model's bounding-box diagonal
+    selection_tol: float = 0.0001
     vote_threshold: float = 0.5      # a Gaussian joins the region voted by this share of the photos that see it
     propagate_k: int = 8             # Gaussians seen by no photo take the majority of their k neighbours
 

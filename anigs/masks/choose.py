@@ -40,7 +40,7 @@ def choose_backend(cfg, g: Gaussians, veg: VegetationConfig, ground: GroundPlane
         if effects is None:
             raise ValueError("masks.backend 'effects' needs --effects (the effects stage's folder)")
         ids = {e: [REGIONS.index(EFFECT_REGION[e])] for e in effects.chosen}
-        return LabelsBackend(g, effects.regions, ids, **cfg.labels) if ids else _still
+        return LabelsBackend(g, effects.regions, ids, **dataclasses.asdict(cfg.labels)) if ids else _still
     if cfg.backend == "vegetation":
         from anigs.masks.vegetation import build
 
@@ -48,10 +48,10 @@ def choose_backend(cfg, g: Gaussians, veg: VegetationConfig, ground: GroundPlane
     if cfg.backend == "labels":
         if truth is None:
             raise ValueError("masks.backend 'labels' needs --labels (and --motion)")
-        return truth.backend(g, recon_cameras, cfg.labels)
+        return truth.backend(g, recon_cameras, dataclasses.asdict(cfg.labels))
     from anigs.masks.sam2 import build
 
-    return build(cfg.sam2, vegetation=cfg.vegetation or None)
+    return build(cfg.sam2, vegetation=cfg.vegetation)
 
 
 def capture_backend(cfg, backend: Callable, veg: VegetationConfig, ground: GroundPlane | None) -> Callable:

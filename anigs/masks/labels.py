@@ -15,6 +15,7 @@ depicts in the training views, which a fitted model's floaters and thick ground 
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -146,6 +147,15 @@ def render_effect_weights(g: Gaussians, labels: np.ndarray, effects: dict[str, S
             for j in range(chunk.shape[1]):
                 out[names[s + j]] = rgb[..., j].numpy()
     return out, alpha
+
+
+@dataclass
+class LabelsConfig:
+    """Parameters of the labels backend (config section ``masks.labels``): the keywords of
+    :class:`LabelsBackend` after its first three arguments."""
+
+    threshold: float = 0.5  # an effect's pixel: its blending weight is at least this fraction of the pixel's alpha
+    min_alpha: float = 0.3  # a pixel is in no mask below this rendered alpha (sky, empty)
 
 
 class LabelsBackend:

@@ -8,6 +8,7 @@ masks with it, keep only the Gaussians contained in every view's mask, and label
 from __future__ import annotations
 
 import logging
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -18,9 +19,9 @@ from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
 from anigs.masks import Frame, compute_masks
 from anigs.masks.choose import EffectSets, capture_backend, choose_backend
-from anigs.masks.lift import LiftConfig, lift_masks_report
+from anigs.masks.lift import lift_masks_report
 from anigs.masks.truth import GroundTruth
-from anigs.masks.vegetation import VegetationConfig, estimate_ground
+from anigs.masks.vegetation import estimate_ground
 
 log = logging.getLogger("anigs.masks")
 
@@ -58,7 +59,7 @@ def segment_views(cfg, g: Gaussians, frames: Sequence[Frame], up: np.ndarray, ef
     """The masks of ``frames`` and the dynamic set of ``g`` (``cfg``: the ``masks`` section; ``up``
     [3] the scene's up; ``effects``: the effects stage's sets, ``effects_source`` naming them;
     ``capture_cams``/``images``: the capture photos, segmented too and voting in the lifting)."""
-    veg = VegetationConfig.from_dict(cfg.vegetation)
+    veg = cfg.vegetation
     cams = [fr.camera for fr in frames]
     ground = estimate_ground(g.means.detach().double().numpy(), up, cams, veg.ground_margin) if veg.ground else None
     info: dict = {"backend": cfg.backend, "views": []}
@@ -74,7 +75,7 @@ def segment_views(cfg, g: Gaussians, frames: Sequence[Frame], up: np.ndarray, ef
         if images:
             more_cams, more_masks = _capture_votes(cfg, g, backend, veg, ground, images, capture_cams, info)
             lift_cams, lift_in = lift_cams + more_cams, lift_in + more_masks
-        dyn, lift_info = lift_masks_report(g, lift_cams, lift_in, LiftConfig.from_dict(cfg.lift), ground=ground)
+        dyn, lift_info = lift_masks_report(g, lift_cams, lift_in, cfg.lift, ground=ground)
     info["lift"] = lift_info
     if cfg.complete_masks and cfg.backend not in ("labels", "effects"):  # those masks render the set itself
         from anigs.masks.complete import complete_masks
@@ -95,5 +96,5 @@ def segment_views(cfg, g: Gaussians, frames: Sequence[Frame], up: np.ndarray, ef
 
         labels, info["effect_labels"] = label_dynamic(g, dyn, effects.chosen, effects.regions)
         if cfg.backend not in ("labels", "effects") and effects.chosen:
-            add_effect_masks(g, labels, effects.chosen, frames, results, cfg.labels)
+            add_effect_masks(g, labels, effects.chosen, frames, results, dataclasses.asdict(cfg.labels))
     return MasksResult(results, dyn, labels, info)

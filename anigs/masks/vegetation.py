@@ -65,7 +65,7 @@ class VegetationConfig:
     texture_weight: float = 0.0  # weight of the local luminance std added to the index
     texture_window: int = 5      # window (px) of the local std
     flowers: bool = True         # add saturated non-green blobs next to vegetation
-    flower_saturation: float = 0.45
+    flower_saturation: float = 0.45  # minimum HSV saturation for a colourful (flower) pixel to count as vegetation
     flower_radius: int = 3       # px: how close to vegetation a flower pixel must be
     flower_min_value: float = 0.6  # brightest channel of a blossom (darker saturated = soil, bark)
     flowers_in_ground: bool = True  # blossoms count inside the ground layer too (next to green)

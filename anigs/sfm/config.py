@@ -20,37 +20,78 @@ class SfmConfig:
     camera_model: str = "SIMPLE_RADIAL"  # COLMAP camera model; SIMPLE_PINHOLE/PINHOLE for synthetic renders
     single_camera: bool = True  # all images share one camera (one device, fixed zoom)
     camera_params: Optional[list[float]] = None  # known intrinsics in COLMAP's order for camera_model
-    matcher: str = "auto"  # auto | exhaustive | sequential | spatial (needs GPS/pose priors); auto: sequential when the photos are ordered like a video and exhaustive matching would be expensive, or more than exhaustive_max_images; else exhaustive (report.json says which and why)
-    exhaustive_max_images: int = 300  # matcher auto: more photos than this are matched sequentially (exhaustive matching grows with the square of the count)
-    exhaustive_max_comparisons: float = 2.0e9  # matcher auto: ordered photos are matched sequentially when exhaustive matching would compare more descriptors than this (images^2/2 x keypoints^2; matching takes about 10 CPU s per 1e9, benchmarks/README.md)
-    sequential_overlap: int = 10  # the sequential matcher pairs image i with i+1, i+2, i+4, ..., i+2^(overlap-1) (COLMAP's quadratic overlap, images sorted by name)
-    sequential_similar: int = 3  # the sequential matcher also pairs each image with its this many most similar images (grey thumbnails): closes the loop of an orbit, joins the rows of a sweep; 0: COLMAP's pairs only
+    #: auto | exhaustive | sequential | spatial (needs GPS/pose priors); auto: sequential when the photos are ordered
+    #: like a video and exhaustive matching would be expensive, or more than exhaustive_max_images; else exhaustive
+    #: (report.json says which and why)
+    matcher: str = "auto"
+    #: matcher auto: more photos than this are matched sequentially (exhaustive matching grows with the square of the
+    #: count)
+    exhaustive_max_images: int = 300
+    #: matcher auto: ordered photos are matched sequentially when exhaustive matching would compare more descriptors
+    #: than this (images^2/2 x keypoints^2; matching takes about 10 CPU s per 1e9, benchmarks/README.md)
+    exhaustive_max_comparisons: float = 2.0e9
+    #: the sequential matcher pairs image i with i+1, i+2, i+4, ..., i+2^(overlap-1) (COLMAP's quadratic overlap,
+    #: images sorted by name)
+    sequential_overlap: int = 10
+    #: the sequential matcher also pairs each image with its this many most similar images (grey thumbnails): closes
+    #: the loop of an orbit, joins the rows of a sweep; 0: COLMAP's pairs only
+    sequential_similar: int = 3
     spatial_max_neighbors: int = 50  # neighbours matched per image by the spatial matcher
-    max_num_features: int = 8192  # SIFT features per image; COLMAP meets a smaller budget by dropping whole octaves, finest first (what the refinement uses)
+    #: SIFT features per image; COLMAP meets a smaller budget by dropping whole octaves, finest first (what the
+    #: refinement uses)
+    max_num_features: int = 8192
     max_image_size: int = -1  # SIFT extraction downscales larger images (-1: never)
-    sift_peak_threshold: float = 0.02 / 3  # SIFT detection threshold (COLMAP's default); lower finds more features in low-contrast or small images
+    #: SIFT detection threshold (COLMAP's default); lower finds more features in low-contrast or small images
+    sift_peak_threshold: float = 0.02 / 3
     mapper: str = "incremental"  # incremental | global
-    init_min_tri_angle: Union[float, str] = "auto"  # incremental mapper's initial-pair triangulation angle (deg); auto: the largest of 16, 8, 4, 2, 1 that a matched pair reaches (COLMAP would otherwise search all pairs again at each halving)
-    retry_init_min_tri_angle: Optional[float] = 4.0  # angle of the retry when the first mapping registers too few (runs only when below the first angle); None disables the retry
-    min_registered_fraction: float = 0.8  # a model with fewer registered images than this fraction escalates (anigs.sfm.escalate), then continues partial or fails
-    escalate: bool = True  # too few registered: add loop and look-alike pairs, then match every pair, then try the original photos of a downscaled capture, then the lower angle (false: only the lower angle)
-    partial_min_fraction: float = 0.5  # below min_registered_fraction after escalating, continue with the largest model when it holds at least this fraction (the run is marked partial and the photos left out listed); below it, an error naming the likely cause
+    #: incremental mapper's initial-pair triangulation angle (deg); auto: the largest of 16, 8, 4, 2, 1 that a matched
+    #: pair reaches (COLMAP would otherwise search all pairs again at each halving)
+    init_min_tri_angle: Union[float, str] = "auto"
+    #: angle of the retry when the first mapping registers too few (runs only when below the first angle); None
+    #: disables the retry
+    retry_init_min_tri_angle: Optional[float] = 4.0
+    #: a model with fewer registered images than this fraction escalates (anigs.sfm.escalate), then continues partial
+    #: or fails
+    min_registered_fraction: float = 0.8
+    #: too few registered: add loop and look-alike pairs, then match every pair, then try the original photos of a
+    #: downscaled capture, then the lower angle (false: only the lower angle)
+    escalate: bool = True
+    #: below min_registered_fraction after escalating, continue with the largest model when it holds at least this
+    #: fraction (the run is marked partial and the photos left out listed); below it, an error naming the likely cause
+    partial_min_fraction: float = 0.5
     refine: bool = True  # after mapping, bundle-adjust the cameras on the finest-scale keypoints (anigs.sfm.bundle)
-    refine_max_keypoint_scale: float = 1.3  # refinement keeps keypoints up to this scale (sigma, px of the image SIFT ran on)
+    #: refinement keeps keypoints up to this scale (sigma, px of the image SIFT ran on)
+    refine_max_keypoint_scale: float = 1.3
     refine_min_observations: int = 60  # refinement keeps at least this many (finest) observations per image
-    refine_loss_scale: float = 0.5  # refinement's Cauchy loss scale, times the median reprojection error (0: plain least squares)
-    refine_max_iterations: int = 30  # the refinement's bundle adjustment stops after this many iterations (it creeps on: iterations 30-100 moved the flower capture's cameras by under 0.01 degrees and cost 3.7 s)
+    #: refinement's Cauchy loss scale, times the median reprojection error (0: plain least squares)
+    refine_loss_scale: float = 0.5
+    #: the refinement's bundle adjustment stops after this many iterations (it creeps on: iterations 30-100 moved the
+    #: flower capture's cameras by under 0.01 degrees and cost 3.7 s)
+    refine_max_iterations: int = 30
     undistort: bool = True  # undistort to PINHOLE when the camera model has distortion
     skip_unreadable: bool = False  # skip corrupt image files with a warning instead of failing
     ground_percentile: float = 5.0  # (no ground truth) this percentile of point heights is put at z=0
-    camera_height: Optional[float] = 1.6  # (no ground truth) scale so the mean camera height is this; None keeps COLMAP's scale
+    #: (no ground truth) scale so the mean camera height is this; None keeps COLMAP's scale
+    camera_height: Optional[float] = 1.6
     device: str = "auto"  # auto | cpu | cuda (SIFT extraction and matching)
-    num_threads: int = -1  # threads of SIFT extraction, matching and undistortion (-1: the CPUs available, or anigs --threads); 1 and 2 threads gave bit-identical outputs
-    mapper_num_threads: int = 1  # threads of mapping and bundle adjustment; 1 is bit-deterministic for a seed, more (-1: as num_threads) is faster but cameras differ slightly from run to run
-    ba_global_growth: float = 1.4  # the incremental mapper bundle-adjusts the whole model when it has grown by this factor in images or points since the last time (COLMAP: 1.1)
-    ba_global_max_refinements: int = 2  # the mapper's global bundle adjustment is repeated (filter, retriangulate, adjust) at most this many times (COLMAP: 5)
+    #: threads of SIFT extraction, matching and undistortion (-1: the CPUs available, or anigs --threads); 1 and 2
+    #: threads gave bit-identical outputs
+    num_threads: int = -1
+    #: threads of mapping and bundle adjustment; 1 is bit-deterministic for a seed, more (-1: as num_threads) is faster
+    #: but cameras differ slightly from run to run
+    mapper_num_threads: int = 1
+    #: the incremental mapper bundle-adjusts the whole model when it has grown by this factor in images or points since
+    #: the last time (COLMAP: 1.1)
+    ba_global_growth: float = 1.4
+    #: the mapper's global bundle adjustment is repeated (filter, retriangulate, adjust) at most this many times
+    #: (COLMAP: 5)
+    ba_global_max_refinements: int = 2
     ba_local_max_refinements: int = 1  # same for the local bundle adjustment after each registered image (COLMAP: 2)
-    mapper_refine_distortion: Union[bool, str] = "auto"  # the incremental mapper's bundle adjustments refine the lens distortion too; auto: not for SIMPLE_RADIAL/RADIAL (the refinement, or one last bundle adjustment, estimates it: a first model of a few close views cannot tell it from the focal length; on the flower capture one reached f = 2978 px, k = 10 and stalled), yes for the other models
+    #: the incremental mapper's bundle adjustments refine the lens distortion too; auto: not for SIMPLE_RADIAL/RADIAL
+    #: (the refinement, or one last bundle adjustment, estimates it: a first model of a few close views cannot tell it
+    #: from the focal length; on the flower capture one reached f = 2978 px, k = 10 and stalled), yes for the other
+    #: models
+    mapper_refine_distortion: Union[bool, str] = "auto"
     seed: int = 0  # COLMAP random seed
 
     @staticmethod

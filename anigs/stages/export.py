@@ -48,7 +48,7 @@ class ExportConfig:
 
     frames: bool = False  # also write the per-frame PLY sequence (scene.anigs holds every frame exactly)
     frame_step: int = 1  # every n-th frame of 0..T-1
-    fps: float = 12.0
+    fps: float = 12.0  # frames per second of the written videos / sidecar
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "ExportConfig":

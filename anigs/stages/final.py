@@ -36,14 +36,14 @@ class FinalConfig:
     """``final`` config section."""
 
     frames: int = 0  # frames per video (0 = the model's T); fractional times loop the DCT period
-    fps: int = 12
+    fps: int = 12  # frames per second of the written videos / sidecar
     path_frames: int = 96  # frames of the moving-camera video
     path_loops: int = 2  # how many animation periods the moving camera sees
     path_views: int = 6  # capture cameras the path passes through (evenly picked)
     scale: float = 1.0  # resolution factor of the view videos
-    background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])
+    background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # background colour (RGB in [0,1])
     slice_upsample: int = 4  # each time step becomes this many rows in slice PNGs
-    device: str = "auto"
+    device: str = "auto"  # torch device: auto picks CUDA when present (the workflow passes the global device)
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "FinalConfig":

@@ -40,7 +40,8 @@ WHEN = ("tables", "always", "never")
 class FvdGtConfig:
     """``fvd_gt`` config section."""
 
-    when: str = "tables"  # tables (only `snakemake tables` computes it), always (also the default target, into metrics.json) or never
+    #: tables (only `snakemake tables` computes it), always (also the default target, into metrics.json) or never
+    when: str = "tables"
     num_views: int = 64  # evaluation-only camera-fixed views (64 x 2 windows = 128 clips per method)
     windows: int = 2  # windows of `frames` frames per view, evenly spread over the clip
     frames: int = 16  # frames per clip (I3D's usual 16)
@@ -56,8 +57,8 @@ class FvdGtConfig:
     bootstrap: int = 200  # resamples of the views for the spread
     level: float = 0.9  # central interval of the bootstrap values
     still_control: bool = True  # also the FVD-GT of the static canonical scene (no motion)
-    background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])
-    seed: int = 0
+    background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # background colour (RGB in [0,1])
+    seed: int = 0  # random seed (the workflow passes the global seed)
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "FvdGtConfig":

@@ -26,6 +26,10 @@ from anigs.io import atomic_path, read_json, write_json
 from anigs.masks import compute_masks, overlay, write_mask_png, write_rgb_png
 from anigs.masks.choose import EffectSets
 from anigs.masks.frames import first_frames
+from anigs.masks.labels import LabelsConfig
+from anigs.masks.lift import LiftConfig
+from anigs.masks.sam2 import Sam2Config
+from anigs.masks.vegetation import VegetationConfig
 from anigs.masks.segment import segment_views
 from anigs.masks.truth import GroundTruth, compare
 from anigs.stages import contract
@@ -94,18 +98,24 @@ class MasksConfig:
 
     backend: str = "effects"                   # effects (the effects stage's regions) | vegetation | labels | sam2
     background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # render background (RGB)
-    vegetation: dict = field(default_factory=dict)  # VegetationConfig keys
-    labels: dict = field(default_factory=dict)      # {threshold, min_alpha} of the labels backend
-    sam2: dict = field(default_factory=dict)        # Sam2Config keys
-    lift: dict = field(default_factory=dict)        # LiftConfig keys
+    vegetation: VegetationConfig = field(default_factory=VegetationConfig)  # the vegetation backend
+    labels: LabelsConfig = field(default_factory=LabelsConfig)  # the labels backend (and the effects backend's renders)
+    sam2: Sam2Config = field(default_factory=Sam2Config)        # the SAM2 backend
+    lift: LiftConfig = field(default_factory=LiftConfig)        # lifting the 2D masks to the Gaussians
     per_effect: bool = True                    # write one mask per effect type when there are several
     compare: bool = True                       # with --labels: IoU / precision / recall vs ground truth
-    appearance: bool = False                   # with --labels, --gt-*, --cameras: also vs appearance labels (a diagnostic: 0.25 s per photo, 12 s of the demo's 24 s masks job; benchmarks/masks.py reports it too)
+    #: with --labels, --gt-*, --cameras: also vs appearance labels (a diagnostic: 0.25 s per photo, 12 s of the demo's
+    #: 24 s masks job; benchmarks/masks.py reports it too)
+    appearance: bool = False
     capture_ground_layer: float = 0.5          # with --images: vegetation ground_layer on the capture photos
     complete_masks: bool = True                # add the pixels the lifted dynamic Gaussians dominate to each mask
-    contain: bool = True                       # move only the Gaussians whose footprint stays inside every view's dilated mask; halos and floaters stay still (anigs.masks.contain)
-    contain_margin_px: int = 3                 # containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
-    contain_max_outside_px: float = 0.05       # containment: most blending weight (in pixels) a moving Gaussian may put outside the dilated mask of any view
+    #: move only the Gaussians whose footprint stays inside every view's dilated mask; halos and floaters stay still
+    #: (anigs.masks.contain)
+    contain: bool = True
+    #: containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
+    contain_margin_px: int = 3
+    #: containment: most blending weight (in pixels) a moving Gaussian may put outside the dilated mask of any view
+    contain_max_outside_px: float = 0.05
 
     @staticmethod
     def from_dict(d: dict | None) -> "MasksConfig":
@@ -183,10 +193,10 @@ def run(inputs: Inputs, cfg: MasksConfig) -> Outputs:
                               "effects": {e: float(v.mean()) for e, v in per_effect.items()}})
         log.info("masks: %s dynamic %.1f%%", fr.name, 100 * m.mean())
     if truth is not None and cfg.compare:
-        label_masks = res.masks if cfg.backend == "labels" else compute_masks(truth.backend(g, capture_cams, cfg.labels), frames)
+        label_masks = res.masks if cfg.backend == "labels" else compute_masks(truth.backend(g, capture_cams, dataclasses.asdict(cfg.labels)), frames)
         appearance = None
         if cfg.appearance and inputs.gt_gaussians and inputs.gt_cameras and capture_cams is not None:
-            appearance = truth.appearance(g, capture_cams, frames, cfg.labels)
+            appearance = truth.appearance(g, capture_cams, frames, dataclasses.asdict(cfg.labels))
         compare(info, g, frames, res.masks, res.dynamic, truth, label_masks, appearance,
                 capture_cams if capture_cams is not None else cams)
     _save_npy(out.path("dynamic"), res.dynamic)

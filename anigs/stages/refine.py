@@ -13,13 +13,16 @@ from __future__ import annotations
 
 import argparse
 import logging
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
 from anigs.configs import from_dict
+from anigs.refine.prior.ltx import LTXConfig
+from anigs.refine.prior.procedural import ProceduralConfig
 from anigs.stages import contract
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.masks import Outputs as MasksOutputs
@@ -33,7 +36,7 @@ log = logging.getLogger("anigs.refine")
 class RefineConfig:
     """The ``refine`` stage's config section."""
 
-    prior: str = "procedural"        # procedural | ltx
+    prior: str = "procedural"        # procedural (offline, CPU) | ltx (LTX-Video, local weights, GPU)
     strength: float = 0.5            # 0 = keep the clip's motion, 1 = new motion (LTX: starting sigma)
     steps: int = 8                   # LTX Euler steps (procedural: unused)
     compose: bool = True             # False = "w/o ComposedV2V" ablation
@@ -41,19 +44,23 @@ class RefineConfig:
     dilate_px: int = 0               # grow the masks by this many pixels (room for silhouettes to move)
     repaste_static: bool = True      # static pixels of frame 0 pasted back after refinement
     prompt: str = ""                 # text prompt (LTX; procedural: keywords pick effects / intensity)
+    #: effect types to synthesise (the workflow passes the scene's effects)
     effects: list[str] = field(default_factory=lambda: ["foliage_sway", "leaf_flutter"])
     seed: int = 0                    # global seed (combined with round and view)
-    procedural: dict[str, Any] = field(default_factory=dict)  # ProceduralConfig keys (not effects)
-    ltx: dict[str, Any] = field(default_factory=dict)         # LTXConfig keys (not steps)
+    #: the procedural prior (its effects: this section's)
+    procedural: ProceduralConfig = field(default_factory=ProceduralConfig)
+    ltx: LTXConfig = field(default_factory=LTXConfig)  # the LTX-Video prior (its steps: this section's)
+
+    # Keys of the nested sections that the stage sets from this section's top level (not user keys).
+    DERIVED: ClassVar[dict[str, tuple[str, ...]]] = {"procedural": ("effects",), "ltx": ("steps",)}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "RefineConfig":
-        cfg = from_dict(cls, d, "refine params", ValueError)
-        if "effects" in cfg.procedural:
-            raise ValueError("set `effects` at the top level of the refine params, not in `procedural`")
-        if "steps" in cfg.ltx:
-            raise ValueError("set `steps` at the top level of the refine params, not in `ltx`")
-        return cfg
+        for sub, keys in cls.DERIVED.items():
+            for key in keys:
+                if isinstance(d, Mapping) and key in (d.get(sub) or {}):
+                    raise ValueError(f"set `{key}` at the top level of the refine params, not in `{sub}`")
+        return from_dict(cls, d, "refine params", ValueError)
 
     def with_effects(self, effects: EffectsOutputs | None) -> "RefineConfig":
         """With the effects stage's chosen effects instead of the listed ones (``effects``: None keeps them)."""
@@ -63,9 +70,9 @@ class RefineConfig:
 
     def prior_config(self) -> dict[str, Any]:
         if self.prior == "procedural":
-            return {**self.procedural, "effects": list(self.effects)}
+            return {**dataclasses.asdict(self.procedural), "effects": list(self.effects)}
         if self.prior == "ltx":
-            return {**self.ltx, "steps": self.steps}
+            return {**dataclasses.asdict(self.ltx), "steps": self.steps}
         raise ValueError(f"unknown video prior {self.prior!r}; available: ['procedural', 'ltx']")
 
 

@@ -33,10 +33,10 @@ log = logging.getLogger("anigs.render_clip")
 class RenderClipConfig:
     """The ``render_clip`` config section."""
 
-    num_frames: int = 25
-    background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    device: str = "auto"
-    backend: str = "auto"
+    num_frames: int = 25  # frames per clip (the workflow passes animate.frames)
+    background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])  # background colour (RGB in [0,1])
+    device: str = "auto"  # torch device: auto picks CUDA when present (the workflow passes the global device)
+    backend: str = "auto"  # rasterizer backend: auto | cpu | torch | gsplat
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "RenderClipConfig":

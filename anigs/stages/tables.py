@@ -8,27 +8,14 @@ import argparse
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
-from anigs.configs import from_dict
 from anigs.stages import contract
 from anigs.stages.contract import File
 
 log = logging.getLogger("anigs.tables")
 
 
-@dataclass
-class TablesConfig:
-    """The ``tables`` config section."""
-
-    ablation_prior: str | None = None  # prior of Table 5's FVD (None = the first prior found, LTX first)
-
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "TablesConfig":
-        return from_dict(TablesConfig, d, "tables config", ValueError)
-
-
-Config = TablesConfig  # the `tables` config section
+Config = None  # no config section: the tables follow from the metrics files
 
 
 class Outputs(contract.Outputs):
@@ -46,14 +33,14 @@ class Inputs(contract.Inputs):
     out: Path = field(metadata={"help": "output folder (e.g. results/tables)"})
 
 
-def run(inputs: Inputs, cfg: TablesConfig) -> Outputs:
+def run(inputs: Inputs, cfg: None = None) -> Outputs:
     """Write the tables of the metrics files (and ``tables.json``)."""
     from anigs.io import write_json
     from anigs.tables import load_metrics, write_tables
 
     out = Outputs(inputs.out)
     records = load_metrics(inputs.metrics)
-    paths = write_tables(records, out.root, cfg.ablation_prior)
+    paths = write_tables(records, out.root)
     write_json(out.path("index"), {"records": len(records), "metrics": list(map(str, inputs.metrics)),
                                    "files": sorted(str(p) for p in paths)})
     log.info("tables: %d records -> %d files in %s", len(records), len(paths), out.root)
@@ -63,14 +50,9 @@ def run(inputs: Inputs, cfg: TablesConfig) -> Outputs:
 # ---- command line: anigs tables ----
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
     Inputs.add_arguments(parser)
-    add_params(parser, "tables")
 
 
 def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
-    run(Inputs.from_args(args), TablesConfig.from_dict(parse_params(args.params)))
+    run(Inputs.from_args(args))
     return 0

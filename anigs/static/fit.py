@@ -58,17 +58,18 @@ class FitConfig:
     holdout_every: int = 8  # images i with i % holdout_every == 0 are held out (0 = none)
     lr_means: float = 1.6e-4  # initial position lr, times the scene extent
     lr_means_final: float = 1.6e-6  # final position lr, times the scene extent
-    lr_sh_dc: float = 2.5e-3
-    lr_sh_rest: float = 2.5e-3 / 20
-    lr_opacity: float = 5e-2
-    lr_scales: float = 5e-3
-    lr_quats: float = 1e-3
+    lr_sh_dc: float = 2.5e-3  # learning rate of the DC SH coefficients
+    lr_sh_rest: float = 2.5e-3 / 20  # learning rate of the higher-order SH coefficients
+    lr_opacity: float = 5e-2  # learning rate of the opacity logits
+    lr_scales: float = 5e-3  # learning rate of the log-scales
+    lr_quats: float = 1e-3  # learning rate of the rotations
     ssim_weight: float = 0.2  # loss = (1-w) L1 + w (1 - SSIM)
-    init_opacity: float = 0.1
+    init_opacity: float = 0.1  # opacity of the initial Gaussians
     eval_every: int = 250  # held-out PSNR checkpoints for the accuracy-versus-time curve (0 = end only)
     checkpoint_every: int = 500  # write the last good PLY every this many steps (with checkpoint_path)
-    device: str = "auto"
+    device: str = "auto"  # torch device: auto picks CUDA when present (the workflow passes the global device)
     backend: str = "auto"  # rasterizer backend
+    #: densification strategy (clone, split, prune, opacity reset)
     densify: DensifyConfig = field(default_factory=DensifyConfig)
     regularize: RegularizeConfig = field(default_factory=RegularizeConfig)  # needles / unresolved splats
 

@@ -55,7 +55,8 @@ class RegularizeConfig:
     max_world_fraction: float = 0.0    # ... or largest std dev > this x the scene extent (0: no world limit; 3DGS: 0.1)
     decay: float = 0.5                 # opacity factor of unresolved Gaussians at each densification step
     final_prune: bool = True           # prune the Gaussians still unresolved at the last densification step
-    max_share: float = 0.02            # at most this share of the Gaussians is decayed / pruned at a step, least resolved first
+    #: at most this share of the Gaussians is decayed / pruned at a step, least resolved first
+    max_share: float = 0.02
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "RegularizeConfig":

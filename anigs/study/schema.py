@@ -95,14 +95,6 @@ def answer_problems(a: Any) -> list[str]:
     return problems
 
 
-def check_answer(a: Any) -> dict[str, Any]:
-    """Return ``a`` if it is a valid answer, else raise ValueError listing the problems."""
-    problems = answer_problems(a)
-    if problems:
-        raise ValueError("invalid answer: " + "; ".join(problems))
-    return a
-
-
 def answer_key(a: dict[str, Any]) -> tuple[str, str, str, str]:
     """Identity of an answer: one per (study, participant, pair, question)."""
     return a["study_id"], a["participant"], a["pair"], a["question"]

@@ -61,15 +61,6 @@ class Decoy:
         part_may = np.where(decoy > 0, may_move[np.maximum(decoy, 1) - 1], False)
         return (~moving & ~part_may) | ((decoy > 0) & ~part_may)
 
-    def forbidden(self, effect: str) -> np.ndarray:
-        """bool [N]: Gaussians that ``effect`` must not take (still ones and decoy parts it may not take)."""
-        decoy = self.gaussians.extras["decoy"].numpy()
-        out = self.still_mask().copy()
-        for k, part in DECOY_PARTS.items():
-            if effect not in ALLOWED[part]:
-                out |= decoy == k
-        return out
-
 
 def _label(name: str) -> int:
     from anigs.synth.scene import LABEL_IDS

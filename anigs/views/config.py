@@ -45,15 +45,23 @@ class ViewsConfig:
     yaw_steps: list = field(default_factory=lambda: [0.33, 0.67, 1.0])  # then move yaw this share towards the ROI
     extra_locations: int = 8          # extra candidate locations tried for directions no location passes
     match_capture_fov: bool = True    # forward/orbit layouts: FOV at most the capture photos' median FOV
-    min_dynamic_fraction: float = 0.005  # a view is queued only if the ROI covers >= this share of its pixels (pixels the masks stage would mark: ROI carries >= 0.5 of the rendered alpha, alpha >= 0.3); 0 queues every view
+    #: a view is queued only if the ROI covers >= this share of its pixels (pixels the masks stage would mark: ROI
+    #: carries >= 0.5 of the rendered alpha, alpha >= 0.3); 0 queues every view
+    min_dynamic_fraction: float = 0.005
     topdown_size: int = 720         # pixels of the top-down map (views/topdown.png)
-    min_content: float = 0.5          # min share of a view's pixels dominated by sharp Gaussians (anigs.views.content); 0 disables the test
-    sharp_fraction: float = 0.05      # a capture photo resolves a Gaussian when its largest std dev spans <= this x its width
+    #: min share of a view's pixels dominated by sharp Gaussians (anigs.views.content); 0 disables the test
+    min_content: float = 0.5
+    #: a capture photo resolves a Gaussian when its largest std dev spans <= this x its width
+    sharp_fraction: float = 0.05
     min_sharp_observations: int = 2   # a sharp Gaussian is resolved by >= this many capture photos
     footprint_ratio: float = 6.0      # ... its largest scale is <= this x the median of its 16 nearest neighbours'
-    near_points: float = 3.0          # ... and its centre lies within this x the local spacing of the nearest SfM point (with --points)
-    min_edge_share: float = 0.0       # min share of a view's render within 4 px of an edge (abs Laplacian of grey > 6 at 0-255); 0: recorded, not applied
-    background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])  # render background of the edge figure (the scene's sky colour)
+    #: ... and its centre lies within this x the local spacing of the nearest SfM point (with --points)
+    near_points: float = 3.0
+    #: min share of a view's render within 4 px of an edge (abs Laplacian of grey > 6 at 0-255); 0: recorded, not
+    #: applied
+    min_edge_share: float = 0.0
+    #: render background of the edge figure (the scene's sky colour)
+    background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
 
     def __post_init__(self) -> None:
         if self.layout not in ("auto",) + geometry.LAYOUTS:

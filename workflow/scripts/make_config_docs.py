@@ -1,4 +1,5 @@
-"""Write config/README.md (every config key: type, default, description) from the schema.
+"""Write config/README.md from the code: every config key (type, default, description) from the
+schema, and the results layout from the stages' ``Outputs`` types (``anigs.stages``).
 
     python workflow/scripts/make_config_docs.py          # rewrite
     python workflow/scripts/make_config_docs.py --check  # exit 1 if stale
@@ -43,26 +44,6 @@ Each scene is a file `config/scenes/NAME.yaml` listed under `scenes:`. Keys:
 The effective section a stage receives is: `config.yaml` section <- scene override <- variant
 override (`variant_overrides`), merged key by key. `config/scenes/custom_example.yaml` shows a
 user's photo folder with LTX-Video weights on a GPU.
-
-## Results layout
-
-```
-results/{scene}/capture/         images/ (+ gt/ for synthetic scenes), capture.json
-results/{scene}/sfm/             sparse/ (COLMAP), images/ (undistorted), cameras.json, points.npz, report.json
-results/{scene}/static/          canonical.ply (standard 3DGS layout), metrics.json
-results/{scene}/effects/         effects.json (per effect: detected, fractions, confidence, reason), overview.png, regions.npy, dynamic.npy
-results/{scene}/views/           views.json (the queue, with each view's coverage), topdown.png
-results/{scene}/masks/           {view}.png, {view}_overlay.png, dynamic.npy, masks.json
-results/{scene}/{variant}/roundR/  render/{view}.npz, target/{view}.npz, model.pt, update.json
-results/{scene}/{variant}/final/   {view}.mp4, path.mp4, clips/, slices/, final.json
-results/{scene}/{variant}/export/  scene.anigs (compact), animated.ply, animated.json (+ frames/ with export.frames)
-results/{scene}/{variant}/viewer/  index.html and the viewer's scripts and data (open offline)
-results/{scene}/{variant}/eval/    metrics.json
-results/tables/                    the paper's tables (csv, md, tex)
-results/study/                     the 2AFC study page (snakemake study)
-```
-Logs and Snakemake benchmark TSVs (time and memory per job) sit beside them in `logs/` and
-`benchmarks/` folders.
 """
 
 
@@ -92,11 +73,51 @@ generated from `anigs/effects/vocabulary.py`.
 """
 
 
+# Folder of a stage's outputs, where it is not ``<stage>/`` under its scope's folder (the paths of
+# the rules in workflow/rules/; tests/workflow/test_config_schema.py checks them against the rules).
+FOLDERS = {"render_clip": "round{k}/render", "refine": "round{k}/target", "round": "round{k}",
+           "update": "round{k}", "view": "viewer", "eval": "eval", "fvd_gt": "eval"}
+SCOPE_ROOT = {"scene": "results/{scene}", "variant": "results/{scene}/{variant}", "global": "results"}
+
+
+def stage_folder(stage) -> str:
+    """The folder a stage writes, e.g. ``results/{scene}/masks/`` or ``results/{scene}/{variant}/round{k}/``."""
+    return f"{SCOPE_ROOT[stage.scope]}/{FOLDERS.get(stage.name, stage.name)}/"
+
+
+def results_layout(stages=None) -> str:
+    """The "Results layout" section: per stage with an ``Outputs`` contract, its folder and every
+    file of its ``LAYOUT`` (name, optional, what it holds)."""
+    from anigs.stages import STAGES
+
+    lines = ["", "## Results layout", "",
+             "Every stage writes one folder; the files below are its `Outputs` contract "
+             "(`anigs/stages/<stage>.py`), the only place that names them. `{k}` is the round, `{view}` a "
+             "queued view (`v00`, ...). Generated from the stages' `Outputs` types.", ""]
+    missing = []
+    for stage in stages if stages is not None else STAGES:
+        outputs = getattr(stage.load(), "Outputs", None)
+        if outputs is None or not getattr(outputs, "LAYOUT", None):
+            missing.append(stage.name)
+            continue
+        lines += [f"### `{stage_folder(stage)}` ({stage.name})", "", "| file | holds |", "|---|---|"]
+        for f in outputs.LAYOUT.values():
+            doc = f.doc.replace("|", "\\|")
+            lines.append(f"| `{f.name}`{' (optional)' if f.optional else ''} | {doc} |")
+        lines.append("")
+    if missing:
+        lines += [f"Stages without an `Outputs` contract yet (not listed): {', '.join(missing)}.", ""]
+    lines += ["Logs and Snakemake benchmark TSVs (time and memory per job) sit beside the stage folders in "
+              "`logs/` and `benchmarks/` folders; `snakemake study` writes the 2AFC study page to `results/study/`.",
+              ""]
+    return "\n".join(lines)
+
+
 def build() -> str:
     from anigs.effects.vocabulary import vocabulary_markdown
 
     schema = yaml.safe_load(SCHEMA.read_text())
-    lines = [INTRO, VOCABULARY + vocabulary_markdown() + "\n", "## Keys", ""]
+    lines = [INTRO, results_layout(), VOCABULARY + vocabulary_markdown() + "\n", "## Keys", ""]
     top, sections = [], []
     for key, p in schema["properties"].items():
         (sections if p.get("type") == "object" and "properties" in p else top).append((key, p))

@@ -1,7 +1,9 @@
 """Generate workflow/schemas/config.schema.yaml from the stages' config dataclasses.
 
-Each stage section's keys, defaults and descriptions (the field's trailing comment) come from
-the code, so the schema cannot drift: tests/test_config_schema.py regenerates and compares.
+The generator walks the types: each stage's ``Config`` gives its section, a field typed with a
+dataclass gives a nested section (``masks.vegetation``), and every field's description is its
+doc in the code (:func:`field_docs`), so the schema cannot drift: tests/workflow/test_config_schema.py
+regenerates and compares, and a field without a doc fails the generator.
 
     python workflow/scripts/make_schema.py          # rewrite the schema
     python workflow/scripts/make_schema.py --check  # exit 1 if the committed schema is stale
@@ -9,10 +11,14 @@ the code, so the schema cannot drift: tests/test_config_schema.py regenerates an
 from __future__ import annotations
 
 import argparse
+import ast
 import dataclasses
 import inspect
+import io
 import re
 import sys
+import textwrap
+import tokenize
 import typing
 from pathlib import Path
 
@@ -33,104 +39,47 @@ def sections():
     return {s.name: (s.config_class(), s.help) for s in STAGES if s.section}
 
 
-def nested():
-    from anigs.baselines.lifting import LiftingConfig
-    from anigs.baselines.physics import PhysicsConfig
-    from anigs.masks.lift import LiftConfig
-    from anigs.masks.sam2 import Sam2Config
-    from anigs.masks.vegetation import VegetationConfig
-    from anigs.refine.prior.ltx import LTXConfig
-    from anigs.refine.prior.procedural import ProceduralConfig
+def field_docs(cls) -> dict[str, str]:
+    """Field -> its doc, for dataclass ``cls`` and its dataclass bases (a subclass's own doc wins).
 
-    return {("animate", "lifting"): LiftingConfig, ("animate", "physics"): PhysicsConfig,
-            ("masks", "vegetation"): VegetationConfig, ("masks", "lift"): LiftConfig, ("masks", "sam2"): Sam2Config,
-            ("refine", "procedural"): ProceduralConfig, ("refine", "ltx"): LTXConfig}
-
-
-# Descriptions for fields that carry no trailing comment in the code.
-EXTRA = {
-    "lr_sh_dc": "learning rate of the DC SH coefficients",
-    "lr_sh_rest": "learning rate of the higher-order SH coefficients",
-    "lr_opacity": "learning rate of the opacity logits",
-    "lr_scales": "learning rate of the log-scales",
-    "lr_quats": "learning rate of the rotations",
-    "init_opacity": "opacity of the initial Gaussians",
-    "device": "torch device: auto picks CUDA when present (the workflow passes the global device)",
-    "seed": "random seed (the workflow passes the global seed)",
-    "background": "background colour (RGB in [0,1])",
-    "densify": "densification strategy (clone, split, prune, opacity reset)",
-    "backend": "rasterizer backend: auto | cpu | torch | gsplat",
-    "fps": "frames per second of the written videos / sidecar",
-    "masks.vegetation.flower_saturation": "minimum HSV saturation for a colourful (flower) pixel to count as vegetation",
-    "render_clip.num_frames": "frames per clip (the workflow passes animate.frames)",
-    "refine.effects": "effect types to synthesise (the workflow passes the scene's effects)",
-    "refine.procedural.effects": "effect types (set by the refine section's effects)",
-    "refine.ltx.negative_prompt": "negative text prompt (with guidance_scale > 1)",
-    "refine.ltx.decode_noise_scale": "noise scale added before VAE decoding (null = model default)",
-    "refine.ltx.sds_tau_max": "largest diffusion time sampled by the SDS loss",
-    "update.steps": "optimisation steps per round",
-    "update.views_per_step": "(view, t) samples per step for the animation loss",
-    "update.cano_views_per_step": "views per step for the canonical loss (frame 0 vs the static render)",
-    "update.num_bases": "K: DCT bases per motion channel (clamped to T-1)",
-    "update.rotation": "learn per-Gaussian rotation offsets as well as position offsets",
-    "update.param_groups": "trainable parameters: deformation+positions (paper) | deformation | all",
-    "update.lr_position_coeffs": "learning rate of the position DCT coefficients (times spatial_lr_scale)",
-    "update.lr_rotation_coeffs": "learning rate of the rotation DCT coefficients",
-    "update.lr_means": "learning rate of the canonical positions (times spatial_lr_scale)",
-    "update.lr_sh": "learning rate of the SH coefficients (param_groups all)",
-    "update.lr_final_factor": "learning rates decay exponentially to this fraction at the last step",
-    "update.spatial_lr_scale": "length scale of position learning rates (null = 1-99 percentile scene extent)",
-    "update.lambda_cano": "weight of the canonical loss",
-    "update.lambda_sds": "weight of the SDS loss (needs a prior with a score: ltx)",
-    "update.sds_frames": "frames of the SDS sub-clip (4m+1)",
-    "update.max_offset_frac": "smooth limit on offsets as a fraction of the height above the ground (null = none)",
-    "update.max_offset_abs": "smooth absolute limit on offsets in world units (null = none)",
-    "update.max_angle_deg": "smooth limit on rotation offsets in degrees (null = none)",
-    "update.effect_limits": "per-effect-label overrides of the three limits",
-    "update.log_every": "log the loss every this many steps",
-    "update.nan_guard": "stop on NaN loss or gradients, saving the last good state",
-}
-
-
-def _comments(cls) -> dict[str, str]:
-    """Field -> its trailing (or preceding) comment, from the class's source and its dataclass bases'."""
+    A field's doc is the block of ``#:`` comment lines right above it, else its trailing comment,
+    continued by the comment-only lines below it that start in the same column."""
     out: dict[str, str] = {}
-    for base in reversed([c for c in cls.__mro__[1:] if dataclasses.is_dataclass(c)]):
-        out.update(_own_comments(base))
-    out.update(_own_comments(cls))
+    for base in reversed([c for c in cls.__mro__ if dataclasses.is_dataclass(c)]):
+        out.update(_own_docs(base))
     return out
 
 
-def _own_comments(cls) -> dict[str, str]:
-    out = {}
+def _own_docs(cls) -> dict[str, str]:
     try:
-        src = inspect.getsource(cls)
+        src = textwrap.dedent(inspect.getsource(cls))
     except (OSError, TypeError):
-        return out
+        return {}
     lines = src.splitlines()
-    for i, line in enumerate(lines):
-        m = re.match(r"\s+(\w+)\s*:\s*[^=]+?(?:=.*?)?\s*#\s*(.+)$", line)
-        if m:
-            out[m.group(1)] = m.group(2).strip()
-        else:
-            m2 = re.match(r"\s+(\w+)\s*:", line)
-            if m2 and i > 0 and lines[i - 1].strip().startswith("#"):
-                out.setdefault(m2.group(1), lines[i - 1].strip().lstrip("#").strip())
+    comments = {t.start[0]: (t.start[1], t.string.lstrip("#").strip())
+                for t in tokenize.generate_tokens(io.StringIO(src).readline) if t.type == tokenize.COMMENT}
+    own = {f.name for f in dataclasses.fields(cls)}
+    out = {}
+    for node in ast.parse(src).body[0].body:
+        if not (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)) or node.target.id not in own:
+            continue
+        above, i = [], node.lineno - 1
+        while i >= 1 and lines[i - 1].lstrip().startswith("#:"):
+            above.insert(0, lines[i - 1].lstrip()[2:].strip())
+            i -= 1
+        if above:
+            out[node.target.id] = " ".join(above)
+            continue
+        trailing = [n for n in range(node.lineno, node.end_lineno + 1) if n in comments]
+        if not trailing:
+            continue
+        col, text = comments[trailing[0]]
+        parts, n = [text], node.end_lineno + 1
+        while n in comments and comments[n][0] == col and lines[n - 1].lstrip().startswith("#"):
+            parts.append(comments[n][1])
+            n += 1
+        out[node.target.id] = " ".join(parts)
     return out
-
-
-def _default(f: dataclasses.Field):
-    if f.default is not dataclasses.MISSING:
-        v = f.default
-    elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
-        v = f.default_factory()  # type: ignore[misc]
-    else:
-        return None
-    if dataclasses.is_dataclass(v):
-        v = dataclasses.asdict(v)
-    if isinstance(v, tuple):
-        v = list(v)
-    return v
 
 
 def _type(value, annotation) -> list[str] | str:
@@ -171,32 +120,33 @@ def _special() -> dict:
     return {"effects.requested": {"pattern": "^auto$", "items": {"type": "string", "enum": list(EFFECTS)}}}
 
 
-# Fields a stage sets itself from its section's top level (not user keys of the nested dict).
-EXCLUDE = {("refine", "procedural", "effects"), ("refine", "ltx", "steps")}
-
-
-def dataclass_schema(cls, path: tuple[str, ...], nest) -> dict:
-    com = _comments(cls)
-    hints = typing.get_type_hints(cls) if True else {}
+def dataclass_schema(cls, path: tuple[str, ...], skip: tuple[str, ...] = (), defaults=None) -> dict:
+    """The object schema of dataclass ``cls`` at config ``path``: one property per field (nested
+    dataclasses recursively), minus ``skip`` (keys the parent section sets itself: its
+    ``DERIVED`` class attribute, nested section -> keys). ``defaults``: the instance whose values
+    are the defaults (a nested section's default in its parent may differ from its class's)."""
+    defaults = cls() if defaults is None else defaults
+    docs = field_docs(cls)
+    hints = typing.get_type_hints(cls)
+    derived = getattr(cls, "DERIVED", {})
+    special = _special()
     props = {}
     for f in dataclasses.fields(cls):
-        if path + (f.name,) in EXCLUDE:
+        if f.name in skip:
             continue
-        value = _default(f)
-        sub = nest.get(path + (f.name,))
-        desc = com.get(f.name) or EXTRA.get(".".join(path + (f.name,))) or EXTRA.get(f.name)
-        if desc is None:
-            MISSING.append(f"{'.'.join(path + (f.name,))} ({cls.__module__}.{cls.__name__})")
+        key = ".".join(path + (f.name,))
+        desc = docs.get(f.name)
+        if not desc:
+            MISSING.append(f"{key} ({cls.__module__}.{cls.__name__}.{f.name})")
             desc = ""
-        if dataclasses.is_dataclass(hints.get(f.name)):
-            sub = hints[f.name]
-        if sub is not None:
-            p = dataclass_schema(sub, path + (f.name,), nest)
+        value = getattr(defaults, f.name)
+        if dataclasses.is_dataclass(hints[f.name]):
+            p = dataclass_schema(hints[f.name], path + (f.name,), tuple(derived.get(f.name, ())), value)
             p["description"] = desc
             p["default"] = {}
         else:
-            p = {"type": _type(value, hints.get(f.name, "")), "description": desc, "default": value,
-                 **_special().get(".".join(path + (f.name,)), {})}
+            value = list(value) if isinstance(value, tuple) else value
+            p = {"type": _type(value, hints[f.name]), "description": desc, "default": value, **special.get(key, {})}
         props[f.name] = p
     return {"type": "object", "additionalProperties": False, "properties": props}
 
@@ -254,9 +204,8 @@ def build() -> dict:
               "description": "anigs workflow configuration (generated by workflow/scripts/make_schema.py from the "
                              "stages' config dataclasses: do not edit by hand)",
               "type": "object", "additionalProperties": False, "properties": dict(TOP)}
-    nest = nested()
     for name, (cls, desc) in sections().items():
-        s = dataclass_schema(cls, (name,), nest)
+        s = dataclass_schema(cls, (name,))
         s["description"] = desc
         s["default"] = {}
         schema["properties"][name] = s
@@ -273,7 +222,8 @@ def main() -> int:
     args = ap.parse_args()
     text = dump(build())
     if MISSING:
-        print("fields without a description (add a trailing comment):\n  " + "\n  ".join(MISSING), file=sys.stderr)
+        print("fields without a doc (add a trailing comment, or #: lines above the field):\n  "
+              + "\n  ".join(MISSING), file=sys.stderr)
         return 1
     if args.check:
         if not SCHEMA.exists() or SCHEMA.read_text() != text:

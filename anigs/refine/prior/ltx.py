@@ -63,18 +63,18 @@ class LTXConfig:
     steps: int = 8                        # Euler steps from sigma=strength to 0 (linear in sigma)
     sigmas: list[float] | None = None     # explicit schedule (e.g. the distilled one); the part < strength is used
     guidance_scale: float = 1.0           # classifier-free guidance (> 1 doubles the batch)
-    negative_prompt: str = ""
+    negative_prompt: str = ""  # negative text prompt (with guidance_scale > 1)
     max_sequence_length: int = 128        # T5 tokens
     frame_rate: float = 24.0              # frame rate given to the transformer's video coordinates
     device: str = "auto"                  # auto | cpu | cuda[:N]
     dtype: str = "auto"                   # auto (bf16 on GPU, fp32 on CPU) | bfloat16 | float32
     condition_first_frame: bool = True    # keep latent frame 0 clean (frame 0 = canonical frame)
     decode_timestep: float = 0.0          # for timestep-conditioned VAEs (LTX 0.9.1+)
-    decode_noise_scale: float | None = None
+    decode_noise_scale: float | None = None  # noise scale added before VAE decoding (null = model default)
     vae_tiling: bool = False              # decode in tiles (large resolutions)
     prompt_embeds: str | None = None      # .pt with {"embeds": [L,D], "mask": [L]} when no text encoder
     sds_tau_min: float = 0.02             # SDS: tau ~ U(tau_min, tau_max)
-    sds_tau_max: float = 0.98
+    sds_tau_max: float = 0.98  # largest diffusion time sampled by the SDS loss
     sds_weighting: str = "uniform"        # uniform: w=1 | x0: w=tau^2 (loss on the predicted clean latent)
 
     @classmethod

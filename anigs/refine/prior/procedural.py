@@ -63,13 +63,14 @@ log = logging.getLogger(__name__)
 class ProceduralConfig:
     """Config of the procedural prior (section ``procedural`` of the refine stage)."""
 
-    effects: list[str] = field(default_factory=lambda: ["foliage_sway", "leaf_flutter"])
+    effects: list[str] = field(default_factory=lambda: ["foliage_sway", "leaf_flutter"])  # effect types to synthesise
     fps: float = 24.0                 # frames per second of the clips (frequencies are in Hz)
     effect_params: dict[str, dict[str, Any]] = field(default_factory=dict)  # per-effect EffectSpec overrides
     amplitude_scale: float = 1.0      # global amplitude multiplier
     edge: float = 0.03                # mask-edge taper width, fraction of the shorter side
     flow_preset: str = "medium"       # DIS preset for the motion estimate: ultrafast | fast | medium
-    use_prompt: bool = True           # effects from prompt keywords when `effects` is empty; intensity words scale amplitude
+    #: effects from prompt keywords when `effects` is empty; intensity words scale amplitude
+    use_prompt: bool = True
     # diffusion-prior flaws (module docstring); 0 = off, the clean prior
     view_phase_frames: float = 0.0    # std of a per-view time shift of the motion kept from the clip (frames)
     view_amplitude_log: float = 0.0   # std of the per-view log-gain of the refined motion
