@@ -105,8 +105,8 @@ def stage_rule_problems(stage, types: tuple[type[Outputs], ...], rules: dict[str
             hit = _match(o, cands, results)
             if hit is None:
                 names = sorted(f"{results}/{t.FOLDER}/{f.name}" for t in cands for f in t.LAYOUT.values())
-                problems.append(f"rule {rule}: output {o} is no folder or file of {[t.__name__ for t in cands]}"
-                                f" ({names})")
+                problems.append(f"rule {rule}: output {o} is no folder or file of "
+                                f"{[f'{t.STAGE}.{t.__name__}' for t in cands]} ({names})")
                 continue
             t, key = hit
             keys = list(t.LAYOUT) if key is None else [key]
@@ -124,7 +124,7 @@ def stage_rule_problems(stage, types: tuple[type[Outputs], ...], rules: dict[str
                 continue  # a folder entry declared through a file in it, or a file through its folder
             if inside and all(t.LAYOUT[j].fields for j in inside):
                 continue  # a folder of per-view (...) files: no rule can declare them
-            problems.append(f"{stage.name}: {t.__name__}.LAYOUT file {k!r} ({t.FOLDER}/{f.name}) is not optional "
+            problems.append(f"{stage.name}: {t.STAGE}.{t.__name__}.LAYOUT file {k!r} ({t.FOLDER}/{f.name}) is not optional "
                             f"but no rule declares it")
     return problems
 
