@@ -49,6 +49,7 @@ class Outputs(contract.Outputs):
     (:mod:`anigs.synth.capture`)."""
 
     STAGE = "capture"
+    FOLDER = "{scene}/capture"
     LAYOUT = {
         "images": File("images/", "the photos (PNG; synthetic: img_000.png, ...; photos: {stem}.png)"),
         "summary": File("capture.json", "source (synthetic|photos), image names and count; synthetic: "

@@ -15,6 +15,12 @@ Every stage's ``run(inputs, cfg) -> Outputs``.
         LAYOUT = {"effects": File("effects.json", "per effect: detected, ...")}
 
     EffectsOutputs("results/demo/effects").path("effects")   # results/demo/effects/effects.json
+
+``FOLDER`` says where the folder lies under the results root (``"{scene}/effects"``,
+``"{scene}/{variant}/round{round}"``), so each file has one location. A stage whose files lie in
+several folders lists its ``Outputs`` types in the module's ``OUTPUTS`` (:func:`outputs_of`); a
+folder may hold several stages' files (``round{r}/``: render_clip, refine, update), but a file
+belongs to exactly one ``Outputs``.
 """
 from __future__ import annotations
 
@@ -54,6 +60,7 @@ class Outputs:
 
     LAYOUT: ClassVar[dict[str, File]] = {}
     STAGE: ClassVar[str] = ""   # the stage's name (anigs.stages.STAGES)
+    FOLDER: ClassVar[str] = ""  # the folder under the results root, with {scene}/{variant}/{round} fields
 
     def __init__(self, root: str | Path):
         self.root = Path(root)
@@ -69,6 +76,13 @@ class Outputs:
 
     def __hash__(self) -> int:
         return hash((type(self).__name__, self.root))
+
+    @classmethod
+    def at(cls, results: str | Path, **fields: Any):
+        """The folder of these outputs under ``results`` (``FOLDER`` filled from ``fields``)."""
+        if not cls.FOLDER:
+            raise ValueError(f"{cls.__name__} has no FOLDER")
+        return cls(Path(results) / cls.FOLDER.format(**fields))
 
     def path(self, key: str, **fields: Any) -> Path:
         """The path of file ``key`` (its format fields filled from ``fields``)."""
@@ -111,6 +125,14 @@ class Outputs:
             raise FileNotFoundError(f"{p}: missing (run the {self.STAGE or 'upstream'} stage)")
         a = np.load(p, allow_pickle=False)
         return check_array(a, str(p), dtype, shape)
+
+
+def outputs_of(module: types.ModuleType) -> tuple[type[Outputs], ...]:
+    """The ``Outputs`` types of a stage module: its ``OUTPUTS`` when it writes into several folders,
+    else its ``Outputs`` alone; ``()`` for a stage that writes nothing of its own."""
+    if hasattr(module, "OUTPUTS"):
+        return tuple(module.OUTPUTS)
+    return (module.Outputs,) if hasattr(module, "Outputs") else ()
 
 
 def check_array(a: np.ndarray, where: str, dtype: str | None = None,

@@ -42,6 +42,7 @@ class Outputs(contract.Outputs):
     """The evaluation folder of a variant (``eval/``; ``fvd_gt``'s record lies beside, its own Outputs)."""
 
     STAGE = "eval"
+    FOLDER = "{scene}/{variant}/eval"
     LAYOUT = {"metrics": File("metrics.json", "the record of every metric: schema, scene, dataset, method, variant, "
                                               "config, inputs, metrics {name: {value, available, reason, ...}}"),
               "clip_metrics": File("clip_metrics.json", "the record of the final clips' metrics (--part clips)"),

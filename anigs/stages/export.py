@@ -28,6 +28,7 @@ class Outputs(contract.Outputs):
     """The export folder of a variant (``export/``)."""
 
     STAGE = "export"
+    FOLDER = "{scene}/{variant}/export"
     LAYOUT = {"compact": File("scene.anigs", "compact animated scene (anigs.viewer.compact): canonical once, "
                                             "DCT motion of the moving Gaussians"),
               "ply": File("animated.ply", "standard 3DGS PLY + per-Gaussian DCT properties"),

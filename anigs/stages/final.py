@@ -57,6 +57,7 @@ class Outputs(contract.Outputs):
     """The final folder of a variant (``final/``)."""
 
     STAGE = "final"
+    FOLDER = "{scene}/{variant}/final"
     LAYOUT = {"summary": File("final.json", "per view: row, col, peak_temporal_std, static_max_change, "
                                             "dynamic_fraction; frames, config, path"),
               "video": File("{view}.mp4", "camera-fixed video of a view (H.264)"),

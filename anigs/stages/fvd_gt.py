@@ -94,22 +94,29 @@ class ReferenceOutputs(contract.Outputs):
     """A synthetic scene's FVD-GT reference folder (``{scene}/fvd_gt/``), shared by its variants."""
 
     STAGE = "fvd_gt"
+    FOLDER = "{scene}/fvd_gt"
     LAYOUT = {"reference": File("reference.json", "config, frames, window_starts, protocol, available, clips, "
                                                   "still_control record, gt_vbench"),
-              "features": File("features.npz", "features float [n,D] of the ground truth's windows, views str [n]"),
+              "features": File("features.npz", "features float [n,D] of the ground truth's windows, views str [n] "
+                                               "(when the I3D network is available)", optional=True),
               "still_features": File("still_features.npz", "the same of the static canonical scene", optional=True),
               "views": File("views.json", "the evaluation views (ground-truth frame)"),
-              "sheet": File("views.png", "contact sheet of the views (ground truth, static rows)")}
+              "sheet": File("views.png", "contact sheet of the views (ground truth, static rows; when the I3D "
+                                         "network is available)", optional=True)}
 
 
 class Outputs(contract.Outputs):
     """A variant's FVD-GT record, beside its ``metrics.json`` (``eval/``)."""
 
     STAGE = "fvd_gt"
+    FOLDER = "{scene}/{variant}/eval"
     LAYOUT = {"record": File("fvd_gt.json", "metrics.json schema, part fvd_gt: the fvd/gt metric"),
               "features": File("fvd_gt_features.npz", "the method's I3D features float [n,D] (paired comparisons)",
                                optional=True),
               "sheet": File("fvd_gt.png", "contact sheet of the method's views", optional=True)}
+
+
+OUTPUTS = (ReferenceOutputs, Outputs)  # the scene's reference folder and the variant's record in eval/
 
 
 @dataclass

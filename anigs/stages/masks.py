@@ -44,6 +44,7 @@ class Outputs(contract.Outputs):
     """The masks stage's folder: a dynamic mask per queued view and the dynamic Gaussian set."""
 
     STAGE = "masks"
+    FOLDER = "{scene}/masks"
     LAYOUT = {
         "mask": File("{view}.png", "uint8 [H, W] 0/255: the view's dynamic mask (its first frame)"),
         "effect_mask": File("{view}_{effect}.png", "uint8 [H, W] 0/255: the part of the mask one effect "

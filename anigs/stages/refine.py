@@ -83,6 +83,7 @@ class Outputs(contract.Outputs):
     """A round's folder (``round{r}/``): the refined target clips of its views."""
 
     STAGE = "refine"
+    FOLDER = "{scene}/{variant}/round{round}"
     LAYOUT = {"targets": File("target/", "the round's target clips"),
               "target": File("target/{view}.npz", "refined clip float [T,H,W,3] in [0,1]; metadata: the rendered "
                                                   "clip's + refine (seed, sigmas, view, round)")}

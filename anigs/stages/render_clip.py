@@ -55,6 +55,7 @@ class Outputs(contract.Outputs):
     """A round's folder (``round{r}/``): the rendered clips of its views."""
 
     STAGE = "render_clip"
+    FOLDER = "{scene}/{variant}/round{round}"
     LAYOUT = {"clips": File("render/", "the round's rendered clips"),
               "clip": File("render/{view}.npz", "camera-fixed clip float [T,H,W,3] in [0,1] + metadata "
                                                 "(camera, view_id, model, num_frames, background)")}

@@ -29,11 +29,11 @@ log = logging.getLogger("anigs.round")
 
 
 class Outputs(contract.Outputs):
-    """A round's folder (``round{r}/``): the rendered clips and the targets of its new views."""
+    """A round's folder (``round{r}/``): the rendered clips and the targets of its new views. Its
+    files are the render_clip and refine stages' (``OUTPUTS``), so it names none itself."""
 
     STAGE = "round"
-    LAYOUT = {"clips": render_clip.Outputs.LAYOUT["clips"], "clip": render_clip.Outputs.LAYOUT["clip"],
-              "targets": refine.Outputs.LAYOUT["targets"], "target": refine.Outputs.LAYOUT["target"]}
+    FOLDER = "{scene}/{variant}/round{round}"
 
     @property
     def renders(self) -> render_clip.Outputs:
@@ -42,6 +42,9 @@ class Outputs(contract.Outputs):
     @property
     def refined(self) -> refine.Outputs:
         return refine.Outputs(self.root)
+
+
+OUTPUTS = (render_clip.Outputs, refine.Outputs)  # what the stage writes: both stages' files
 
 
 @dataclass

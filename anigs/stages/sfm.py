@@ -25,6 +25,7 @@ class Outputs(contract.Outputs):
     """The sfm stage's folder, laid out like a COLMAP project (see :mod:`anigs.sfm.colmap`)."""
 
     STAGE = "sfm"
+    FOLDER = "{scene}/sfm"
     LAYOUT = {
         "images": File("images/", "the images the cameras describe (undistorted, or copies), named as the cameras"),
         "sparse": File("sparse/", "sparse/0/: COLMAP binary model in the output frame (PINHOLE after undistortion)"),

@@ -27,6 +27,7 @@ class Outputs(contract.Outputs):
     """The static stage's folder: the canonical 3DGS."""
 
     STAGE = "static"
+    FOLDER = "{scene}/static"
     LAYOUT = {
         "canonical": File("canonical.ply", "the canonical 3DGS, standard 3DGS PLY layout (any 3DGS viewer opens it)"),
         "metrics": File("metrics.json", "held-out and train PSNR/SSIM, Gaussian count, seconds, inputs, config"),

@@ -29,6 +29,7 @@ class Outputs(contract.Outputs):
     """The report folder of a sweep (``results/tradeoff``)."""
 
     STAGE = "tradeoff"
+    FOLDER = "tradeoff"
     LAYOUT = {"csv": File("{scene}.csv", "scene, knob, value, variant, seconds, variant_seconds, jobs, every metric, "
                                          "front"),
               "md": File("{scene}.md", "the table and the settings on the front"),

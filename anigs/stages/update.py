@@ -36,6 +36,7 @@ class Outputs(contract.Outputs):
     """A round's model folder (``round{r}/``; ``still/`` when nothing moves)."""
 
     STAGE = "update"
+    FOLDER = "{scene}/{variant}/round{round}"
     LAYOUT = {"model": File("model.pt", "deformation (DCT coefficients [M,K,3]/[M,K,4], dynamic index [M]) + "
                                         "canonical positions [N,3] (anigs.animate.deform.save_model)"),
               "log": File("update.json", "loss history, timing, containment counts", optional=True),

@@ -46,6 +46,7 @@ class Outputs(contract.Outputs):
     """The viewer folder of a variant (``viewer/``; the names are :mod:`anigs.viewer.build`'s)."""
 
     STAGE = "view"
+    FOLDER = "{scene}/{variant}/viewer"
     LAYOUT = {"index": File("index.html", "the viewer page (with its .js and .css beside it)"),
               "scene": File("scene.anigs", "the compact animated scene the page loads"),
               "embed": File("scene.js", "the scene as base64, for file:// (view.embed)", optional=True),

@@ -40,6 +40,7 @@ class Outputs(contract.Outputs):
     """The views stage's folder: the view queue."""
 
     STAGE = "views"
+    FOLDER = "{scene}/views"
     LAYOUT = {
         "views": File("views.json", "the queue: per view id (v00, v01, ...), camera (OpenCV, the view's "
                                     "intrinsics and size), location, coverage, content; the dropped views, "

@@ -1,4 +1,4 @@
-"""The stage contract base: layout paths, checked loaders, flags derived from Inputs fields."""
+"""The stage contract base: layout paths and folders, checked loaders, flags derived from Inputs fields."""
 from __future__ import annotations
 
 import argparse
@@ -8,11 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from anigs.stages.contract import File, Inputs, Outputs, check_array
+from anigs.stages.contract import File, Inputs, Outputs, check_array, outputs_of
 
 
 class _Out(Outputs):
     STAGE = "toy"
+    FOLDER = "{scene}/{variant}/toy"
     LAYOUT = {
         "report": File("report.json", "the report"),
         "dynamic": File("dynamic.npy", "bool [N]"),
@@ -39,6 +40,28 @@ def test_paths_and_patterns(tmp_path):
         o.path("mask")
     with pytest.raises(KeyError, match="has no file 'nope'"):
         o.path("nope")
+
+
+def test_folder_under_the_results_root(tmp_path):
+    o = _Out.at(tmp_path, scene="demo", variant="full")
+    assert o == _Out(tmp_path / "demo" / "full" / "toy")
+    assert o.path("report") == tmp_path / "demo/full/toy/report.json"
+    with pytest.raises(KeyError, match="variant"):
+        _Out.at(tmp_path, scene="demo")
+    with pytest.raises(ValueError, match="has no FOLDER"):
+        type("NoFolder", (Outputs,), {}).at(tmp_path)
+
+
+def test_outputs_of_a_stage_module():
+    import types
+
+    one = types.ModuleType("one")
+    one.Outputs = _Out
+    assert outputs_of(one) == (_Out,)
+    two = types.ModuleType("two")
+    two.Outputs, two.OUTPUTS = _Out, [Outputs, _Out]
+    assert outputs_of(two) == (Outputs, _Out)
+    assert outputs_of(types.ModuleType("none")) == ()
 
 
 def test_checked_loaders_name_the_file(tmp_path):

@@ -9,6 +9,7 @@ rule capture_synthetic:
         gt_cameras=stage_out("capture", "gt_cameras"),
         gt_gaussians=stage_out("capture", "gt_gaussians"),
         gt_labels=stage_out("capture", "gt_labels"),
+        gt_anchors=stage_out("capture", "gt_anchors"),
         gt_motion=stage_out("capture", "gt_motion"),
     wildcard_constraints:
         scene=SYNTH_SCENES,
