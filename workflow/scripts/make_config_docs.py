@@ -73,16 +73,9 @@ generated from `anigs/effects/vocabulary.py`.
 """
 
 
-# Folder of a stage's outputs, where it is not ``<stage>/`` under its scope's folder (the paths of
-# the rules in workflow/rules/; tests/workflow/test_config_schema.py checks them against the rules).
-FOLDERS = {"render_clip": "round{k}/render", "refine": "round{k}/target", "round": "round{k}",
-           "update": "round{k}", "view": "viewer", "eval": "eval", "fvd_gt": "eval"}
-SCOPE_ROOT = {"scene": "results/{scene}", "variant": "results/{scene}/{variant}", "global": "results"}
-
-
-def stage_folder(stage) -> str:
-    """The folder a stage writes, e.g. ``results/{scene}/masks/`` or ``results/{scene}/{variant}/round{k}/``."""
-    return f"{SCOPE_ROOT[stage.scope]}/{FOLDERS.get(stage.name, stage.name)}/"
+def stage_folder(outputs) -> str:
+    """The folder an ``Outputs`` type names, e.g. ``results/{scene}/masks/`` (its ``FOLDER``)."""
+    return f"results/{outputs.FOLDER}/"
 
 
 def results_layout(stages=None) -> str:
@@ -92,21 +85,25 @@ def results_layout(stages=None) -> str:
 
     lines = ["", "## Results layout", "",
              "Every stage writes one folder; the files below are its `Outputs` contract "
-             "(`anigs/stages/<stage>.py`), the only place that names them. `{k}` is the round, `{view}` a "
+             "(`anigs/stages/<stage>.py`), the only place that names them. `{round}` is the round, `{view}` a "
              "queued view (`v00`, ...). Generated from the stages' `Outputs` types.", ""]
-    missing = []
+    from anigs.stages.contract import outputs_of
+
+    missing, seen = [], set()
     for stage in stages if stages is not None else STAGES:
-        outputs = getattr(stage.load(), "Outputs", None)
-        if outputs is None or not getattr(outputs, "LAYOUT", None):
+        types_ = [o for o in outputs_of(stage.load()) if o.LAYOUT and o not in seen]
+        seen.update(types_)
+        if not outputs_of(stage.load()):
             missing.append(stage.name)
             continue
-        lines += [f"### `{stage_folder(stage)}` ({stage.name})", "", "| file | holds |", "|---|---|"]
-        for f in outputs.LAYOUT.values():
-            doc = f.doc.replace("|", "\\|")
-            lines.append(f"| `{f.name}`{' (optional)' if f.optional else ''} | {doc} |")
-        lines.append("")
+        for outputs in types_:
+            lines += [f"### `{stage_folder(outputs)}` ({stage.name})", "", "| file | holds |", "|---|---|"]
+            for f in outputs.LAYOUT.values():
+                doc = f.doc.replace("|", "\\|")
+                lines.append(f"| `{f.name}`{' (optional)' if f.optional else ''} | {doc} |")
+            lines.append("")
     if missing:
-        lines += [f"Stages without an `Outputs` contract yet (not listed): {', '.join(missing)}.", ""]
+        lines += [f"Stages that write no files of their own: {', '.join(missing)}.", ""]
     lines += ["Logs and Snakemake benchmark TSVs (time and memory per job) sit beside the stage folders in "
               "`logs/` and `benchmarks/` folders; `snakemake study` writes the 2AFC study page to `results/study/`.",
               ""]
