@@ -5,7 +5,8 @@
 One row per final clip (``{scene}/{variant}/final/clips/{view}.npz``): the first frame, the last
 frame, the dynamic mask tinted over the first frame (the masks stage's), and the heat
 map of the largest change from frame 0 (:func:`anigs.metrics.contact.heat_colours`). Under each
-row: the view's figures from the views stage's queue (scene coverage, content, edge share, pitch)
+row: the view's figures from the views stage's queue (scene coverage, content and the share of
+pixels left out of it as magnified beyond the photos' sampling, edge share, pitch)
 and the edge share of the clip's first frame (:func:`anigs.views.content.edge_share`). Prints one
 line per view with the same numbers. Default output: ``{scene}/{variant}/contact_final.png``.
 """
@@ -55,7 +56,8 @@ def main() -> int:
         v = views.get(row.name, {})
         es = edge_share(first)
         txt = (f"{row.name}: coverage {v.get('coverage', float('nan')):.2f}  content "
-               f"{v.get('content') if v.get('content') is None else round(v['content'], 2)}  edge share (view) "
+               f"{v.get('content') if v.get('content') is None else round(v['content'], 2)}"
+               + (f" (magnified {v['magnified']:.2f})" if v.get("magnified") is not None else "") + "  edge share (view) "
                f"{v.get('edge_share') if v.get('edge_share') is None else round(v['edge_share'], 2)}  "
                f"(first frame) {es:.2f}  pitch {v.get('pitch', float('nan')):+.0f}  mask {mask.mean():.2f}")
         print(txt)

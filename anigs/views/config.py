@@ -57,6 +57,9 @@ class ViewsConfig:
     footprint_ratio: float = 6.0      # ... its largest scale is <= this x the median of its 16 nearest neighbours'
     #: ... and its centre lies within this x the local spacing of the nearest SfM point (with --points)
     near_points: float = 3.0
+    #: ... and counts for a view only when the finest pixel footprint of a photo seeing it is <= this x the view's
+    #: (a view closer than the photos resolve shows blur); 0: off
+    max_sampling_ratio: float = 1.0
     #: min share of a view's render within 4 px of an edge (abs Laplacian of grey > 6 at 0-255); 0: recorded, not
     #: applied
     min_edge_share: float = 0.0
@@ -97,6 +100,8 @@ class ViewsConfig:
         if not 0.0 <= self.min_content <= 1.0 or not 0.0 <= self.min_edge_share <= 1.0:
             raise ValueError(f"views.min_content and views.min_edge_share must be in [0, 1], "
                              f"got {self.min_content}, {self.min_edge_share}")
+        if self.max_sampling_ratio < 0:
+            raise ValueError(f"views.max_sampling_ratio must be >= 0 (0: off), got {self.max_sampling_ratio}")
         if self.sharp_fraction <= 0 or self.footprint_ratio <= 0 or self.near_points <= 0 or self.min_sharp_observations < 0:
             raise ValueError("views.sharp_fraction, footprint_ratio and near_points must be > 0 and "
                              "min_sharp_observations >= 0")
@@ -115,7 +120,8 @@ class ViewsConfig:
         return ContentRule(min_content=self.min_content, sharp_fraction=self.sharp_fraction,
                            min_sharp_observations=self.min_sharp_observations,
                            footprint_ratio=self.footprint_ratio, near_points=self.near_points,
-                           alpha=self.coverage_alpha, min_weight=self.min_weight)
+                           alpha=self.coverage_alpha, min_weight=self.min_weight,
+                           max_sampling_ratio=self.max_sampling_ratio)
 
     def visibility_config(self) -> VisibilityConfig:
         return VisibilityConfig(mode=self.visibility, rel_tol=self.rel_tol, scale_tol=self.scale_tol,

@@ -15,9 +15,19 @@ it is dominated by *sharp* Gaussians (:func:`sharp_gaussians`), each of which mu
 - **near the SfM points**: its centre lies within ``near_points`` x the local spacing of the
   nearest SfM point (that point's distance to its 8th nearest point; skipped without points).
 
+The three tests above do not depend on the view. A fourth does: **sampled finely enough by a
+photo**. A view closer to the content than any photo magnifies what the photos resolved: a
+Gaussian sized to one photo pixel spans several of the view's pixels, and the view shows a
+smooth blur. Each Gaussian's *photo footprint* is the finest pixel footprint among the photos
+it is visible in (its centre's depth over the photo's focal length: world units per pixel,
+:func:`photo_footprints`); the view's footprint at the same Gaussian is its depth in the view
+over the view's focal length. The Gaussian counts for the view only when the photo footprint
+is at most ``max_sampling_ratio`` times the view's (the view samples it at most that many times
+finer than the best photo; 0: the term is off).
+
 :func:`content_fraction` renders the view with every Gaussian and counts the pixels whose
-alpha is >= ``alpha`` and whose alpha the sharp Gaussians carry >= half of (the masks stage's
-dominance rule, :func:`anigs.masks.labels.dynamic_masks`).
+alpha is >= ``alpha`` and whose alpha the sharp Gaussians that the view does not magnify carry
+>= half of (the masks stage's dominance rule, :func:`anigs.masks.labels.LabelsBackend`).
 
 :func:`edge_share` is the image figure of the issue that asked for this: the share of pixels
 within ``radius`` px of an edge (absolute 4-neighbour Laplacian of the grey image, 0-255, above
@@ -55,6 +65,7 @@ class ContentRule:
     near_points: float = 3.0          # centre within this x the local SfM point spacing of a point (no points: skipped)
     alpha: float = 0.5                # a content pixel has accumulated alpha >= this
     min_weight: float = 0.05          # visibility in a photo: blending weight >= this (pixels)
+    max_sampling_ratio: float = 1.0   # a Gaussian counts for a view when its best photo's pixel footprint <= this x the view's (0: off)
 
 
 @dataclass
@@ -66,6 +77,7 @@ class SharpSet:
     sharp_observations: np.ndarray    # int [N] photos that resolve it
     footprint_ok: np.ndarray          # bool [N]
     near_points: np.ndarray           # bool [N] (all True without points)
+    photo_footprint: np.ndarray | None = None  # float [N] finest pixel footprint (world units / px) of a photo it is visible in; inf: none
     summary: dict[str, Any] = field(default_factory=dict)
 
 
@@ -81,21 +93,40 @@ def projected_sigma_px(g: Gaussians, cam: Camera) -> np.ndarray:
         return np.where(z > 1e-6, s * f / np.maximum(z, 1e-6), np.inf)
 
 
+def pixel_footprint(g: Gaussians, cam: Camera) -> np.ndarray:
+    """World size of one of ``cam``'s pixels at each Gaussian's centre (its depth over the focal
+    length), float [N]; inf behind the camera."""
+    means = g.means.detach().double().numpy()
+    z = means @ cam.R[2] + cam.t[2]
+    f = float(max(cam.K[0, 0], cam.K[1, 1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(z > 1e-6, z / f, np.inf)
+
+
+def photo_footprints(g: Gaussians, cameras: Sequence[Camera], min_weight: float = 0.05) -> np.ndarray:
+    """float [N]: the finest :func:`pixel_footprint` of each Gaussian among the ``cameras`` it is
+    visible in (summed blending weight >= ``min_weight`` pixels); inf where none sees it."""
+    return observation_and_sharp_counts(g, cameras, 1.0, min_weight)[2]
+
+
 def observation_and_sharp_counts(g: Gaussians, cameras: Sequence[Camera], sharp_fraction: float,
-                                 min_weight: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
-    """(photos each Gaussian is visible in, photos that resolve it): int [N] each.
+                                 min_weight: float = 0.05) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(photos each Gaussian is visible in, photos that resolve it): int [N] each, and its finest
+    pixel footprint among the photos it is visible in (float [N], inf: none; :func:`photo_footprints`).
 
     Visible: summed blending weight >= ``min_weight`` pixels (the ``weight`` visibility test);
     resolved: visible and :func:`projected_sigma_px` <= ``sharp_fraction`` x the photo's width.
     """
     obs = np.zeros(g.num, np.int64)
     sharp = np.zeros(g.num, np.int64)
+    finest = np.full(g.num, np.inf)
     for cam in cameras:
         total, _ = blend_weights(g, cam)
         seen = total >= min_weight
         obs += seen
         sharp += seen & (projected_sigma_px(g, cam) <= sharp_fraction * cam.width)
-    return obs, sharp
+        finest = np.where(seen, np.minimum(finest, pixel_footprint(g, cam)), finest)
+    return obs, sharp, finest
 
 
 def footprint_ratio(g: Gaussians, neighbours: int = 16) -> np.ndarray:
@@ -131,7 +162,7 @@ def near_points_mask(g: Gaussians, points: np.ndarray | None, factor: float, k: 
 def sharp_gaussians(g: Gaussians, cameras: Sequence[Camera], rule: ContentRule,
                     points: np.ndarray | None = None) -> SharpSet:
     """The Gaussians that reconstructed content is made of (see the module docstring)."""
-    obs, sobs = observation_and_sharp_counts(g, cameras, rule.sharp_fraction, rule.min_weight)
+    obs, sobs, finest = observation_and_sharp_counts(g, cameras, rule.sharp_fraction, rule.min_weight)
     ratio = footprint_ratio(g, rule.neighbours)
     foot = ratio <= rule.footprint_ratio
     near = near_points_mask(g, points, rule.near_points)
@@ -144,16 +175,47 @@ def sharp_gaussians(g: Gaussians, cameras: Sequence[Camera], rule: ContentRule,
              "neighbours' %.1f%%, near SfM points %s", summary["sharp"], g.num, 100 * sharp.sum() / n,
              rule.min_sharp_observations, 100 * resolved.sum() / n, rule.footprint_ratio, 100 * foot.sum() / n,
              "n/a" if points is None else f"{100 * near.sum() / n:.1f}%")
-    return SharpSet(sharp, obs, sobs, foot, near, summary)
+    return SharpSet(sharp, obs, sobs, foot, near, finest, summary)
 
 
-def content_fraction(g: Gaussians, sharp: np.ndarray, cam: Camera, alpha: float = 0.5) -> float:
-    """Share of ``cam``'s pixels with alpha >= ``alpha`` of which the ``sharp`` [N] Gaussians carry >= half."""
-    from anigs.masks.labels import dynamic_masks
+def magnified(g: Gaussians, photo_footprint: np.ndarray, cam: Camera, max_ratio: float) -> np.ndarray:
+    """bool [N]: the Gaussians that ``cam`` samples more than ``max_ratio`` times finer than the
+    best photo that sees them (``photo_footprint`` [N] > ``max_ratio`` x ``cam``'s
+    :func:`pixel_footprint`); none when ``max_ratio`` is 0. Gaussians behind ``cam`` are never
+    magnified (it does not render them)."""
+    if max_ratio <= 0:
+        return np.zeros(g.num, bool)
+    view = pixel_footprint(g, cam)
+    return np.isfinite(view) & (np.asarray(photo_footprint) > max_ratio * view)
 
-    if not np.asarray(sharp).any():
-        return 0.0
-    return float(dynamic_masks(g, sharp, [cam], 0.5, alpha)[0].mean())
+
+def content_masks(g: Gaussians, sharp: np.ndarray, cam: Camera, alpha: float = 0.5,
+                  photo_footprint: np.ndarray | None = None, max_sampling_ratio: float = 0.0
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """(content, sharp) bool [H,W] of ``cam`` in one render: pixels with alpha >= ``alpha`` of
+    which the ``sharp`` [N] Gaussians that ``cam`` does not magnify (:func:`magnified`, with
+    ``photo_footprint`` [N]; without it nothing is magnified) carry >= half; and the same
+    without the magnification term."""
+    from anigs.masks.labels import LabelsBackend
+    from anigs.masks import Frame
+
+    sharp = np.asarray(sharp, bool)
+    empty = np.zeros((cam.height, cam.width), bool)
+    if not sharp.any():
+        return empty, empty
+    far = np.zeros(g.num, bool) if photo_footprint is None else magnified(g, photo_footprint, cam, max_sampling_ratio)
+    labels = np.where(sharp, np.where(far, 1, 2), 0).astype(np.int64)  # 0 not sharp, 1 magnified, 2 content
+    backend = LabelsBackend(g, labels, {"content": [2], "sharp": [1, 2]}, 0.5, alpha)
+    m = backend(Frame(np.zeros((cam.height, cam.width, 3), np.float32), cam, name=cam.name))
+    return m["content"], m["sharp"]
+
+
+def content_fraction(g: Gaussians, sharp: np.ndarray, cam: Camera, alpha: float = 0.5,
+                     photo_footprint: np.ndarray | None = None, max_sampling_ratio: float = 0.0) -> float:
+    """Share of ``cam``'s pixels with alpha >= ``alpha`` of which the ``sharp`` [N] Gaussians carry
+    >= half, leaving out those ``cam`` magnifies more than ``max_sampling_ratio`` x the best
+    photo's sampling (``photo_footprint`` [N]; :func:`content_masks`)."""
+    return float(content_masks(g, sharp, cam, alpha, photo_footprint, max_sampling_ratio)[0].mean())
 
 
 def render_rgb(g: Gaussians, cam: Camera, background: Sequence[float]) -> np.ndarray:
@@ -195,15 +257,22 @@ class ContentCheck:
         self.background, self.min_edge_share = list(background), float(min_edge_share)
 
     def measure(self, cam: Camera) -> dict[str, float]:
-        """{"content": ..., "edge_share": ...} of a view."""
-        return {"content": content_fraction(self.g, self.sharp.sharp, cam, self.rule.alpha), "edge_share": edge_share(render_rgb(self.g, cam, self.background))}
+        """{"content": ..., "magnified": ..., "edge_share": ...} of a view: ``magnified`` is the share
+        of its pixels that sharp Gaussians dominate but that the view magnifies beyond
+        ``max_sampling_ratio`` (left out of ``content``)."""
+        content, sharp = content_masks(self.g, self.sharp.sharp, cam, self.rule.alpha, self.sharp.photo_footprint,
+                                       self.rule.max_sampling_ratio)
+        return {"content": float(content.mean()), "magnified": float((sharp & ~content).mean()),
+                "edge_share": edge_share(render_rgb(self.g, cam, self.background))}
 
     def failure(self, fig: dict[str, float]) -> str | None:
         """Why a view with figures ``fig`` fails (None: it passes)."""
         why = []
         if fig["content"] < self.rule.min_content:
             why.append(f"content {fig['content']:.2f} < min_content {self.rule.min_content:g} (pixels dominated "
-                       "by sharp Gaussians)")
+                       "by sharp Gaussians" + (f"; {fig['magnified']:.2f} of the view magnifies its sharp Gaussians > "
+                                               f"max_sampling_ratio {self.rule.max_sampling_ratio:g} x the best photo's "
+                                               "sampling" if fig.get("magnified", 0) > 0 else "") + ")")
         if fig["edge_share"] < self.min_edge_share:
             why.append(f"edge share {fig['edge_share']:.2f} < min_edge_share {self.min_edge_share:g}")
         return "; ".join(why) or None
@@ -214,10 +283,14 @@ class ContentCheck:
         return {"min_content": r.min_content, "min_edge_share": self.min_edge_share, "sharp_fraction": r.sharp_fraction,
                 "min_sharp_observations": r.min_sharp_observations, "footprint_ratio": r.footprint_ratio,
                 "neighbours": r.neighbours, "near_points": r.near_points, "alpha": r.alpha,
+                "max_sampling_ratio": r.max_sampling_ratio,
                 "edge": {"threshold": EDGE_THRESHOLD, "radius_px": EDGE_RADIUS, "background": self.background},
                 "sharp_gaussians": self.sharp.summary,
                 "definition": ("content: share of the view's pixels with alpha >= alpha of which sharp Gaussians "
                                "carry >= half; sharp: resolved (largest std dev <= sharp_fraction x its width) by >= "
                                "min_sharp_observations photos, largest scale <= footprint_ratio x the median of "
-                               "its neighbours', within near_points x the local spacing of the nearest SfM point; edge_share: "
+                               "its neighbours', within near_points x the local spacing of the nearest SfM point, "
+                               "and not magnified by the view: the finest pixel footprint (depth / focal length) of a "
+                               "photo it is visible in <= max_sampling_ratio x the view's at it (0: off); magnified: "
+                               "share of pixels sharp Gaussians dominate that fail only that; edge_share: "
                                "share of the colour render within radius_px of |Laplacian(grey 0-255)| > threshold")}

@@ -101,3 +101,47 @@ def test_config_validation():
         ViewsConfig(background=[0, 0])
     with pytest.raises(ValueError, match="sharp_fraction"):
         ViewsConfig(sharp_fraction=0)
+
+
+def test_a_view_closer_than_any_photo_shows_magnified_content_and_fails(needled):
+    """A view 0.7 m from the wall that the photos see from >= 1.7 m: every pixel is dominated by
+    sharp Gaussians (the figure without the resolution term passes it), but the view samples them
+    ~3x finer than the best photo, so it shows their blur. A view that is one of the photos
+    magnifies nothing it shows and passes."""
+    from anigs.views.content import ContentCheck, magnified, pixel_footprint
+
+    g, flo, cams, pts, ss = needled
+    rule = ContentRule()
+    close = _cam((1.9, 0.0, 1.0), (2.6, 0.0, 1.0))
+    assert content_fraction(g, ss.sharp, close) > 0.9  # today's figure: all sharp content
+    check = ContentCheck(g, ss, rule, (0.62, 0.76, 0.92))
+    fig = check.measure(close)
+    assert fig["content"] < 0.1 and fig["magnified"] > 0.9
+    assert "max_sampling_ratio" in check.failure(fig)
+    photo = check.measure(cams[0])
+    assert photo["magnified"] == 0.0
+    assert photo["content"] >= rule.min_content and check.failure(photo) is None
+    # the term alone: the wall's best photo footprint is ~3x the close view's
+    wall = (np.abs(g.means[:, 0].numpy() - 2.6) < 1e-6) & ss.sharp
+    r = ss.photo_footprint[wall] / pixel_footprint(g, close)[wall]
+    assert 2.5 < np.median(r) < 4.5
+    assert magnified(g, ss.photo_footprint, close, 2.0)[wall].mean() > 0.9  # a looser limit than the default (1)
+    assert magnified(g, ss.photo_footprint, close, 5.0)[wall].mean() < 0.2
+    assert not magnified(g, ss.photo_footprint, close, 0.0).any()  # 0: off
+    # off, the figure is the one without the term
+    assert content_fraction(g, ss.sharp, close, photo_footprint=ss.photo_footprint,
+                            max_sampling_ratio=0.0) == content_fraction(g, ss.sharp, close)
+
+
+def test_photo_footprint_is_the_finest_of_the_photos_that_see_a_gaussian(needled):
+    from anigs.views.content import pixel_footprint
+
+    g, flo, cams, pts, ss = needled
+    per_cam = np.stack([pixel_footprint(g, c) for c in cams])  # [C,N]
+    seen = np.isfinite(ss.photo_footprint)
+    assert (ss.observations[~seen] == 0).all() and (ss.observations[seen] > 0).all()
+    assert (ss.photo_footprint[seen] >= per_cam.min(0)[seen] - 1e-12).all()
+    assert (ss.photo_footprint[seen] <= per_cam.max(0)[seen] + 1e-12).all()
+    with pytest.raises(ValueError, match="max_sampling_ratio"):
+        ViewsConfig(max_sampling_ratio=-1)
+    assert ViewsConfig(max_sampling_ratio=3).content_rule().max_sampling_ratio == 3

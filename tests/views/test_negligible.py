@@ -85,7 +85,7 @@ def _without_content(data: dict) -> dict:
     dynamic threshold: anigs.views.content)."""
     data.pop("content")
     for v in data["views"]:
-        v.pop("content"), v.pop("edge_share")
+        v.pop("content"), v.pop("edge_share"), v.pop("magnified")
     return data
 
 
