@@ -14,6 +14,7 @@ validate(config, "workflow/schemas/config.schema.yaml")
 
 
 include: "workflow/rules/common.smk"
+include: "workflow/rules/inputs.smk"
 include: "workflow/rules/capture.smk"
 include: "workflow/rules/reconstruct.smk"
 include: "workflow/rules/views.smk"
@@ -39,9 +40,9 @@ localrules:
 
 
 rule all:
+    default_target: True
     input:
         final_targets(),
-    default_target: True
 
 
 rule all_static:
@@ -67,4 +68,3 @@ rule all_export:
 rule all_eval:
     input:
         [f"{R}/{s}/{v}/eval/metrics.json" for s in SCENES for v in config["variants"]],
-

@@ -44,7 +44,7 @@ export PATH="$(cd "$VENV/bin" && pwd):$PATH"
 
 case "$MODE" in
   demo) exec snakemake --cores all --workflow-profile workflow/profiles/default "$@" ;;
-  test) echo "[anigs] style gate: ruff check (pyproject.toml [tool.ruff])"; ruff check --no-cache . && exec python -m pytest "$@" ;;
+  test) bash envs/style.sh && exec python -m pytest "$@" ;;
   install) echo "[anigs] installed into $VENV" ;;
   *) echo "usage: bash envs/setup.sh {demo|test|install} [args...]" >&2; exit 2 ;;
 esac

@@ -15,19 +15,19 @@ rule render_clip:
         model=_render_model,
     output:
         f"{VARIANT_DIR}/round{{round}}/render/{{view}}.npz",
-    params:
-        cmd=render_clip_command,
-        version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/render_clip_{{view}}.log",
     benchmark:
         f"{VARIANT_DIR}/benchmarks/round{{round}}/render_clip_{{view}}.tsv"
+    conda:
+        "../../envs/anigs.yaml"
     threads: 1
     resources:
         mem_mb=3000,
         runtime=20,
-    conda:
-        "../../envs/anigs.yaml"
+    params:
+        cmd=render_clip_command,
+        version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
@@ -39,20 +39,20 @@ rule refine:
         effects=_effects_json,
     output:
         f"{VARIANT_DIR}/round{{round}}/target/{{view}}.npz",
-    params:
-        cmd=refine_command,
-        version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/refine_{{view}}.log",
     benchmark:
         f"{VARIANT_DIR}/benchmarks/round{{round}}/refine_{{view}}.tsv"
+    conda:
+        "../../envs/anigs.yaml"
     threads: 1
     resources:
         mem_mb=6000,
         runtime=60,
         gpu=lambda wc: wants_gpu(wc.scene, wc.variant),
-    conda:
-        "../../envs/anigs.yaml"
+    params:
+        cmd=refine_command,
+        version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
@@ -71,20 +71,20 @@ rule round:
         target=directory(f"{VARIANT_DIR}/round{{round}}/target"),
         model=f"{VARIANT_DIR}/round{{round}}/model.pt",
         log_json=f"{VARIANT_DIR}/round{{round}}/update.json",
-    params:
-        cmd=lambda wc, input: f"{round_command(wc, input)} --then {update_command(wc, input)}",
-        version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/round.log",
     benchmark:
         f"{VARIANT_DIR}/benchmarks/round{{round}}/round.tsv"
+    conda:
+        "../../envs/anigs.yaml"
     threads: 2  # the round's views one after another, each with both threads (same files as 1 thread)
     resources:
         mem_mb=8000,
         runtime=180,
         gpu=lambda wc: wants_gpu(wc.scene, wc.variant),
-    conda:
-        "../../envs/anigs.yaml"
+    params:
+        cmd=lambda wc, input: f"{round_command(wc, input)} --then {update_command(wc, input)}",
+        version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
@@ -110,20 +110,20 @@ rule update:
     output:
         model=f"{VARIANT_DIR}/round{{round}}/model.pt",
         log_json=f"{VARIANT_DIR}/round{{round}}/update.json",
-    params:
-        cmd=update_command,
-        version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/update.log",
     benchmark:
         f"{VARIANT_DIR}/benchmarks/round{{round}}/update.tsv"
+    conda:
+        "../../envs/anigs.yaml"
     threads: 2
     resources:
         mem_mb=8000,
         runtime=120,
         gpu=lambda wc: int(str(config["device"]).startswith("cuda")),
-    conda:
-        "../../envs/anigs.yaml"
+    params:
+        cmd=update_command,
+        version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
@@ -136,18 +136,22 @@ rule still:
         effects=stage_path("effects", "effects.json"),
     output:
         f"{VARIANT_DIR}/still/model.pt",
-    params:
-        cmd=lambda wc, output: stage_command(
-            "update", jparams("update", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc),
-            static=stage_dir(wc.scene, "static"), out=os.path.dirname(output[0]), still=_still_reason(wc),
-            frames=sec(wc.scene, "animate", wc.variant)["frames"]),
-        version=ANIGS_VERSION,
     log:
         f"{VARIANT_DIR}/logs/still.log",
     benchmark:
         f"{VARIANT_DIR}/benchmarks/still.tsv"
-    threads: 1
     conda:
         "../../envs/anigs.yaml"
+    threads: 1
+    params:
+        cmd=lambda wc, output: stage_command(
+            "update",
+            jparams("update", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc),
+            static=stage_dir(wc.scene, "static"),
+            out=os.path.dirname(output[0]),
+            still=_still_reason(wc),
+            frames=sec(wc.scene, "animate", wc.variant)["frames"],
+        ),
+        version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"

@@ -11,22 +11,22 @@ rule capture_synthetic:
         gt_labels=stage_out("capture", "gt_labels"),
         gt_anchors=stage_out("capture", "gt_anchors"),
         gt_motion=stage_out("capture", "gt_motion"),
-    wildcard_constraints:
-        scene=SYNTH_SCENES,
-    params:
-        p=lambda wc: json.dumps(SCENES[wc.scene]["synthetic"] or {}, sort_keys=True),
-        out=lambda wc: f"{R}/{wc.scene}/capture",
-        version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/logs/capture.log",
     benchmark:
         f"{R}/{{scene}}/benchmarks/capture.tsv"
+    wildcard_constraints:
+        scene=SYNTH_SCENES,
+    conda:
+        "../../envs/anigs.yaml"
     threads: 2
     resources:
         mem_mb=4000,
         runtime=20,
-    conda:
-        "../../envs/anigs.yaml"
+    params:
+        p=lambda wc: json.dumps(SCENES[wc.scene]["synthetic"] or {}, sort_keys=True),
+        out=lambda wc: f"{R}/{wc.scene}/capture",
+        version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} capture --source synthetic --params {params.p:q} --out {params.out:q} > {log} 2>&1"
 
@@ -35,22 +35,22 @@ rule capture_photos:
     output:
         images=directory(stage_out("capture", "images")),
         summary=stage_out("capture", "summary"),
+    log:
+        f"{R}/{{scene}}/logs/capture.log",
+    benchmark:
+        f"{R}/{{scene}}/benchmarks/capture.tsv"
     wildcard_constraints:
         scene=PHOTO_SCENES,
+    conda:
+        "../../envs/anigs.yaml"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=30,
     params:
         p=jparams("capture"),
         photos=lambda wc: SCENES[wc.scene]["photos"],
         out=lambda wc: f"{R}/{wc.scene}/capture",
         version=ANIGS_VERSION,
-    log:
-        f"{R}/{{scene}}/logs/capture.log",
-    benchmark:
-        f"{R}/{{scene}}/benchmarks/capture.tsv"
-    threads: 1
-    resources:
-        mem_mb=4000,
-        runtime=30,
-    conda:
-        "../../envs/anigs.yaml"
     shell:
         "anigs capture --source photos --photos {params.photos:q} --params {params.p:q} --out {params.out:q} > {log} 2>&1"

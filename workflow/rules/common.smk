@@ -28,11 +28,15 @@ for _v, _o in config["variant_overrides"].items():
 ALL_SCENES = dict(SCENES)  # and the accuracy-versus-time sweep's derived scenes (added below)
 for _s in SCENES:
     if DERIVED_SEP in _s:
-        raise ValueError(f"config: scene name {_s!r} may not contain {DERIVED_SEP!r} (it marks the sweep's derived scenes)")
+        raise ValueError(
+            f"config: scene name {_s!r} may not contain {DERIVED_SEP!r} (it marks the sweep's derived scenes)"
+        )
 for _v in list(config["variants"]) + list(config["table_variants"]):
     if _v not in config["variant_overrides"]:
-        raise ValueError(f"config: variant {_v!r} is not defined under variant_overrides "
-                         f"(defined: {sorted(config['variant_overrides'])})")
+        raise ValueError(
+            f"config: variant {_v!r} is not defined under variant_overrides "
+            f"(defined: {sorted(config['variant_overrides'])})"
+        )
 
 
 def _names(source):
@@ -142,8 +146,12 @@ def final_targets():
     out = []
     for s in SCENES:
         for v in config["variants"]:
-            out += [f"{R}/{s}/{v}/final/final.json", f"{R}/{s}/{v}/export/animated.json",
-                    f"{R}/{s}/{v}/eval/metrics.json", f"{R}/{s}/{v}/viewer"]
+            out += [
+                f"{R}/{s}/{v}/final/final.json",
+                f"{R}/{s}/{v}/export/animated.json",
+                f"{R}/{s}/{v}/eval/metrics.json",
+                f"{R}/{s}/{v}/viewer",
+            ]
         out.append(stage_out("effects", "effects", s))
     return out
 
@@ -153,8 +161,10 @@ if workflow.local_exec and str(config["device"]).startswith("cuda"):
     import torch
 
     if not torch.cuda.is_available():
-        raise ValueError(f"config: device is {config['device']!r} but this machine has no CUDA device; "
-                         "use device: auto (or cpu), or submit to a GPU cluster with --profile workflow/profiles/slurm")
+        raise ValueError(
+            f"config: device is {config['device']!r} but this machine has no CUDA device; "
+            "use device: auto (or cpu), or submit to a GPU cluster with --profile workflow/profiles/slurm"
+        )
 
 
 # ---- input/param helpers of the stage rules ----
@@ -259,24 +269,46 @@ def _folder(files):
 
 
 def render_clip_command(wc, input):
-    return stage_command("render_clip", jparams("render_clip", _frames)(wc), static=stage_dir(wc.scene, "static"),
-                         out=round_dir(wc.scene, wc.variant, wc.round), model=_folder(input.model),
-                         views=stage_dir(wc.scene, "views"), view_id=wc.view)
+    return stage_command(
+        "render_clip",
+        jparams("render_clip", _frames)(wc),
+        static=stage_dir(wc.scene, "static"),
+        out=round_dir(wc.scene, wc.variant, wc.round),
+        model=_folder(input.model),
+        views=stage_dir(wc.scene, "views"),
+        view_id=wc.view,
+    )
 
 
 def refine_command(wc, input):
     rd = round_dir(wc.scene, wc.variant, wc.round)
-    return stage_command("refine", jparams("refine", _refine_extra)(wc), render_clip=rd, view=wc.view, out=rd,
-                         masks=stage_dir(wc.scene, "masks"), effects=_folder(input.effects), round=int(wc.round))
+    return stage_command(
+        "refine",
+        jparams("refine", _refine_extra)(wc),
+        render_clip=rd,
+        view=wc.view,
+        out=rd,
+        masks=stage_dir(wc.scene, "masks"),
+        effects=_folder(input.effects),
+        round=int(wc.round),
+    )
 
 
 def round_command(wc, input):
     """The round's render and refine work in one process (then its update: see the round rule)."""
-    return stage_command("round", static=stage_dir(wc.scene, "static"), views=stage_dir(wc.scene, "views"),
-                         masks=stage_dir(wc.scene, "masks"), view_ids=round_views(wc.scene, wc.variant, int(wc.round)),
-                         round=int(wc.round), out=round_dir(wc.scene, wc.variant, wc.round), model=_folder(input.model),
-                         effects=_folder(input.effects), render_params=jparams("render_clip", _frames)(wc),
-                         refine_params=jparams("refine", _refine_extra)(wc))
+    return stage_command(
+        "round",
+        static=stage_dir(wc.scene, "static"),
+        views=stage_dir(wc.scene, "views"),
+        masks=stage_dir(wc.scene, "masks"),
+        view_ids=round_views(wc.scene, wc.variant, int(wc.round)),
+        round=int(wc.round),
+        out=round_dir(wc.scene, wc.variant, wc.round),
+        model=_folder(input.model),
+        effects=_folder(input.effects),
+        render_params=jparams("render_clip", _frames)(wc),
+        refine_params=jparams("refine", _refine_extra)(wc),
+    )
 
 
 def update_command(wc, input):
@@ -288,13 +320,22 @@ def update_command(wc, input):
     r = int(wc.round)
     baseline = baseline_params(sec(wc.scene, "animate", wc.variant), sec(wc.scene, "update", wc.variant))
     return stage_command(
-        "update", jparams("update", _update_extra)(wc), static=stage_dir(wc.scene, "static"),
-        out=round_dir(wc.scene, wc.variant, r), masks=stage_dir(wc.scene, "masks"),
-        targets=[out_path("refine", round_dir(wc.scene, wc.variant, p.target_round(r, v)), "target", view=v)
-                 for v in p.dataset(r)],
-        init=_folder(input.init), views=stage_dir(wc.scene, "views"), round=r, rounds=p.num_rounds,
+        "update",
+        jparams("update", _update_extra)(wc),
+        static=stage_dir(wc.scene, "static"),
+        out=round_dir(wc.scene, wc.variant, r),
+        masks=stage_dir(wc.scene, "masks"),
+        targets=[
+            out_path("refine", round_dir(wc.scene, wc.variant, p.target_round(r, v)), "target", view=v)
+            for v in p.dataset(r)
+        ],
+        init=_folder(input.init),
+        views=stage_dir(wc.scene, "views"),
+        round=r,
+        rounds=p.num_rounds,
         method=method_of(wc.scene, wc.variant) if baseline else None,
-        method_params=json.dumps(baseline, sort_keys=True) if baseline else None)
+        method_params=json.dumps(baseline, sort_keys=True) if baseline else None,
+    )
 
 
 def _chosen_effects(scene):
@@ -337,8 +378,16 @@ def _table_row(wc):
 def eval_command(wc, part, **inputs):
     method, variant = _table_row(wc)
     params = jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc)
-    return stage_command("eval", params, out=f"{R}/{wc.scene}/{wc.variant}/eval", scene=wc.scene, method=method,
-                         variant=variant, part=part, **inputs)
+    return stage_command(
+        "eval",
+        params,
+        out=f"{R}/{wc.scene}/{wc.variant}/eval",
+        scene=wc.scene,
+        method=method,
+        variant=variant,
+        part=part,
+        **inputs,
+    )
 
 
 # ---- accuracy versus time: the sweep's points are variants, or derived scenes for per-scene
@@ -347,8 +396,11 @@ _TO = config.get("tradeoff", {})
 TRADEOFF = {}  # scene -> [SweepPoint]
 for _s in SCENES:
     TRADEOFF[_s] = _sweep_points(
-        _TO.get("knobs", {}), _TO.get("base", "full"), config["variant_overrides"],
-        lambda knob, s=_s: get_dotted(sec(s, knob.split(".")[0], _TO.get("base", "full")), knob.split(".")[1:]))
+        _TO.get("knobs", {}),
+        _TO.get("base", "full"),
+        config["variant_overrides"],
+        lambda knob, s=_s: get_dotted(sec(s, knob.split(".")[0], _TO.get("base", "full")), knob.split(".")[1:]),
+    )
     for _p in TRADEOFF[_s]:
         config["variant_overrides"].setdefault(_p.variant, _p.overrides)
         if _p.scene_tag:

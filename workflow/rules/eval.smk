@@ -13,22 +13,27 @@ rule eval_model:
         images=stage_path("sfm", "images"),  # undistorted: the images sfm/cameras.json describes
     output:
         f"{R}/{{scene}}/{{variant}}/eval/model_metrics.json",
-    params:
-        cmd=lambda wc, input: eval_command(wc, "model", model=_folder([input.model]), static=stage_dir(wc.scene, "static"),
-                                           sfm=stage_dir(wc.scene, "sfm"),
-                                           capture=stage_dir(wc.scene, "capture") if is_synthetic(wc.scene) else None),
-        version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/{{variant}}/logs/eval_model.log",
     benchmark:
         f"{R}/{{scene}}/{{variant}}/benchmarks/eval_model.tsv"
-    threads: 1
     priority: 1  # the longest job after the last update: start it first, beside the final renders
+    conda:
+        "../../envs/anigs.yaml"
+    threads: 1
     resources:
         mem_mb=8000,
         runtime=60,
-    conda:
-        "../../envs/anigs.yaml"
+    params:
+        cmd=lambda wc, input: eval_command(
+            wc,
+            "model",
+            model=_folder([input.model]),
+            static=stage_dir(wc.scene, "static"),
+            sfm=stage_dir(wc.scene, "sfm"),
+            capture=stage_dir(wc.scene, "capture") if is_synthetic(wc.scene) else None,
+        ),
+        version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
@@ -40,14 +45,18 @@ rule eval:
         model=f"{R}/{{scene}}/{{variant}}/eval/model_metrics.json",
         fvd_gt=lambda wc: _fvd_gt_eval_input(wc),  # fvd_gt.when: always (workflow/rules/fvd_gt.smk)
     output:
-        report(f"{R}/{{scene}}/{{variant}}/eval/metrics.json", caption="../report/metrics.rst", category="Metrics",
-               subcategory="{scene} {variant}"),
+        report(
+            f"{R}/{{scene}}/{{variant}}/eval/metrics.json",
+            caption="../report/metrics.rst",
+            category="Metrics",
+            subcategory="{scene} {variant}",
+        ),
+    log:
+        f"{R}/{{scene}}/{{variant}}/logs/eval.log",
     params:
         version=ANIGS_VERSION,
     run:
-        from anigs.stages.eval import Outputs, merge_parts
-
-        merge_parts(Outputs(os.path.dirname(output[0])), extra=list(input.fvd_gt))
+        merge_eval_halves(output[0], input, log[0])
 
 
 rule tables:
@@ -56,31 +65,15 @@ rule tables:
         fvd_gt_table_inputs(),  # FVD-GT records (synthetic scenes), joined to their metrics.json by anigs tables
     output:
         f"{R}/tables/tables.json",
-    params:
-        cmd=lambda wc, input, output: stage_command("tables", metrics=list(input), out=os.path.dirname(output[0])),
-        version=ANIGS_VERSION,
     log:
         f"{R}/logs/tables.log",
     conda:
         "../../envs/anigs.yaml"
+    params:
+        cmd=lambda wc, input, output: stage_command("tables", metrics=list(input), out=os.path.dirname(output[0])),
+        version=ANIGS_VERSION,
     shell:
         "anigs {params.cmd} > {log} 2>&1"
-
-
-def _tradeoff_metrics(wc):
-    return [out_path("eval", f"{R}/{p.scene(s)}/{p.variant}/eval", "metrics") for s, pts in tradeoff_points().items()
-            for p in pts]
-
-
-def _tradeoff_points(wc):
-    return json.dumps({s: [{"variant": p.variant, "knob": p.knob, "value": p.value, "scene_tag": p.scene_tag}
-                           for p in TRADEOFF[s]] for s in SCENES})
-
-
-def _tradeoff_plots():
-    knobs = [k for k, v in config.get("tradeoff", {}).get("knobs", {}).items() if v]
-    return [report(f"{R}/tradeoff/{s}_{knob_filename(k)}.png", caption="../report/tradeoff.rst",
-                   category="Accuracy versus time") for s in SCENES for k in knobs]
 
 
 # one job for every scene's report, so that `snakemake tradeoff` names it
@@ -88,25 +81,27 @@ rule tradeoff:
     input:
         _tradeoff_metrics,
     output:
-        csv=[report(f"{R}/tradeoff/{s}.csv", caption="../report/tradeoff.rst", category="Accuracy versus time")
-             for s in SCENES],
+        csv=[
+            report(f"{R}/tradeoff/{s}.csv", caption="../report/tradeoff.rst", category="Accuracy versus time")
+            for s in SCENES
+        ],
         md=[f"{R}/tradeoff/{s}.md" for s in SCENES],
         plots=_tradeoff_plots(),
-    params:
-        cmd=lambda wc: stage_command("tradeoff", results=R, points=_tradeoff_points(wc), out=f"{R}/tradeoff",
-                                     plot_metrics=list(config.get("tradeoff", {}).get("plot_metrics", []))),
-        version=ANIGS_VERSION,
     log:
         f"{R}/logs/tradeoff.log",
     conda:
         "../../envs/anigs.yaml"
+    params:
+        cmd=lambda wc: stage_command(
+            "tradeoff",
+            results=R,
+            points=_tradeoff_points(wc),
+            out=f"{R}/tradeoff",
+            plot_metrics=list(config.get("tradeoff", {}).get("plot_metrics", [])),
+        ),
+        version=ANIGS_VERSION,
     shell:
         "anigs {params.cmd} > {log} 2>&1"
-
-
-def _study_variants():
-    """The compared variants of the 2AFC study: the baselines among table_variants (paper Table 4)."""
-    return [v for v in config["table_variants"] if v != "full" and method_of(next(iter(SCENES)), v) != "anigs"]
 
 
 # The 2AFC user study page (paper Table 4): ours against each baseline, same scene and view, side by
@@ -116,16 +111,19 @@ rule study:
         [f"{R}/{s}/{v}/final/final.json" for s in SCENES for v in ["full", *_study_variants()]],
     output:
         f"{R}/study/manifest.json",
-    params:
-        scenes=" ".join(SCENES),
-        others=lambda wc: " ".join(_study_variants()),
-        labels=lambda wc: " ".join(f"--label {v}={METHODS[method_of(next(iter(SCENES)), v)]}" for v in _study_variants()),
-        seed=config["seed"],
-        version=ANIGS_VERSION,
     log:
         f"{R}/logs/study.log",
     conda:
         "../../envs/anigs.yaml"
+    params:
+        scenes=" ".join(SCENES),
+        others=lambda wc: " ".join(_study_variants()),
+        labels=lambda wc: " ".join(
+            f"--label {v}={METHODS[method_of(next(iter(SCENES)), v)]}" for v in _study_variants()
+        ),
+        seed=config["seed"],
+        results=lambda wc, output: os.path.dirname(os.path.dirname(output[0])),
+        version=ANIGS_VERSION,
     shell:
-        "anigs study build --results {R:q} --scenes {params.scenes} --ours full --others {params.others} "
-        "{params.labels} --catch-trials 2 --seed {params.seed} --out {R:q}/study > {log} 2>&1"
+        "anigs study build --results {params.results:q} --scenes {params.scenes} --ours full --others {params.others} "
+        "{params.labels} --catch-trials 2 --seed {params.seed} --out {params.results:q}/study > {log} 2>&1"

@@ -10,30 +10,51 @@ rule final:
         masks=stage_path("masks"),
     output:
         summary=f"{R}/{{scene}}/{{variant}}/final/final.json",
-        slices=report(directory(f"{R}/{{scene}}/{{variant}}/final/slices"), patterns=["{name}.png"],
-                      caption="../report/slices.rst", category="Space-time slices", subcategory="{scene} {variant}"),
-        path=report(f"{R}/{{scene}}/{{variant}}/final/path.mp4", caption="../report/final.rst", category="Videos",
-                    subcategory="{scene} {variant}"),
+        slices=report(
+            directory(f"{R}/{{scene}}/{{variant}}/final/slices"),
+            patterns=["{name}.png"],
+            caption="../report/slices.rst",
+            category="Space-time slices",
+            subcategory="{scene} {variant}",
+        ),
+        path=report(
+            f"{R}/{{scene}}/{{variant}}/final/path.mp4",
+            caption="../report/final.rst",
+            category="Videos",
+            subcategory="{scene} {variant}",
+        ),
         clip_metrics=f"{R}/{{scene}}/{{variant}}/eval/clip_metrics.json",
-    params:
-        cmd=lambda wc, input: stage_command(
-            "final", jparams("final", lambda wc: {"device": config["device"]})(wc), static=stage_dir(wc.scene, "static"),
-            views=stage_dir(wc.scene, "views"), out=f"{R}/{wc.scene}/{wc.variant}/final", model=_folder([input.model]),
-            sfm=stage_dir(wc.scene, "sfm"), masks=stage_dir(wc.scene, "masks")),
-        eval=lambda wc, input: eval_command(wc, "clips", final=f"{R}/{wc.scene}/{wc.variant}/final",
-                                            masks=stage_dir(wc.scene, "masks"), model=_folder([input.model]),
-                                            static=stage_dir(wc.scene, "static"), sfm=stage_dir(wc.scene, "sfm")),
-        version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/{{variant}}/logs/final.log",
     benchmark:
         f"{R}/{{scene}}/{{variant}}/benchmarks/final.tsv"
+    conda:
+        "../../envs/anigs.yaml"
     threads: 1  # mostly single-threaded Python and video encoding: the model's metrics run beside it
     resources:
         mem_mb=8000,
         runtime=60,
-    conda:
-        "../../envs/anigs.yaml"
+    params:
+        cmd=lambda wc, input: stage_command(
+            "final",
+            jparams("final", lambda wc: {"device": config["device"]})(wc),
+            static=stage_dir(wc.scene, "static"),
+            views=stage_dir(wc.scene, "views"),
+            out=f"{R}/{wc.scene}/{wc.variant}/final",
+            model=_folder([input.model]),
+            sfm=stage_dir(wc.scene, "sfm"),
+            masks=stage_dir(wc.scene, "masks"),
+        ),
+        eval=lambda wc, input: eval_command(
+            wc,
+            "clips",
+            final=f"{R}/{wc.scene}/{wc.variant}/final",
+            masks=stage_dir(wc.scene, "masks"),
+            model=_folder([input.model]),
+            static=stage_dir(wc.scene, "static"),
+            sfm=stage_dir(wc.scene, "sfm"),
+        ),
+        version=ANIGS_VERSION,
     # the final clips' metrics (the eval stage's clips half) in the same process: one start-up less
     shell:
         "anigs --threads {threads} {params.cmd} --then {params.eval} > {log} 2>&1"
@@ -47,20 +68,25 @@ rule export:
         sidecar=f"{R}/{{scene}}/{{variant}}/export/animated.json",
         ply=f"{R}/{{scene}}/{{variant}}/export/animated.ply",
         compact=f"{R}/{{scene}}/{{variant}}/export/scene.anigs",
-    params:
-        cmd=lambda wc, input: stage_command("export", jparams("export")(wc), static=stage_dir(wc.scene, "static"),
-                                            model=_folder([input.model]), out=f"{R}/{wc.scene}/{wc.variant}/export"),
-        version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/{{variant}}/logs/export.log",
     benchmark:
         f"{R}/{{scene}}/{{variant}}/benchmarks/export.tsv"
+    conda:
+        "../../envs/anigs.yaml"
     threads: 1
     resources:
         mem_mb=4000,
         runtime=20,
-    conda:
-        "../../envs/anigs.yaml"
+    params:
+        cmd=lambda wc, input: stage_command(
+            "export",
+            jparams("export")(wc),
+            static=stage_dir(wc.scene, "static"),
+            model=_folder([input.model]),
+            out=f"{R}/{wc.scene}/{wc.variant}/export",
+        ),
+        version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
@@ -71,22 +97,32 @@ rule view:
         model=final_model,
         views=stage_path("views", "views.json"),
     output:
-        report(directory(f"{R}/{{scene}}/{{variant}}/viewer"), htmlindex="index.html", caption="../report/viewer.rst",
-               category="Viewer", subcategory="{scene} {variant}"),
-    params:
-        cmd=lambda wc, input, output: stage_command("view", jparams("view")(wc), out=output[0],
-                                                    model=_folder([input.model]), static=stage_dir(wc.scene, "static"),
-                                                    views=stage_dir(wc.scene, "views")),
-        version=ANIGS_VERSION,
+        report(
+            directory(f"{R}/{{scene}}/{{variant}}/viewer"),
+            htmlindex="index.html",
+            caption="../report/viewer.rst",
+            category="Viewer",
+            subcategory="{scene} {variant}",
+        ),
     log:
         f"{R}/{{scene}}/{{variant}}/logs/view.log",
     benchmark:
         f"{R}/{{scene}}/{{variant}}/benchmarks/view.tsv"
+    conda:
+        "../../envs/anigs.yaml"
     threads: 1
     resources:
         mem_mb=4000,
         runtime=20,
-    conda:
-        "../../envs/anigs.yaml"
+    params:
+        cmd=lambda wc, input, output: stage_command(
+            "view",
+            jparams("view")(wc),
+            out=output[0],
+            model=_folder([input.model]),
+            static=stage_dir(wc.scene, "static"),
+            views=stage_dir(wc.scene, "views"),
+        ),
+        version=ANIGS_VERSION,
     shell:
         "anigs {params.cmd} > {log} 2>&1"

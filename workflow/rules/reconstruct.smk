@@ -11,23 +11,22 @@ rule sfm:
         sparse=directory(stage_out("sfm", "sparse")),
         cameras=stage_out("sfm", "cameras"),
         points=stage_out("sfm", "points"),
-        report=report(stage_out("sfm", "report"), caption="../report/sfm.rst",
-                      category="Structure from motion"),
+        report=report(stage_out("sfm", "report"), caption="../report/sfm.rst", category="Structure from motion"),
+    log:
+        f"{R}/{{scene}}/logs/sfm.log",
+    benchmark:
+        f"{R}/{{scene}}/benchmarks/sfm.tsv"
+    conda:
+        "../../envs/anigs.yaml"
+    threads: 2
+    resources:
+        mem_mb=8000,
+        runtime=60,
     params:
         p=jparams("sfm"),
         out=lambda wc: f"{R}/{wc.scene}/sfm",
         gt=lambda wc: f"--gt-cameras {gt_of(wc.scene, 'gt_cameras')}" if is_synthetic(wc.scene) else "",
         version=ANIGS_VERSION,
-    log:
-        f"{R}/{{scene}}/logs/sfm.log",
-    benchmark:
-        f"{R}/{{scene}}/benchmarks/sfm.tsv"
-    threads: 2
-    resources:
-        mem_mb=8000,
-        runtime=60,
-    conda:
-        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} sfm --images {input.images:q} --out {params.out:q} {params.gt} "
         "--params {params.p:q} > {log} 2>&1"
@@ -41,20 +40,20 @@ rule static:
     output:
         ply=stage_out("static", "canonical"),
         metrics=stage_out("static", "metrics"),
-    params:
-        p=jparams("static", lambda wc: {"device": config["device"], "seed": config["seed"]}),
-        out=lambda wc: f"{R}/{wc.scene}/static",
-        version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/logs/static.log",
     benchmark:
         f"{R}/{{scene}}/benchmarks/static.tsv"
+    conda:
+        "../../envs/anigs.yaml"
     threads: 2
     resources:
         mem_mb=8000,
         runtime=120,
-    conda:
-        "../../envs/anigs.yaml"
+    params:
+        p=jparams("static", lambda wc: {"device": config["device"], "seed": config["seed"]}),
+        out=lambda wc: f"{R}/{wc.scene}/static",
+        version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} static --images {input.images:q} --cameras {input.cameras:q} "
         "--points {input.points:q} --out {params.out:q} --params {params.p:q} --no-progress > {log} 2>&1"

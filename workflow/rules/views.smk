@@ -13,33 +13,23 @@ checkpoint effects:
         regions=stage_out("effects", "regions"),
         dynamic=stage_out("effects", "dynamic"),
         overview=report(stage_out("effects", "overview"), caption="../report/effects.rst", category="Effects"),
-    params:
-        p=jparams("effects", _effects_prompt),
-        out=lambda wc: f"{R}/{wc.scene}/effects",
-        version=ANIGS_VERSION,
     log:
         f"{R}/{{scene}}/logs/effects.log",
     benchmark:
         f"{R}/{{scene}}/benchmarks/effects.tsv"
+    conda:
+        "../../envs/anigs.yaml"
     threads: 2  # the rasterizer's loops use both; the same files as with 1 thread
     resources:
         mem_mb=4000,
         runtime=30,
-    conda:
-        "../../envs/anigs.yaml"
+    params:
+        p=jparams("effects", _effects_prompt),
+        out=lambda wc: f"{R}/{wc.scene}/effects",
+        version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} effects --canonical {input.ply:q} --cameras {input.cameras:q} "
         "--images {input.images:q} --out {params.out:q} --params {params.p:q} > {log} 2>&1"
-
-
-def _roi_args(wc):
-    """The region of interest: ground-truth labels on synthetic scenes, else the effects stage's
-    (the effects the scene contains, found in the undistorted photos)."""
-    return gt_args(wc) if is_synthetic(wc.scene) else f"--effects {shlex.quote(stage_dir(wc.scene, 'effects'))}"
-
-
-def _roi_inputs(wc):
-    return [] if is_synthetic(wc.scene) else [stage_file_of(wc.scene, "effects", "dynamic")]
 
 
 # a checkpoint: the queue's length (views with a negligible dynamic region are left out) sets the rounds
@@ -53,21 +43,21 @@ checkpoint views:
     output:
         views=stage_out("views", "views"),
         topdown=report(stage_out("views", "topdown"), caption="../report/views.rst", category="Views"),
+    log:
+        f"{R}/{{scene}}/logs/views.log",
+    benchmark:
+        f"{R}/{{scene}}/benchmarks/views.tsv"
+    conda:
+        "../../envs/anigs.yaml"
+    threads: 2  # the rasterizer's loops use both; the same files as with 1 thread
+    resources:
+        mem_mb=4000,
+        runtime=20,
     params:
         p=jparams("views"),
         roi=_roi_args,
         out=lambda wc: f"{R}/{wc.scene}/views",
         version=ANIGS_VERSION,
-    log:
-        f"{R}/{{scene}}/logs/views.log",
-    benchmark:
-        f"{R}/{{scene}}/benchmarks/views.tsv"
-    threads: 2  # the rasterizer's loops use both; the same files as with 1 thread
-    resources:
-        mem_mb=4000,
-        runtime=20,
-    conda:
-        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} views --canonical {input.ply:q} --cameras {input.cameras:q} "
         "--points {input.points:q} {params.roi} "
@@ -86,24 +76,29 @@ rule masks:
     output:
         # the whole folder: a mask (+ overlay, per-effect masks) per queued view, the dynamic set, the
         # report (anigs.stages.masks.Outputs)
-        masks=report(directory(f"{R}/{{scene}}/masks"), patterns=[stage_outputs("masks").pattern("overlay").replace("{view}", "{name}")],
-                     caption="../report/masks.rst", category="Masks", subcategory="{scene}"),
+        masks=report(
+            directory(f"{R}/{{scene}}/masks"),
+            patterns=[stage_outputs("masks").pattern("overlay").replace("{view}", "{name}")],
+            caption="../report/masks.rst",
+            category="Masks",
+            subcategory="{scene}",
+        ),
+    log:
+        f"{R}/{{scene}}/logs/masks.log",
+    benchmark:
+        f"{R}/{{scene}}/benchmarks/masks.tsv"
+    conda:
+        "../../envs/anigs.yaml"
+    threads: 2  # the rasterizer's loops use both; the same files as with 1 thread
+    resources:
+        mem_mb=4000,
+        runtime=20,
     params:
         p=jparams("masks"),
         effects=lambda wc: stage_dir(wc.scene, "effects"),
         gt=gt_args,
         out=lambda wc: f"{R}/{wc.scene}/masks",
         version=ANIGS_VERSION,
-    log:
-        f"{R}/{{scene}}/logs/masks.log",
-    benchmark:
-        f"{R}/{{scene}}/benchmarks/masks.tsv"
-    threads: 2  # the rasterizer's loops use both; the same files as with 1 thread
-    resources:
-        mem_mb=4000,
-        runtime=20,
-    conda:
-        "../../envs/anigs.yaml"
     shell:
         "anigs --threads {threads} masks --canonical {input.ply:q} --views {input.views:q} "
         "--images {input.images:q} --cameras {input.cameras:q} --effects {params.effects:q} {params.gt} "

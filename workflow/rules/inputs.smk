@@ -1,0 +1,95 @@
+# Input and parameter functions of the views, fvd_gt, eval, tradeoff and study rules (kept apart from
+# the rules: `snakemake --lint` wants a snakefile to hold rules or functions, not both).
+
+
+# ---- views.smk ----
+
+
+def _roi_args(wc):
+    """The region of interest: ground-truth labels on synthetic scenes, else the effects stage's
+    (the effects the scene contains, found in the undistorted photos)."""
+    return gt_args(wc) if is_synthetic(wc.scene) else f"--effects {shlex.quote(stage_dir(wc.scene, 'effects'))}"
+
+
+def _roi_inputs(wc):
+    return [] if is_synthetic(wc.scene) else [stage_file_of(wc.scene, "effects", "dynamic")]
+
+
+# ---- fvd_gt.smk ----
+
+
+def fvd_gt_wanted(scene, variant="full", target="tables"):
+    """Whether FVD-GT runs for (scene, variant) when ``target`` (tables | eval) is built."""
+    when = sec(scene, "fvd_gt", variant)["when"]
+    return is_synthetic(scene) and (when == "always" or (when == "tables" and target == "tables"))
+
+
+def _fvd_gt_eval_input(wc):
+    """eval: the FVD-GT record joins metrics.json with fvd_gt.when: always."""
+    if not fvd_gt_wanted(wc.scene, wc.variant, "eval"):
+        return []
+    return [out_path("fvd_gt", f"{R}/{wc.scene}/{wc.variant}/eval", "record")]
+
+
+def fvd_gt_table_inputs():
+    return [f"{R}/{s}/{v}/eval/fvd_gt.json" for s in SCENES for v in config["table_variants"] if fvd_gt_wanted(s, v)]
+
+
+def _fvd_gt_scene(wc):
+    """The fvd_gt stage's scene inputs (the capture's ground truth, the reconstruction's frame and
+    canonical scene) and the eval section (its I3D network)."""
+    return {
+        "capture": stage_dir(wc.scene, "capture"),
+        "sfm": stage_dir(wc.scene, "sfm"),
+        "static": stage_dir(wc.scene, "static"),
+        "eval_params": jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc),
+    }
+
+
+# ---- eval.smk ----
+
+
+def _tradeoff_metrics(wc):
+    return [
+        out_path("eval", f"{R}/{p.scene(s)}/{p.variant}/eval", "metrics")
+        for s, pts in tradeoff_points().items()
+        for p in pts
+    ]
+
+
+def _tradeoff_points(wc):
+    return json.dumps(
+        {
+            s: [{"variant": p.variant, "knob": p.knob, "value": p.value, "scene_tag": p.scene_tag} for p in TRADEOFF[s]]
+            for s in SCENES
+        }
+    )
+
+
+def _tradeoff_plots():
+    plot = report  # (a line starting with `report(` would parse as the rule keyword)
+    knobs = [k for k, v in config.get("tradeoff", {}).get("knobs", {}).items() if v]
+    return [
+        plot(
+            f"{R}/tradeoff/{s}_{knob_filename(k)}.png",
+            caption="../report/tradeoff.rst",
+            category="Accuracy versus time",
+        )
+        for s in SCENES
+        for k in knobs
+    ]
+
+
+def _study_variants():
+    """The compared variants of the 2AFC study: the baselines among table_variants (paper Table 4)."""
+    return [v for v in config["table_variants"] if v != "full" and method_of(next(iter(SCENES)), v) != "anigs"]
+
+
+def merge_eval_halves(metrics, input, log):
+    """The eval rule's job (in Snakemake: a JSON merge, no process start-up): ``metrics`` (metrics.json)
+    from the clips and model halves beside it and the FVD-GT records of ``input.fvd_gt``."""
+    from anigs.stages.eval import Outputs, merge_parts
+
+    merge_parts(Outputs(os.path.dirname(metrics)), extra=list(input.fvd_gt))
+    with open(log, "w") as f:
+        f.write(f"merged {input.clips}, {input.model} and {len(input.fvd_gt)} FVD-GT record(s) into {metrics}\n")
