@@ -30,7 +30,7 @@ def run(images: str | Path, cameras: str | Path, points: str | Path, out: str | 
     from anigs.static.fit import fit_static
 
     out = Path(out)
-    imgs, cams = load_inputs(images, cameras)
+    imgs, cams = load_inputs(images, cameras, compact=True)  # uint8: a quarter of the memory
     pts, cols = load_points(points)
     out.mkdir(parents=True, exist_ok=True)
     ckpt = out / "checkpoint.ply"

@@ -197,6 +197,7 @@ def evaluate(params: dict[str, torch.Tensor], images: Sequence[torch.Tensor], ca
         return {"psnr": float("nan"), "ssim": float("nan"), "views": 0}
     ps, ss = [], []
     for img, cam in zip(images, cameras):
+        img = _pixels(img)
         rgb, _, _ = _render(params, cam, sh_degree, bg, backend)
         rgb = rgb.clamp(0, 1)
         ps.append(psnr(rgb, img))
@@ -318,13 +319,26 @@ def _check_inputs(images: Sequence[torch.Tensor], cameras: Sequence[Camera]) -> 
                              f"camera is {cam.width}x{cam.height}")
 
 
+def _stored(img: torch.Tensor, device) -> torch.Tensor:
+    """An input image as the fit keeps it: uint8 [H,W,3] stays uint8 (a quarter of the memory of
+    float32: every photo is held for the whole fit), anything else float32 clamped to [0,1]."""
+    if img.dtype == torch.uint8:
+        return img.detach().to(device)
+    return img.detach().float().clamp(0, 1).to(device)
+
+
+def _pixels(img: torch.Tensor) -> torch.Tensor:
+    """Float32 [H,W,3] in [0,1] of a stored image (uint8 / 255: the values :func:`anigs.images.load_image` gives)."""
+    return img.float() / 255.0 if img.dtype == torch.uint8 else img
+
+
 # ---------------------------------------------------------------------------- the fit
 def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, init_colors, cfg: FitConfig,
                progress: bool = True, checkpoint_path: str | Path | None = None) -> tuple[Gaussians, dict[str, Any]]:
     """Fit 3D Gaussians to posed images.
 
     Args:
-        images: float images [H,W,3] in [0,1], one per camera.
+        images: float images [H,W,3] in [0,1] (or uint8 [H,W,3], 0..255: kept as uint8), one per camera.
         cameras: the matching :class:`Camera` list (image ``i`` seen by ``cameras[i]``).
         init_points [P,3], init_colors [P,3] in [0,1]: the SfM point cloud.
         cfg: :class:`FitConfig`.
@@ -343,7 +357,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     gen = seed_everything(cfg.seed)
     t_start, c_start = time.perf_counter(), time.process_time()
     train_idx, test_idx = split_holdout(len(images), cfg.holdout_every)
-    imgs = [im.detach().float().clamp(0, 1).to(device) for im in images]
+    imgs = [_stored(im, device) for im in images]
     train_imgs, train_cams = [imgs[i] for i in train_idx], [cameras[i] for i in train_idx]
     test_imgs, test_cams = [imgs[i] for i in test_idx], [cameras[i] for i in test_idx]
 
@@ -420,7 +434,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         if not order:
             order = torch.randperm(len(train_idx), generator=gen).tolist()
         v = order.pop()
-        cam, target = train_cams[v], train_imgs[v]
+        cam, target = train_cams[v], _pixels(train_imgs[v])
         if params["means"].shape[0] == 0:
             raise RuntimeError(f"static fit: no Gaussians left at iteration {step}")
         stats = dstate if stats_needed(densify_cfg, step) else None
