@@ -75,6 +75,9 @@ def run(canonical: str | Path, cameras: str | Path, images: str | Path, out: str
     cams = load_cameras(cameras)
     if not cams:
         raise ValueError(f"{cameras}: no cameras")
+    from anigs.effects.detect import photo_indices
+
+    cams = [cams[i] for i in photo_indices(len(cams), cfg.max_photos)]  # only these are analysed: read only them
     photos = [load_image(find_image(Path(images), c.name)) for c in cams]
     from anigs.effects.vocabulary import prompt_kinds
 
