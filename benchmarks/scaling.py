@@ -18,11 +18,12 @@ Axes and their stages:
              masks resized)                                        render_clip, refine, update
   frames     25 49 121 frames per clip                             render_clip, refine, update
   views      6 12 24 views queued: the last round's update trains on all of them (the demo's
-             12 views, repeated under new ids); render_clip and refine run once per view, so
-             only their per-view cost is measured (one view)      render_clip, refine, update
+             12 views, repeated under new ids)                     render_clip, refine, update
 
-The animation axes run round 1 of the demo's ``full`` variant (3 views rendered with the static
-model, refined, one update) on a finished demo run (``--scene``, default results/demo).
+The animation axes run round 1 of the demo's ``full`` variant on a finished demo run (``--scene``,
+default results/demo): one view rendered with the static model (render_clip) and refined (refine),
+their cost per view; then the update on the round's 3 views (on the views axis: all queued views),
+the refined clip standing for each of them (the update's cost does not depend on the content).
 The photo axes run a fresh capture per point. What was cut for time is a flag:
 ``--static-iterations`` (default 200: the static fit's per-step cost is what grows, the demo runs
 1000), ``--update-steps`` (default 40; the demo 120 per round), ``--sfm-params`` (extra sfm keys,
@@ -179,7 +180,7 @@ def split_gaussians(ply: Path, n: int, out: Path, seed: int = 0) -> np.ndarray:
 
 
 def animation_inputs(axis: str, value: int, args, d: Path) -> tuple[Path, Path, Path, list[str]]:
-    """(canonical.ply, views.json, masks dir, the view ids the round renders) for one point."""
+    """(canonical.ply, views.json, masks dir, the view ids the update trains on) for one point."""
     from PIL import Image
 
     scene = Path(args.scene)
@@ -218,7 +219,7 @@ def animation_inputs(axis: str, value: int, args, d: Path) -> tuple[Path, Path, 
     np.save(masks / "effect_labels.npy", labels)
     (d / "views.json").write_text(json.dumps(views))
     ids = [v["id"] for v in views["views"]]
-    return ply, d / "views.json", masks, (ids[:1] if axis == "views" else ids[:3])
+    return ply, d / "views.json", masks, (ids if axis == "views" else ids[:3])
 
 
 def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
@@ -235,7 +236,7 @@ def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
                 "steps": args.update_steps or sec("update")["steps"]}
     out: dict[str, dict] = {}
     targets = []
-    for v in ids:
+    for v in ids[:1]:  # render_clip and refine cost the same for every view: one is measured
         clip, target = d / "render" / f"{v}.npz", d / "target" / f"{v}.npz"
         r = measure(anigs_cmd(1, "render_clip", "--canonical", str(ply), "--view-json", str(views_json),
                               "--view-id", v, "--out", str(clip), "--params", json.dumps(render_p)),
@@ -246,18 +247,15 @@ def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
         _add(out, "render_clip", r)
         _add(out, "refine", f)
         targets.append(str(target))
-    if axis == "views":  # every queued view trains: the one refined clip stands for each of them
-        for v in [x for x in json.loads(views_json.read_text())["views"]][1:]:
-            dst = d / "target" / f"{v['id']}.npz"
-            shutil.copyfile(targets[0], dst)
-            targets.append(str(dst))
+    for v in ids[1:]:  # the update trains on every view of the round: the refined clip stands for each
+        dst = d / "target" / f"{v}.npz"
+        shutil.copyfile(targets[0], dst)
+        targets.append(str(dst))
     out["update"] = measure(anigs_cmd(args.threads, "update", "--canonical", str(ply), "--targets", *targets,
                                       "--view-json", str(views_json), "--dynamic", str(masks / "dynamic.npy"),
                                       "--effect-labels", str(masks / "effect_labels.npy"), "--out",
                                       str(d / "model.pt"), "--log-json", str(d / "update.json"), "--params",
                                       json.dumps(update_p)), d / "logs" / "update.log")
-    for s in ("render_clip", "refine"):  # per view
-        out[s] = {k: (v / len(ids) if k in ("wall_s", "cpu_s") else v) for k, v in out[s].items()}
     if not args.keep:
         shutil.rmtree(d / "render", ignore_errors=True)
         shutil.rmtree(d / "target", ignore_errors=True)
