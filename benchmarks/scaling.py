@@ -280,6 +280,10 @@ def load_results(path: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
 
 
+def _fmt(x: float) -> str:
+    return "-" if not math.isfinite(x) else f"{round(x, 2) + 0.0:.2f}"  # no -0.00
+
+
 def report(rows: list[dict]) -> str:
     """Markdown: one table per axis (stage: CPU s / wall s / peak RSS MiB), then the exponents.
     A point measured more than once (other settings) counts with its last measurement."""
@@ -304,13 +308,16 @@ def report(rows: list[dict]) -> str:
         for s in stages:
             have = [r for r in pts if s in r["stages"]]
             xs = [r["value"] for r in have]
-            expo[(axis, s)] = (fit_exponent(xs, [r["stages"][s]["cpu_s"] for r in have]),
-                               fit_exponent(xs, [r["stages"][s]["rss_mib"] for r in have]), len(have))
+            cpu = [r["stages"][s]["cpu_s"] for r in have]
+            expo[(axis, s)] = (fit_exponent(xs, cpu), fit_exponent(xs, [r["stages"][s]["rss_mib"] for r in have]),
+                               len(have), fit_exponent(xs[-2:], cpu[-2:]))
     if expo:
-        lines += ["\n**Growth exponents** (slope of log CPU s / log peak RSS against log axis value; points)\n",
-                  "| axis | stage | CPU exponent | RSS exponent | points |", "|---|---|---|---|---|"]
-        for (axis, s), (c, m, n) in expo.items():
-            lines.append(f"| {axis} | {s} | {round(c, 2) + 0.0:.2f} | {round(m, 2) + 0.0:.2f} | {n} |")  # no -0.00
+        lines += ["\n**Growth exponents** (slope of log CPU s / log peak RSS against log axis value, least squares "
+                  "over the points; and of CPU s between the two largest points, where a process' fixed start-up "
+                  "cost weighs least)\n",
+                  "| axis | stage | CPU exponent | CPU, two largest | RSS exponent | points |", "|---|---|---|---|---|---|"]
+        for (axis, s), (c, m, n, c2) in expo.items():
+            lines.append(f"| {axis} | {s} | {_fmt(c)} | {_fmt(c2)} | {_fmt(m)} | {n} |")
         worst = max(((k, v) for k, v in expo.items() if math.isfinite(v[0])), key=lambda kv: kv[1][0], default=None)
         if worst:
             lines.append(f"\nWorst-growing: {worst[0][1]} along {worst[0][0]} (CPU exponent {worst[1][0]:.2f}).")

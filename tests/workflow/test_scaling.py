@@ -50,8 +50,8 @@ def test_report_names_the_worst_growing_stage():
         "render_clip": {"cpu_s": v * 0.1, "wall_s": v * 0.2, "rss_mib": 300, "load": 1.0},
         "update": {"cpu_s": (v / 25) ** 2 * 10, "wall_s": 1, "rss_mib": 300 + v, "load": 1.0}}} for v in (25, 49, 121)]
     text = scaling.report(rows)
-    assert "| frames | render_clip | 1.00 | 0.00 | 3 |" in text
-    assert "| frames | update | 2.00 |" in text
+    assert "| frames | render_clip | 1.00 | 1.00 | 0.00 | 3 |" in text
+    assert "| frames | update | 2.00 | 2.00 |" in text
     assert "Worst-growing: update along frames (CPU exponent 2.00)" in text
 
 
