@@ -46,8 +46,28 @@ def load_image(path: str | Path) -> np.ndarray:
     return (img[..., :3][..., ::-1].astype(np.float32) / scale).copy()
 
 
-def load_inputs(images: str | Path, cameras: str | Path):
-    """Images (torch [H,W,3]) and cameras in camera-file order; cameras are rescaled to the image size."""
+def load_image_compact(path: str | Path) -> np.ndarray:
+    """:func:`load_image`'s pixels at a quarter of the memory: uint8 [H,W,3] for an 8-bit file (the
+    float image is exactly ``img.astype(float32) / 255``, what :func:`load_image` gives), float32 [H,W,3]
+    in [0,1] otherwise. A 384-photo capture at 1280x960 holds 1.4 GB instead of 5.7 GB."""
+    import cv2
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"image not found: {path}")
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise ValueError(f"cannot read image {path}")
+    if img.dtype != np.uint8:
+        return load_image(path)
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, 2)
+    return img[..., :3][..., ::-1].copy()
+
+
+def load_inputs(images: str | Path, cameras: str | Path, compact: bool = False):
+    """Images (torch [H,W,3]) and cameras in camera-file order; cameras are rescaled to the image size.
+    ``compact``: 8-bit images stay uint8 (:func:`load_image_compact`; a quarter of the memory)."""
     import torch
 
     from anigs.cameras import load_cameras
@@ -65,7 +85,7 @@ def load_inputs(images: str | Path, cameras: str | Path):
         except FileNotFoundError:
             missing.append(cam.name)
             continue
-        arr = load_image(p)
+        arr = load_image_compact(p) if compact else load_image(p)
         h, w = arr.shape[:2]
         if (w, h) != (cam.width, cam.height):
             log.info("camera %s is %dx%d, image %dx%d: scaling intrinsics", cam.name, cam.width, cam.height, w, h)

@@ -103,13 +103,19 @@ class EffectsResult:
                 "fragments": {k: int(v) for k, v in self.fragments.items()}}
 
 
+def photo_indices(num_photos: int, max_photos: int) -> np.ndarray:
+    """The evenly spaced photos the detection analyses (indices into the capture's cameras): a caller
+    need read only these (``effects.max_photos``, 24: not all of a 384-photo capture in memory at once)."""
+    return np.unique(np.round(np.linspace(0, num_photos - 1, min(num_photos, max_photos))).astype(int))
+
+
 def _prepare(images: Sequence[np.ndarray], cameras: Sequence[Camera], cfg: Config) -> tuple[list, list]:
     """Evenly spaced photos (float32 [H,W,3]) downscaled to ``max_side``, with their cameras."""
     if len(images) != len(cameras):
         raise ValueError(f"detect_effects: {len(images)} images but {len(cameras)} cameras")
     if not len(images):
         raise ValueError("detect_effects: no photos")
-    pick = np.unique(np.round(np.linspace(0, len(images) - 1, min(len(images), cfg.max_photos))).astype(int))
+    pick = photo_indices(len(images), cfg.max_photos)
     photos, cams = [], []
     for i in pick:
         img = check_image(images[i], cameras[i].name)

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from anigs.effects.choice import decide_effects
+from anigs.effects.detect import photo_indices
 from anigs.effects.config import Config
 from anigs.stages import contract
 from anigs.stages.contract import File
@@ -94,6 +95,7 @@ def run(inputs: Inputs, cfg: Config) -> Outputs:
     cams = load_cameras(inputs.cameras)
     if not cams:
         raise ValueError(f"{inputs.cameras}: no cameras")
+    cams = [cams[i] for i in photo_indices(len(cams), cfg.max_photos)]  # only these are analysed: read only them
     photos = [load_image(find_image(Path(inputs.images), c.name)) for c in cams]
     decision = decide_effects(photos, cams, g, cfg, requested)
     out = inputs.out

@@ -70,7 +70,7 @@ def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
     from anigs.sfm.model import load_points
 
     out, images, cameras, points = inputs.out, inputs.images, inputs.cameras, inputs.points
-    imgs, cams = load_inputs(images, cameras)
+    imgs, cams = load_inputs(images, cameras, compact=True)  # uint8: a quarter of the memory
     pts, cols = load_points(points)
     out.root.mkdir(parents=True, exist_ok=True)
     ckpt = out.path("checkpoint")

@@ -26,6 +26,19 @@ def _render(params: dict[str, torch.Tensor], cam: Camera, sh_degree: int, bg: to
 
 
 @torch.no_grad()
+def stored_image(img: torch.Tensor, device) -> torch.Tensor:
+    """An input image as the fit keeps it: uint8 [H,W,3] stays uint8 (a quarter of the memory of
+    float32: every photo is held for the whole fit), anything else float32 clamped to [0,1]."""
+    if img.dtype == torch.uint8:
+        return img.detach().to(device)
+    return img.detach().float().clamp(0, 1).to(device)
+
+
+def pixels(img: torch.Tensor) -> torch.Tensor:
+    """Float32 [H,W,3] in [0,1] of a stored image (uint8 / 255: the values :func:`anigs.images.load_image` gives)."""
+    return img.float() / 255.0 if img.dtype == torch.uint8 else img
+
+
 def evaluate(params: dict[str, torch.Tensor], images: Sequence[torch.Tensor], cameras: Sequence[Camera],
              sh_degree: int, bg: torch.Tensor, backend: str) -> dict[str, float]:
     """Mean PSNR (dB) and SSIM over the given views (NaN when there are none)."""
@@ -33,6 +46,7 @@ def evaluate(params: dict[str, torch.Tensor], images: Sequence[torch.Tensor], ca
         return {"psnr": float("nan"), "ssim": float("nan"), "views": 0}
     ps, ss = [], []
     for img, cam in zip(images, cameras):
+        img = pixels(img)
         rgb, _, _ = _render(params, cam, sh_degree, bg, backend)
         rgb = rgb.clamp(0, 1)
         ps.append(psnr(rgb, img))

@@ -28,7 +28,7 @@ from anigs.configs import reject_unknown_keys
 from anigs.static.densify import (DensifyConfig, DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
 from anigs.static.divergence import DivergenceGuard, FitDivergedError, raise_diverged
-from anigs.static.evaluate import _render, evaluate
+from anigs.static.evaluate import _render, evaluate, pixels, stored_image
 from anigs.static.init import _to_params, init_gaussians, make_optimizer, params_to_gaussians, split_holdout
 from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, last_densify_step, prune_rows
 from anigs.device import get_device, seed_everything
@@ -162,7 +162,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     """Fit 3D Gaussians to posed images.
 
     Args:
-        images: float images [H,W,3] in [0,1], one per camera.
+        images: float images [H,W,3] in [0,1] (or uint8 [H,W,3], 0..255: kept as uint8), one per camera.
         cameras: the matching :class:`Camera` list (image ``i`` seen by ``cameras[i]``).
         init_points [P,3], init_colors [P,3] in [0,1]: the SfM point cloud.
         cfg: :class:`FitConfig`.
@@ -181,7 +181,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     gen = seed_everything(cfg.seed)
     t_start, c_start = time.perf_counter(), time.process_time()
     train_idx, test_idx = split_holdout(len(images), cfg.holdout_every)
-    imgs = [im.detach().float().clamp(0, 1).to(device) for im in images]
+    imgs = [stored_image(im, device) for im in images]
     train_imgs, train_cams = [imgs[i] for i in train_idx], [cameras[i] for i in train_idx]
     test_imgs, test_cams = [imgs[i] for i in test_idx], [cameras[i] for i in test_idx]
 
@@ -317,7 +317,7 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
         if not order:
             order = torch.randperm(len(train_cams), generator=gen).tolist()
         v = order.pop()
-        cam, target = train_cams[v], train_imgs[v]
+        cam, target = train_cams[v], pixels(train_imgs[v])
         if run.params["means"].shape[0] == 0:
             raise RuntimeError(f"static fit: no Gaussians left at iteration {step}")
         stats = dstate if stats_needed(densify_cfg, step) else None
