@@ -1,7 +1,9 @@
 """``anigs`` command line: one subcommand per workflow stage.
 
-Each stage's command lives in its module ``anigs/stages/<name>.py`` (``add_arguments(parser)``
-and ``main(args) -> int``, which parses and calls the stage's ``run``); the command table
+Each stage's command is its module ``anigs/stages/<name>.py``: by default its flags are its
+``Inputs``' fields plus ``--params`` (its ``Config``) and the command calls
+``run(Inputs.from_args(args), Config.from_dict(params))``; a module that needs more (a summary line,
+extra modes) defines ``add_arguments(parser)`` and ``main(args) -> int`` itself. The command table
 derives from the stage registry :data:`anigs.stages.STAGES`. Stage parameters come as the config
 section in JSON (``--params '{...}'`` or ``--params @file.json``) so Snakemake can pass
 its ``params:`` verbatim; paths are explicit options.
@@ -69,6 +71,29 @@ def parse_params(value: str | None) -> dict[str, Any]:
 THEN = "--then"
 
 
+def stage_arguments(module, name: str, p: argparse.ArgumentParser) -> None:
+    """The command's flags: the module's ``add_arguments``, else its ``Inputs``' flags (derived from the
+    fields) and ``--params`` when it has a ``Config``."""
+    if hasattr(module, "add_arguments"):
+        module.add_arguments(p)
+        return
+    module.Inputs.add_arguments(p)
+    if getattr(module, "Config", None) is not None:
+        add_params(p, name)
+
+
+def stage_main(module, args: argparse.Namespace) -> int:
+    """Run the command: the module's ``main``, else ``run(Inputs.from_args(args), Config.from_dict(params))``."""
+    if hasattr(module, "main"):
+        return module.main(args)
+    inputs = module.Inputs.from_args(args)
+    if getattr(module, "Config", None) is None:
+        module.run(inputs)
+    else:
+        module.run(inputs, module.Config.from_dict(parse_params(args.params)))
+    return 0
+
+
 def _split_chain(argv: list[str]) -> list[list[str]]:
     """``[global options] CMD ARGS --then CMD ARGS ...`` -> one argv per command, each with the global options."""
     parts: list[list[str]] = [[]]
@@ -129,7 +154,7 @@ def _main(argv: list[str]) -> int:
                 if exc.name == mod:
                     parser.error(f"stage {name!r} is not implemented in this version of anigs")
                 raise
-            modules[name].add_arguments(p)
+            stage_arguments(modules[name], name, p)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
@@ -141,7 +166,7 @@ def _main(argv: list[str]) -> int:
 
         torch.set_num_threads(max(1, args.threads))
     try:
-        return int(modules[args.command].main(args) or 0)
+        return int(stage_main(modules[args.command], args) or 0)
     except (ValueError, FileNotFoundError, RuntimeError, KeyError) as exc:
         logging.getLogger("anigs").error("%s: %s", type(exc).__name__, exc)
         if args.verbose:
