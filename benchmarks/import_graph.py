@@ -28,9 +28,9 @@ from pathlib import Path
 # Layers of anigs, bottom (0) to top; a package may import its own layer and the ones below.
 LAYERS: list[tuple[str, set[str]]] = [
     ("base: data types, IO, device, math", {
-        "io", "device", "config", "configs", "images", "video", "flow", "cameras", "gaussians",
-        "geometry", "ssim", "fused_ssim", "ssim_kernel", "benchmark_tsv", "photos"}),
-    ("render", {"render"}),
+        "io", "device", "config", "configs", "typed_config", "images", "video", "flow", "cameras",
+        "gaussians", "geometry", "benchmark_tsv", "photos"}),
+    ("compiled kernels: rasterizer, SSIM", {"render", "ssim", "fused_ssim", "ssim_kernel"}),
     ("scene sources: synthetic scene, SfM", {"synth", "sfm"}),
     ("method parts", {"static", "effects", "views", "masks", "refine", "animate", "metrics",
                       "baselines", "export"}),

@@ -29,7 +29,7 @@ from anigs.static.densify import (DensifyConfig, DensifyState, refine, refine_du
                                   update_state)
 from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, last_densify_step, prune_rows
 from anigs.device import get_device, seed_everything
-from anigs.fused_ssim import fused_ssim
+from anigs.ssim import fused_ssim
 from anigs.geometry.extent import scene_extent
 from anigs.gaussians import Gaussians
 from anigs.render import rasterize
