@@ -40,7 +40,8 @@ from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
 from anigs.io import atomic_path, write_json
 from anigs.render import render_gaussians
 from anigs.synth.motion import MotionParams, motion_tables
-from anigs.synth.scene import BEDS, LABELS, TREE_SITES, Y1, SceneConfig, build_scene, path_x
+from anigs.synth.build import build_scene
+from anigs.synth.scene import BEDS, LABELS, TREE_SITES, Y1, SceneConfig, path_x
 from anigs.video import save_png
 
 log = logging.getLogger(__name__)

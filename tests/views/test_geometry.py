@@ -15,7 +15,8 @@ import pytest
 from anigs import geometry
 from anigs.geometry import angle_deg, classify_layout, estimate_ground, estimate_up, observed_points
 from anigs.synth.capture import CaptureConfig, camera_path
-from anigs.synth.scene import LABEL_IDS, SceneConfig, build_scene
+from anigs.synth.build import build_scene
+from anigs.synth.scene import LABEL_IDS, SceneConfig
 
 Z = np.array([0.0, 0.0, 1.0])
 

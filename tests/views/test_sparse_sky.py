@@ -15,7 +15,7 @@ import pytest
 from anigs.masks.lift import render_depth
 from anigs.synth.capture import camera_path
 from anigs.synth.floaters import sparse_capture_config, with_floaters
-from anigs.synth.scene import build_scene
+from anigs.synth.build import build_scene
 from anigs.views import ViewsConfig, plan_views
 
 pytestmark = [pytest.mark.slow, pytest.mark.usefixtures("one_thread")]

@@ -248,7 +248,8 @@ def test_regions_of_interest_lifted_from_capture_photos(tmp_path, scene):
 # ---- layouts and the scene-coverage test ----------------------------------------------------
 @pytest.fixture(scope="module")
 def garden_gs():
-    from anigs.synth.scene import SceneConfig, build_scene
+    from anigs.synth.build import build_scene
+    from anigs.synth.scene import SceneConfig
 
     g = build_scene(SceneConfig(num_gaussians=4000), 0)
     return g, g.extras["label"].numpy()
