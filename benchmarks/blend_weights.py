@@ -1,4 +1,4 @@
-"""Blend-weight benchmark: ``anigs.masks.lift.blend_weights`` through one forward + backward
+"""Blend-weight benchmark: ``anigs.render.visibility.blend_weights`` through one forward + backward
 pass of the cpu rasterizer (old) against the forward-only kernel pass (new).
 
     python benchmarks/blend_weights.py                          # the finished demo run in results/demo
@@ -37,8 +37,8 @@ def main(argv: list[str] | None = None) -> dict:
     torch.set_num_threads(args.threads)
     from anigs.gaussians import load_ply
     from anigs.io import read_json
-    from anigs.masks import read_mask
-    from anigs.masks.lift import _blend_backend, blend_weights, blend_weights_backward
+    from anigs.images import read_mask
+    from anigs.render.visibility import _blend_backend, blend_weights, blend_weights_backward
     from anigs.views import cameras_from_views
 
     if _blend_backend() != "cpu":

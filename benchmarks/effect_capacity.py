@@ -70,7 +70,8 @@ def effect_labels_for_demo(demo: Path, out: Path) -> Path:
     from anigs.effects.config import REGIONS
     from anigs.gaussians import load_ply
     from anigs.io import read_json
-    from anigs.masks.labels import align_cameras, transfer_labels
+    from anigs.render.labels import transfer_labels
+    from anigs.sfm.align import align_cameras
 
     dyn = np.load(demo / "masks" / "dynamic.npy").astype(bool)
     gt = demo / "capture" / "gt"

@@ -18,7 +18,8 @@ from anigs.cameras import load_cameras
 from anigs.gaussians import load_ply
 from anigs.images import find_image, load_image
 from anigs.effects import detect_effects, Config, save_overview, REGIONS
-from anigs.masks.labels import align_cameras, appearance_labels, render_label_map
+from anigs.render.labels import appearance_labels, render_label_map
+from anigs.sfm.align import align_cameras
 
 root, out = Path(sys.argv[1]), Path(sys.argv[2]); out.mkdir(parents=True, exist_ok=True)
 over = json.loads(sys.argv[3]) if len(sys.argv) > 3 else {}

@@ -17,7 +17,7 @@ does. Then compared with two yardsticks:
     transferred to the canonical Gaussians by nearest neighbour.
 ``appearance``
     The labels of what the canonical model itself shows: each canonical Gaussian takes the
-    label it depicts in the capture views (:func:`anigs.masks.labels.appearance_labels`), and
+    label it depicts in the capture views (:func:`anigs.render.labels.appearance_labels`), and
     the label masks are rendered through the canonical model. A mask computed on a render of
     the fitted model can only be judged on what that render shows: its floaters and blur are
     not in the ground-truth geometry, and a fitted lawn splat floating next to a grass tuft is
@@ -72,16 +72,13 @@ def main(argv: list[str] | None = None) -> int:
     from anigs.gaussians import load_ply
     from anigs.io import read_json
     from anigs.masks import compute_masks, get_mask_backend, mask_iou, render_frames
-    from anigs.masks.labels import (
-        LabelsBackend,
-        align_cameras,
-        appearance_labels,
-        dynamic_label_ids,
-        dynamic_masks,
-        effects_from_motion,
-    )
+    from anigs.masks.labels import LabelsBackend
+    from anigs.render.labels import appearance_labels, dynamic_masks
+    from anigs.sfm.align import align_cameras
+    from anigs.synth.truth import dynamic_label_ids, effects_from_motion
     from anigs.masks.lift import LiftConfig, lift_masks_report
-    from anigs.masks.vegetation import VegetationConfig, estimate_ground
+    from anigs.geometry.ground import ground_plane
+    from anigs.masks.vegetation import VegetationConfig
     from anigs.views import cameras_from_views
 
     scene = Path(args.scene)
@@ -108,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
 
     t = time.perf_counter()
     up = np.asarray(data.get("up", [0.0, 0.0, 1.0]), float)
-    ground = estimate_ground(g.means.detach().double().numpy(), up, cams, veg.ground_margin) if veg.ground else None
+    ground = ground_plane(g.means.detach().double().numpy(), up, cams, veg.ground_margin) if veg.ground else None
 
     def make_backend(v):
         if cfg.backend == "vegetation":

@@ -137,7 +137,7 @@ class UpdateConfig:
 
 def effect_labels() -> dict[str, int]:
     """Effect name -> its label in an int dynamic mask (:func:`anigs.masks.effect_labels.effect_label_ids`)."""
-    from anigs.masks.effect_labels import effect_label_ids
+    from anigs.effects.labels import effect_label_ids
 
     return effect_label_ids()
 

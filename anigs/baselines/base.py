@@ -34,6 +34,8 @@ import torch
 from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, resolve_num_bases
 from anigs.animate.update import ViewData
 from anigs.configs import from_dict
+from anigs.device import get_device
+from anigs.flow import _PRESETS
 from anigs.gaussians import Gaussians
 
 log = logging.getLogger("anigs.baselines")
@@ -67,8 +69,6 @@ class CommonConfig:
         return asdict(self)
 
     def validate(self) -> None:
-        from anigs.flow import _PRESETS
-
         if self.num_bases < 0:
             raise ValueError(f"{type(self).__name__}: num_bases must be >= 0, got {self.num_bases}")
         if self.flow_preset not in _PRESETS:
@@ -99,8 +99,6 @@ def prepare(cls: type, config: Any, canonical: Gaussians, dynamic_mask: torch.Te
             what: str) -> tuple[Any, torch.Tensor, int, Gaussians, Gaussians]:
     """The shared start of every baseline fit: (config of ``cls``, validated; dynamic index [D];
     T; the canonical scene on the CPU; a copy on the configured device for the visibility renders)."""
-    from anigs.device import get_device
-
     cfg = config if isinstance(config, cls) else cls.from_dict(config)
     cfg.validate()
     idx, T = check_inputs(canonical, dynamic_mask, views, what)

@@ -55,7 +55,7 @@ import torch
 from anigs.animate.update import ViewData
 from anigs.baselines.base import BaselineResult, CommonConfig, finish, prepare
 from anigs.baselines.material import MaterialFit, WindResponse, fit_material, material_regions
-from anigs.baselines.springs import build_graph
+from anigs.baselines.springs import SCHEMES, build_graph
 from anigs.baselines.tracks import observe_view, visibility
 from anigs.gaussians import Gaussians
 
@@ -96,8 +96,6 @@ class PhysicsConfig(CommonConfig):
         super().validate()
         if not (self.fps > 0 and self.substeps >= 1 and self.warmup_s >= 0):
             raise ValueError("PhysicsConfig: fps > 0, substeps >= 1, warmup_s >= 0 required")
-        from anigs.baselines.springs import SCHEMES
-
         if self.integrator not in SCHEMES:
             raise ValueError(f"PhysicsConfig: integrator {self.integrator!r} not in {SCHEMES}")
         if self.regions_per_effect < 1 or self.wind_modes < 1 or self.max_evals < 0:

@@ -10,20 +10,22 @@ key ``"dynamic"`` (union of all effects) and optionally one key per effect type.
 =============  ==============================================================================
 
 Use :func:`get_mask_backend` to build one by name and :func:`compute_masks` to run it on
-frames with the input and output checks (NaN pixels and wrong-size masks are errors).
+frames with the input and output checks (NaN pixels and wrong-size masks are errors). Mask
+files are read and written by :mod:`anigs.images`, frames checked by :mod:`anigs.pixels`.
 """
 from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Callable, Sequence
 
-import cv2
 import numpy as np
+import torch
 
 from anigs.cameras import Camera
-from anigs.io import atomic_path
+from anigs.pixels import check_image
+from anigs.render import render_gaussians
+from anigs.render.visibility import frustum_subset
 
 MASK_BACKENDS: dict[str, str] = {
     "vegetation": "anigs.masks.vegetation",
@@ -60,22 +62,6 @@ class Frame:
 
 
 MaskBackend = Callable[[Frame], dict[str, np.ndarray]]
-
-
-def check_image(image: np.ndarray, name: str = "") -> np.ndarray:
-    """Validate an RGB frame; return float32 [H,W,3] in [0,1]. NaN/Inf pixels are an error."""
-    img = np.asarray(image)
-    if img.ndim != 3 or img.shape[2] not in (3, 4) or img.shape[0] < 1 or img.shape[1] < 1:
-        raise ValueError(f"frame {name!r}: expected an RGB image [H,W,3], got shape {img.shape}")
-    if img.dtype == np.uint8:
-        img = img.astype(np.float32) / 255.0
-    img = img[..., :3].astype(np.float32)
-    bad = ~np.isfinite(img)
-    if bad.any():
-        ys, xs = np.nonzero(bad.any(-1))
-        raise ValueError(f"frame {name!r}: {len(ys)} pixels are NaN/Inf (first at x={xs[0]}, y={ys[0]}); "
-                         "the rendered frame is broken, refusing to compute a mask")
-    return np.clip(img, 0.0, 1.0)
 
 
 def check_mask_size(mask: np.ndarray, size: tuple[int, int], name: str = "", key: str = "dynamic") -> np.ndarray:
@@ -129,73 +115,8 @@ def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
     return 1.0 if union == 0 else float((a & b).sum() / union)
 
 
-def overlay(image: np.ndarray, mask: np.ndarray, colour=(1.0, 0.15, 0.6), strength: float = 0.5) -> np.ndarray:
-    """RGB float [H,W,3]: the image with the mask tinted and its outline drawn."""
-    img = check_image(image)
-    m = np.asarray(mask, bool)
-    out = img.copy()
-    out[m] = (1 - strength) * out[m] + strength * np.asarray(colour, np.float32)
-    edge = m.astype(np.uint8) - cv2.erode(m.astype(np.uint8), np.ones((3, 3), np.uint8))
-    out[edge > 0] = colour
-    return out
-
-
-def write_mask_png(path: str | Path, mask: np.ndarray) -> None:
-    """Write a bool mask as an 8-bit PNG (0 / 255), atomically."""
-    with atomic_path(path) as tmp:
-        if not cv2.imwrite(str(tmp), np.asarray(mask, bool).astype(np.uint8) * 255):
-            raise RuntimeError(f"could not write mask {path}")
-
-
-def read_mask(path: str | Path) -> np.ndarray:
-    """The one mask reader: a PNG (8 or 16 bit, 0..255 / 0..65535 or 0/1; colour channels: their
-    maximum; alpha ignored) or an ``.npy`` array -> soft mask float32 [H,W] in [0,1]
-    (0/255 PNGs give exactly 0 and 1)."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"mask file not found: {path}")
-    if path.suffix == ".npy":
-        m = np.asarray(np.load(path), np.float32)
-        if m.ndim == 3:
-            m = m[..., :3].max(-1)
-        return m / 255.0 if m.max(initial=0) > 1.0 else m
-    m = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if m is None:
-        raise ValueError(f"could not read mask image {path}")
-    if m.ndim == 3:
-        m = m[..., :3].max(-1)
-    scale = 65535.0 if m.dtype == np.uint16 else 255.0
-    m = m.astype(np.float32)
-    return m / scale if m.max(initial=0) > 1.0 else m  # 0/1 PNGs are masks too
-
-
-def read_mask_png(path: str | Path) -> np.ndarray:
-    """Read a mask (see :func:`read_mask`) as bool [H,W]: any non-zero pixel is True."""
-    return read_mask(path) > 0
-
-
-def write_rgb_png(path: str | Path, image: np.ndarray) -> None:
-    """Write RGB float [H,W,3] in [0,1] as PNG, atomically."""
-    img = (np.clip(np.asarray(image, np.float32), 0, 1) * 255 + 0.5).astype(np.uint8)
-    with atomic_path(path) as tmp:
-        if not cv2.imwrite(str(tmp), img[..., ::-1]):
-            raise RuntimeError(f"could not write image {path}")
-
-
-def read_rgb_png(path: str | Path) -> np.ndarray:
-    """Read an image file as RGB float32 [H,W,3] in [0,1] (:func:`anigs.images.load_image`)."""
-    from anigs.images import load_image
-
-    return load_image(path)
-
-
 def render_frames(gaussians, cameras: Sequence[Camera], background: Sequence[float] | None = None) -> list[Frame]:
     """Render ``gaussians`` from each camera: Frames with image, depth and alpha (frustum-culled first)."""
-    import torch
-
-    from anigs.masks.lift import frustum_subset
-    from anigs.render import render_gaussians
-
     bg = None if background is None else torch.tensor(list(background), dtype=torch.float32)
     frames = []
     for cam in cameras:
@@ -207,6 +128,5 @@ def render_frames(gaussians, cameras: Sequence[Camera], background: Sequence[flo
     return frames
 
 
-__all__ = ["Frame", "MaskBackend", "MASK_BACKENDS", "get_mask_backend", "compute_masks", "check_image",
-           "check_mask_size", "mask_iou", "overlay", "write_mask_png", "read_mask_png", "write_rgb_png",
-           "render_frames", "read_rgb_png"]
+__all__ = ["Frame", "MaskBackend", "MASK_BACKENDS", "get_mask_backend", "compute_masks", "check_mask_size",
+           "mask_iou", "render_frames"]

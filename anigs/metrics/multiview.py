@@ -24,6 +24,8 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.metrics.image import mean_finite, psnr, ssim
+from anigs.render import render_gaussians
+from anigs.static.fit import FitConfig, fit_static
 
 FitFn = Callable[[list, list, np.ndarray, np.ndarray], Any]
 
@@ -81,8 +83,6 @@ class MultiviewResult:
 
 
 def _render(gaussians, camera: Camera, background) -> np.ndarray:
-    from anigs.render import render_gaussians
-
     bg = None if background is None else torch.as_tensor(background, dtype=torch.float32, device=gaussians.device)
     with torch.no_grad():
         rgb, _, _ = render_gaussians(gaussians, camera, background=bg)
@@ -128,8 +128,6 @@ def static_fit_fn(fit_params: dict[str, Any] | None = None) -> tuple[FitFn, tupl
     Returns (fit_fn, background used by the fit). Raises ModuleNotFoundError naming
     ``anigs.static.fit`` when the static-fit module is missing.
     """
-    from anigs.static.fit import FitConfig, fit_static
-
     params = dict(fit_params or {})
     params.setdefault("holdout_every", 0)
     params.setdefault("eval_every", 0)

@@ -88,7 +88,7 @@ def run(canonical_path: str | Path, views_path: str | Path, out: str | Path, cfg
         clip = render_clip(canonical, deformation, cam, T, bg, times=times).cpu().numpy()
         mask = None
         if masks_dir and (Path(masks_dir) / f"{cam.name}.png").exists():
-            from anigs.masks import read_mask
+            from anigs.images import read_mask
 
             mask = read_mask(Path(masks_dir) / f"{cam.name}.png") >= 0.5
             if mask.shape != clip.shape[1:3]:

@@ -104,7 +104,8 @@ class MasksInputs:
 
 
 def _load_frames(frames_dir: str | None, g, cams, background) -> list:
-    from anigs.masks import Frame, read_rgb_png, render_frames
+    from anigs.images import load_image as read_rgb_png
+    from anigs.masks import Frame, render_frames
 
     rendered = render_frames(g, cams, background)
     if not frames_dir:
@@ -154,7 +155,8 @@ def _effects_backend(effects_dir: str | None, cfg: MasksConfig, g):
 
 def _labels_backend(args: MasksInputs, cfg: MasksConfig, g, effects):
     """The labels backend (ground-truth Gaussians in their own frame, or the canonical set)."""
-    from anigs.masks.labels import LabelsBackend, align_cameras
+    from anigs.masks.labels import LabelsBackend
+    from anigs.sfm.align import align_cameras
 
     labels = np.load(args.labels)
     if args.gt_gaussians:
@@ -172,7 +174,10 @@ def _labels_backend(args: MasksInputs, cfg: MasksConfig, g, effects):
 def _appearance_yardstick(args: MasksInputs, cfg: MasksConfig, g, effects, capture_cams, frames):
     """(dynamic flag [N] of the appearance labels, their label masks [H,W] per frame)."""
     from anigs.masks import compute_masks
-    from anigs.masks.labels import LabelsBackend, align_cameras, appearance_labels, dynamic_label_ids
+    from anigs.masks.labels import LabelsBackend
+    from anigs.render.labels import appearance_labels
+    from anigs.sfm.align import align_cameras
+    from anigs.synth.truth import dynamic_label_ids
 
     labels = np.load(args.labels)
     sim, _ = align_cameras(capture_cams, load_cameras(args.gt_cameras))
@@ -183,10 +188,13 @@ def _appearance_yardstick(args: MasksInputs, cfg: MasksConfig, g, effects, captu
 
 def run(inputs: MasksInputs, cfg: MasksConfig) -> dict:
     """Write the masks of every queued view, the lifted dynamic set and ``masks.json``; returns its content."""
-    from anigs.masks import compute_masks, mask_iou, overlay, write_mask_png, write_rgb_png
-    from anigs.masks.labels import effects_from_motion
+    from anigs.images import write_mask_png, write_rgb_png
+    from anigs.masks import compute_masks, mask_iou
+    from anigs.pixels import overlay
+    from anigs.synth.truth import effects_from_motion
     from anigs.masks.lift import LiftConfig, lift_masks_report, precision_recall
-    from anigs.masks.vegetation import VegetationConfig, estimate_ground
+    from anigs.geometry.ground import ground_plane as estimate_ground
+    from anigs.masks.vegetation import VegetationConfig
     from anigs.views import cameras_from_views
 
     lift_cfg = LiftConfig.from_dict(cfg.lift)
@@ -253,7 +261,7 @@ def run(inputs: MasksInputs, cfg: MasksConfig) -> dict:
     info["lift"] = lift_info
     # the labels and effects backends' masks are renders of the dynamic set itself
     if cfg.complete_masks and cfg.backend not in ("labels", "effects"):
-        from anigs.masks.labels import dynamic_masks
+        from anigs.render.labels import dynamic_masks
 
         added = []
         for res, extra in zip(results, dynamic_masks(g, dyn, [fr.camera for fr in frames])):
@@ -338,7 +346,7 @@ def _effect_labels(effects_dir: Path, dyn: np.ndarray, g) -> tuple[np.ndarray, d
     :mod:`anigs.masks.effect_labels`; their counts for ``masks.json``; the chosen effects) from the
     effects stage's regions of its chosen effects."""
     from anigs.effects.config import REGIONS
-    from anigs.masks.effect_labels import effect_label_ids, effect_labels
+    from anigs.effects.labels import effect_label_ids, effect_labels
 
     chosen, regions = _read_effects(effects_dir, g)
     chosen_regions = sorted({effect_label_ids()[e] - 1 for e in chosen})
@@ -352,7 +360,7 @@ def _effect_labels(effects_dir: Path, dyn: np.ndarray, g) -> tuple[np.ndarray, d
 def _add_effect_masks(g, labels: np.ndarray, chosen: list[str], frames, results: list[dict], opts: dict) -> None:
     """Per-effect masks for a backend that gives one dynamic mask (vegetation, sam2): the render of
     each chosen effect's dynamic Gaussians (by their effect label), within the backend's mask."""
-    from anigs.masks.effect_labels import effect_label_ids
+    from anigs.effects.labels import effect_label_ids
     from anigs.masks.labels import LabelsBackend
 
     ids = effect_label_ids()

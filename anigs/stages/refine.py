@@ -79,7 +79,7 @@ def view_seed(seed: int, round_: int, view: str) -> int:
 
 def load_mask(path: str | Path) -> np.ndarray:
     """Mask from PNG (0/255 or 0/1) or .npy -> float32 [H,W] in [0,1] (:func:`anigs.masks.read_mask`)."""
-    from anigs.masks import read_mask
+    from anigs.images import read_mask
 
     return read_mask(path)
 

@@ -169,7 +169,7 @@ def _contain(result, static, cameras, masks_dir: Path, cfg: UpdateConfig) -> dic
 
     import torch
 
-    from anigs.masks import read_mask
+    from anigs.images import read_mask
     from anigs.masks.contain import contain_motion, scaled_motion
 
     t0 = time.perf_counter()

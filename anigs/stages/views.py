@@ -67,10 +67,13 @@ def find_mask(masks_dir: Path, cam: Camera) -> Path | None:
 def roi_from_masks(g: Gaussians, cameras: list[Camera], masks_dir: str | None, images_dir: str | None,
                    out: Path) -> tuple[np.ndarray, dict]:
     """Dynamic flag [N] lifted from 2D masks of the candidate cameras (read, or computed from photos)."""
-    from anigs.masks import compute_masks, read_mask_png
-    from anigs.masks.capture import camera_for_size, capture_frames
+    from anigs.images import read_mask_png
+    from anigs.masks import compute_masks
+    from anigs.cameras import camera_for_size
+    from anigs.masks.capture import capture_frames
     from anigs.masks.lift import LiftConfig, lift_masks_report
-    from anigs.masks.vegetation import VegetationConfig, estimate_ground
+    from anigs.geometry.ground import ground_plane as estimate_ground
+    from anigs.masks.vegetation import VegetationConfig
 
     lift_cfg, veg_cfg = LiftConfig(), VegetationConfig()
     up = np.array([0.0, 0.0, 1.0])

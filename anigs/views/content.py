@@ -17,7 +17,7 @@ it is dominated by *sharp* Gaussians (:func:`sharp_gaussians`), each of which mu
 
 :func:`content_fraction` renders the view with every Gaussian and counts the pixels whose
 alpha is >= ``alpha`` and whose alpha the sharp Gaussians carry >= half of (the masks stage's
-dominance rule, :func:`anigs.masks.labels.dynamic_masks`).
+dominance rule, :func:`anigs.render.labels.dynamic_masks`).
 
 :func:`edge_share` is the image figure of the issue that asked for this: the share of pixels
 within ``radius`` px of an edge (absolute 4-neighbour Laplacian of the grey image, 0-255, above
@@ -35,7 +35,9 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
-from anigs.masks.lift import blend_weights, frustum_subset, render_inputs
+from anigs.render import rasterize
+from anigs.render.labels import dynamic_masks
+from anigs.render.visibility import blend_weights, frustum_subset, render_inputs
 
 log = logging.getLogger("anigs.views")
 
@@ -149,8 +151,6 @@ def sharp_gaussians(g: Gaussians, cameras: Sequence[Camera], rule: ContentRule,
 
 def content_fraction(g: Gaussians, sharp: np.ndarray, cam: Camera, alpha: float = 0.5) -> float:
     """Share of ``cam``'s pixels with alpha >= ``alpha`` of which the ``sharp`` [N] Gaussians carry >= half."""
-    from anigs.masks.labels import dynamic_masks
-
     if not np.asarray(sharp).any():
         return 0.0
     return float(dynamic_masks(g, sharp, [cam], 0.5, alpha)[0].mean())
@@ -158,8 +158,6 @@ def content_fraction(g: Gaussians, sharp: np.ndarray, cam: Camera, alpha: float 
 
 def render_rgb(g: Gaussians, cam: Camera, background: Sequence[float]) -> np.ndarray:
     """Colour render float [H,W,3] in [0,1] of ``g`` from ``cam`` onto ``background``."""
-    from anigs.render import rasterize
-
     idx = frustum_subset(g, cam)
     bg = torch.tensor([float(x) for x in background], dtype=torch.float32)
     if len(idx) == 0:

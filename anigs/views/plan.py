@@ -18,7 +18,7 @@ from anigs.views.candidates import azimuth_deg, ccw_order, farthest_point_order,
 from anigs.views.config import ViewsConfig
 from anigs.views.coverage import (DYNAMIC_ALPHA, DYNAMIC_SHARE, _rel_deg, capture_pitch_deg, dynamic_fraction,
                                   observation_counts, replacement_directions, scene_coverage)
-from anigs.masks.lift import VisibilityConfig, visibility
+from anigs.render.visibility import VisibilityConfig, visibility
 from anigs.views.content import ContentCheck, sharp_gaussians
 
 log = logging.getLogger("anigs.views")

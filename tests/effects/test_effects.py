@@ -17,8 +17,8 @@ from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.effects import EFFECTS, REGIONS, Config, detect_effects, save_overview
 from anigs.effects import cues
 from anigs.gaussians import Gaussians, rgb_to_sh0
-from anigs.masks import read_rgb_png
-from anigs.masks.labels import render_label_map
+from anigs.images import load_image
+from anigs.render.labels import render_label_map
 from anigs.synth import LABEL_IDS, CaptureConfig, SceneConfig, build_scene, camera_path, render_image
 from anigs.synth.scene import frame_from_normal, quat_from_matrix
 
@@ -104,7 +104,7 @@ def test_bare_courtyard_has_no_effects(tmp_path):
         assert {"detected", "pixel_fraction", "gaussian_fraction", "confidence", "reason"} <= set(doc["effects"][e])
         assert doc["effects"][e]["detected"] is False
     save_overview(tmp_path / "overview.png", res)
-    assert read_rgb_png(tmp_path / "overview.png").shape[1] >= 4 * 200
+    assert load_image(tmp_path / "overview.png").shape[1] >= 4 * 200
 
 
 def test_ground_scatter_hidden_under_the_lawn_leaves_grass_and_flowers(garden):
@@ -229,7 +229,7 @@ def test_stage_effects_list_restricts_and_reports_what_the_scene_lacks(tmp_path)
     a listed effect that was not found is reported (requested_not_found), not simulated."""
     from anigs.cameras import save_cameras
     from anigs.cli import main
-    from anigs.masks import write_rgb_png
+    from anigs.images import write_rgb_png
     from anigs.stages.effects import choose
 
     assert choose(["foliage_sway", "flower_bob"], "auto") == (["foliage_sway", "flower_bob"], [])

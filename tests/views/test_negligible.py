@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from anigs.cameras import save_cameras
-from anigs.masks.labels import dynamic_masks
+from anigs.render.labels import dynamic_masks
 from anigs.views import ViewsConfig, plan_views, queued_view_count
 from tests.masks.test_lift import toy_scene
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.masks.lift import render_depth
+from anigs.render.visibility import render_depth
 from anigs.synth.capture import camera_path
 from anigs.synth.floaters import sparse_capture_config, with_floaters
 from anigs.synth.build import build_scene

@@ -196,7 +196,8 @@ def test_nothing_dynamic_gives_views_of_the_whole_scene(tmp_path, scene):
 def test_cli_views_from_2d(tmp_path, route):
     """Real-scene routes: ROI lifted from vegetation masks of the photos, or from given masks."""
     from anigs.cli import main
-    from anigs.masks import compute_masks, render_frames, write_mask_png, write_rgb_png
+    from anigs.images import write_mask_png, write_rgb_png
+    from anigs.masks import compute_masks, render_frames
     from tests.masks.test_lift import SKY
 
     gs, lab, cams = toy_scene(ring=6, lawn=True)
@@ -229,7 +230,8 @@ def test_regions_of_interest_lifted_from_capture_photos(tmp_path, scene):
     """Real scenes: `anigs views --images` segments the photos (vegetation backend, ground cue from
     the canonical model's depth) and lifts them to 3D; missing or unmatched photos are errors."""
     from anigs.stages.views import roi_from_masks
-    from anigs.masks import render_frames, write_rgb_png
+    from anigs.images import write_rgb_png
+    from anigs.masks import render_frames
 
     gs, lab, cams = scene
     for fr in render_frames(gs, cams):
@@ -267,7 +269,7 @@ def test_every_queued_view_sees_the_scene(garden_gs, layout, kind):
     """Forward-facing, orbit and walk captures of the garden: the layout is recognised and every
     queued view has >= 80% of its pixels on Gaussians seen in >= 2 capture photos (recomputed
     here independently of the planner's bookkeeping); failed directions are recorded, not queued."""
-    from anigs.masks.lift import VisibilityConfig, render_depth, visibility
+    from anigs.render.visibility import VisibilityConfig, render_depth, visibility
 
     g, lab = garden_gs
     cams = _layout_cams(layout)
