@@ -15,53 +15,20 @@ files are read and written by :mod:`anigs.images`, frames checked by :mod:`anigs
 """
 from __future__ import annotations
 
-import importlib
-from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
 import numpy as np
-import torch
 
-from anigs.cameras import Camera
+from anigs.masks import labels, sam2, vegetation
+from anigs.masks.frame import Frame, MaskBackend, render_frames
 from anigs.pixels import check_image
-from anigs.render import render_gaussians
-from anigs.render.visibility import frustum_subset
 
-MASK_BACKENDS: dict[str, str] = {
-    "vegetation": "anigs.masks.vegetation",
-    "labels": "anigs.masks.labels",
-    "sam2": "anigs.masks.sam2",
+# name -> the backend's builder (sam2 imports the sam2 package only when its backend is built)
+MASK_BACKENDS: dict[str, Callable[..., MaskBackend]] = {
+    "vegetation": vegetation.build,
+    "labels": labels.build,
+    "sam2": sam2.build,
 }
-
-
-@dataclass
-class Frame:
-    """One image to segment.
-
-    Attributes:
-        image: RGB [H,W,3] float in [0,1] (uint8 accepted, converted).
-        camera: the camera it was rendered/taken with (needed by ``labels``; optional otherwise).
-        depth: rendered expected depth [H,W] (optional; enables the ground cue of ``vegetation``).
-        alpha: rendered alpha [H,W] (optional).
-        name: identifier used in messages and file names.
-        background: RGB [3] the frame was rendered over (optional; with ``alpha`` it lets the
-            vegetation backend recover the foreground colour of semi-transparent pixels).
-    """
-
-    image: np.ndarray
-    camera: Camera | None = None
-    depth: np.ndarray | None = None
-    alpha: np.ndarray | None = None
-    name: str = ""
-    background: np.ndarray | None = None
-
-    @property
-    def size(self) -> tuple[int, int]:
-        """(height, width)."""
-        return int(self.image.shape[0]), int(self.image.shape[1])
-
-
-MaskBackend = Callable[[Frame], dict[str, np.ndarray]]
 
 
 def check_mask_size(mask: np.ndarray, size: tuple[int, int], name: str = "", key: str = "dynamic") -> np.ndarray:
@@ -77,8 +44,7 @@ def get_mask_backend(name: str, **kwargs: Any) -> MaskBackend:
     """Build the mask backend ``name`` (``vegetation``, ``labels``, ``sam2``) with its keyword options."""
     if name not in MASK_BACKENDS:
         raise ValueError(f"unknown mask backend {name!r}; choose one of {sorted(MASK_BACKENDS)}")
-    module = importlib.import_module(MASK_BACKENDS[name])
-    return module.build(**kwargs)
+    return MASK_BACKENDS[name](**kwargs)
 
 
 def compute_masks(backend: MaskBackend | str, frames: Sequence[Frame], **kwargs: Any) -> list[dict[str, np.ndarray]]:
@@ -113,19 +79,6 @@ def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
         raise ValueError(f"IoU: masks differ in size: {a.shape[1]}x{a.shape[0]} vs {b.shape[1]}x{b.shape[0]}")
     union = int((a | b).sum())
     return 1.0 if union == 0 else float((a & b).sum() / union)
-
-
-def render_frames(gaussians, cameras: Sequence[Camera], background: Sequence[float] | None = None) -> list[Frame]:
-    """Render ``gaussians`` from each camera: Frames with image, depth and alpha (frustum-culled first)."""
-    bg = None if background is None else torch.tensor(list(background), dtype=torch.float32)
-    frames = []
-    for cam in cameras:
-        sub = gaussians.subset(frustum_subset(gaussians, cam))
-        with torch.no_grad():
-            rgb, alpha, meta = render_gaussians(sub, cam, background=bg)
-        frames.append(Frame(rgb.clamp(0, 1).numpy(), cam, meta["depth"].numpy(), alpha.numpy(), cam.name,
-                            None if background is None else np.asarray(background, np.float32)))
-    return frames
 
 
 __all__ = ["Frame", "MaskBackend", "MASK_BACKENDS", "get_mask_backend", "compute_masks", "check_mask_size",

@@ -12,7 +12,7 @@ from typing import Sequence
 
 from anigs.cameras import Camera, camera_for_size
 from anigs.images import load_image
-from anigs.masks import Frame, render_frames
+from anigs.masks.frame import Frame, render_frames
 
 log = logging.getLogger("anigs.masks")
 

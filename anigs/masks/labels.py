@@ -17,7 +17,7 @@ import numpy as np
 from anigs.cameras import Camera, load_cameras
 from anigs.gaussians import Gaussians, load_ply
 from anigs.io import read_json
-from anigs.masks import Frame
+from anigs.masks.frame import Frame
 from anigs.render.labels import effect_indicators, label_masks, labels_for
 from anigs.sfm.align import Similarity, align_cameras
 from anigs.synth.truth import dynamic_label_ids, effects_from_motion

@@ -23,7 +23,7 @@ import numpy as np
 
 from anigs.configs import from_dict
 from anigs.device import get_device
-from anigs.masks import Frame
+from anigs.masks.frame import Frame
 from anigs.masks.vegetation import VegetationConfig, vegetation_mask
 
 INSTALL_HINT = ("install the 'sam2' extra: SAM2_BUILD_CUDA=0 pip install --no-build-isolation sam2, "

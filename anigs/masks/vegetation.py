@@ -48,7 +48,7 @@ import numpy as np
 
 from anigs.configs import from_dict
 from anigs.geometry.ground import GroundPlane, pixel_heights
-from anigs.masks import Frame
+from anigs.masks.frame import Frame
 from anigs.pixels import check_image, fill_small_holes, remove_small, saturation
 
 
