@@ -29,7 +29,7 @@ import torch
 from anigs.animate.adam import Adam
 from anigs.animate.frames import render_frame
 from anigs.cameras import Camera
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, offset_limits, resolve_num_bases, save_model
 from anigs.device import get_device, seed_everything
 from anigs.geometry.extent import box_diagonal

@@ -33,7 +33,7 @@ import torch
 
 from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, resolve_num_bases
 from anigs.animate.update import ViewData
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.device import get_device
 from anigs.flow import _PRESETS
 from anigs.gaussians import Gaussians

@@ -11,7 +11,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.gaussians import Gaussians
 from anigs.geometry.propagate import propagate_labels
 from anigs.render.visibility import VisibilityConfig, as_means, blend_weights, check_mask, project_to_pixels, visibility

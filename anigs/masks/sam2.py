@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.device import get_device
 from anigs.masks.frame import Frame
 from anigs.masks.vegetation import VegetationConfig, vegetation_mask

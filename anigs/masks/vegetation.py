@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.geometry.ground import GroundPlane, pixel_heights
 from anigs.masks.frame import Frame
 from anigs.pixels import check_image, fill_small_holes, remove_small, saturation

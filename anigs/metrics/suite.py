@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.device import get_device, seed_everything
 from anigs.metrics import metric_record, not_available
 from anigs.metrics.features import (INCEPTION_HINT, Unavailable, describe_i3d, i3d_features, inception_features,

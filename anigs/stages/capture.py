@@ -14,7 +14,7 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.cli import parse_params
 from anigs.io import write_json
 

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 
 log = logging.getLogger("anigs.final")
 

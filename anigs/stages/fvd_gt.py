@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 
 log = logging.getLogger("anigs.fvd_gt")
 

@@ -68,7 +68,7 @@ class MasksConfig:
 
     @staticmethod
     def from_dict(d: dict | None) -> "MasksConfig":
-        from anigs.configs import from_dict
+        from anigs.typed_config import from_dict
 
         cfg = from_dict(MasksConfig, d, "masks config")
         if cfg.backend not in ("effects", "vegetation", "labels", "sam2"):

@@ -21,7 +21,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 
 log = logging.getLogger("anigs.refine")
 

@@ -19,7 +19,7 @@ from typing import Any
 import torch
 
 from anigs.cameras import Camera
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 
 log = logging.getLogger("anigs.render_clip")
 

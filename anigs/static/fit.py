@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.configs import reject_unknown_keys
+from anigs.typed_config import reject_unknown_keys
 from anigs.static.densify import (DensifyConfig, DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
 from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, last_densify_step, prune_rows

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
 from anigs.io import atomic_path, write_json
 from anigs.render import render_gaussians

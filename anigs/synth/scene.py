@@ -23,7 +23,7 @@ from typing import Callable
 import numpy as np
 import torch
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.gaussians import Gaussians, rgb_to_sh0
 from anigs.geometry.quaternion import quat_from_matrix
 

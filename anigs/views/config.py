@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 
 from anigs import geometry
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.render.visibility import VisibilityConfig
 from anigs.views.content import ContentRule
 

@@ -1,4 +1,5 @@
-"""Shared check of the stages' config dataclasses: unknown keys are an error naming them."""
+"""Typed config sections: a config dataclass built from a mapping, unknown keys (and, on request, values of
+the wrong type) rejected with a message naming them. (The workflow config, scenes and variants: :mod:`anigs.config`.)"""
 from __future__ import annotations
 
 import dataclasses
