@@ -5,6 +5,7 @@
 Prints
 * the package graph: for each package (a sub-package such as ``render``, or a top-level module
   such as ``cameras``) the packages it imports, with the number of import statements;
+* package cycles: packages that import each other (directly or round a loop);
 * the arrows that run back up: a package importing one of a higher layer (LAYERS below);
 * import cycles between modules, once counting only imports at module level (what runs when a
   module is imported) and once counting every runtime import (module level plus imports inside
@@ -38,7 +39,7 @@ LAYERS: list[tuple[str, set[str]]] = [
     ("evaluation", {"metrics"}),
     ("reports and apps", {"tables", "tradeoff", "study", "viewer"}),
     ("stages", {"stages"}),
-    ("command line", {"cli", "__init__"}),
+    ("command line", {"cli", "build_kernel", "__init__"}),
 ]
 
 
@@ -177,6 +178,11 @@ def report(root: Path) -> None:
     for p in sorted({package_of(m, top) for m in modules}):
         deps = ", ".join(f"{q}:{n}" for q, n in sorted(pk[p].items()))
         print(f"{p} -> {deps}" if deps else f"{p}")
+
+    pk_cycles = cycles(set(pk), {a: set(b) for a, b in pk.items()})
+    print(f"\n## Package cycles (packages that import each other, directly or round a loop): {len(pk_cycles)}")
+    for c in pk_cycles:
+        print("  " + " <-> ".join(c))
 
     if top == "anigs":
         print("\n## Layers (bottom first; an arrow to a higher layer runs back up)")
