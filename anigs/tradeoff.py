@@ -35,6 +35,7 @@ import numpy as np
 
 from anigs.benchmark_tsv import benchmark_seconds
 from anigs.config import deep_merge
+from anigs.io import atomic_path
 from anigs.stages import sections_of
 
 # config sections a variant may override (the others are shared by every variant of a scene)
@@ -315,8 +316,6 @@ def markdown_report(rows: Sequence[dict[str, Any]], metric_names: Sequence[str],
 
 
 def write_csv(rows: Sequence[dict[str, Any]], path: str | Path) -> Path:
-    from anigs.io import atomic_path
-
     cols: list[str] = []
     for r in rows:
         cols += [k for k in r if k not in cols]
@@ -339,7 +338,6 @@ def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[
     """
     import cv2
 
-    from anigs.io import atomic_path
 
     sel = sorted((r for r in rows if r["knob"] == knob), key=lambda r: r["seconds"])
     names = [m for m in metric_names if any(r.get(m) is not None for r in sel)] or ["seconds"]

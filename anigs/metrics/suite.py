@@ -27,16 +27,17 @@ from typing import Any
 
 import numpy as np
 
-from anigs.typed_config import from_dict
 from anigs.device import get_device, seed_everything
+from anigs.images import read_mask
 from anigs.metrics import metric_record, not_available
 from anigs.metrics.features import (INCEPTION_HINT, Unavailable, describe_i3d, i3d_features, inception_features,
                                     load_detector, load_i3d_detector, pool_frames, sample_windows)
 from anigs.metrics.frechet import frechet_distance
-
-from anigs.metrics.model_metrics import gt_metrics, multiview_metrics  # noqa: E402
+from anigs.metrics.model_metrics import gt_metrics, multiview_metrics
 from anigs.metrics.motion import FLOW_PRESETS, clip_motion_metrics, outside_mask_still, resize_mask
 from anigs.metrics.still_labels import moving_labelled_still
+from anigs.metrics.vbench import vbench_metrics
+from anigs.typed_config import from_dict
 from anigs.video import check_clip, load_clip, read_mp4
 
 log = logging.getLogger("anigs.eval")
@@ -158,8 +159,6 @@ def load_mask_for(view: str, mask_dir: Path | None, height: int, width: int, thr
     for ext in (".png", ".npy"):
         p = mask_dir / f"{view}{ext}"
         if p.exists():
-            from anigs.images import read_mask
-
             return resize_mask(read_mask(p), height, width, threshold)
     return None
 
@@ -305,8 +304,6 @@ def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path
         fid_refs.update(_load_references(fid_references))
         t0 = time.perf_counter()
         metrics.update(weightfree_metrics(clips, P(mask_dir), cfg))
-        from anigs.metrics.vbench import vbench_metrics
-
         metrics.update(vbench_metrics(clips, {v: clip_fps(p) for v, p in clip_files.items()},
                                       cfg.flow_preset))
         log.info("eval: weight-free metrics %.1f s", time.perf_counter() - t0)
