@@ -45,7 +45,8 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
-from anigs.masks.lift import blend_weights, frustum_subset, render_inputs
+from anigs.render import rasterize
+from anigs.render.visibility import blend_weights, frustum_subset, render_inputs
 
 log = logging.getLogger("anigs.views")
 
@@ -220,8 +221,6 @@ def content_fraction(g: Gaussians, sharp: np.ndarray, cam: Camera, alpha: float 
 
 def render_rgb(g: Gaussians, cam: Camera, background: Sequence[float]) -> np.ndarray:
     """Colour render float [H,W,3] in [0,1] of ``g`` from ``cam`` onto ``background``."""
-    from anigs.render import rasterize
-
     idx = frustum_subset(g, cam)
     bg = torch.tensor([float(x) for x in background], dtype=torch.float32)
     if len(idx) == 0:
