@@ -209,3 +209,13 @@ def load_camera_json(path: str | Path) -> Camera:
     if not _is_camera_dict(d):
         raise KeyError(f"{path}: not a camera dict (needs K, viewmat, width, height)")
     return Camera.from_dict(d)
+
+
+def camera_for_size(cam: Camera, h: int, w: int, what: str) -> Camera:
+    """``cam`` at an image size of ``w``x``h`` (same aspect ratio required)."""
+    if (cam.height, cam.width) == (h, w):
+        return cam
+    if abs(w / h - cam.width / cam.height) > 0.01:
+        raise ValueError(f"{what} is {w}x{h} but camera {cam.name!r} is {cam.width}x{cam.height} "
+                         "(different aspect ratio)")
+    return cam.scaled(w, h)

@@ -25,7 +25,7 @@ from typing import Any
 
 # tools that are not pipeline stages: command -> (module, one-line help)
 TOOLS: dict[str, tuple[str, str]] = {
-    "build-kernel": ("anigs.render.build_kernel", "compile the CPU rasterizer kernel ahead of time"),
+    "build-kernel": ("anigs.build_kernel", "compile the CPU rasterizer kernel ahead of time"),
     "study": ("anigs.study.cli", "2AFC user study (paper Table 4): build the page, serve it, tally the answers"),
 }
 

@@ -1,15 +1,20 @@
-"""Reading the capture's images.
+"""Image and mask files.
 
 ``find_image`` maps a camera name to its file; ``load_image`` (the one image reader) reads
 RGB float32 [H,W,3] in [0,1]; ``load_inputs`` pairs a cameras JSON with its image folder, rescaling intrinsics to
-the image size.
+the image size. ``write_rgb_png`` writes an RGB image; ``read_mask`` (the one mask reader),
+``read_mask_png`` and ``write_mask_png`` read and write masks. Writes are atomic.
 """
 from __future__ import annotations
 
 import logging
 from pathlib import Path
 
+import cv2
 import numpy as np
+
+from anigs.cameras import load_cameras
+from anigs.io import atomic_path
 
 log = logging.getLogger("anigs.images")
 
@@ -32,8 +37,6 @@ def load_image(path: str | Path) -> np.ndarray:
     """The one image reader: RGB float32 [H,W,3] in [0,1] from an 8- or 16-bit image file (grey is
     repeated to RGB, alpha dropped). EXIF orientation is applied once, when photos are imported
     (:mod:`anigs.photos`): every image a stage reads afterwards is an upright PNG."""
-    import cv2
-
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"image not found: {path}")
@@ -70,8 +73,6 @@ def load_inputs(images: str | Path, cameras: str | Path, compact: bool = False):
     ``compact``: 8-bit images stay uint8 (:func:`load_image_compact`; a quarter of the memory)."""
     import torch
 
-    from anigs.cameras import load_cameras
-
     image_dir = Path(images)
     if not image_dir.is_dir():
         raise FileNotFoundError(f"image folder not found: {image_dir}")
@@ -96,3 +97,45 @@ def load_inputs(images: str | Path, cameras: str | Path, compact: bool = False):
         raise FileNotFoundError(f"{len(missing)} of {len(cams)} cameras in {cameras} have no image in {image_dir}: "
                                 f"{missing[:10]}{' ...' if len(missing) > 10 else ''}")
     return imgs, out_cams
+
+
+def write_mask_png(path: str | Path, mask: np.ndarray) -> None:
+    """Write a bool mask as an 8-bit PNG (0 / 255), atomically."""
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), np.asarray(mask, bool).astype(np.uint8) * 255):
+            raise RuntimeError(f"could not write mask {path}")
+
+
+def read_mask(path: str | Path) -> np.ndarray:
+    """The one mask reader: a PNG (8 or 16 bit, 0..255 / 0..65535 or 0/1; colour channels: their
+    maximum; alpha ignored) or an ``.npy`` array -> soft mask float32 [H,W] in [0,1]
+    (0/255 PNGs give exactly 0 and 1)."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"mask file not found: {path}")
+    if path.suffix == ".npy":
+        m = np.asarray(np.load(path), np.float32)
+        if m.ndim == 3:
+            m = m[..., :3].max(-1)
+        return m / 255.0 if m.max(initial=0) > 1.0 else m
+    m = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if m is None:
+        raise ValueError(f"could not read mask image {path}")
+    if m.ndim == 3:
+        m = m[..., :3].max(-1)
+    scale = 65535.0 if m.dtype == np.uint16 else 255.0
+    m = m.astype(np.float32)
+    return m / scale if m.max(initial=0) > 1.0 else m  # 0/1 PNGs are masks too
+
+
+def read_mask_png(path: str | Path) -> np.ndarray:
+    """Read a mask (see :func:`read_mask`) as bool [H,W]: any non-zero pixel is True."""
+    return read_mask(path) > 0
+
+
+def write_rgb_png(path: str | Path, image: np.ndarray) -> None:
+    """Write RGB float [H,W,3] in [0,1] as PNG, atomically."""
+    img = (np.clip(np.asarray(image, np.float32), 0, 1) * 255 + 0.5).astype(np.uint8)
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), img[..., ::-1]):
+            raise RuntimeError(f"could not write image {path}")

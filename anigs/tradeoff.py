@@ -35,6 +35,7 @@ import numpy as np
 
 from anigs.benchmark_tsv import benchmark_seconds
 from anigs.config import deep_merge
+from anigs.io import atomic_path
 from anigs.stages import sections_of
 from anigs.tradeoff_plot import plot_knob as plot_knob  # re-exported: the sweep report's plot
 
@@ -316,8 +317,6 @@ def markdown_report(rows: Sequence[dict[str, Any]], metric_names: Sequence[str],
 
 
 def write_csv(rows: Sequence[dict[str, Any]], path: str | Path) -> Path:
-    from anigs.io import atomic_path
-
     cols: list[str] = []
     for r in rows:
         cols += [k for k in r if k not in cols]

@@ -1,4 +1,4 @@
-"""Blend-weight benchmark: ``anigs.masks.lift.blend_weights`` through one forward + backward
+"""Blend-weight benchmark: ``anigs.render.visibility.blend_weights`` through one forward + backward
 pass of the cpu rasterizer (old) against the forward-only kernel pass (new).
 
     python benchmarks/blend_weights.py                          # the finished demo run in results/demo
@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     sys.path.insert(0, str(ROOT))
     torch.set_num_threads(args.threads)
-    from anigs.masks.lift import _blend_backend, blend_weights, blend_weights_backward
+    from anigs.render.visibility import _blend_backend, blend_weights, blend_weights_backward
     from anigs.stages.masks import Outputs as MasksOutputs
     from anigs.stages.static import Outputs as StaticOutputs
     from anigs.stages.views import Outputs as ViewsOutputs

@@ -72,7 +72,8 @@ def _anigs(threads: int) -> list[str]:
 def effect_labels_for_demo(demo: Path, out: Path) -> Path:
     """Int dynamic mask [N] (0 static, 1 + region index) of the demo's dynamic set from the GT labels."""
     from anigs.effects.config import REGIONS
-    from anigs.masks.labels import align_cameras, transfer_labels
+    from anigs.sfm.align import align_cameras
+    from anigs.render.labels import transfer_labels
 
     dyn = masks_stage.Outputs(demo / "masks").dynamic()
     gt = capture_stage.Outputs(demo / "capture")

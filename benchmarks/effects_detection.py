@@ -17,7 +17,8 @@ logging.basicConfig(level=logging.INFO, format="%(message)s")
 from anigs.images import find_image, load_image
 from anigs.effects import detect_effects, Config, save_overview, REGIONS
 from anigs.io import write_json
-from anigs.masks.labels import align_cameras, appearance_labels, render_label_map
+from anigs.sfm.align import align_cameras
+from anigs.render.labels import appearance_labels, render_label_map
 from anigs.stages import capture, effects, sfm, static
 
 root, out = Path(sys.argv[1]), effects.Outputs(sys.argv[2]); out.root.mkdir(parents=True, exist_ok=True)

@@ -17,7 +17,7 @@ does. Then compared with two yardsticks:
     transferred to the canonical Gaussians by nearest neighbour.
 ``appearance``
     The labels of what the canonical model itself shows: each canonical Gaussian takes the
-    label it depicts in the capture views (:func:`anigs.masks.labels.appearance_labels`), and
+    label it depicts in the capture views (:func:`anigs.render.labels.appearance_labels`), and
     the label masks are rendered through the canonical model. A mask computed on a render of
     the fitted model can only be judged on what that render shows: its floaters and blur are
     not in the ground-truth geometry, and a fitted lawn splat floating next to a grass tuft is
@@ -73,16 +73,12 @@ def main(argv: list[str] | None = None) -> int:
     from anigs.gaussians import load_ply
     from anigs.io import read_json
     from anigs.masks import compute_masks, get_mask_backend, mask_iou, render_frames
-    from anigs.masks.labels import (
-        LabelsBackend,
-        align_cameras,
-        appearance_labels,
-        dynamic_label_ids,
-        dynamic_masks,
-        effects_from_motion,
-    )
+    from anigs.masks.labels import LabelsBackend
+    from anigs.sfm.align import align_cameras
+    from anigs.render.labels import appearance_labels, dynamic_masks
+    from anigs.synth.truth import dynamic_label_ids, effects_from_motion
     from anigs.masks.lift import lift_masks_report
-    from anigs.masks.vegetation import estimate_ground
+    from anigs.geometry.ground import ground_plane as estimate_ground
     from anigs.views import cameras_from_views
 
     from anigs.stages import capture as capture_stage, sfm as sfm_stage, static as static_stage

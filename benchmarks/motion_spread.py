@@ -38,7 +38,7 @@ def analyse(scene_dir: Path, variant: str, boot: int, seed: int) -> dict:
     from anigs.gaussians import Gaussians
     from anigs.geometry.extent import scene_extent
     from anigs.io import read_json
-    from anigs.masks.labels import align_cameras
+    from anigs.sfm.align import align_cameras
     from anigs.metrics.motion import trajectory_stats
     from anigs.synth.motion import MotionParams, gt_clip_offsets
 

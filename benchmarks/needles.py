@@ -30,7 +30,7 @@ import torch
 def _sparse_inputs():
     from anigs.synth.capture import camera_path, render_image
     from anigs.synth.floaters import sparse_capture_config
-    from anigs.synth.scene import build_scene
+    from anigs.synth.build import build_scene
 
     cfg = sparse_capture_config(num_gaussians=30000, width=320, height=240)
     gt = build_scene(cfg)

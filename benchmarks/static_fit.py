@@ -186,8 +186,7 @@ def step_vs_raster(g, imgs: list[torch.Tensor], cams: list[Camera], cfg: FitConf
             F.train_step(params, opt, cams[i], imgs[i], deg, bg, cfg.backend, cfg.ssim_weight, mats=mats[i],
                          guard=guard, step=1)
 
-        from anigs.fused_ssim import fused_ssim
-        from anigs.ssim import ssim
+        from anigs.ssim import fused_ssim, ssim
 
         pred = {i: (imgs[i] + 0.05 * torch.randn(imgs[i].shape, generator=gen)).clamp(0, 1) for i in train}
 

@@ -20,8 +20,8 @@ _UNLIMITED = 1e18  # stands for "no limit" in per-Gaussian limit tensors (finite
 
 
 def effect_labels() -> dict[str, int]:
-    """Effect name -> its label in an int dynamic mask (:func:`anigs.masks.effect_labels.effect_label_ids`)."""
-    from anigs.masks.effect_labels import effect_label_ids
+    """Effect name -> its label in an int dynamic mask (:func:`anigs.effects.labels.effect_label_ids`)."""
+    from anigs.effects.labels import effect_label_ids
 
     return effect_label_ids()
 

@@ -16,7 +16,7 @@ from typing import Callable, Protocol
 
 import torch
 
-from anigs.fused_ssim import fused_ssim
+from anigs.ssim import fused_ssim
 
 
 def photometric_loss(render: torch.Tensor, target: torch.Tensor) -> torch.Tensor:

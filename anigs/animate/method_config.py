@@ -8,7 +8,7 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any, Mapping
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 
 INTEGRATORS = ("midpoint", "euler")  # the mass-spring integrators (anigs.baselines.springs)
 

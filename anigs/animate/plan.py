@@ -90,7 +90,7 @@ class AnimateConfig:
 
     @staticmethod
     def from_dict(d: dict | None) -> "AnimateConfig":
-        from anigs.configs import from_dict
+        from anigs.typed_config import from_dict
 
         cfg = from_dict(AnimateConfig, d, "animate", KeyError)
         if cfg.method not in METHODS:

@@ -29,7 +29,7 @@ import torch
 from anigs.animate.adam import Adam
 from anigs.animate.frames import render_frame
 from anigs.cameras import Camera
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, resolve_num_bases, save_model
 from anigs.animate.limits import bases_from_config, effect_labels, limits_from_config
 from anigs.animate.trainable import Trainable, first_non_finite, param_groups

@@ -21,6 +21,7 @@ import torch
 from anigs.cameras import Camera
 from anigs.flow import backward_flow, warp
 from anigs.gaussians import Gaussians
+from anigs.render import render_gaussians
 
 
 def forward_tracks(clip: np.ndarray, preset: str = "medium", fb_threshold_px: float = 1.0
@@ -101,8 +102,6 @@ def visibility(canonical: Gaussians, dynamic_index: torch.Tensor, camera: Camera
     the canonical render is opaque there (alpha >= min_alpha) and its depth is at most the
     rendered (alpha-normalised expected) depth times ``1 + depth_tol``.
     """
-    from anigs.render import render_gaussians
-
     with torch.no_grad():
         bg = None if background is None else torch.as_tensor(background, dtype=torch.float32,
                                                               device=canonical.device)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 
 REGIONS: tuple[str, ...] = ("foliage", "grass", "flowers", "water")
 REGION_EFFECTS: dict[str, tuple[str, ...]] = {

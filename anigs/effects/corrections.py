@@ -21,6 +21,7 @@ from typing import Sequence
 import numpy as np
 
 from anigs.effects.config import EFFECT_REGION, EFFECTS, REGION_EFFECTS, REGIONS
+from anigs.gaussians import load_ply
 
 STILL = "still"
 MIN_MATCHED = 0.9
@@ -36,7 +37,6 @@ def match_selection(path: str | Path, means: np.ndarray, tol: float) -> np.ndarr
     """Indices [M] of the Gaussians of ``means`` [N,3] at the selected splats' positions in ``path``."""
     from scipy.spatial import cKDTree
 
-    from anigs.gaussians import load_ply
 
     path = Path(path)
     if not path.is_file():

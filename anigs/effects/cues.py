@@ -8,7 +8,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from anigs.masks.vegetation import fill_small_holes, remove_small, saturation
+from anigs.pixels import fill_small_holes, remove_small, saturation
 
 LUMA = np.array([0.299, 0.587, 0.114], np.float32)
 

@@ -10,7 +10,7 @@ Pipeline (no downloaded weights):
 4. lift: every Gaussian votes, over the photos where it is visible (depth test), for the region
    under its centre; it joins the region voted by >= ``vote_threshold`` of them. Gaussians no
    photo sees take the majority of their ``propagate_k`` nearest decided neighbours
-   (:func:`anigs.masks.lift.propagate_labels`); foliage, grass and flowers stop at the ground;
+   (:func:`anigs.geometry.propagate.propagate_labels`); foliage, grass and flowers stop at the ground;
 5. decide per region: detected when it covers >= ``min_pixel_fraction`` of the photos' pixels,
    >= ``min_gaussian_fraction`` (and ``min_gaussians``) of the Gaussians and appears in
    >= ``min_photo_fraction`` of the photos (at least 2).
@@ -34,10 +34,12 @@ from anigs.effects.geometry import (Ground, colour_spread, local_shape, render_f
                                    world_up)
 from anigs.effects.reasons import reason
 from anigs.effects.regions import PhotoMaps, PhotoRegions, classify_photo
+from anigs.effects.rules import check_candidates
 from anigs.gaussians import Gaussians
-from anigs.masks import check_image
-from anigs.masks.capture import camera_for_size
-from anigs.masks.lift import VisibilityConfig, project_to_pixels, propagate_labels, visible_depth
+from anigs.pixels import check_image
+from anigs.cameras import camera_for_size
+from anigs.render.visibility import VisibilityConfig, project_to_pixels, visible_depth
+from anigs.geometry.propagate import propagate_labels
 
 log = logging.getLogger("anigs.effects")
 
@@ -177,8 +179,6 @@ def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground:
                  flat: np.ndarray) -> tuple[np.ndarray, list, dict]:
     """The geometry rules (:mod:`anigs.effects.rules`) on the lifted regions; the photos' masks lose
     the pixels of rejected candidates and small parts (and sunlit leaves move from flowers to foliage)."""
-    from anigs.effects.rules import check_candidates
-
     colours = (0.5 + 0.28209479 * g.sh[:, 0, :]).clamp(0, 1).double().numpy()
     height = cam_h = None
     if ground.plane is not None:

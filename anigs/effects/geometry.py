@@ -1,6 +1,6 @@
 """3D cues of effect detection, per Gaussian of the fitted model, and their per-pixel renders.
 
-- up direction and ground plane (:func:`scene_ground`, via :func:`anigs.masks.vegetation.estimate_ground`);
+- up direction and ground plane (:func:`scene_ground`, via :func:`anigs.geometry.ground.ground_plane`);
 - local shape of the Gaussian centres (:func:`local_shape`): PCA of the neighbours within a
   radius gives the surface variation ``l3 / (l1 + l2 + l3)`` (0 on a plane, 1/3 isotropic) and
   ``|normal . up|`` (1 on floors and water, 0 on walls and pictures);
@@ -19,8 +19,9 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
-from anigs.masks.lift import VisibilityConfig, frustum_subset, project_to_pixels, render_inputs, visible_depth
-from anigs.masks.vegetation import GroundPlane, estimate_ground
+from anigs.geometry import estimate_up
+from anigs.render.visibility import VisibilityConfig, frustum_subset, project_to_pixels, render_inputs, visible_depth
+from anigs.geometry.ground import GroundPlane, ground_plane
 from anigs.render import rasterize
 
 log = logging.getLogger("anigs.effects")
@@ -53,8 +54,6 @@ def world_up(cameras: Sequence[Camera], mode: str = "z", points: np.ndarray | No
     (:func:`anigs.geometry.estimate_up`: camera axes, photo orientation and the points' planes)."""
     if mode == "z":
         return np.array([0.0, 0.0, 1.0])
-    from anigs.geometry import estimate_up
-
     return estimate_up(cameras, points).up
 
 
@@ -64,7 +63,7 @@ def scene_ground(means: np.ndarray, cameras: Sequence[Camera], up: np.ndarray, m
     are not above it, fewer than ``min_support`` of the Gaussians lie within its layer, or more than
     ``max_below`` lie clearly under it (a close-up without visible ground)."""
     try:
-        plane = estimate_ground(means, up, cameras, margin=margin)
+        plane = ground_plane(means, up, cameras, margin=margin)
     except ValueError as err:
         return Ground(None, up, 0.0, f"no ground plane ({err})")
     h = means @ plane.normal - plane.offset

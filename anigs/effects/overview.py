@@ -18,7 +18,9 @@ import numpy as np
 
 from anigs.effects.config import REGION_EFFECTS, REGIONS
 from anigs.effects.detect import EffectsResult
-from anigs.masks import overlay, write_rgb_png
+from anigs.images import write_rgb_png
+from anigs.pixels import overlay
+from anigs.render.visibility import project_to_pixels
 
 COLOURS = {"foliage": (0.1, 0.95, 0.2), "grass": (1.0, 0.9, 0.1), "flowers": (1.0, 0.2, 0.85), "water": (0.1, 0.8, 1.0)}
 FONT = cv2.FONT_HERSHEY_SIMPLEX
@@ -52,8 +54,6 @@ def _pick_photos(res: EffectsResult, count: int) -> list[int]:
 
 def _numbers(panel: np.ndarray, res: EffectsResult, photo: int, region: str, scale: float) -> None:
     """Draw the numbers of ``region``'s candidates whose centre photo ``photo`` sees (in place)."""
-    from anigs.masks.lift import project_to_pixels
-
     cands = [c for c in res.candidates if c.region == region]
     if not cands:
         return

@@ -35,7 +35,7 @@ from anigs.cameras import Camera
 from anigs.effects import cues
 from anigs.effects.config import Config
 from anigs.effects.geometry import Ground
-from anigs.masks.vegetation import pixel_heights
+from anigs.geometry.ground import pixel_heights
 
 
 @dataclass

@@ -2,7 +2,7 @@
 quaternions (one module each: basics, planes, up, ground, layout, quaternion).
 
 One home for what used to be three estimates (``views.estimate_up``, ``align.estimate_up``,
-``masks.vegetation.estimate_ground``).
+``masks.vegetation.estimate_ground``, now ``ground.ground_plane`` on top of ``ground.estimate_ground``).
 
 Up (:func:`estimate_up`) combines three cues:
 

@@ -10,19 +10,11 @@ import logging
 from pathlib import Path
 from typing import Sequence
 
-from anigs.cameras import Camera
+from anigs.cameras import Camera, camera_for_size
+from anigs.images import load_image
+from anigs.masks.frame import Frame, render_frames
 
 log = logging.getLogger("anigs.masks")
-
-
-def camera_for_size(cam: Camera, h: int, w: int, what: str) -> Camera:
-    """``cam`` at an image size of ``w``x``h`` (same aspect ratio required)."""
-    if (cam.height, cam.width) == (h, w):
-        return cam
-    if abs(w / h - cam.width / cam.height) > 0.01:
-        raise ValueError(f"{what} is {w}x{h} but camera {cam.name!r} is {cam.width}x{cam.height} "
-                         "(different aspect ratio)")
-    return cam.scaled(w, h)
 
 
 def capture_frames(images_dir: str | Path, cameras: Sequence[Camera], g) -> list:
@@ -31,8 +23,6 @@ def capture_frames(images_dir: str | Path, cameras: Sequence[Camera], g) -> list
 
     Cameras without a photo are skipped with a warning; none at all is an error.
     """
-    from anigs.masks import Frame, read_rgb_png, render_frames
-
     d = Path(images_dir)
     if not d.is_dir():
         raise FileNotFoundError(f"--images folder not found: {d}")
@@ -42,7 +32,7 @@ def capture_frames(images_dir: str | Path, cameras: Sequence[Camera], g) -> list
         if path is None:
             log.warning("no capture photo for camera %s in %s: skipped", cam.name, d)
             continue
-        img = read_rgb_png(path)
+        img = load_image(path)
         c = camera_for_size(cam, img.shape[0], img.shape[1], what=f"image {path}")
         r = render_frames(g, [c])[0]
         out.append(Frame(img, c, r.depth, r.alpha, c.name))

@@ -11,7 +11,8 @@ import numpy as np
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
 from anigs.masks.truth import GroundTruth
-from anigs.masks.vegetation import GroundPlane, VegetationConfig
+from anigs.masks.vegetation import VegetationConfig
+from anigs.geometry.ground import GroundPlane
 
 
 @dataclass

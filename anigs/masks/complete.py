@@ -8,7 +8,7 @@ import numpy as np
 
 from anigs.gaussians import Gaussians
 from anigs.masks import Frame
-from anigs.masks.labels import dynamic_masks
+from anigs.render.labels import dynamic_masks
 
 
 def complete_masks(g: Gaussians, dyn: np.ndarray, frames: Sequence[Frame], results: list[dict]) -> list[float]:

@@ -15,7 +15,7 @@ of the worst view change by more than 1/255 (0.05 over all views; by up to 50 le
 :func:`contain_dynamic` keeps a dynamic Gaussian dynamic only when, in every view, the
 blending weight it contributes to pixels *outside* that view's mask dilated by ``margin_px``
 sums to at most ``max_outside_px`` (in pixel units: 1 = one fully covered pixel). The weight is
-exact and occlusion-aware (:func:`anigs.masks.lift.blend_weights`: one forward-only pass of the
+exact and occlusion-aware (:func:`anigs.render.visibility.blend_weights`: one forward-only pass of the
 cpu rasterizer per view, one backward pass with the other backends), so a Gaussian hidden behind
 a static wall in one view is judged by the views that see it. The others move to the static set:
 they stay in the scene, bit for bit still.
@@ -41,15 +41,15 @@ import itertools
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
+import torch
 
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
-
-if TYPE_CHECKING:
-    import torch
+from anigs.pixels import dilate
+from anigs.render.visibility import blend_weights, check_mask
 
 log = logging.getLogger("anigs.masks.contain")
 
@@ -72,8 +72,6 @@ class ContainResult:
 
 def dilate_mask(mask: np.ndarray, px: int) -> np.ndarray:
     """Binary dilation of a bool mask by ``px`` pixels (square structuring element, as the metric)."""
-    from anigs.metrics.motion import dilate
-
     return dilate(np.asarray(mask, bool), int(px))
 
 
@@ -83,8 +81,6 @@ def _reaching(g: Gaussians, cam: Camera, dist: np.ndarray) -> torch.Tensor:
     footprint radius bounds the rasterizer's (the ellipse where alpha >= 1/255: at most 3.33 sigma,
     plus its 0.3 px^2 low-pass) by 3.5 x the largest scale with the perspective stretch, plus 3 px;
     the others put no weight on those pixels, and leaving them out changes no weight there."""
-    import torch
-
     means = g.means.detach().cpu().double().numpy()
     pc = means @ cam.R.T + cam.t
     z = pc[:, 2]
@@ -105,8 +101,6 @@ def _reaching(g: Gaussians, cam: Camera, dist: np.ndarray) -> torch.Tensor:
 
 def _outside_weight(g: Gaussians, cam: Camera, outside: np.ndarray, dist: np.ndarray) -> np.ndarray:
     """Blending weight [N] of every Gaussian on the ``outside`` pixels, rasterizing only those that reach them."""
-    from anigs.masks.lift import blend_weights
-
     w = np.zeros(g.num)
     idx = _reaching(g, cam, dist)
     if len(idx):
@@ -116,10 +110,6 @@ def _outside_weight(g: Gaussians, cam: Camera, outside: np.ndarray, dist: np.nda
 
 def _outside_region(mask: np.ndarray, cam: Camera, margin_px: int) -> tuple[np.ndarray, np.ndarray]:
     """(pixels outside the mask dilated by ``margin_px`` [H,W], their distance map for :func:`_reaching`)."""
-    import cv2
-
-    from anigs.masks.lift import check_mask
-
     outside = ~dilate_mask(check_mask(mask, cam, "containment mask"), margin_px)
     dist = cv2.distanceTransform((~outside).astype(np.uint8), cv2.DIST_L2, 5)
     return outside, dist
@@ -170,8 +160,6 @@ def motion_outside_weights(canonical: Gaussians, deformation, cameras: Sequence[
     over ``canonical``), [V,D]: the largest blending weight (px) the Gaussian puts outside the view's
     mask dilated by ``margin_px`` at any of the frame ``times`` (default: every integer frame).
     Only the ``views`` listed (default: all) are rendered; the other rows are 0."""
-    import torch
-
     if len(cameras) != len(masks):
         raise ValueError(f"containment: {len(cameras)} cameras but {len(masks)} masks")
     if margin_px < 0:
@@ -196,16 +184,12 @@ def motion_outside_weights(canonical: Gaussians, deformation, cameras: Sequence[
 def scaled_motion(deformation, factors: np.ndarray):
     """A copy of ``deformation`` with each dynamic Gaussian's coefficients (position and rotation)
     multiplied by ``factors`` [D]: its motion shrinks about its canonical position by that factor."""
-    import torch
-
-    from anigs.animate.deform import DCTDeformation
-
     f = torch.as_tensor(np.asarray(factors), dtype=deformation.pos_coeffs.dtype)[:, None, None]
     state = deformation.state()
     state["pos_coeffs"] = state["pos_coeffs"] * f
     if state.get("rot_coeffs") is not None:
         state["rot_coeffs"] = state["rot_coeffs"] * f
-    return DCTDeformation.from_state(state)
+    return type(deformation).from_state(state)
 
 
 def contain_motion(canonical: Gaussians, deformation, cameras: Sequence[Camera], masks: Sequence[np.ndarray],

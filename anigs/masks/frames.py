@@ -8,7 +8,8 @@ from typing import Sequence
 import numpy as np
 
 from anigs.cameras import Camera
-from anigs.masks import Frame, read_rgb_png, render_frames
+from anigs.masks import Frame, render_frames
+from anigs.images import load_image as read_rgb_png
 
 
 def first_frames(frames_dir: str | Path | None, g, cams: Sequence[Camera], background) -> list[Frame]:

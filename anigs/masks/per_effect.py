@@ -10,7 +10,7 @@ import numpy as np
 from anigs.effects.config import REGIONS
 from anigs.gaussians import Gaussians
 from anigs.masks import Frame
-from anigs.masks.effect_labels import effect_label_ids, effect_labels
+from anigs.effects.labels import effect_label_ids, effect_labels
 from anigs.masks.labels import LabelsBackend
 
 log = logging.getLogger("anigs.masks")
@@ -18,7 +18,7 @@ log = logging.getLogger("anigs.masks")
 
 def label_dynamic(g: Gaussians, dyn: np.ndarray, chosen: Sequence[str], regions: np.ndarray) -> tuple[np.ndarray, dict]:
     """(int8 [N] effect labels of the dynamic set: 0 static, 1 + region index,
-    :mod:`anigs.masks.effect_labels`; their counts for ``masks.json``) from the effects stage's
+    :mod:`anigs.effects.labels`; their counts for ``masks.json``) from the effects stage's
     regions [N] of its ``chosen`` effects."""
     chosen_regions = sorted({effect_label_ids()[e] - 1 for e in chosen})
     labels, counts = effect_labels(dyn, regions, chosen_regions, g.means.detach().double().numpy())

@@ -21,7 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.masks import Frame
+from anigs.typed_config import from_dict
+from anigs.device import get_device
+from anigs.masks.frame import Frame
 from anigs.masks.vegetation import VegetationConfig, vegetation_mask
 
 INSTALL_HINT = ("install the 'sam2' extra: SAM2_BUILD_CUDA=0 pip install --no-build-isolation sam2, "
@@ -50,8 +52,6 @@ class Sam2Config:
 
     @staticmethod
     def from_dict(d: dict | None) -> "Sam2Config":
-        from anigs.configs import from_dict
-
         return from_dict(Sam2Config, d, "masks.sam2 config")
 
 
@@ -78,8 +78,6 @@ class Sam2Backend:
             raise FileNotFoundError(f"sam2 backend: checkpoint not found: {cfg.checkpoint} "
                                     "(download a SAM2 checkpoint and point masks.sam2.checkpoint at it)")
         build_sam2, AutoGen, Predictor = import_sam2()
-        from anigs.device import get_device
-
         dev = get_device(cfg.device)
         model = build_sam2(cfg.model_config, cfg.checkpoint, device=str(dev), apply_postprocessing=False)
         self.cfg, self.veg = cfg, vegetation or VegetationConfig()

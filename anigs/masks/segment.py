@@ -21,7 +21,7 @@ from anigs.masks import Frame, compute_masks
 from anigs.masks.choose import EffectSets, capture_backend, choose_backend
 from anigs.masks.lift import lift_masks_report
 from anigs.masks.truth import GroundTruth
-from anigs.masks.vegetation import estimate_ground
+from anigs.geometry.ground import ground_plane as estimate_ground
 
 log = logging.getLogger("anigs.masks")
 

@@ -24,31 +24,32 @@ Steps on an RGB frame [H,W,3] in [0,1]:
 6. ground cue (when the frame carries a rendered depth and a camera and a ground plane is
    given): pixels whose surface lies within the ground layer are excluded: a green lawn is
    static ground, bushes and trees stand above it. The layer reaches
-   :meth:`GroundPlane.cut_height`: the fixed floor ``ground_margin`` * camera height, or, when
+   :meth:`anigs.geometry.ground.GroundPlane.cut_height`: the fixed floor ``ground_margin`` * camera height, or, when
    the reconstructed ground is thicker (a fitted lawn floats and sinks by decimetres where it
    was poorly observed, and a ray sees the top of it), ``ground_layer`` * the thickness
-   measured under the plane by :func:`estimate_ground`, capped at ``ground_max_margin`` *
+   measured under the plane by :func:`anigs.geometry.ground.ground_plane`, capped at ``ground_max_margin`` *
    camera height; plus ``ground_depth_tol`` * the pixel's depth. Structures lower than the
    layer (grass tufts in a thick fitted lawn) are lost with it;
 7. morphology: opening (``open_radius``), closing (``close_radius``), removal of connected
    components smaller than ``min_area`` (fraction of the frame) and of holes smaller than
    ``max_hole`` (fraction of the frame).
 
-An all-sky or all-wall frame gives an empty mask. :func:`estimate_ground` finds the ground
-plane of a Gaussian scene (densest low layer along ``up``), scales ``min_height`` by the
+An all-sky or all-wall frame gives an empty mask. :func:`anigs.geometry.ground.ground_plane` finds
+the ground plane of a Gaussian scene (densest low layer along ``up``), scales ``min_height`` by the
 cameras' height above it, so the cue works in any reconstruction frame and scale, and
 measures how thick the reconstructed ground layer is.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
 
 import cv2
 import numpy as np
 
-from anigs.cameras import Camera
-from anigs.masks import Frame, check_image
+from anigs.typed_config import from_dict
+from anigs.geometry.ground import GroundPlane, pixel_heights
+from anigs.masks.frame import Frame
+from anigs.pixels import check_image, fill_small_holes, remove_small, saturation
 
 
 @dataclass
@@ -91,8 +92,6 @@ class VegetationConfig:
 
     @staticmethod
     def from_dict(d: dict | None) -> "VegetationConfig":
-        from anigs.configs import from_dict
-
         return from_dict(VegetationConfig, d, "masks.vegetation config")
 
 
@@ -127,105 +126,6 @@ def vegetation_index(img: np.ndarray, index: str = "exgr") -> np.ndarray:
     r, g, b = c[..., 0], c[..., 1], c[..., 2]
     exg = 2 * g - r - b
     return exg if index == "exg" else exg - (1.4 * r - g)
-
-
-def saturation(img: np.ndarray) -> np.ndarray:
-    """HSV saturation (max-min)/max [H,W]."""
-    mx, mn = img.max(-1), img.min(-1)
-    return (mx - mn) / np.maximum(mx, 1e-6)
-
-
-def remove_small(mask: np.ndarray, min_pixels: int) -> np.ndarray:
-    """Drop 8-connected components with fewer than ``min_pixels`` pixels."""
-    if min_pixels <= 1 or not mask.any():
-        return mask
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
-    keep = stats[:, cv2.CC_STAT_AREA] >= min_pixels
-    keep[0] = False
-    return keep[lab]
-
-
-def fill_small_holes(mask: np.ndarray, max_pixels: int) -> np.ndarray:
-    """Fill 4-connected background components not touching the border with <= ``max_pixels`` pixels."""
-    if max_pixels <= 0 or mask.all():
-        return mask
-    inv = (~mask).astype(np.uint8)
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(inv, connectivity=4)
-    h, w = mask.shape
-    x, y, bw, bh = (stats[:, k] for k in (cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT))
-    border = (x == 0) | (y == 0) | (x + bw == w) | (y + bh == h)
-    fill = (stats[:, cv2.CC_STAT_AREA] <= max_pixels) & ~border
-    fill[0] = False
-    return mask | fill[lab]
-
-
-@dataclass
-class GroundPlane:
-    """Ground plane ``x . normal = offset`` and the thickness of the reconstructed ground layer.
-
-    ``min_height``: the fixed floor (``margin`` * camera height); ``layer``: how far the
-    reconstructed ground scatters around the plane, measured below it (see
-    :func:`estimate_ground`); ``camera_height``: median camera height above the plane (0 when
-    unknown). Surfaces lower than :meth:`cut_height` above the plane are ground.
-    """
-
-    normal: np.ndarray
-    offset: float
-    min_height: float
-    layer: float = 0.0
-    camera_height: float = 0.0
-
-    def cut_height(self, layer_scale: float = 1.0, max_fraction: float = 0.3) -> float:
-        """Height below which a surface counts as ground: the larger of ``min_height`` and
-        ``layer_scale`` * ``layer``, capped at ``max_fraction`` * camera height (when known).
-        """
-        h = max(self.min_height, layer_scale * self.layer)
-        if self.camera_height > 0 and max_fraction > 0:
-            h = min(h, max(self.min_height, max_fraction * self.camera_height))
-        return float(h)
-
-    def to_dict(self) -> dict:
-        return {"normal": np.asarray(self.normal).tolist(), "offset": float(self.offset),
-                "min_height": float(self.min_height), "layer": float(self.layer),
-                "camera_height": float(self.camera_height)}
-
-
-def estimate_ground(means: np.ndarray, up: np.ndarray, cameras: Sequence[Camera] = (),
-                    margin: float = 0.03, bins: int = 400, layer_quantile: float = 0.97,
-                    layer_band: float = 0.5) -> GroundPlane:
-    """Ground plane of Gaussian centres ``means`` [N,3] along ``up`` [3] (:func:`anigs.geometry.estimate_ground`).
-
-    The ground is the densest thin layer below the median height (a histogram peak, refined
-    by the mean of the centres within one bin). ``min_height`` = ``margin`` * median camera
-    height above it (or * the scene's height range when no cameras are given).
-
-    ``layer``: the thickness of the reconstructed ground. A fitted ground is not a thin sheet:
-    in poorly observed places its Gaussians scatter above and below the true surface, and a
-    ray sees the top of that scatter, so a static lawn renders well above the plane. Nothing
-    real lies under the ground, so the centres below the plane (within ``layer_band`` *
-    camera height of it) measure that scatter; its ``layer_quantile`` quantile, mirrored
-    upwards, is how high the ground layer reaches. On a clean reconstruction it is tiny and
-    ``min_height`` rules.
-
-    Cameras not above that layer (looking up at a building) or no ground below them (a
-    close-up) no longer raise: the geometry module searches below the cameras or falls back to
-    a plane under all content, and logs it.
-    """
-    from anigs.geometry import estimate_ground as _estimate_ground
-
-    gr = _estimate_ground(means, up, cameras, bins=bins, layer_quantile=layer_quantile, layer_band=layer_band)
-    return GroundPlane(gr.normal, gr.offset, margin * gr.ref, gr.layer, gr.camera_height)
-
-
-def pixel_heights(depth: np.ndarray, cam: Camera, plane: GroundPlane) -> np.ndarray:
-    """Height above ``plane`` [H,W] of the surface seen at each pixel (depth = camera z)."""
-    h, w = depth.shape
-    xs, ys = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
-    Kinv = np.linalg.inv(cam.K)
-    rays = np.stack([xs, ys, np.ones_like(xs)], -1) @ Kinv.T          # camera coords at z=1
-    world_dirs = rays @ cam.R                                           # R^T applied per row
-    pts = cam.center + world_dirs * depth[..., None]
-    return pts @ plane.normal - plane.offset
 
 
 def vegetation_mask(image: np.ndarray, cfg: VegetationConfig | None = None, name: str = "",

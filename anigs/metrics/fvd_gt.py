@@ -73,7 +73,7 @@ def _to_model_frame(gt_cams, model_cams_path: Path, views):
     """The views moved from the ground-truth frame into the reconstruction's (similarity on the
     capture cameras, matched by name) and the alignment's centre RMS (reconstruction units)."""
     from anigs.cameras import load_cameras
-    from anigs.masks.labels import align_cameras
+    from anigs.sfm.align import align_cameras
 
     sim, rms = align_cameras(gt_cams, load_cameras(model_cams_path))
     return [sim.apply_camera(c) for c in views], rms

@@ -2,7 +2,7 @@
 
 SSIM here is the evaluation metric (Wang et al. 2004 settings, as scikit-image documents
 them): Gaussian window sigma 1.5, population covariance, explicit ``data_range``, mean over
-the valid interior of every channel. The training loss SSIM lives in ``anigs.ssim``.
+the valid interior of every channel. The training loss SSIM lives in :mod:`anigs.ssim`.
 """
 from __future__ import annotations
 

@@ -10,7 +10,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from anigs.animate.deform import load_model
+from anigs.animate.frames import render_frame
+from anigs.cameras import load_cameras
+from anigs.geometry.extent import scene_extent
+from anigs.images import find_image, load_image
 from anigs.metrics import metric_record, not_available
+from anigs.metrics.motion import gt_motion_distances
+from anigs.metrics.multiview import multiview_consistency, novel_timestep, static_fit_fn
+from anigs.synth.motion import MotionParams, gt_clip_offsets
 
 if TYPE_CHECKING:
     from anigs.metrics.suite import EvalConfig
@@ -22,7 +30,6 @@ def gt_metrics(model: Path | None, canonical: Path | None, gt_dir: Path | None, 
     """Learned vs ground-truth motion statistics (synthetic scene)."""
     import torch
 
-    from anigs.metrics.motion import gt_motion_distances
 
     keys = {"gt/rms_amplitude_ratio": (None, ""), "gt/amplitude_w1": (False, "scene extent"),
             "gt/frequency_w1": (False, "cycles/frame"), "gt/dominant_freq_learned": (None, "cycles/frame"),
@@ -39,11 +46,7 @@ def gt_metrics(model: Path | None, canonical: Path | None, gt_dir: Path | None, 
         return {}
     if model is None or canonical is None:
         return na("needs --model and --canonical (the learned animation)")
-    from anigs.cameras import load_cameras
-    from anigs.animate.deform import load_model
-    from anigs.geometry.extent import scene_extent
     from anigs.stages.capture import Outputs as CaptureOutputs
-    from anigs.synth.motion import MotionParams, gt_clip_offsets
 
     canon, deformation, _ = load_model(model, canonical)
     if deformation.num_dynamic == 0:
@@ -75,8 +78,6 @@ def gt_metrics(model: Path | None, canonical: Path | None, gt_dir: Path | None, 
 
 def _load_images_for(cameras, image_dir: Path) -> list[np.ndarray]:
     """The capture image [H,W,3] of every camera (:func:`anigs.images.find_image`, :func:`~anigs.images.load_image`)."""
-    from anigs.images import find_image, load_image
-
     return [load_image(find_image(Path(image_dir), cam.name)) for cam in cameras]
 
 
@@ -91,8 +92,6 @@ def multiview_metrics(cfg: EvalConfig, model: Path | None, canonical: Path | Non
     """Table-3 protocol: fresh static fit at a novel time (and on the capture), PSNR on held-out cameras."""
     import torch
 
-    from anigs.cameras import load_cameras
-    from anigs.metrics.multiview import multiview_consistency, novel_timestep, static_fit_fn
 
     protocol = {"split": cfg.multiview_split, "train_fraction": cfg.multiview_train_fraction,
                 "max_cameras": cfg.multiview_max_cameras, "scale": cfg.multiview_scale,
@@ -137,9 +136,6 @@ def multiview_metrics(cfg: EvalConfig, model: Path | None, canonical: Path | Non
         out["multiview/psnr_novel"] = not_available(reason, True, "dB", protocol)
         out["multiview/ssim_novel"] = not_available(reason, True, "", protocol)
         return out
-    from anigs.animate.frames import render_frame
-    from anigs.animate.deform import load_model
-
     canon, deformation, _ = load_model(model, canonical)
     t = novel_timestep(deformation.num_frames, cfg.multiview_t)
     with torch.no_grad():

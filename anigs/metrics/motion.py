@@ -36,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from anigs.pixels import dilate
+
 FLOW_PRESETS = ("ultrafast", "fast", "medium")
 
 
@@ -67,16 +69,6 @@ def resize_mask(mask: np.ndarray, height: int, width: int, threshold: float = 0.
     if m.shape != (height, width):
         m = cv2.resize(m, (width, height), interpolation=cv2.INTER_AREA)
     return m >= threshold
-
-
-def dilate(mask: np.ndarray, px: int) -> np.ndarray:
-    """Binary dilation of a boolean mask by ``px`` pixels (square structuring element)."""
-    if px <= 0:
-        return mask.astype(bool)
-    import cv2
-
-    k = np.ones((2 * px + 1, 2 * px + 1), np.uint8)
-    return cv2.dilate(mask.astype(np.uint8), k) > 0
 
 
 def optical_flow_magnitudes(clip: np.ndarray, preset: str = "medium") -> np.ndarray:

@@ -24,9 +24,10 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.metrics.image import mean_finite, psnr, ssim
-from anigs.static.fit import FitConfig
+from anigs.render import render_gaussians
+from anigs.static.fit import FitConfig, fit_static
 from anigs.static.regularize import RegularizeConfig
 
 FitFn = Callable[[list, list, np.ndarray, np.ndarray], Any]
@@ -106,8 +107,6 @@ class MultiviewResult:
 
 
 def _render(gaussians, camera: Camera, background) -> np.ndarray:
-    from anigs.render import render_gaussians
-
     bg = None if background is None else torch.as_tensor(background, dtype=torch.float32, device=gaussians.device)
     with torch.no_grad():
         rgb, _, _ = render_gaussians(gaussians, camera, background=bg)
@@ -154,8 +153,6 @@ def static_fit_fn(fit_params: MultiviewFitConfig | dict[str, Any] | None = None
     Returns (fit_fn, background used by the fit). Raises ModuleNotFoundError naming
     ``anigs.static.fit`` when the static-fit module is missing.
     """
-    from anigs.static.fit import fit_static
-
     cfg = MultiviewFitConfig.from_dict(fit_params)
 
     def fit(images, cameras, init_points, init_colors):

@@ -14,7 +14,12 @@ from typing import Any
 
 import numpy as np
 
+from anigs.animate.deform import load_model
+from anigs.cameras import load_cameras
+from anigs.geometry.extent import scene_extent
 from anigs.metrics import metric_record, not_available
+from anigs.sfm.align import align_cameras
+from anigs.synth.motion import LABEL_EFFECTS, WATER_LABEL_EFFECTS
 
 KEY = "gt/moving_labelled_still"
 PROTOCOL = {"moving": "largest displacement over the loop > 1e-4 x scene extent",
@@ -32,12 +37,7 @@ def moving_labelled_still(model: Path | None, canonical: Path | None, gt_dir: Pa
     import torch
     from scipy.spatial import cKDTree
 
-    from anigs.animate.deform import load_model
-    from anigs.cameras import load_cameras
-    from anigs.geometry.extent import scene_extent
-    from anigs.masks.labels import align_cameras
     from anigs.stages.capture import Outputs as CaptureOutputs
-    from anigs.synth.motion import LABEL_EFFECTS, WATER_LABEL_EFFECTS
 
     canon, deformation, _ = load_model(model, canonical)
     cams = load_cameras(cameras)

@@ -27,11 +27,18 @@ from typing import Any
 
 import numpy as np
 
-from anigs.configs import from_dict
-from anigs.metrics.multiview import MultiviewFitConfig
+from anigs.device import get_device, seed_everything
 from anigs.metrics import metric_record, not_available
-
-from anigs.metrics.model_metrics import gt_metrics, multiview_metrics  # noqa: E402
+from anigs.metrics.features import (INCEPTION_HINT, Unavailable, describe_i3d, i3d_features, inception_features,
+                                    load_detector, load_i3d_detector, pool_frames, sample_windows)
+from anigs.metrics.frechet import frechet_distance
+from anigs.metrics.model_metrics import gt_metrics, multiview_metrics
+from anigs.metrics.multiview import MultiviewFitConfig
+from anigs.metrics.motion import FLOW_PRESETS, clip_motion_metrics, outside_mask_still, resize_mask
+from anigs.metrics.still_labels import moving_labelled_still
+from anigs.metrics.vbench import vbench_metrics
+from anigs.typed_config import from_dict
+from anigs.video import check_clip, load_clip, read_mp4
 
 log = logging.getLogger("anigs.eval")
 
@@ -78,8 +85,6 @@ class EvalConfig:
         return cfg
 
     def validate(self) -> None:
-        from anigs.metrics.motion import FLOW_PRESETS
-
         if self.flow_preset not in FLOW_PRESETS:
             raise ValueError(f"eval.flow_preset must be one of {FLOW_PRESETS}, got {self.flow_preset!r}")
         for k in ("fvd_crop_size", "fid_size", "batch_size", "fvd_window_stride"):
@@ -135,8 +140,6 @@ def find_clips(paths: list[str | Path]) -> dict[str, Path]:
 
 
 def load_any_clip(path: Path) -> np.ndarray:
-    from anigs.video import check_clip, load_clip, read_mp4
-
     if path.suffix == ".mp4":
         return check_clip(read_mp4(path), str(path))
     return load_clip(path)[0]
@@ -155,7 +158,6 @@ def clip_fps(path: Path, default: float = 8.0) -> float:
 
 
 def load_mask_for(view: str, mask_dir: Path | None, height: int, width: int, threshold: float) -> np.ndarray | None:
-    from anigs.metrics.motion import resize_mask
     from anigs.stages.masks import Outputs as MasksOutputs
 
     if mask_dir is None:
@@ -168,8 +170,6 @@ def load_mask_for(view: str, mask_dir: Path | None, height: int, width: int, thr
 
 def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg: EvalConfig) -> dict[str, Any]:
     """Per-view weight-free metrics, averaged over views with a mask."""
-    from anigs.metrics.motion import clip_motion_metrics, outside_mask_still
-
     names = {"static_abs_diff": (False, "intensity/frame"), "static_drift": (False, "intensity"),
              "static_flow": (False, "px/frame"), "dynamic_abs_diff": (True, "intensity/frame"),
              "dynamic_flow": (True, "px/frame"), "dominant_freq": (True, "cycles/frame"),
@@ -211,19 +211,6 @@ def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg:
 def frechet_metrics(kind: str, clips: dict[str, np.ndarray], references: dict[str, list[np.ndarray]],
                     cfg: EvalConfig, device) -> dict[str, Any]:
     """FVD-<prior> or FID-<prior> records for every reference prior."""
-    from anigs.metrics.features import (
-        INCEPTION_HINT,
-        Unavailable,
-        describe_i3d,
-        i3d_features,
-        inception_features,
-        load_detector,
-        load_i3d_detector,
-        pool_frames,
-        sample_windows,
-    )
-    from anigs.metrics.frechet import frechet_distance
-
     if kind == "fvd":
         path, hint, what = cfg.i3d_path, "", "FVD (I3D)"
         protocol = {"network": "I3D (Kinetics-400), return_features=True, rescale=False",
@@ -305,9 +292,6 @@ def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path
     halves can run as separate jobs (the model's beside the final renders; see
     :func:`anigs.stages.eval.merge`).
     """
-    from anigs.metrics.still_labels import moving_labelled_still
-    from anigs.device import get_device, seed_everything
-
     if part not in EVAL_PARTS:
         raise ValueError(f"eval: part must be one of {EVAL_PARTS}, got {part!r}")
     seed_everything(cfg.seed)
@@ -323,8 +307,6 @@ def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path
         fid_refs.update(_load_references(fid_references))
         t0 = time.perf_counter()
         metrics.update(weightfree_metrics(clips, P(mask_dir), cfg))
-        from anigs.metrics.vbench import vbench_metrics
-
         metrics.update(vbench_metrics(clips, {v: clip_fps(p) for v, p in clip_files.items()},
                                       cfg.flow_preset))
         log.info("eval: weight-free metrics %.1f s", time.perf_counter() - t0)

@@ -23,6 +23,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from anigs.flow import backward_flow
+from anigs.metrics import metric_record, not_available
+
 TOP_FRACTION = 0.05  # VBench: mean of the largest 5% flow magnitudes
 BASE_THRESHOLD_PX = 6.0  # VBench: at 256 px short side and 8 fps
 SAMPLE_FPS = 8.0  # VBench samples frames at about 8 fps
@@ -80,8 +83,6 @@ def top_flow_magnitude(flow: np.ndarray) -> float:
 
 def dynamic_degree_proxy(clip: np.ndarray, fps: float, preset: str = "medium", name: str = "clip") -> DynamicDegree:
     """VBench's dynamic-degree rule on one camera-fixed clip [T,H,W,3], OpenCV DIS flow in place of RAFT."""
-    from anigs.flow import backward_flow
-
     c = check_finite_clip(clip, name)
     if fps <= 0:
         raise ValueError(f"clip {name!r}: fps must be > 0, got {fps}")
@@ -100,8 +101,6 @@ def dynamic_degree_proxy(clip: np.ndarray, fps: float, preset: str = "medium", n
 def vbench_metrics(clips: Mapping[str, np.ndarray], fps: Mapping[str, float], preset: str = "medium") -> dict[str, Any]:
     """``vbench/temporal_flickering``, ``vbench/dynamic_degree_proxy`` and its continuous score
     ``vbench/top5_flow_px`` over camera-fixed clips."""
-    from anigs.metrics import metric_record, not_available
-
     p_flick = {"definition": "VBench temporal flickering: per clip (255 - mean over consecutive frame pairs of the "
                              "mean |I_t+1 - I_t| over pixels and channels, uint8) / 255; mean over clips",
                "input": "camera-fixed clips (static camera, as VBench requires)"}

@@ -29,7 +29,7 @@ from typing import Any, Mapping
 import cv2
 import numpy as np
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.refine.prior.base import MaskLike, VideoPrior, check_strength, union_mask
 from anigs.video import check_clip
 

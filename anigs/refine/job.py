@@ -25,7 +25,7 @@ def view_seed(seed: int, round_: int, view: str) -> int:
 
 def parse_masks(values: list[str]) -> np.ndarray | dict[str, np.ndarray]:
     """``--mask PATH`` (one) or ``--mask EFFECT=PATH`` (several) -> mask or {effect: mask}."""
-    from anigs.masks import read_mask
+    from anigs.images import read_mask
 
     if not values:
         raise ValueError("at least one --mask is required")

@@ -18,6 +18,7 @@ import numpy as np
 import torch
 
 from anigs.render import _build
+from anigs.render.checks import validate, check_inputs
 from anigs.render.projection import EPS_2D
 
 def _ptr(t: torch.Tensor | None) -> int | None:
@@ -235,8 +236,6 @@ def composite_weights_cpu(means, quats, scales, opacities, viewmat, K, width: in
     tensor or array [H,W,C] (C = 1..3) or [H,W] (C = 1). No autograd; the inputs are validated
     as by :func:`anigs.render.rasterize`. Deterministic and independent of the thread count.
     """
-    from anigs.render.rasterize import check_inputs
-
     _device_check(means)
     width, height, n = check_inputs("composite_weights_cpu", means, quats, scales, opacities, width, height)
     f = factors if torch.is_tensor(factors) else torch.from_numpy(np.asarray(factors))
@@ -251,9 +250,7 @@ def composite_weights_cpu(means, quats, scales, opacities, viewmat, K, width: in
     named = {"means": means, "quats": quats, "scales": scales, "opacities": opacities, "viewmat": viewmat, "K": K}
 
     def on_invalid(_flags: int) -> None:
-        from anigs.render.rasterize import _validate
-
-        _validate(named)
+        validate(named)
         raise ValueError("composite_weights_cpu: inputs are not finite in float32, or scales/opacities out of range")
 
     cam = camera_params(viewmat, K, near, far, on_invalid=on_invalid)

@@ -17,27 +17,14 @@ from typing import Any
 
 import torch
 
+from anigs.render import _build, gsplat_backend
+from anigs.render.checks import validate, check_inputs
+from anigs.render.cpu_backend import render_cpu
 from anigs.render.projection import project_gaussians
 from anigs.render.sh import sh_colors
+from anigs.render.torch_backend import composite_torch
 
 BACKENDS = ("auto", "torch", "cpu", "gsplat")
-
-
-def _check_inputs(named: dict[str, torch.Tensor]) -> None:
-    for name, t in named.items():
-        if not torch.is_tensor(t):
-            raise TypeError(f"rasterize: {name} must be a tensor, got {type(t).__name__}")
-        if t.numel() and not torch.isfinite(t).all():
-            bad = int((~torch.isfinite(t.detach())).sum())
-            raise ValueError(f"rasterize: input {name!r} contains {bad} non-finite values (NaN or Inf)")
-
-
-def _validate(named: dict[str, torch.Tensor]) -> None:
-    """Finite inputs, scales >= 0, opacities in [0,1]; raises a ValueError naming the culprit."""
-    _check_inputs(named)
-    scales, opacities = named["scales"], named["opacities"]
-    if bool((scales < 0).any()) or bool((opacities < 0).any()) or bool((opacities > 1).any()):
-        raise ValueError("rasterize: scales must be >= 0 and opacities in [0,1] (pass activated values)")
 
 
 def select_backend(backend: str, device: torch.device) -> str:
@@ -47,34 +34,16 @@ def select_backend(backend: str, device: torch.device) -> str:
     if backend != "auto":
         return backend
     if device.type == "cuda":
-        from anigs.render import gsplat_backend
-
         if gsplat_backend.available():
             return "gsplat"
         warnings.warn("gsplat is not installed: rendering CUDA tensors with the torch backend "
                       "(install the 'gsplat' extra for speed)", stacklevel=3)
         return "torch"
     if device.type == "cpu":
-        from anigs.render import _build
-
         if _build.available():
             return "cpu"
         warnings.warn("cpu rasterizer kernel could not be built; falling back to the slow torch backend", stacklevel=3)
     return "torch"
-
-
-def check_inputs(what: str, means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,
-                 opacities: torch.Tensor, width, height) -> tuple[int, int, int]:
-    """Check the image size and the shapes of a splat set (means [N,3], quats [N,4], scales [N,3],
-    opacities [N]); returns (width, height, N). ``what`` names the caller in the error."""
-    width, height = int(width), int(height)
-    if width < 1 or height < 1:
-        raise ValueError(f"{what}: image size must be >= 1x1, got {width}x{height}")
-    n = means.shape[0]
-    if means.shape != (n, 3) or quats.shape != (n, 4) or scales.shape != (n, 3) or opacities.shape != (n,):
-        raise ValueError(f"{what}: shape mismatch: means {tuple(means.shape)}, quats {tuple(quats.shape)}, "
-                         f"scales {tuple(scales.shape)}, opacities {tuple(opacities.shape)} (N={n})")
-    return width, height, n
 
 
 def rasterize(
@@ -111,12 +80,10 @@ def rasterize(
     device = means.device
     backend = select_backend(backend, device)
     if backend == "cpu":
-        # One fused kernel path; it also validates the inputs (and defers to _validate for
+        # One fused kernel path; it also validates the inputs (and defers to validate for
         # the error message), so no per-call torch ops run here.
-        from anigs.render.cpu_backend import render_cpu
-
         def on_invalid(_flags: int) -> None:
-            _validate(named)
+            validate(named)
             raise ValueError("rasterize: inputs are not finite in float32, or scales/opacities out of range")
 
         rgb, alpha, depth, means2d, radii, valid, num_visible = render_cpu(
@@ -126,12 +93,10 @@ def rasterize(
                 "backend": backend, "num_visible": num_visible}
         return rgb, alpha, meta
 
-    _validate(named)
+    validate(named)
     bg = torch.zeros(3, dtype=means.dtype, device=device) if background is None else background.to(means)
 
     if backend == "gsplat":
-        from anigs.render import gsplat_backend
-
         rgb, alpha, meta = gsplat_backend.render(means, quats, scales, opacities, colors, viewmat, K,
                                                  width, height, sh_degree, bg, near, far)
         meta["backend"] = "gsplat"
@@ -148,8 +113,6 @@ def rasterize(
         cam_center = -viewmat[:3, :3].T @ viewmat[:3, 3]
         col = sh_colors(sh_degree, colors[idx], means[idx], cam_center)
     feats = torch.cat([col, depths[idx, None]], dim=1)
-    from anigs.render.torch_backend import composite_torch
-
     acc, T = composite_torch(means2d[idx], conics[idx], feats, opacities[idx], rects[idx], width, height)
     alpha = 1 - T
     rgb = acc[..., :3] + T[..., None] * bg

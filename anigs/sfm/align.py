@@ -13,6 +13,7 @@ from typing import Sequence
 
 import numpy as np
 
+from anigs import geometry
 from anigs.cameras import Camera
 
 log = logging.getLogger(__name__)
@@ -161,8 +162,6 @@ def estimate_up(cams: list[Camera], points: np.ndarray | None = None) -> np.ndar
     axis where the axes leave a direction free (all facing one way), unless the point cloud's
     ground and walls settle it. Never raises: undecidable cases fall back to upright photos.
     """
-    from anigs import geometry
-
     return geometry.estimate_up(cams, points).up
 
 
@@ -174,8 +173,6 @@ def upright_similarity(cams: list[Camera], xyz: np.ndarray, ground_percentile: f
     ground equals it (e.g. 1.6 for photos taken at eye height in metres); otherwise, or when
     the cameras are not above the estimated ground, COLMAP's scale is kept.
     """
-    from anigs import geometry
-
     xyz = np.asarray(xyz, np.float64).reshape(-1, 3)
     est = geometry.estimate_up(cams, xyz if len(xyz) >= 50 else None)
     up = est.up
@@ -210,3 +207,17 @@ def upright_similarity(cams: list[Camera], xyz: np.ndarray, ground_percentile: f
                                    "mean_camera_height_before_scaling": mean_height,
                                    "camera_tilt_from_up_deg": {"mean": float(tilt.mean()),
                                                                "max": float(tilt.max())}}
+
+
+def align_cameras(src: Sequence[Camera], dst: Sequence[Camera]) -> tuple[Similarity, float]:
+    """Similarity src-frame -> dst-frame from cameras matched by name; also the RMS centre error (dst units)."""
+    by_name = {c.name: c for c in dst}
+    pairs = [(c, by_name[c.name]) for c in src if c.name in by_name]
+    if len(pairs) < 3:
+        raise ValueError(f"align_cameras: only {len(pairs)} camera names in common (need >= 3); "
+                         f"e.g. {[c.name for c in src[:3]]} vs {[c.name for c in dst[:3]]}")
+    a = np.stack([p[0].center for p in pairs])
+    b = np.stack([p[1].center for p in pairs])
+    sim = umeyama(a, b)
+    rms = float(np.sqrt(((sim.apply(a) - b) ** 2).sum(1).mean()))
+    return sim, rms

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Optional, Union
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 
 MATCHERS = ("auto", "exhaustive", "sequential", "spatial")
 MAPPERS = ("incremental", "global")

@@ -30,9 +30,12 @@ from typing import Any, Optional
 
 import numpy as np
 
+from anigs.photos import import_photos
+from anigs.sfm import rematch
 from anigs.sfm.config import SfmConfig
 from anigs.sfm.diagnose import likely_causes
 from anigs.sfm.plan import initial_pair_angle
+from anigs.sfm.rematch import database_stats
 
 log = logging.getLogger(__name__)
 
@@ -93,8 +96,6 @@ def _colmap():
 
 
 def _stats(database: Path) -> dict:
-    from anigs.sfm.rematch import database_stats
-
     return database_stats(database) if Path(database).exists() else {}
 
 
@@ -145,8 +146,6 @@ def map_escalating(first: Source, work: Path, cfg: SfmConfig, names: list[str], 
     Raises :class:`SfmError` (cause and settings) when the best model holds fewer than
     ``partial_min_fraction`` of the photos.
     """
-    from anigs.sfm import rematch
-
     total = len(names)
     need = cfg.min_registered_fraction * total
     tried: list[Attempt] = []
@@ -229,8 +228,6 @@ def failure_message(reg: int, total: int, cfg: SfmConfig, tried: list[Attempt], 
 
 def original_source(originals: Path, names: list[str], work: Path, cfg: SfmConfig, mode: Optional[str]) -> Source:
     """Import the full-size photos (upright, as PNG, same names) and extract and match them exhaustively."""
-    from anigs.photos import import_photos
-
     folder = work / "original" / "images"
     written = set(import_photos(originals, folder, None, skip_unreadable=True, screen=False))
     missing = sorted(set(names) - written)

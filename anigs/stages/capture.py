@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.cli import parse_params
 from anigs.io import write_json
 from anigs.stages import contract

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.stages import contract
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.contract import File

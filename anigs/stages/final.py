@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.stages import contract
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.metrics.fvd_gt import METRIC, i3d_detector  # noqa: F401  (i3d_detector: the network the stage uses)
 from anigs.stages import contract
 from anigs.stages.capture import Outputs as CaptureOutputs

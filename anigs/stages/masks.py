@@ -23,7 +23,9 @@ import numpy as np
 from anigs.cameras import load_cameras
 from anigs.gaussians import load_ply
 from anigs.io import atomic_path, read_json, write_json
-from anigs.masks import compute_masks, overlay, write_mask_png, write_rgb_png
+from anigs.masks import compute_masks
+from anigs.pixels import overlay
+from anigs.images import write_mask_png, write_rgb_png
 from anigs.masks.choose import EffectSets
 from anigs.masks.frames import first_frames
 from anigs.masks.labels import LabelsConfig
@@ -52,7 +54,7 @@ class Outputs(contract.Outputs):
         "overlay": File("{view}_overlay.png", "uint8 RGB [H, W, 3]: the mask over the first frame"),
         "dynamic": File("dynamic.npy", "bool [N]: the canonical Gaussians that move"),
         "effect_labels": File("effect_labels.npy", "int8 [N]: which effect each dynamic Gaussian belongs to "
-                                                   "(0 static, 1 + region index; anigs.masks.effect_labels); "
+                                                   "(0 static, 1 + region index; anigs.effects.labels); "
                                                    "with the effects stage's folder", optional=True),
         "report": File("masks.json", "per-view fractions, the lifting, completion and containment; with "
                                      "ground truth the IoU and precision/recall against it; the config"),
@@ -78,7 +80,7 @@ class Outputs(contract.Outputs):
         return {p.stem[len(prefix):]: self._read_mask(p) for p in found}
 
     def _read_mask(self, p: Path) -> np.ndarray:
-        from anigs.masks import read_mask
+        from anigs.images import read_mask
 
         if not p.is_file():
             raise FileNotFoundError(f"{p}: missing (run the {self.STAGE} stage)")
@@ -120,7 +122,7 @@ class MasksConfig:
 
     @staticmethod
     def from_dict(d: dict | None) -> "MasksConfig":
-        from anigs.configs import from_dict
+        from anigs.typed_config import from_dict
 
         cfg = from_dict(MasksConfig, d, "masks config")
         if cfg.backend not in ("effects", "vegetation", "labels", "sam2"):

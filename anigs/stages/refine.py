@@ -20,7 +20,7 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.refine.prior.ltx import LTXConfig
 from anigs.refine.prior.procedural import ProceduralConfig
 from anigs.stages import contract

@@ -19,7 +19,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.stages import contract
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs

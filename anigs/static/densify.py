@@ -33,7 +33,7 @@ from typing import Any
 
 import torch
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.geometry.quaternion import quat_to_rotmat
 
 log = logging.getLogger(__name__)

@@ -7,7 +7,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.fused_ssim import fused_ssim
+from anigs.ssim import fused_ssim
 from anigs.render import rasterize
 from anigs.ssim import psnr
 

@@ -5,7 +5,7 @@ scaled by the scene extent), loss ``(1-w) L1 + w (1 - SSIM)``, SH degree raised 
 densification by :mod:`anigs.static.densify`, every ``holdout_every``-th image held out for evaluation.
 
 A step is the rasterizer plus as little as possible around it: the fused SSIM
-(:mod:`anigs.fused_ssim`), a fused Adam, densification statistics only while a densification
+(:mod:`anigs.ssim.fused`), a fused Adam, densification statistics only while a densification
 is still to come, and no host reads except every ``LOG_EVERY`` steps and before checkpoints,
 evaluations and refinements (a non-finite step is recorded on the device and skipped by the
 optimizer, then reported with its iteration at the next read). ``benchmarks/static_fit.py``
@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.configs import reject_unknown_keys
+from anigs.typed_config import reject_unknown_keys
 from anigs.static.densify import (DensifyConfig, DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
 from anigs.static.divergence import DivergenceGuard, FitDivergedError, raise_diverged
@@ -32,7 +32,7 @@ from anigs.static.evaluate import _render, evaluate, pixels, stored_image
 from anigs.static.init import _to_params, init_gaussians, make_optimizer, params_to_gaussians, split_holdout
 from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, last_densify_step, prune_rows
 from anigs.device import get_device, seed_everything
-from anigs.fused_ssim import fused_ssim
+from anigs.ssim import fused_ssim
 from anigs.geometry.extent import scene_extent
 from anigs.gaussians import Gaussians
 from anigs.ssim import psnr
@@ -108,7 +108,7 @@ class FitConfig:
 
 # ---------------------------------------------------------------------------- helpers
 def loss_fn(pred: torch.Tensor, target: torch.Tensor, ssim_weight: float) -> torch.Tensor:
-    """``(1-w) L1 + w (1 - SSIM)`` for images [H,W,3] (SSIM: :func:`anigs.fused_ssim.fused_ssim`)."""
+    """``(1-w) L1 + w (1 - SSIM)`` for images [H,W,3] (SSIM: :func:`anigs.ssim.fused_ssim`)."""
     l1 = (pred - target).abs().mean()
     if ssim_weight == 0:
         return l1

@@ -40,7 +40,7 @@ from typing import Any, Sequence
 import torch
 
 from anigs.cameras import Camera
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 
 log = logging.getLogger(__name__)
 

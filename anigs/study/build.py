@@ -27,6 +27,7 @@ from typing import Any, Mapping, Sequence
 from anigs.io import atomic_write_text, write_json
 from anigs.study.catch import CATCH, make_catch_video
 from anigs.study.schema import MANIFEST_SCHEMA, QUESTIONS
+from anigs.tables import variant_label
 
 ASSETS = Path(__file__).with_name("assets")
 
@@ -92,8 +93,6 @@ def _sha(data: bytes, n: int = 12) -> str:
 
 
 def default_label(variant: str) -> str:
-    from anigs.tables import variant_label
-
     return variant_label(variant)
 
 

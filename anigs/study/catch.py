@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from anigs.video import read_mp4, write_mp4
+
 CATCH = "catch"  # the variant name of the blurred copy in trials and answers
 CATCH_QUESTION = "quality"
 
@@ -21,7 +23,6 @@ def make_catch_video(src: str | Path, dst: str | Path, fps: float) -> float:
     """Write a blurred copy of ``src`` to ``dst``; return the blur sigma used."""
     from scipy.ndimage import gaussian_filter
 
-    from anigs.video import read_mp4, write_mp4
 
     clip = read_mp4(src)
     sigma = blur_sigma(clip.shape[2], clip.shape[1])

@@ -35,12 +35,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
 from anigs.io import atomic_path, write_json
 from anigs.render import render_gaussians
 from anigs.synth.motion import MotionParams, motion_tables
-from anigs.synth.scene import BEDS, LABELS, TREE_SITES, Y1, SceneConfig, build_scene, path_x
+from anigs.synth.build import build_scene
+from anigs.synth.scene import BEDS, LABELS, TREE_SITES, Y1, SceneConfig, path_x
 from anigs.video import save_png
 
 log = logging.getLogger(__name__)

@@ -9,12 +9,11 @@ moves, so the effects stage must find nothing here.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:  # scene.py imports this module lazily; no import cycle at run time
-    from anigs.synth.scene import _Builder
+from anigs.synth.garden import _bench, _brick_color, _facade_color, _stone
+from anigs.synth.scene import BENCH, FACADE_H, PLANTER, X0, X1, Y0, Y1, Noise, _Builder
 
 COURT_WALL_H = 2.4  # height of the west, east and south walls (m)
 SHARES = {"ground": 0.45, "building": 0.42, "clutter": 0.13}
@@ -24,8 +23,6 @@ BENCH_2 = (3.6, -3.2)  # the second bench (faces +x, like the first)
 
 def _paving(rng: np.random.Generator):
     """Running-bond stone slabs with dark joints: f(xy [M,2]) -> colours [M,3]."""
-    from anigs.synth.scene import Noise
-
     tone = np.array([0.63, 0.6, 0.55]) * rng.uniform(0.78, 1.12, (991, 1)) + rng.normal(0, 0.02, (991, 3))
     grain = Noise(rng, 2, 1.0, 12.0)
 
@@ -42,9 +39,6 @@ def _paving(rng: np.random.Generator):
 
 def build_courtyard(B: "_Builder", num_gaussians: int) -> None:
     """Add the courtyard's parts to builder ``B`` (about ``num_gaussians`` Gaussians in all)."""
-    from anigs.synth.garden import _bench, _brick_color, _facade_color, _stone
-    from anigs.synth.scene import BENCH, FACADE_H, PLANTER, X0, X1, Y0, Y1
-
     rng = B.rng
     n = {k: int(round(v * num_gaussians)) for k, v in SHARES.items()}
     # paving over the whole floor

@@ -26,6 +26,9 @@ import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.gaussians import Gaussians
+from anigs.geometry.quaternion import quat_from_matrix
+from anigs.synth.garden import FLOWER_COLORS
+from anigs.synth.scene import LABEL_IDS, SUN, _Builder, _Part, _assemble, frame_from_normal
 
 DECOY_PARTS: dict[int, str] = {1: "ornaments", 2: "window_surrounds", 3: "picture", 4: "rug", 5: "lamps",
                                6: "mown_lawn", 7: "sunlit_leaves"}
@@ -63,8 +66,6 @@ class Decoy:
 
 
 def _label(name: str) -> int:
-    from anigs.synth.scene import LABEL_IDS
-
     return LABEL_IDS[name]
 
 
@@ -72,8 +73,6 @@ class _Tagged:
     """A :class:`anigs.synth.scene._Builder` that remembers the decoy part of every part it adds."""
 
     def __init__(self, seed: int):
-        from anigs.synth.scene import _Builder
-
         self.B = _Builder(np.random.default_rng(seed), 1.0)
         self.tags: list[int] = []
 
@@ -83,8 +82,6 @@ class _Tagged:
         self.tags += [DECOY_IDS[part] if part else 0] * (len(self.B.parts) - n0)
 
     def build(self) -> Gaussians:
-        from anigs.synth.scene import _assemble
-
         g = _assemble(self.B.parts)
         g.extras["decoy"] = torch.from_numpy(np.concatenate(
             [np.full(len(p.means), t, np.int64) for p, t in zip(self.B.parts, self.tags)]))
@@ -113,8 +110,6 @@ def _lawn_bank(T: _Tagged, x: tuple, y: tuple, bank_from: float, slope_deg: floa
 
 def _tree(T: _Tagged, at, height: float, crown: float, leaves: int, sunlit_share: float) -> None:
     """Trunk and crown; the crown's sun-facing leaves (``sunlit_share``) are yellow (decoy sunlit_leaves)."""
-    from anigs.synth.scene import SUN
-
     B = T.B
     x, y = at
     bark = lambda tv: np.tile([0.32, 0.23, 0.16], (len(tv), 1)) * (1 + 0.2 * np.sin(tv[:, :1] * 20))
@@ -134,8 +129,6 @@ def _tree(T: _Tagged, at, height: float, crown: float, leaves: int, sunlit_share
     yellow = np.array([0.88, 0.76, 0.22]) * B.rng.uniform(0.85, 1.1, (sun.sum(), 1))
     leaves_part.colors[sun] = np.clip(yellow, 0.02, 0.97)
     # split the leaves into two parts so the yellow ones carry their decoy tag
-    from anigs.synth.scene import _Part
-
     keep = _Part(leaves_part.means[~sun], leaves_part.scales[~sun], leaves_part.quats[~sun], leaves_part.colors[~sun],
                  leaves_part.opacity[~sun], leaves_part.label, leaves_part.anchors[~sun])
     lit_part = _Part(leaves_part.means[sun], leaves_part.scales[sun], leaves_part.quats[sun], leaves_part.colors[sun],
@@ -180,9 +173,6 @@ def _facade(T: _Tagged, n: int) -> None:
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         d = d[d[:, 1] < -0.05][:m]
         means = np.array([xc, Y, zc]) + d * 0.14
-        from anigs.synth.scene import frame_from_normal
-        from anigs.geometry.quaternion import quat_from_matrix
-
         T.tag("ornaments", B.add, means, np.tile([0.035, 0.035, 0.004], (len(d), 1)),
               quat_from_matrix(frame_from_normal(d)), orn * rng.uniform(0.85, 1.1, (len(d), 1)), 0.97, "building")
     _lawn_bank(T, (-X, X), (-5.0, Y), 1.0, 14.0, math.sqrt(10 * 9 / (0.25 * n)), "mown_lawn")
@@ -234,9 +224,6 @@ def _room(T: _Tagged, n: int) -> None:
         d = rng.normal(size=(3 * m, 3))
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         d = d[d[:, 2] < 0.0][:m]
-        from anigs.synth.scene import frame_from_normal
-        from anigs.geometry.quaternion import quat_from_matrix
-
         T.tag("lamps", B.add, np.array([lx, ly, H - 0.05]) + d * [0.22, 0.22, 0.14], np.tile([0.045, 0.045, 0.004], (len(d), 1)),
               quat_from_matrix(frame_from_normal(d)), np.tile([0.97, 0.93, 0.8], (len(d), 1)), 0.98, "clutter")
     # a potted plant standing on the rug: a terracotta pot and a leafy crown
@@ -255,10 +242,6 @@ def _lawn(T: _Tagged, n: int) -> None:
     x0, x1, y0, y1 = -3.5, -0.8, -1.0, 1.0
     soil = _noise_colour(rng, (0.33, 0.23, 0.15), 0.1)
     T.tag(None, B.surface, (x0, y0, 0.006), (1, 0, 0), (0, 1, 0), (x1 - x0, y1 - y0), (0.06, 0.06), soil, "ground")
-    from anigs.synth.garden import FLOWER_COLORS
-    from anigs.synth.scene import frame_from_normal
-    from anigs.geometry.quaternion import quat_from_matrix
-
     m = int(0.2 * n) // 8
     pts = np.column_stack([rng.uniform(x0 + 0.1, x1 - 0.1, m), rng.uniform(y0 + 0.1, y1 - 0.1, m)])
     h = rng.uniform(0.3, 0.5, m)

@@ -16,6 +16,8 @@ import numpy as np
 import torch
 
 from anigs.gaussians import Gaussians
+from anigs.synth.capture import CaptureConfig, SynthConfig
+from anigs.synth.scene import SceneConfig
 
 
 def _quat_from_axis(axis: np.ndarray) -> np.ndarray:
@@ -85,8 +87,6 @@ def sparse_capture_config(seed: int = 0, num_images: int = 11, num_gaussians: in
                           width: int = 160, height: int = 120):
     """:class:`anigs.synth.SynthConfig` of a sparse facade walk: ``num_images`` photos along the
     facade of the bare courtyard (walls and paving, sky above)."""
-    from anigs.synth.capture import CaptureConfig, SynthConfig
-    from anigs.synth.scene import SceneConfig
 
     return SynthConfig(seed=seed, scene=SceneConfig(num_gaussians=num_gaussians, layout="courtyard"),
                        capture=CaptureConfig(num_images=num_images, width=width, height=height, layout="facade",

@@ -33,7 +33,7 @@ from dataclasses import asdict, dataclass, field
 
 import torch
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.synth.scene import LABEL_IDS, LABELS, WATER_LABEL
 
 EFFECT_TYPES: tuple[str, ...] = ("foliage_sway", "leaf_flutter", "grass_wave", "flower_bob")

@@ -8,12 +8,12 @@ grass tufts and rocks keep out of it (``POND_KEEP_OUT``). Water Gaussians are th
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:  # scene.py imports this module lazily; no import cycle at run time
-    from anigs.synth.scene import _Builder
+from anigs.geometry.quaternion import quat_from_matrix
+from anigs.synth.garden import _stone
+from anigs.synth.scene import LABEL_IDS, SURFACE_OPACITY, Noise, _Builder, _jittered_grid, _shade, frame_from_normal
 
 POND = (1.6, -1.3, 0.9, 0.65)  # ellipse (cx, cy, rx, ry) of the water, metres
 RIM = 0.14  # width of the stone ring around the water (m)
@@ -31,10 +31,6 @@ def in_pond(xy: np.ndarray, grow: float = 0.0) -> np.ndarray:
 
 def add_pond(B: "_Builder", n: int) -> None:
     """Carve the lawn and add the water (75% of ``n``) and its stone rim (25%) to builder ``B``."""
-    from anigs.geometry.quaternion import quat_from_matrix
-    from anigs.synth.garden import _stone
-    from anigs.synth.scene import LABEL_IDS, SURFACE_OPACITY, Noise, _jittered_grid, _shade, frame_from_normal
-
     rng = B.rng
     cx, cy, rx, ry = POND
     for part in B.parts:  # the lawn (and its specks) ends at the outer edge of the rim

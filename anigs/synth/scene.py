@@ -1,4 +1,7 @@
-"""Procedural garden courtyard built directly as ground-truth 3D Gaussians.
+"""Procedural garden courtyard built directly as ground-truth 3D Gaussians: the label table, the
+fixed layout, the scene config and the builder the layouts (:mod:`anigs.synth.garden`,
+:mod:`anigs.synth.courtyard`, :mod:`anigs.synth.pond`) add their parts to. The layouts do not
+import back: :func:`anigs.synth.build.build_scene` puts them together.
 
 World convention: z up, ground plane z=0, metres. The courtyard spans
 x in [-6.5, 6.5], y in [-5.5, 5.2]: a brick building facade closes the north side
@@ -15,12 +18,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 import torch
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.gaussians import Gaussians, rgb_to_sh0
 from anigs.geometry.quaternion import quat_from_matrix
 
@@ -263,43 +266,3 @@ def _assemble(parts: list[_Part]) -> Gaussians:
     )
     g.check_finite("synthetic scene")
     return g
-
-
-def build_scene(cfg: SceneConfig | Any | None = None, seed: int = 0) -> Gaussians:
-    """Build the garden (or, with ``layout: courtyard``, the bare courtyard) as Gaussians (SH degree 0),
-    deterministic for ``seed``. ``pond`` adds a pond to the garden (labels ``ALL_LABELS``).
-
-    ``cfg``: a :class:`SceneConfig` (or a ``SynthConfig``: its ``scene`` and ``seed`` are used).
-    Returns Gaussians with ``extras["label"]`` [N] int64 (see ``LABELS``) and
-    ``extras["anchor"]`` [N,3] float32.
-    """
-    if cfg is not None and hasattr(cfg, "scene") and hasattr(cfg, "seed"):
-        cfg, seed = cfg.scene, cfg.seed
-    cfg = cfg or SceneConfig()
-    rng = np.random.default_rng(int(seed))
-    B = _Builder(rng, cfg.texture)
-    if cfg.layout == "courtyard":
-        from anigs.synth.courtyard import build_courtyard
-
-        build_courtyard(B, cfg.num_gaussians)
-        return _assemble(B.parts)
-    from anigs.synth.garden import _building, _bushes, _clutter, _flowers, _grass, _ground, _trees
-
-    n = {k: int(round(v * cfg.num_gaussians)) for k, v in BUDGET.items()}
-    keep_out: list = [(BENCH[0], BENCH[1] + dy, 0.55) for dy in (-0.7, 0.0, 0.7)] + [(PLANTER[0], PLANTER[1], 0.65)]
-    if cfg.pond:
-        from anigs.synth.pond import POND_KEEP_OUT
-
-        keep_out.append(POND_KEEP_OUT)
-    crowns = _trees(B, n["trunk"], int(0.62 * n["foliage"]), cfg.num_trees, keep_out)
-    _bushes(B, n["foliage"] - int(0.62 * n["foliage"]), keep_out)
-    _ground(B, n["ground"], crowns)
-    _building(B, n["building"])
-    _clutter(B, n["clutter"], keep_out)
-    _grass(B, n["grass"], keep_out)
-    _flowers(B, n["flowers"])
-    if cfg.pond:
-        from anigs.synth.pond import add_pond
-
-        add_pond(B, int(round(POND_BUDGET * cfg.num_gaussians)))
-    return _assemble(B.parts)

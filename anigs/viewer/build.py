@@ -22,6 +22,7 @@ from anigs.animate.deform import DCTDeformation, load_model, load_model_payload
 from anigs.gaussians import Gaussians
 from anigs.io import atomic_path, atomic_write_bytes, atomic_write_text, read_json
 from anigs.viewer.compact import decode_compact, encode_compact
+from anigs.views import cameras_from_views
 
 log = logging.getLogger("anigs.viewer")
 
@@ -56,8 +57,6 @@ def views_config(views_json: str | Path | dict | None) -> dict[str, Any]:
     """The viewer's ``views`` (id + OpenCV camera dicts), ``up`` and ``roi_centroid`` from views.json."""
     if views_json is None:
         return {"views": [], "up": [0.0, 0.0, 1.0], "roi_centroid": None}
-    from anigs.views import cameras_from_views
-
     data = views_json if isinstance(views_json, dict) else read_json(views_json)
     cams = cameras_from_views(data)
     return {"views": [{"id": c.name, "camera": c.to_dict()} for c in cams],

@@ -33,7 +33,7 @@ they are never queued. A slot no location can fill is left out (logged).
 Negligible views (``min_dynamic_fraction``, :func:`drop_negligible`): the dynamic fraction of a
 view is the share of its width x height pixels in the dynamic mask of the ROI, i.e. the pixels
 the masks stage would mark: all Gaussians rendered, alpha >= 0.3 and the ROI Gaussians carrying
->= 0.5 of it (:func:`anigs.masks.labels.dynamic_masks`; occluded ROI counts for nothing). A
+>= 0.5 of it (:func:`anigs.render.labels.dynamic_masks`; occluded ROI counts for nothing). A
 placed view below ``min_dynamic_fraction`` is not queued; it is listed in ``views.json``
 (``dynamic_fraction.dropped``, with its fraction and the reason) and the kept views are numbered
 v00, v01, ... consecutively. If every view is negligible, the one with the largest fraction is

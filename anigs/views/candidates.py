@@ -13,7 +13,7 @@ from anigs.cameras import Camera, intrinsics_from_fov
 from anigs.gaussians import Gaussians
 from anigs.geometry import horizontal_basis
 from anigs.views.config import ViewsConfig
-from anigs.masks.lift import VisibilityConfig, visibility
+from anigs.render.visibility import VisibilityConfig, visibility
 
 log = logging.getLogger("anigs.views")
 

@@ -7,8 +7,9 @@ from dataclasses import dataclass, field
 
 
 from anigs import geometry
-from anigs.configs import from_dict
-from anigs.masks.lift import VisibilityConfig
+from anigs.typed_config import from_dict
+from anigs.render.visibility import VisibilityConfig
+from anigs.views.content import ContentRule
 
 log = logging.getLogger("anigs.views")
 
@@ -115,8 +116,6 @@ class ViewsConfig:
 
     def content_rule(self):
         """The sharp-Gaussian test and content figure (:class:`anigs.views.content.ContentRule`)."""
-        from anigs.views.content import ContentRule
-
         return ContentRule(min_content=self.min_content, sharp_fraction=self.sharp_fraction,
                            min_sharp_observations=self.min_sharp_observations,
                            footprint_ratio=self.footprint_ratio, near_points=self.near_points,

@@ -27,7 +27,7 @@ finer than the best photo; 0: the term is off).
 
 :func:`content_fraction` renders the view with every Gaussian and counts the pixels whose
 alpha is >= ``alpha`` and whose alpha the sharp Gaussians that the view does not magnify carry
->= half of (the masks stage's dominance rule, :func:`anigs.masks.labels.LabelsBackend`).
+>= half of (the masks stage's dominance rule, :func:`anigs.render.labels.label_masks`).
 
 :func:`edge_share` is the image figure of the issue that asked for this: the share of pixels
 within ``radius`` px of an edge (absolute 4-neighbour Laplacian of the grey image, 0-255, above
@@ -45,7 +45,9 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
-from anigs.masks.lift import blend_weights, frustum_subset, render_inputs
+from anigs.render import rasterize
+from anigs.render.labels import label_masks
+from anigs.render.visibility import blend_weights, frustum_subset, render_inputs
 
 log = logging.getLogger("anigs.views")
 
@@ -196,17 +198,13 @@ def content_masks(g: Gaussians, sharp: np.ndarray, cam: Camera, alpha: float = 0
     which the ``sharp`` [N] Gaussians that ``cam`` does not magnify (:func:`magnified`, with
     ``photo_footprint`` [N]; without it nothing is magnified) carry >= half; and the same
     without the magnification term."""
-    from anigs.masks.labels import LabelsBackend
-    from anigs.masks import Frame
-
     sharp = np.asarray(sharp, bool)
     empty = np.zeros((cam.height, cam.width), bool)
     if not sharp.any():
         return empty, empty
     far = np.zeros(g.num, bool) if photo_footprint is None else magnified(g, photo_footprint, cam, max_sampling_ratio)
     labels = np.where(sharp, np.where(far, 1, 2), 0).astype(np.int64)  # 0 not sharp, 1 magnified, 2 content
-    backend = LabelsBackend(g, labels, {"content": [2], "sharp": [1, 2]}, 0.5, alpha)
-    m = backend(Frame(np.zeros((cam.height, cam.width, 3), np.float32), cam, name=cam.name))
+    m = label_masks(g.detach(), labels, {"content": [2], "sharp": [1, 2]}, cam, 0.5, alpha)
     return m["content"], m["sharp"]
 
 
@@ -220,8 +218,6 @@ def content_fraction(g: Gaussians, sharp: np.ndarray, cam: Camera, alpha: float 
 
 def render_rgb(g: Gaussians, cam: Camera, background: Sequence[float]) -> np.ndarray:
     """Colour render float [H,W,3] in [0,1] of ``g`` from ``cam`` onto ``background``."""
-    from anigs.render import rasterize
-
     idx = frustum_subset(g, cam)
     bg = torch.tensor([float(x) for x in background], dtype=torch.float32)
     if len(idx) == 0:

@@ -11,9 +11,10 @@ import numpy as np
 from anigs import geometry
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
+from anigs.render.labels import dynamic_masks
 from anigs.views.candidates import _wrap_deg
 from anigs.views.config import ViewsConfig
-from anigs.masks.lift import VisibilityConfig, render_depth, visibility
+from anigs.render.visibility import VisibilityConfig, render_depth, visibility
 
 log = logging.getLogger("anigs.views")
 
@@ -50,12 +51,10 @@ def dynamic_fraction(g: Gaussians, roi: np.ndarray, cam: Camera) -> float:
     """Share of ``cam``'s pixels in the dynamic mask of the ROI (bool [N]).
 
     The mask is the render the masks stage makes of a dynamic Gaussian set
-    (:func:`anigs.masks.labels.dynamic_masks`): every Gaussian of ``g`` is rasterised, and a
+    (:func:`anigs.render.labels.dynamic_masks`): every Gaussian of ``g`` is rasterised, and a
     pixel is dynamic when its alpha is >= ``DYNAMIC_ALPHA`` and the ROI Gaussians carry
     >= ``DYNAMIC_SHARE`` of it (occluded ROI Gaussians do not count).
     """
-    from anigs.masks.labels import dynamic_masks
-
     return float(dynamic_masks(g, roi, [cam], DYNAMIC_SHARE, DYNAMIC_ALPHA)[0].mean())
 
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
-from anigs.masks.lift import VisibilityConfig, visibility
+from anigs.render.visibility import VisibilityConfig, visibility
 from anigs.views.config import ViewsConfig
 from anigs.views.place import Slot
 from anigs.views.policy import LayoutPolicy

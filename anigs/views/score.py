@@ -8,7 +8,7 @@ import numpy as np
 
 from anigs.gaussians import Gaussians
 from anigs.geometry import horizontal_basis
-from anigs.masks.lift import VisibilityConfig
+from anigs.render.visibility import VisibilityConfig
 from anigs.views.candidates import azimuth_deg, ccw_order, farthest_point_order, roi_azimuth, score_candidate
 from anigs.views.config import ViewsConfig
 from anigs.views.policy import LayoutPolicy

@@ -10,7 +10,8 @@ from anigs.animate.deform import load_model
 from anigs.animate.frames import render_clip
 from anigs.animate.update import ViewData
 from anigs.baselines import BASELINES, fit_baseline, get_baseline, run_baseline
-from anigs.baselines.base import load_views, trajectories_to_deformation
+from anigs.baselines.base import trajectories_to_deformation
+from anigs.baselines.registry import load_views
 from anigs.baselines.lifting import LiftingConfig, fill_unobserved, fit, lift_displacements
 from anigs.baselines.tracks import forward_tracks, projection_jacobians, sample_bilinear
 from anigs.gaussians import Gaussians

@@ -1,12 +1,12 @@
-"""Fused SSIM (anigs.fused_ssim, compiled kernel anigs.ssim_kernel) against the reference anigs.ssim.ssim."""
+"""Fused SSIM (anigs.ssim.fused, compiled kernel anigs.ssim.kernel) against the reference anigs.ssim.reference."""
 from __future__ import annotations
 
 import pytest
 import torch
 
-from anigs import ssim_kernel
-from anigs.fused_ssim import _FusedSSIMTorch, _planes, blur, fused_ssim
+from anigs.ssim import kernel as ssim_kernel
 from anigs.ssim import ssim
+from anigs.ssim.fused import _FusedSSIMTorch, _planes, blur, fused_ssim
 
 needs_kernel = pytest.mark.skipif(not ssim_kernel.available(), reason="the fused SSIM kernel does not build here")
 
@@ -36,7 +36,7 @@ SHAPES = [(48, 64, 3), (2, 37, 53, 3), (5, 7, 1), (13, 17, 2), (1, 30, 11, 4)]
 def test_blur_is_the_zero_padded_gaussian_filter():
     import torch.nn.functional as F
 
-    from anigs.ssim import _window
+    from anigs.ssim.reference import _window
 
     x = torch.rand(3, 29, 41, dtype=torch.float64)
     ref = F.conv2d(x[None], _window(11, 1.5, 3, x.dtype, x.device), padding=5, groups=3)[0]

@@ -21,7 +21,7 @@ SUPERSPLAT_SEQUENCE = re.compile(r"(.*?)(\d+)(?:\.compressed)?\.ply$")  # SuperS
 @pytest.fixture(scope="module")
 def room(tmp_path_factory):
     from anigs.cameras import save_cameras
-    from anigs.masks import write_rgb_png
+    from anigs.images import write_rgb_png
     from anigs.synth import render_image
     from anigs.synth.decoys import build_decoy
 

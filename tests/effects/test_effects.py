@@ -17,8 +17,8 @@ from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.effects import EFFECTS, REGIONS, Config, detect_effects, save_overview
 from anigs.effects import cues
 from anigs.gaussians import Gaussians, rgb_to_sh0
-from anigs.masks import read_rgb_png
-from anigs.masks.labels import render_label_map
+from anigs.images import load_image as read_rgb_png
+from anigs.render.labels import render_label_map
 from anigs.synth import LABEL_IDS, CaptureConfig, SceneConfig, build_scene, camera_path, render_image
 from anigs.synth.scene import frame_from_normal, quat_from_matrix
 from anigs.stages.effects import Outputs as EffectsOutputs
@@ -229,7 +229,7 @@ def test_stage_effects_list_restricts_and_reports_what_the_scene_lacks(tmp_path)
     a listed effect that was not found is reported (requested_not_found), not simulated."""
     from anigs.cameras import save_cameras
     from anigs.cli import main
-    from anigs.masks import write_rgb_png
+    from anigs.images import write_rgb_png
     from anigs.effects.choice import choose
 
     assert choose(["foliage_sway", "flower_bob"], "auto") == (["foliage_sway", "flower_bob"], [])

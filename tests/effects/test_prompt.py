@@ -65,7 +65,7 @@ def test_choose_follows_the_prompt_unless_a_list_is_given():
 def garden_stage(tmp_path_factory):
     """A small garden capture written as the effects stage's inputs."""
     from anigs.cameras import save_cameras
-    from anigs.masks import write_rgb_png
+    from anigs.images import write_rgb_png
     from anigs.synth import CaptureConfig, SceneConfig, build_scene, camera_path, render_image
 
     tmp = tmp_path_factory.mktemp("garden")

@@ -9,7 +9,7 @@ import torch
 from anigs.cameras import Camera, intrinsics_from_fov
 from anigs.gaussians import Gaussians
 from anigs.masks.contain import contain_dynamic, outside_weights
-from anigs.masks.labels import dynamic_masks
+from anigs.render.labels import dynamic_masks
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.effects import Outputs as EffectsOutputs
 
@@ -109,7 +109,7 @@ def test_outside_weights_margin_and_errors(scene):
     assert w0.shape == (1, g.num) and (w5 <= w0 + 1e-9).all()  # a wider band forgives more
     assert w0[0, index["halo"]] > w5[0, index["halo"]] > 0
     from anigs.masks.contain import _outside_region, _reaching
-    from anigs.masks.lift import blend_weights
+    from anigs.render.visibility import blend_weights
 
     out, dist = _outside_region(mask, cam, 5)
     assert len(_reaching(g, cam, dist)) < g.num  # the cull leaves out what cannot reach those pixels...
@@ -133,7 +133,7 @@ def test_masks_stage_contains_the_effects_set(tmp_path):
 
     from anigs.cli import main
     from anigs.effects.config import REGIONS
-    from anigs.masks import read_mask_png
+    from anigs.images import read_mask_png
 
     g, index, cam = _scene()
     g.save_ply(tmp_path / "canonical.ply")
@@ -225,7 +225,7 @@ def test_update_stage_contains_the_trained_motion(tmp_path, scene):
     from anigs.animate.deform import load_model
     from anigs.animate.frames import render_clip
     from anigs.cli import main
-    from anigs.masks import write_mask_png
+    from anigs.images import write_mask_png
     from anigs.video import save_clip
 
     g, index, cam, _, mask = scene

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from anigs.animate.update import effect_labels as label_of
-from anigs.masks.effect_labels import effect_labels
+from anigs.effects.labels import effect_labels
 
 
 def test_labels_follow_the_chosen_regions_and_fill_from_the_nearest():

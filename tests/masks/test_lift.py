@@ -12,8 +12,10 @@ import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.gaussians import Gaussians
-from anigs.masks.lift import (LiftConfig, VisibilityConfig, blend_weights, check_mask, frustum_subset, lift_masks,
-                              lift_masks_report, propagate_labels, render_depth, visibility)
+from anigs.geometry.propagate import propagate_labels
+from anigs.masks.lift import LiftConfig, lift_masks, lift_masks_report
+from anigs.render.visibility import (VisibilityConfig, blend_weights, check_mask, frustum_subset, render_depth,
+                                     visibility)
 from anigs.render import render_gaussians
 
 SKY = (0.62, 0.76, 0.92)
@@ -179,11 +181,11 @@ def test_propagate_labels():
 def test_lift_on_a_noisy_lawn_keeps_the_lawn_static():
     """Vegetation masks with the measured ground layer lift the blobs, not the scattered lawn."""
     from anigs.masks import compute_masks, render_frames
-    from anigs.masks.vegetation import estimate_ground
+    from anigs.geometry.ground import ground_plane
 
     gs, lab, cams = toy_scene(lawn=True, ring=6, ground_noise=0.08)
     frames = render_frames(gs, cams, SKY)
-    ground = estimate_ground(gs.means.numpy(), np.array([0, 0, 1.0]), cams)
+    ground = ground_plane(gs.means.numpy(), np.array([0, 0, 1.0]), cams)
     truth = lab == 4
 
     def pr(vegetation):

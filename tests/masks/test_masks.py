@@ -6,10 +6,11 @@ import json
 import numpy as np
 import pytest
 
-from anigs.masks import (Frame, check_image, compute_masks, get_mask_backend, mask_iou, overlay, read_mask_png,
-                         render_frames, write_mask_png)
-from anigs.masks.vegetation import (GroundPlane, VegetationConfig, estimate_ground, otsu_threshold, pixel_heights,
-                                    vegetation_mask)
+from anigs.images import read_mask_png, write_mask_png
+from anigs.masks import Frame, compute_masks, get_mask_backend, mask_iou, render_frames
+from anigs.pixels import check_image, overlay
+from anigs.geometry.ground import GroundPlane, ground_plane, pixel_heights
+from anigs.masks.vegetation import VegetationConfig, otsu_threshold, vegetation_mask
 from tests.masks.test_lift import SKY, toy_scene
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.effects import Outputs as EffectsOutputs
@@ -134,7 +135,7 @@ def test_ground_cue_separates_lawn_from_bushes(lawn_scene):
     """On a lawn-green ground, colour alone marks the lawn; the ground cue removes it."""
     gs, lab, cams, frames = lawn_scene
     truth = compute_masks("labels", frames, gaussians=gs, labels=lab, dynamic_labels=[4])
-    ground = estimate_ground(gs.means.numpy(), np.array([0, 0, 1.0]), cams)
+    ground = ground_plane(gs.means.numpy(), np.array([0, 0, 1.0]), cams)
     assert abs(ground.offset) < 0.01 and ground.min_height > 0
     with_cue = compute_masks("vegetation", frames, ground=ground)
     without = compute_masks("vegetation", frames)
@@ -219,25 +220,25 @@ def _ground_and_bushes(noise: float, seed: int = 0, extra: np.ndarray | None = N
 def test_estimate_ground_measures_the_ground_layer():
     """The layer is measured below the plane (nothing real is under the ground) and mirrored up."""
     cams, up = _ring(), np.array([0, 0, 1.0])
-    clean = estimate_ground(_ground_and_bushes(0.0), up, cams)
+    clean = ground_plane(_ground_and_bushes(0.0), up, cams)
     assert abs(clean.offset) < 0.01 and clean.layer < 0.01
     assert clean.camera_height == pytest.approx(1.6, abs=0.01)
     assert clean.cut_height() == clean.min_height == pytest.approx(0.03 * clean.camera_height)
     for sigma in (0.05, 0.1):
-        gp = estimate_ground(_ground_and_bushes(sigma), up, cams)
+        gp = ground_plane(_ground_and_bushes(sigma), up, cams)
         expect = 2.17 * sigma  # 97th percentile of |N(0, sigma)|
         assert abs(gp.offset) < 0.2 * sigma and abs(gp.layer - expect) < 0.2 * expect, (gp, expect)
         assert gp.cut_height() == pytest.approx(gp.layer)
         assert gp.cut_height(layer_scale=0.0) == gp.min_height  # the fixed margin only
         assert set(gp.to_dict()) >= {"normal", "offset", "min_height", "layer", "camera_height"}
     # a hopeless ground (scattered by half the camera height) is capped at 0.3 x camera height
-    wild = estimate_ground(_ground_and_bushes(0.5), up, cams)
+    wild = ground_plane(_ground_and_bushes(0.5), up, cams)
     assert wild.cut_height() == pytest.approx(0.3 * wild.camera_height)
     # things far under the ground (a reflection in a pond) are not ground noise
     pond = np.c_[np.random.default_rng(1).uniform(-1, 1, (300, 2)), np.full(300, -1.5)]
-    assert estimate_ground(_ground_and_bushes(0.0, extra=pond), up, cams).layer < 0.01
+    assert ground_plane(_ground_and_bushes(0.0, extra=pond), up, cams).layer < 0.01
     with pytest.raises(ValueError, match="layer_quantile"):
-        estimate_ground(_ground_and_bushes(0.0), up, cams, layer_quantile=1.0)
+        ground_plane(_ground_and_bushes(0.0), up, cams, layer_quantile=1.0)
     with pytest.raises(ValueError, match="ground_layer"):
         VegetationConfig(ground_layer=-1.0)
 
@@ -254,7 +255,7 @@ def test_ground_layer_removes_a_noisy_lawn(noisy_lawn_scene):
     gs, lab, cams, frames = noisy_lawn_scene
     truth = compute_masks("labels", frames, gaussians=gs, labels=lab, dynamic_labels=[4])
     lawn = compute_masks("labels", frames, gaussians=gs, labels=lab, dynamic_labels=[0])
-    ground = estimate_ground(gs.means.numpy(), np.array([0, 0, 1.0]), cams)
+    ground = ground_plane(gs.means.numpy(), np.array([0, 0, 1.0]), cams)
     assert ground.layer > 2 * ground.min_height  # the scatter was measured
     keep = [k for k, t in enumerate(truth) if t["dynamic"].any()]
     assert len(keep) >= 4
@@ -279,7 +280,7 @@ def test_appearance_labels_follow_what_a_gaussian_shows(lawn_scene):
     import torch
 
     from anigs.gaussians import Gaussians
-    from anigs.masks.labels import appearance_labels, render_label_map, transfer_labels
+    from anigs.render.labels import appearance_labels, render_label_map, transfer_labels
 
     gs, lab, cams, _ = lawn_scene
     # the labelled set itself: its own labels (hidden Gaussians fall back to nearest neighbour)
@@ -378,7 +379,7 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
     assert all(v["fraction"] <= 0.05 for v in veg["views"][1:]), veg["views"]  # side views: lawn, sky
     assert veg["lift_vs_labels"]["precision"] >= 0.8, veg["lift_vs_labels"]
     # first frames given as PNGs (e.g. frame 0 of the rendered clips) instead of rendering
-    from anigs.masks import write_rgb_png
+    from anigs.images import write_rgb_png
 
     for v in views:
         write_rgb_png(tmp_path / "frames" / f"{v['id']}.png", np.full((60, 80, 3), 0.5, np.float32))
@@ -391,7 +392,9 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
 def test_labels_across_frames_and_transfer(lawn_scene):
     """Labels of ground-truth Gaussians rendered from cameras of another (similarity) frame."""
     from anigs.sfm.align import Similarity
-    from anigs.masks.labels import LabelsBackend, align_cameras, labels_for
+    from anigs.masks.labels import LabelsBackend
+    from anigs.render.labels import labels_for
+    from anigs.sfm.align import align_cameras
     from scipy.spatial.transform import Rotation
 
     gs, lab, cams, frames = lawn_scene
@@ -417,8 +420,8 @@ def test_cli_masks_lifts_over_capture_photos(tmp_path, lawn_scene):
     queued views' masks are completed with the lifted set; the appearance yardstick is reported."""
     from anigs.cameras import save_cameras
     from anigs.cli import main
-    from anigs.masks import write_rgb_png
-    from anigs.masks.labels import dynamic_masks
+    from anigs.images import write_rgb_png
+    from anigs.render.labels import dynamic_masks
     from anigs.views import ViewsConfig, azimuth_deg, location_cameras
 
     gs, lab, cams, frames = lawn_scene
@@ -471,7 +474,7 @@ def test_one_mask_reader_for_every_mask_format(tmp_path):
     """read_mask: 0/255 and 0/1 PNGs, 16-bit PNGs, RGB PNGs and .npy arrays give the same soft mask."""
     import cv2
 
-    from anigs.masks import read_mask, read_mask_png
+    from anigs.images import read_mask, read_mask_png
 
     m = np.zeros((6, 7), bool)
     m[2:4, 1:5] = True
@@ -500,7 +503,7 @@ def test_cli_masks_effects_backend_renders_the_effects_stage_sets(tmp_path, lawn
     dynamic set is the effects stage's own (not lifted again); nothing chosen, nothing masked."""
     from anigs.cli import main
     from anigs.effects.config import REGIONS
-    from anigs.masks.labels import dynamic_masks
+    from anigs.render.labels import dynamic_masks
     from anigs.views import ViewsConfig, azimuth_deg, location_cameras
 
     gs, lab, cams, _ = lawn_scene

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.masks import write_mask_png
+from anigs.images import write_mask_png
 from anigs.metrics.contact import (ContactRow, contact_sheet, heat_colours, load_rows, max_change,
                                    save_contact_sheet)
 from anigs.video import save_clip
@@ -55,7 +55,7 @@ def test_contact_sheet_rows_columns_and_numbers():
 
 
 def _dilated(mask):
-    from anigs.metrics.motion import dilate
+    from anigs.pixels import dilate
 
     return dilate(mask, 5)
 

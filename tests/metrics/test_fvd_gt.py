@@ -51,7 +51,7 @@ def test_window_starts():
 
 
 def test_placement_is_deterministic_and_sees_the_moving_region(gt_dir):
-    from anigs.masks.labels import render_label_map
+    from anigs.render.labels import render_label_map
 
     gt, labels, _, motion, cams = _gt(gt_dir)
     spec = Placement(num_views=8, width=64, height=48, seed=3)

@@ -4,8 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.metrics.motion import (clip_motion_metrics, dilate, dominant_frequency, gt_motion_distances,
-                                  optical_flow_magnitudes, resize_mask, temporal_spectrum, trajectory_stats)
+from anigs.metrics.motion import (clip_motion_metrics, dominant_frequency, gt_motion_distances, optical_flow_magnitudes,
+                                  resize_mask, temporal_spectrum, trajectory_stats)
+from anigs.pixels import dilate
 
 T, H, W = 32, 48, 64
 FREQ = 0.125  # cycles per frame (4 periods in 32 frames: an exact FFT bin)

@@ -196,7 +196,7 @@ def _tiny_inputs(tmp_path):
     from anigs.animate.deform import DCTDeformation, save_model
     from anigs.gaussians import Gaussians
     from anigs.io import write_npz
-    from anigs.masks import write_mask_png
+    from anigs.images import write_mask_png
     from anigs.render import render_gaussians
     from anigs.video import save_clip
 

@@ -1,6 +1,6 @@
 """Forward-only blend weights of the cpu kernel (``anigs_composite_weights``,
 :func:`anigs.render.cpu_backend.composite_weights_cpu`) and their use in
-:func:`anigs.masks.lift.blend_weights`.
+:func:`anigs.masks.visibility.blend_weights`.
 
 The reference is one backward pass of the cpu rasterizer with zero colours: d(sum_p rgb_c(p)
 f_c(p)) / d colour_ic = sum_p w_i(p) f_c(p), with w_i(p) = alpha_i(p) T_i(p). A second, independent
@@ -19,7 +19,7 @@ import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.gaussians import Gaussians
-from anigs.masks import lift
+from anigs.render import visibility
 from anigs.render import rasterize
 from anigs.render.cpu_backend import composite_weights_cpu
 from tests._scenes import random_scene
@@ -208,7 +208,7 @@ def test_invalid_inputs_raise():
         composite_weights_cpu(means, quats, scales, opac, viewmat, K, W, H, f)
 
 
-# ---- anigs.masks.lift.blend_weights: the forward-only path and the backward fallback
+# ---- anigs.masks.visibility.blend_weights: the forward-only path and the backward fallback
 
 def _lift_scene(W, H):
     means, quats, scales, opac, colors, *_ = random_scene(400, W, H, 0, seed=71)
@@ -224,17 +224,17 @@ def _lift_scene(W, H):
 @pytest.mark.parametrize("W,H", SIZES)
 def test_blend_weights_forward_matches_backward(W, H):
     g, cams = _lift_scene(W, H)
-    assert lift._blend_backend() == "cpu"
+    assert visibility._blend_backend() == "cpu"
     for k, cam in enumerate(cams):
         mask = _factors(H, W, 1, seed=80 + k, binary=True)[..., 0].bool().numpy()
-        total, inside = lift.blend_weights(g, cam, mask)
-        rt, ri = lift.blend_weights_backward(g, cam, mask)
+        total, inside = visibility.blend_weights(g, cam, mask)
+        rt, ri = visibility.blend_weights_backward(g, cam, mask)
         assert total.dtype == np.float64 and total.shape == (g.num,) and inside.shape == (g.num,)
         assert (total > 0).sum() > 50 and (inside > 0).sum() > 20
         np.testing.assert_allclose(total, rt, rtol=1e-5, atol=1e-6)
         np.testing.assert_allclose(inside, ri, rtol=1e-5, atol=1e-6)
         assert np.all(inside <= total + 1e-9)
-        t0, i0 = lift.blend_weights(g, cam)
+        t0, i0 = visibility.blend_weights(g, cam)
         np.testing.assert_array_equal(t0, total)
         assert not i0.any()
 
@@ -245,17 +245,17 @@ def test_blend_weights_fallback_backend(monkeypatch):
     g, cams = _lift_scene(W, H)
     cam = cams[1]
     mask = _factors(H, W, 1, seed=91, binary=True)[..., 0].bool().numpy()
-    fast = lift.blend_weights(g, cam, mask)
+    fast = visibility.blend_weights(g, cam, mask)
     calls = []
-    real = lift.blend_weights_backward
+    real = visibility.blend_weights_backward
 
     def spy(*args):
         calls.append(args[-1])
         return real(*args)
 
-    monkeypatch.setattr(lift, "_blend_backend", lambda: "torch")
-    monkeypatch.setattr(lift, "blend_weights_backward", spy)
-    slow = lift.blend_weights(g, cam, mask)
+    monkeypatch.setattr(visibility, "_blend_backend", lambda: "torch")
+    monkeypatch.setattr(visibility, "blend_weights_backward", spy)
+    slow = visibility.blend_weights(g, cam, mask)
     assert calls == ["torch"]
     for a, b in zip(fast, slow):
         assert (b > 0).sum() > 50
@@ -265,7 +265,7 @@ def test_blend_weights_fallback_backend(monkeypatch):
 def test_blend_weights_nothing_in_view():
     g, cams = _lift_scene(64, 48)
     cam = Camera(cams[0].K, look_at((0.0, 0.0, 0.0), (0.0, 0.0, -4.0), up=(0.0, -1.0, 0.0)), 64, 48, "away")
-    total, inside = lift.blend_weights(g, cam, np.ones((48, 64), bool))
+    total, inside = visibility.blend_weights(g, cam, np.ones((48, 64), bool))
     assert total.shape == (g.num,) and not total.any() and not inside.any()
 
 

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from anigs.masks import write_mask_png
+from anigs.images import write_mask_png
 from anigs.stages import capture, effects, masks, views
 
 

@@ -15,7 +15,8 @@ import pytest
 from anigs import geometry
 from anigs.geometry import angle_deg, classify_layout, estimate_ground, estimate_up, observed_points
 from anigs.synth.capture import CaptureConfig, camera_path
-from anigs.synth.scene import LABEL_IDS, SceneConfig, build_scene
+from anigs.synth.build import build_scene
+from anigs.synth.scene import LABEL_IDS, SceneConfig
 
 Z = np.array([0.0, 0.0, 1.0])
 
@@ -127,8 +128,8 @@ def test_ground_looking_up_at_a_building(garden, caplog):
     h = cloud[:, 2]
     assert np.median([c.center[2] for c in cams]) < geometry.ground._densest_layer(h, np.percentile(h, 0.5), np.median(h),
                                                                           np.ptp(np.percentile(h, [0.5, 99.5])) / 400)
-    # the former masks.vegetation.estimate_ground raised here; it now delegates
-    from anigs.masks.vegetation import estimate_ground as veg_ground
+    # the former masks.vegetation.estimate_ground (now geometry.ground.ground_plane) raised here; it now delegates
+    from anigs.geometry.ground import ground_plane as veg_ground
 
     assert abs(veg_ground(cloud, Z, cams).offset) < 0.05
 

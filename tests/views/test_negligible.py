@@ -11,7 +11,7 @@ import pytest
 from anigs.cameras import save_cameras
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
-from anigs.masks.labels import dynamic_masks
+from anigs.render.labels import dynamic_masks
 from anigs.views import ViewsConfig, plan_views, queued_view_count
 from tests.masks.test_lift import toy_scene
 

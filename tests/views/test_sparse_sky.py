@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.masks.lift import render_depth
+from anigs.render.visibility import render_depth
 from anigs.synth.capture import camera_path
 from anigs.synth.floaters import sparse_capture_config, with_floaters
-from anigs.synth.scene import build_scene
+from anigs.synth.build import build_scene
 from anigs.views import ViewsConfig, plan_views
 
 pytestmark = [pytest.mark.slow, pytest.mark.usefixtures("one_thread")]

@@ -210,7 +210,8 @@ def test_nothing_dynamic_gives_views_of_the_whole_scene(tmp_path, scene):
 # ---- layouts and the scene-coverage test ----------------------------------------------------
 @pytest.fixture(scope="module")
 def garden_gs():
-    from anigs.synth.scene import SceneConfig, build_scene
+    from anigs.synth.scene import SceneConfig
+    from anigs.synth.build import build_scene
 
     g = build_scene(SceneConfig(num_gaussians=4000), 0)
     return g, g.extras["label"].numpy()
@@ -228,7 +229,7 @@ def test_every_queued_view_sees_the_scene(garden_gs, layout, kind):
     """Forward-facing, orbit and walk captures of the garden: the layout is recognised and every
     queued view has >= 80% of its pixels on Gaussians seen in >= 2 capture photos (recomputed
     here independently of the planner's bookkeeping); failed directions are recorded, not queued."""
-    from anigs.masks.lift import VisibilityConfig, render_depth, visibility
+    from anigs.render.visibility import VisibilityConfig, render_depth, visibility
 
     g, lab = garden_gs
     cams = _layout_cams(layout)

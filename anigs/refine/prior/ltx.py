@@ -40,7 +40,7 @@ from typing import Any, Mapping
 import numpy as np
 import torch
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.device import get_device
 from anigs.refine.prior.base import MaskLike, VideoPrior, check_strength
 from anigs.video import check_clip

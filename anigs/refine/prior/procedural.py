@@ -49,7 +49,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from anigs.configs import from_dict
+from anigs.typed_config import from_dict
 from anigs.flow import clip_backward_flow, identity_grid, warp
 from anigs.refine.prior.base import MaskLike, VideoPrior, check_mask, check_strength
 from anigs.refine.prior.spectral import (EFFECTS, MotionField, effect_spec, effects_from_prompt, prompt_gain, smooth_noise,

@@ -26,7 +26,7 @@ from typing import Any, Mapping
 import cv2
 import numpy as np
 
-from anigs.configs import reject_unknown_keys
+from anigs.typed_config import reject_unknown_keys
 
 KINDS = ("oscillate", "travel", "ripple")
 

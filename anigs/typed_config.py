@@ -1,4 +1,5 @@
-"""Shared check of the stages' config dataclasses: unknown keys are an error naming them.
+"""Typed config sections: a config dataclass built from a mapping, unknown keys (and, on request, values of
+the wrong type) rejected with a message naming them. (The workflow config, scenes and variants: :mod:`anigs.config`.)
 
 A field typed with a config dataclass is a nested section (``masks.vegetation``): its mapping is
 parsed into that dataclass, and an unknown key in it fails naming its whole path."""

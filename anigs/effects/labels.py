@@ -15,12 +15,12 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
+from anigs.effects.config import EFFECTS, EFFECT_REGION, REGIONS
+
 
 def effect_label_ids() -> dict[str, int]:
     """Effect name -> its label: 1 + the index of its region in the effects stage's ``REGIONS``
     (foliage_sway and leaf_flutter 1, grass_wave 2, flower_bob 3, water_ripple 4; 0 = static)."""
-    from anigs.effects.config import EFFECT_REGION, EFFECTS, REGIONS
-
     return {e: 1 + REGIONS.index(EFFECT_REGION[e]) for e in EFFECTS}
 
 

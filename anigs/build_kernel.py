@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import argparse
 
+from anigs.render import _build
+from anigs.ssim import kernel as ssim_kernel
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true")
 
 
 def main(args: argparse.Namespace) -> int:
-    from anigs.render import _build
-
-    from anigs import ssim_kernel
-
     path = _build.build(verbose=not args.quiet)
     _build.load()
     ssim = ssim_kernel.build(verbose=not args.quiet)

@@ -1,6 +1,6 @@
-// Fused SSIM loss for the CPU: the training-loss SSIM of anigs/ssim.py (11-tap Gaussian window,
+// Fused SSIM loss for the CPU: the training-loss SSIM of anigs/ssim/reference.py (11-tap Gaussian window,
 // zero-padded 'same' filtering, mean over pixels and channels) with its analytic backward; see
-// anigs/fused_ssim.py for the maths. Built and loaded by anigs/ssim_kernel.py.
+// anigs/ssim/fused.py for the maths. Built and loaded by anigs/ssim/kernel.py.
 //
 // Images are float32 [B,H,W,C] (channels last, contiguous), so one image row is L = W*C
 // interleaved floats and a horizontal tap is a shift by C floats. Per image, in one sweep

@@ -3,7 +3,7 @@
 Built like the rasterizer kernel (:mod:`anigs.render._build`: same compiler, flags, instruction-set
 level and cache folder; its own library ``anigs_ssim_<hash>.so``, keyed by the source and
 flags, written atomically) on first use. When it cannot be built, :func:`available` is False
-and :func:`anigs.fused_ssim.fused_ssim` takes its torch path.
+and :func:`anigs.ssim.fused.fused_ssim` takes its torch path.
 """
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ from pathlib import Path
 import torch
 
 from anigs.render import _build
+from anigs.ssim.reference import C1, C2, SIGMA, WINDOW
 
 SRC = Path(__file__).with_name("csrc") / "ssim.cpp"
 ABI_VERSION = 1
@@ -73,9 +74,7 @@ def available() -> bool:
 
 
 def _taps() -> torch.Tensor:
-    """The float32 window [11], computed as :func:`anigs.ssim._window` does."""
-    from anigs.fused_ssim import SIGMA, WINDOW
-
+    """The float32 window [11], computed as :func:`anigs.ssim.reference._window` does."""
     x = torch.arange(WINDOW, dtype=torch.float32) - (WINDOW - 1) / 2
     g = torch.exp(-(x**2) / (2 * SIGMA**2))
     return (g / g.sum()).contiguous()
@@ -90,8 +89,6 @@ class _SSIMCpu(torch.autograd.Function):
     @staticmethod
     def forward(ctx, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         global _TAPS
-        from anigs.ssim import C1, C2
-
         lib = load()
         if _TAPS is None:
             _TAPS = _taps()

@@ -1,10 +1,10 @@
-"""Fused SSIM: the training-loss SSIM of :func:`anigs.ssim.ssim` with a hand-written backward.
+"""Fused SSIM: the training-loss SSIM of :func:`anigs.ssim.reference.ssim` with a hand-written backward.
 
 Same definition as the reference (Gaussian window of size 11 and sigma 1.5, zero-padded 'same'
 filtering, ``C1 = 0.01^2``, ``C2 = 0.03^2``, mean over pixels and channels), computed with
 
 * a separable blur (two 11-tap passes instead of an 11x11 depthwise convolution), either the
-  compiled CPU kernel (``csrc/ssim.cpp`` via :mod:`anigs.ssim_kernel`: one pass per image for the
+  compiled CPU kernel (``csrc/ssim.cpp`` via :mod:`anigs.ssim.kernel`: one pass per image for the
   forward and one for the backward, no temporaries beyond three saved maps) or, on other devices
   or without a compiler, banded matrix products in torch;
 * an analytic backward. With ``u = G*x``, ``v = G*y``, ``s_xx = G*(x^2) - u^2``,
@@ -24,10 +24,9 @@ from functools import lru_cache
 import torch
 import torch.nn.functional as F
 
-from anigs.ssim import C1, C2
+from anigs.ssim import kernel
+from anigs.ssim.reference import C1, C2, SIGMA, WINDOW, ssim
 
-WINDOW = 11
-SIGMA = 1.5
 _R = WINDOW // 2
 _BLOCK = 16  # output columns per band block (the band matrix is [_BLOCK + 2*_R, _BLOCK])
 
@@ -35,7 +34,7 @@ _BLOCK = 16  # output columns per band block (the band matrix is [_BLOCK + 2*_R,
 @lru_cache(maxsize=16)
 def _band(dtype: torch.dtype, device: str) -> torch.Tensor:
     """Band matrix T [_BLOCK + 2*_R, _BLOCK]: ``T[j + k, j] = g[k]``, with the window g [11] built
-    in ``dtype`` as :func:`anigs.ssim._window` builds it."""
+    in ``dtype`` as :func:`anigs.ssim.reference._window` builds it."""
     g = torch.exp(-((torch.arange(WINDOW, dtype=dtype) - _R) ** 2) / (2 * SIGMA**2))
     g = g / g.sum()
     T = torch.zeros(_BLOCK + 2 * _R, _BLOCK, dtype=dtype)
@@ -113,17 +112,13 @@ class _FusedSSIMTorch(torch.autograd.Function):
 
 
 def _kernel_ok(x: torch.Tensor) -> bool:
-    if x.device.type != "cpu" or x.dtype != torch.float32:
-        return False
-    from anigs import ssim_kernel
-
-    return ssim_kernel.available()
+    return x.device.type == "cpu" and x.dtype == torch.float32 and kernel.available()
 
 
 def fused_ssim(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     """Mean SSIM (scalar) of images [H,W,C] or [B,H,W,C] (channels last), differentiable in ``pred``.
 
-    Equals :func:`anigs.ssim.ssim` with its defaults (window 11, sigma 1.5, data range 1) to
+    Equals :func:`anigs.ssim.reference.ssim` with its defaults (window 11, sigma 1.5, data range 1) to
     float rounding. float32 CPU tensors use the compiled kernel when it builds; everything else
     the torch path.
     """
@@ -132,12 +127,8 @@ def fused_ssim(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     if pred.ndim not in (3, 4):
         raise ValueError(f"fused_ssim: images must be [H,W,C] or [B,H,W,C], got {tuple(pred.shape)}")
     if target.requires_grad:
-        from anigs.ssim import ssim
-
         return ssim(pred, target)
     target = target.to(pred.dtype)
     if _kernel_ok(pred):
-        from anigs.ssim_kernel import ssim_cpu
-
-        return ssim_cpu(pred, target)
+        return kernel.ssim_cpu(pred, target)
     return _FusedSSIMTorch.apply(_planes(pred), _planes(target.detach()))

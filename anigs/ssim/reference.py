@@ -1,10 +1,14 @@
-"""Differentiable SSIM (Gaussian window, sigma 1.5, size 11) for images [...,H,W,C] in [0,1]."""
+"""The reference SSIM (Gaussian window, sigma 1.5, size 11) for images [...,H,W,C] in [0,1], and PSNR.
+
+Readable and differentiable through autograd; the oracle of the fused SSIM in the tests."""
 from __future__ import annotations
 
 import torch
 import torch.nn.functional as F
 
 C1, C2 = 0.01**2, 0.03**2  # stabilising constants for data range 1 (K1 = 0.01, K2 = 0.03)
+WINDOW = 11  # the Gaussian window's size (pixels) and standard deviation, the 3DGS loss defaults
+SIGMA = 1.5
 
 
 def _window(size: int, sigma: float, channels: int, dtype, device) -> torch.Tensor:
@@ -14,14 +18,14 @@ def _window(size: int, sigma: float, channels: int, dtype, device) -> torch.Tens
     return (g[:, None] * g[None, :]).expand(channels, 1, size, size).contiguous()
 
 
-def ssim(a: torch.Tensor, b: torch.Tensor, window: int = 11, sigma: float = 1.5, data_range: float = 1.0,
+def ssim(a: torch.Tensor, b: torch.Tensor, window: int = WINDOW, sigma: float = SIGMA, data_range: float = 1.0,
          reduce: bool = True) -> torch.Tensor:
     """SSIM between images a, b of shape [H,W,C] or [B,H,W,C] (channels last).
 
     Uses zero-padded 'same' convolution (the 3DGS training loss convention). For the
     evaluation metric use :func:`skimage.metrics.structural_similarity` semantics via
     ``anigs.metrics`` (valid window, explicit data range). This is the readable reference;
-    the training loop uses :func:`anigs.fused_ssim.fused_ssim` (same value, hand-written
+    the training loop uses :func:`anigs.ssim.fused.fused_ssim` (same value, hand-written
     backward, a fraction of the time).
     """
     if a.shape != b.shape:
