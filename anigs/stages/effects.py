@@ -16,7 +16,6 @@ Writes the files of :class:`Outputs`.
 """
 from __future__ import annotations
 
-import argparse
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -107,19 +106,3 @@ def run(inputs: Inputs, cfg: Config) -> Outputs:
     save_overview(out.path("overview"), decision.result)
     write_json(out.path("effects"), decision.report)
     return out
-
-
-# ---- command line: anigs effects ----
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "effects")
-
-
-def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
-    run(Inputs.from_args(args), Config.from_dict(parse_params(args.params)))
-    return 0

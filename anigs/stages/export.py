@@ -9,7 +9,6 @@ properties) with its JSON sidecar, and with ``frames: true`` the per-frame PLY s
 """
 from __future__ import annotations
 
-import argparse
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -80,19 +79,3 @@ def run(inputs: Inputs, cfg: ExportConfig) -> Outputs:
     log.info("export: %d frame PLYs and animated.ply (%d dynamic of %d Gaussians, K=%d, T=%d) -> %s",
              len(names), deformation.num_dynamic, canonical.num, deformation.num_bases, deformation.num_frames, out.root)
     return out
-
-
-# ---- command line: anigs export ----
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "export")
-
-
-def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
-    run(Inputs.from_args(args), ExportConfig.from_dict(parse_params(args.params)))
-    return 0

@@ -9,7 +9,6 @@ y-t space-time slices of the most animated patch (the paper's figures;
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import logging
 import time
@@ -145,19 +144,3 @@ def run(inputs: Inputs, cfg: FinalConfig) -> Outputs:
     log.info("final: wrote %d view videos%s in %.1f s to %s", len(summary["views"]),
              " and path.mp4" if inputs.sfm is not None else "", summary["seconds"], out.root)
     return out
-
-
-# ---- command line: anigs final ----
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "final")
-
-
-def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
-    run(Inputs.from_args(args), FinalConfig.from_dict(parse_params(args.params)))
-    return 0

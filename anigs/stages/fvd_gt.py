@@ -14,7 +14,6 @@ the variant's ``metrics.json`` (and ``eval`` merges it there with ``fvd_gt.when:
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import logging
 import time
@@ -189,19 +188,3 @@ def write_record(inputs: Inputs, cfg: FvdGtConfig, ecfg) -> Outputs:
              f"{m['value']:.2f} ± {m['bootstrap']['std']:.2f} ({m['samples']['test']} clips)" if m["available"]
              else f"n/a ({m['reason']})")
     return out
-
-
-# ---- command line: anigs fvd_gt ----
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "fvd_gt")
-
-
-def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
-    run(Inputs.from_args(args), FvdGtConfig.from_dict(parse_params(args.params)))
-    return 0

@@ -12,7 +12,6 @@ labels). What it writes: :class:`Outputs`.
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import logging
 from dataclasses import dataclass, field
@@ -215,19 +214,3 @@ def run(inputs: Inputs, cfg: MasksConfig) -> Outputs:
 def _save_npy(path: Path, a: np.ndarray) -> None:
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         np.save(fh, a)
-
-
-# ---- command line: anigs masks ----
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "masks")
-
-
-def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
-    run(Inputs.from_args(args), MasksConfig.from_dict(parse_params(args.params)))
-    return 0

@@ -11,7 +11,6 @@ ones. The noise seed combines the config's ``seed``, the round (``--round``, els
 """
 from __future__ import annotations
 
-import argparse
 import logging
 import dataclasses
 from dataclasses import dataclass, field
@@ -137,19 +136,3 @@ def run(inputs: Inputs, cfg: RefineConfig, priors: dict | None = None) -> Output
 
         write_json(inputs.info, info)
     return out
-
-
-# ---- command line: anigs refine ----
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "refine")
-
-
-def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
-    run(Inputs.from_args(args), RefineConfig.from_dict(parse_params(args.params)))
-    return 0

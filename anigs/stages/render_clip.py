@@ -9,7 +9,6 @@ view id, model path, number of frames and background.
 """
 from __future__ import annotations
 
-import argparse
 import logging
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -138,19 +137,3 @@ def run(inputs: Inputs, cfg: RenderClipConfig, scene: tuple | None = None) -> Ou
     render_view(scene, camera, out.path("clip", view=inputs.view_id or camera.name), cfg, canonical, model,
                 inputs.view_id)
     return out
-
-
-# ---- command line: anigs render_clip ----
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "render_clip")
-
-
-def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
-    run(Inputs.from_args(args), RenderClipConfig.from_dict(parse_params(args.params)))
-    return 0

@@ -138,6 +138,8 @@ def test_the_stage_list_is_written_once():
     from anigs.stages import STAGES, get
     from anigs.tradeoff import SCENE_STAGE_ORDER, VARIANT_SECTIONS
 
+    from anigs.stages import contract
+
     names = [s.name for s in STAGES]
     assert STAGE_SECTIONS == tuple(s.name for s in STAGES if s.section)
     assert set(VARIANT_SECTIONS) | set(SCENE_STAGE_ORDER) == set(STAGE_SECTIONS)
@@ -146,8 +148,9 @@ def test_the_stage_list_is_written_once():
     assert all(name in schema for name in STAGE_SECTIONS)
     for s in STAGES:  # one name: module, config class, rule
         mod = s.load()
-        if s.command:
-            assert callable(mod.main) and callable(mod.add_arguments)
+        if s.command:  # its own command line, or the default one (anigs.cli.stage_main): Inputs + run
+            own = callable(getattr(mod, "main", None)) and callable(getattr(mod, "add_arguments", None))
+            assert own or (callable(mod.run) and issubclass(mod.Inputs, contract.Inputs)), s.name
         if s.section:
             assert mod.Config is s.config_class()
     rules = "\n".join(p.read_text() for p in (ROOT / "workflow/rules").glob("*.smk"))
