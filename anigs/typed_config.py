@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import typing
-from typing import Any, Mapping
+from typing import Any, ClassVar, Mapping
 
 
 def reject_unknown_keys(cls: type, d: Mapping[str, Any], where: str, error: type[Exception] = ValueError) -> None:
@@ -42,6 +42,23 @@ def from_dict(cls: type, d: Mapping[str, Any] | None, where: str, error: type[Ex
         for key, value in list(d.items()):
             d[key] = _typed(getattr(defaults, key), value, f"{where}.{key}")
     return cls(**d)
+
+
+class Section:
+    """Mixin of a config-section dataclass: ``from_dict`` builds it (unknown keys raise ``ERROR`` naming
+    ``WHERE``) and then runs ``validate`` (a subclass's value checks; none by default)."""
+
+    WHERE: ClassVar[str] = "config"
+    ERROR: ClassVar[type[Exception]] = ValueError
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any] | None):
+        cfg = from_dict(cls, d, cls.WHERE, cls.ERROR)
+        cfg.validate()
+        return cfg
+
+    def validate(self) -> None:
+        """Check the values (raise ``ValueError`` naming the key)."""
 
 
 def nested_sections(cls: type) -> dict[str, type]:

@@ -23,7 +23,7 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -37,14 +37,14 @@ from anigs.metrics.multiview import MultiviewFitConfig
 from anigs.metrics.motion import FLOW_PRESETS, clip_motion_metrics, outside_mask_still, resize_mask
 from anigs.metrics.still_labels import moving_labelled_still
 from anigs.metrics.vbench import vbench_metrics
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 from anigs.video import check_clip, load_clip, read_mp4
 
 log = logging.getLogger("anigs.eval")
 
 
 @dataclass
-class EvalConfig:
+class EvalConfig(Section):
     """The ``eval`` config section."""
 
     device: str = "auto"  # torch device for the feature networks and the multiview fit
@@ -78,11 +78,7 @@ class EvalConfig:
     multiview_fit: MultiviewFitConfig = field(default_factory=MultiviewFitConfig)  # the protocol's fresh static fit
     seed: int = 0  # random seed (the workflow passes the global seed)
 
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "EvalConfig":
-        cfg = from_dict(EvalConfig, d, "eval config", ValueError)
-        cfg.validate()
-        return cfg
+    WHERE: ClassVar[str] = "eval config"
 
     def validate(self) -> None:
         if self.flow_preset not in FLOW_PRESETS:

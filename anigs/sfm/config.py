@@ -2,9 +2,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Optional, Union
+from typing import ClassVar, Optional, Union
 
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 
 MATCHERS = ("auto", "exhaustive", "sequential", "spatial")
 MAPPERS = ("incremental", "global")
@@ -14,7 +14,7 @@ MILD_DISTORTION_MODELS = ("SIMPLE_RADIAL", "RADIAL")
 
 
 @dataclass
-class SfmConfig:
+class SfmConfig(Section):
     """Parameters of the ``sfm`` stage (config section ``sfm``)."""
 
     camera_model: str = "SIMPLE_RADIAL"  # COLMAP camera model; SIMPLE_PINHOLE/PINHOLE for synthetic renders
@@ -94,11 +94,8 @@ class SfmConfig:
     mapper_refine_distortion: Union[bool, str] = "auto"
     seed: int = 0  # COLMAP random seed
 
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "SfmConfig":
-        cfg = from_dict(SfmConfig, d, "sfm config", KeyError)
-        cfg.validate()
-        return cfg
+    WHERE: ClassVar[str] = "sfm config"
+    ERROR: ClassVar[type[Exception]] = KeyError
 
     def mapper_holds_distortion(self) -> bool:
         """Whether the incremental mapper keeps the distortion parameters at their initial values."""

@@ -19,9 +19,9 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import ClassVar
 
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 from anigs.metrics.fvd_gt import METRIC, i3d_detector  # noqa: F401  (i3d_detector: the network the stage uses)
 from anigs.stages import contract
 from anigs.stages.capture import Outputs as CaptureOutputs
@@ -36,7 +36,7 @@ WHEN = ("tables", "always", "never")
 
 
 @dataclass
-class FvdGtConfig:
+class FvdGtConfig(Section):
     """``fvd_gt`` config section."""
 
     #: tables (only `snakemake tables` computes it), always (also the default target, into metrics.json) or never
@@ -59,11 +59,7 @@ class FvdGtConfig:
     background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # background colour (RGB in [0,1])
     seed: int = 0  # random seed (the workflow passes the global seed)
 
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "FvdGtConfig":
-        cfg = from_dict(FvdGtConfig, d, "fvd_gt", ValueError)
-        cfg.validate()
-        return cfg
+    WHERE: ClassVar[str] = "fvd_gt"
 
     def validate(self) -> None:
         if self.when not in WHEN:

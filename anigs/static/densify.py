@@ -29,11 +29,11 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, ClassVar
 
 import torch
 
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 from anigs.geometry.quaternion import quat_to_rotmat
 
 log = logging.getLogger(__name__)
@@ -46,7 +46,7 @@ class AllPrunedError(RuntimeError):
 
 
 @dataclass
-class DensifyConfig:
+class DensifyConfig(Section):
     """Densification hyperparameters (iterations are 1-based training steps)."""
 
     start: int = 300  # first step that clones/splits/prunes
@@ -64,11 +64,7 @@ class DensifyConfig:
     reset_opacity: float = 0.01  # opacities are clamped to at most this on reset
     max_gaussians: int = 30000  # budget: densification never grows the set beyond this
 
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "DensifyConfig":
-        cfg = from_dict(DensifyConfig, d, "densify config", ValueError)
-        cfg.validate()
-        return cfg
+    WHERE: ClassVar[str] = "densify config"
 
     def validate(self) -> None:
         if self.every < 1:

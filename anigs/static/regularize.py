@@ -35,18 +35,18 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, ClassVar, Sequence
 
 import torch
 
 from anigs.cameras import Camera
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 
 log = logging.getLogger(__name__)
 
 
 @dataclass
-class RegularizeConfig:
+class RegularizeConfig(Section):
     """Needle / unresolved-Gaussian control (config ``static.regularize``)."""
 
     enabled: bool = True               # bound needles and decay, then prune, Gaussians no photo resolves
@@ -58,11 +58,7 @@ class RegularizeConfig:
     #: at most this share of the Gaussians is decayed / pruned at a step, least resolved first
     max_share: float = 0.02
 
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "RegularizeConfig":
-        cfg = from_dict(RegularizeConfig, d, "static.regularize config", ValueError)
-        cfg.validate()
-        return cfg
+    WHERE: ClassVar[str] = "static.regularize config"
 
     def validate(self) -> None:
         if self.max_needle_ratio != 0 and self.max_needle_ratio < 1:
