@@ -33,39 +33,38 @@ def find_image(image_dir: Path, name: str) -> Path:
     raise FileNotFoundError(f"no image for camera {name!r} in {image_dir}")
 
 
-def load_image(path: str | Path) -> np.ndarray:
-    """The one image reader: RGB float32 [H,W,3] in [0,1] from an 8- or 16-bit image file (grey is
-    repeated to RGB, alpha dropped). EXIF orientation is applied once, when photos are imported
-    (:mod:`anigs.photos`): every image a stage reads afterwards is an upright PNG."""
+def _read_rgb(path: str | Path) -> np.ndarray:
+    """The file's pixels as stored: uint8 or uint16 [H,W,3] RGB (grey repeated, alpha dropped)."""
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"image not found: {path}")
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise ValueError(f"cannot read image {path}")
-    scale = 65535.0 if img.dtype == np.uint16 else 255.0
     if img.ndim == 2:
         img = np.repeat(img[..., None], 3, 2)
-    return (img[..., :3][..., ::-1].astype(np.float32) / scale).copy()
+    return img[..., :3][..., ::-1]
+
+
+def load_image(path: str | Path) -> np.ndarray:
+    """The one image reader: RGB float32 [H,W,3] in [0,1] from an 8- or 16-bit image file (grey is
+    repeated to RGB, alpha dropped). EXIF orientation is applied once, when photos are imported
+    (:mod:`anigs.photos`): every image a stage reads afterwards is an upright PNG."""
+    return _to_float(_read_rgb(path))
+
+
+def _to_float(img: np.ndarray) -> np.ndarray:
+    """float32 [H,W,3] in [0,1] of stored pixels (16-bit / 65535, else / 255)."""
+    scale = 65535.0 if img.dtype == np.uint16 else 255.0
+    return (img.astype(np.float32) / scale).copy()
 
 
 def load_image_compact(path: str | Path) -> np.ndarray:
     """:func:`load_image`'s pixels at a quarter of the memory: uint8 [H,W,3] for an 8-bit file (the
     float image is exactly ``img.astype(float32) / 255``, what :func:`load_image` gives), float32 [H,W,3]
     in [0,1] otherwise. A 384-photo capture at 1280x960 holds 1.4 GB instead of 5.7 GB."""
-    import cv2
-
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"image not found: {path}")
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise ValueError(f"cannot read image {path}")
-    if img.dtype != np.uint8:
-        return load_image(path)
-    if img.ndim == 2:
-        img = np.repeat(img[..., None], 3, 2)
-    return img[..., :3][..., ::-1].copy()
+    img = _read_rgb(path)
+    return img.copy() if img.dtype == np.uint8 else _to_float(img)
 
 
 def load_inputs(images: str | Path, cameras: str | Path, compact: bool = False):

@@ -12,7 +12,6 @@ per view (``round_jobs: view``), so that the views of a round run on separate GP
 """
 from __future__ import annotations
 
-import argparse
 import logging
 import time
 from dataclasses import dataclass, field
@@ -106,14 +105,3 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
     if inputs.timings_json:
         write_json(inputs.timings_json, timings)
     return out
-
-
-# ---- command line: anigs round ----
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    Inputs.add_arguments(p)
-
-
-def main(args: argparse.Namespace) -> int:
-    run(Inputs.from_args(args))
-    return 0

@@ -4,7 +4,6 @@
 """
 from __future__ import annotations
 
-import argparse
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,14 +45,3 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
                                    "files": sorted(str(p) for p in paths)})
     log.info("tables: %d records -> %d files in %s", len(records), len(paths), out.root)
     return out
-
-
-# ---- command line: anigs tables ----
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    Inputs.add_arguments(parser)
-
-
-def main(args: argparse.Namespace) -> int:
-    run(Inputs.from_args(args))
-    return 0

@@ -13,7 +13,6 @@ Markdown and the log) lists its settings fastest first.
 """
 from __future__ import annotations
 
-import argparse
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -96,14 +95,3 @@ def report(scene: str, points: list, results: str | Path, out: Outputs, plot_met
     for line in front_section(rows, fronts, directions, plot_metrics).splitlines():
         log.info("tradeoff: %s", line)
     return csv
-
-
-# ---- command line: anigs tradeoff ----
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    Inputs.add_arguments(p)
-
-
-def main(args: argparse.Namespace) -> int:
-    run(Inputs.from_args(args))
-    return 0
