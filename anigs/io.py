@@ -2,6 +2,7 @@
 
 An interrupted job therefore never leaves a half-written artifact under its final name.
 """
+
 from __future__ import annotations
 
 import json

@@ -1,4 +1,5 @@
 """Vector basics of scene geometry: unit vectors, angles, horizontal bases, camera axes."""
+
 from __future__ import annotations
 
 import logging

@@ -1,4 +1,5 @@
 """Label propagation over Gaussian centres: undecided points take the majority of their nearest decided ones."""
+
 from __future__ import annotations
 
 import numpy as np

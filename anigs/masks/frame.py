@@ -1,4 +1,5 @@
 """One image to segment (:class:`Frame`), the mask backend type, and frames rendered from a Gaussian scene."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -50,6 +51,14 @@ def render_frames(gaussians, cameras: Sequence[Camera], background: Sequence[flo
         sub = gaussians.subset(frustum_subset(gaussians, cam))
         with torch.no_grad():
             rgb, alpha, meta = render_gaussians(sub, cam, background=bg)
-        frames.append(Frame(rgb.clamp(0, 1).numpy(), cam, meta["depth"].numpy(), alpha.numpy(), cam.name,
-                            None if background is None else np.asarray(background, np.float32)))
+        frames.append(
+            Frame(
+                rgb.clamp(0, 1).numpy(),
+                cam,
+                meta["depth"].numpy(),
+                alpha.numpy(),
+                cam.name,
+                None if background is None else np.asarray(background, np.float32),
+            )
+        )
     return frames

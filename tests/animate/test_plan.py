@@ -1,4 +1,5 @@
 """Round arithmetic of the unrolled dataset-model loop."""
+
 from __future__ import annotations
 
 import pytest

@@ -1,4 +1,5 @@
 """anigs CMD ... --then CMD ...: commands run one after another in one process."""
+
 import json
 import logging
 

@@ -1,4 +1,5 @@
 """Fused SSIM (anigs.ssim.fused, compiled kernel anigs.ssim.kernel) against the reference anigs.ssim.reference."""
+
 from __future__ import annotations
 
 import pytest

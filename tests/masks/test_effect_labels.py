@@ -1,4 +1,5 @@
 """The per-Gaussian effect labels the masks stage writes for the update's per-effect settings."""
+
 import numpy as np
 import pytest
 

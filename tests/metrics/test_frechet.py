@@ -1,4 +1,5 @@
 """Fréchet distance: closed form for Gaussians, an independent oracle, and the guards."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,5 @@
 """Numerically hard inputs: outputs and gradients must stay finite on every backend."""
+
 from __future__ import annotations
 
 import pytest

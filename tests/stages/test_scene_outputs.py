@@ -1,4 +1,5 @@
 """The scene stages' Outputs: their checked loaders, as other stages, metrics and benchmarks read them."""
+
 from __future__ import annotations
 
 import json

@@ -1,4 +1,5 @@
 """The static fit's photos held as uint8 (a quarter of float32's memory): the same pixels, the same fit."""
+
 from __future__ import annotations
 
 import numpy as np
