@@ -1,5 +1,4 @@
 """AniGS: animate static 3D Gaussian Splatting scenes with video priors."""
-
 import os as _os
 
 # OpenMP threads (torch's and the rasterizer's) must sleep when idle, not spin: parallel

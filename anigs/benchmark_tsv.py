@@ -5,7 +5,6 @@ Every heavy rule of the workflow has a ``benchmark:`` file (columns ``s`` wall s
 report (:mod:`anigs.tradeoff`) sums them per sweep point; ``benchmarks/rules.py`` prints the
 per-rule breakdown of a run.
 """
-
 from __future__ import annotations
 
 import csv
@@ -71,9 +70,8 @@ def benchmark_files(root: str | Path) -> list[Path]:
     """Every ``*.tsv`` under ``root`` inside a ``benchmarks`` folder (where the workflow's
     ``benchmark:`` directives write), sorted."""
     root = Path(root)
-    return sorted(
-        p for p in root.rglob("*.tsv") if "benchmarks" in root.parts or "benchmarks" in p.relative_to(root).parts[:-1]
-    )
+    return sorted(p for p in root.rglob("*.tsv")
+                  if "benchmarks" in root.parts or "benchmarks" in p.relative_to(root).parts[:-1])
 
 
 def rule_breakdown(paths: Iterable[str | Path]) -> list[dict[str, Any]]:
@@ -84,9 +82,8 @@ def rule_breakdown(paths: Iterable[str | Path]) -> list[dict[str, Any]]:
     by_rule: dict[str, dict[str, Any]] = {}
     for p in paths:
         rows = read_benchmark(p)
-        r = by_rule.setdefault(
-            rule_name(p), {"rule": rule_name(p), "jobs": 0, "seconds": 0.0, "cpu_seconds": 0.0, "max_rss_mb": None}
-        )
+        r = by_rule.setdefault(rule_name(p), {"rule": rule_name(p), "jobs": 0, "seconds": 0.0,
+                                              "cpu_seconds": 0.0, "max_rss_mb": None})
         r["jobs"] += 1
         r["seconds"] += _column_mean(rows, "s") or 0.0
         cpu = _column_mean(rows, "cpu_time")
@@ -104,13 +101,9 @@ def breakdown_total(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """The ``total`` row of :func:`rule_breakdown` rows (peak memory: the largest)."""
     cpu = [r["cpu_seconds"] for r in rows]
     rss = [r["max_rss_mb"] for r in rows if r["max_rss_mb"] is not None]
-    return {
-        "rule": "total",
-        "jobs": sum(r["jobs"] for r in rows),
-        "seconds": round(sum(r["seconds"] for r in rows), 3),
-        "cpu_seconds": None if any(c is None for c in cpu) else round(sum(cpu), 3),
-        "max_rss_mb": max(rss) if rss else None,
-    }
+    return {"rule": "total", "jobs": sum(r["jobs"] for r in rows), "seconds": round(sum(r["seconds"] for r in rows), 3),
+            "cpu_seconds": None if any(c is None for c in cpu) else round(sum(cpu), 3),
+            "max_rss_mb": max(rss) if rss else None}
 
 
 def compare_breakdowns(before: Sequence[dict[str, Any]], after: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:

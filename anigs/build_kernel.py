@@ -1,6 +1,5 @@
 """``anigs build-kernel``: compile the CPU kernels now, the rasterizer and the fused SSIM (the set-up
 script calls this; otherwise each builds on first use)."""
-
 from __future__ import annotations
 
 import argparse

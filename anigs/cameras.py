@@ -4,7 +4,6 @@ A :class:`Camera` holds intrinsics ``K`` [3,3], the image size, and the
 world-to-camera transform ``viewmat`` [4,4]. Pixel centres sit at integer + 0.5
 (the COLMAP / gsplat convention), so ``cx = width / 2`` is the image centre.
 """
-
 from __future__ import annotations
 
 import json
@@ -149,10 +148,7 @@ def look_at(eye: Sequence[float], target: Sequence[float], up: Sequence[float] =
 
 def save_cameras(path: str | Path, cameras: Sequence[Camera], extra: dict | None = None) -> None:
     """Write cameras as JSON (atomically)."""
-    payload = {
-        "convention": "opencv, world-to-camera, pixel centres at +0.5",
-        "cameras": [c.to_dict() for c in cameras],
-    }
+    payload = {"convention": "opencv, world-to-camera, pixel centres at +0.5", "cameras": [c.to_dict() for c in cameras]}
     if extra:
         payload.update(extra)
     atomic_write_text(path, json.dumps(payload, indent=1))
@@ -220,7 +216,6 @@ def camera_for_size(cam: Camera, h: int, w: int, what: str) -> Camera:
     if (cam.height, cam.width) == (h, w):
         return cam
     if abs(w / h - cam.width / cam.height) > 0.01:
-        raise ValueError(
-            f"{what} is {w}x{h} but camera {cam.name!r} is {cam.width}x{cam.height} (different aspect ratio)"
-        )
+        raise ValueError(f"{what} is {w}x{h} but camera {cam.name!r} is {cam.width}x{cam.height} "
+                         "(different aspect ratio)")
     return cam.scaled(w, h)

@@ -13,7 +13,6 @@ after another in one process (the global options apply to each; the first that f
 chain and gives its exit status). The workflow runs a round's render, refine and model update so
 (``round_jobs: round``): one Python and torch start-up per round instead of two.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -45,9 +44,8 @@ def add_params(p: argparse.ArgumentParser, section: str) -> None:
 
 def add_canonical(p: argparse.ArgumentParser, required: bool = True, help: str = "") -> None:
     """``--canonical``: the canonical 3DGS PLY of the static stage."""
-    p.add_argument(
-        "--canonical", required=required, default=None, help=help or "canonical 3DGS PLY (static/canonical.ply)"
-    )
+    p.add_argument("--canonical", required=required, default=None,
+                   help=help or "canonical 3DGS PLY (static/canonical.ply)")
 
 
 def add_out(p: argparse.ArgumentParser, what: str) -> None:
@@ -124,14 +122,8 @@ def main(argv: list[str] | None = None) -> int:
         for k, part in enumerate(chain):
             t0 = time.perf_counter()
             rc = _main(part)
-            logging.getLogger("anigs").info(
-                "chain: command %d of %d (%s) took %.2f s, exit %d",
-                k + 1,
-                len(chain),
-                next(a for a in part if a in commands()),
-                time.perf_counter() - t0,
-                rc,
-            )
+            logging.getLogger("anigs").info("chain: command %d of %d (%s) took %.2f s, exit %d", k + 1, len(chain),
+                                            next(a for a in part if a in commands()), time.perf_counter() - t0, rc)
             if rc:
                 return rc
         logging.getLogger("anigs").info("chain: %d commands, process CPU %.2f s", len(chain), time.process_time())
@@ -142,12 +134,8 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="anigs", description=__doc__.splitlines()[0])
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
-    parser.add_argument(
-        "--threads",
-        type=int,
-        default=None,
-        help="CPU threads for torch and the rasterizer (Snakemake passes {threads})",
-    )
+    parser.add_argument("--threads", type=int, default=None,
+                        help="CPU threads for torch and the rasterizer (Snakemake passes {threads})")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     modules = {}
     table = commands()
@@ -168,9 +156,8 @@ def _main(argv: list[str]) -> int:
                 raise
             stage_arguments(modules[name], name, p)
     args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
-    )
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     if args.command is None:
         parser.print_help()
         return 2

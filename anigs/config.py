@@ -3,7 +3,6 @@
 Effective section = global section (config.yaml) <- the scene file's override <- the variant's
 override (deep merge, later wins). Scene files live in ``config/scenes/{name}.yaml``.
 """
-
 from __future__ import annotations
 
 import copy
@@ -17,18 +16,8 @@ import yaml
 from anigs.stages import sections as _stage_sections
 
 STAGE_SECTIONS = _stage_sections()  # from the stage registry (anigs/stages/__init__.py)
-SCENE_KEYS = {
-    "name",
-    "source",
-    "synthetic",
-    "photos",
-    "colmap",
-    "ply",
-    "effects",
-    "prompt",
-    "background",
-    *STAGE_SECTIONS,
-}
+SCENE_KEYS = {"name", "source", "synthetic", "photos", "colmap", "ply", "effects", "prompt", "background",
+              *STAGE_SECTIONS}
 # Where a scene's `background` (the sky colour every rendering stage composites onto) goes: the
 # stage sections with a `background` key (tests check this against the schema), the multiview
 # fits of eval, and the synthetic capture.
@@ -46,11 +35,9 @@ def expand_env(value: str, where: str) -> str:
         name = m.group(1)
         got = os.environ.get(name)
         if not got:
-            raise ValueError(
-                f"{where}: {m.group(0)} names the environment variable {name}, which is "
-                f"{'empty' if got == '' else 'not set'}; set it to the folder, e.g. "
-                f"{name}=/path/to/photos snakemake ..."
-            )
+            raise ValueError(f"{where}: {m.group(0)} names the environment variable {name}, which is "
+                             f"{'empty' if got == '' else 'not set'}; set it to the folder, e.g. "
+                             f"{name}=/path/to/photos snakemake ...")
         return got
 
     return os.path.expanduser(_ENV_REF.sub(sub, value))
@@ -119,10 +106,8 @@ def load_scene(scene_dir: str | Path, name: str, schema: dict | None = None) -> 
         photos = scene["photos"] = expand_env(given, f"scene file {path}: photos")
         p = Path(photos)
         if not p.is_dir():
-            raise FileNotFoundError(
-                f"scene {name!r}: photo folder {p} does not exist"
-                + (f" (photos: {given} in {path})" if given != photos else "")
-            )
+            raise FileNotFoundError(f"scene {name!r}: photo folder {p} does not exist"
+                                    + (f" (photos: {given} in {path})" if given != photos else ""))
         if not any(f.suffix.lower() in (".jpg", ".jpeg", ".png") for f in p.iterdir()):
             raise ValueError(f"scene {name!r}: photo folder {p} holds no .jpg/.jpeg/.png files")
     bg = scene.get("background")

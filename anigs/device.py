@@ -1,5 +1,4 @@
 """Device selection and seeding. Never hard-codes ``cuda``: ``auto`` picks it when present."""
-
 from __future__ import annotations
 
 import os
@@ -15,10 +14,8 @@ def get_device(pref: str = "auto") -> torch.device:
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     dev = torch.device(pref)
     if dev.type == "cuda" and not torch.cuda.is_available():
-        raise RuntimeError(
-            f"device {pref!r} requested but no CUDA device is available on this machine; "
-            "set device: auto (or cpu) in the config"
-        )
+        raise RuntimeError(f"device {pref!r} requested but no CUDA device is available on this machine; "
+                           "set device: auto (or cpu) in the config")
     return dev
 
 

@@ -6,7 +6,6 @@
   (k = 1..K; zero for static Gaussians), with a JSON sidecar giving the formula. Viewers that
   do not know the extra properties show the static scene.
 """
-
 from __future__ import annotations
 
 import math
@@ -25,7 +24,7 @@ FORMULA = {
     "basis": "b_k(t) = sqrt(2/(K+1)) * cos(pi/(2T) * (2t+1) * k), k = 1..K, t in [0, T-1] (fractional allowed)",
     "position": "mu(t) = mu_0 + sum_k dct_pos_{axis}_{k} * b_k(t)   (world units)",
     "rotation": "q(t) = exp(w(t)) (x) q_0 (Hamilton product, w,x,y,z), w(t) = sum_k dct_rot_{axis}_{k} * b_k(t) "
-    "(rotation vector, radians; exp maps it to the unit quaternion (cos|w|/2, sin|w|/2 w/|w|))",
+                "(rotation vector, radians; exp maps it to the unit quaternion (cos|w|/2, sin|w|/2 w/|w|))",
     "static": "Gaussians with dyn = 0 never move",
     "looping": "the DCT motion is even-symmetric in time: loop by playing 0..T-1 forward then backward",
 }
@@ -43,28 +42,20 @@ def save_animated_ply(path: str | Path, canonical: Gaussians, deformation: DCTDe
     g = canonical.detach().to("cpu")
     n, c, K = g.num, g.sh.shape[1], deformation.num_bases
     names = ply_property_names(g.sh_degree)
-    std = np.concatenate(
-        [
-            g.means.numpy(),
-            np.zeros((n, 3), np.float32),
-            g.sh[:, 0].numpy(),
-            g.sh[:, 1:].transpose(1, 2).reshape(n, 3 * (c - 1)).numpy(),
-            g.opacity_logits[:, None].numpy(),
-            g.log_scales.numpy(),
-            g.quats.numpy(),
-        ],
-        axis=1,
-    )
+    std = np.concatenate([
+        g.means.numpy(), np.zeros((n, 3), np.float32), g.sh[:, 0].numpy(),
+        g.sh[:, 1:].transpose(1, 2).reshape(n, 3 * (c - 1)).numpy(),
+        g.opacity_logits[:, None].numpy(), g.log_scales.numpy(), g.quats.numpy()], axis=1)
     rotation = deformation.rot_coeffs is not None
     extra_names = extra_property_names(K, rotation)
     extra = np.zeros((n, len(extra_names)), np.float32)
     idx = deformation.dynamic_index.cpu().numpy()
     extra[idx, 0] = 1
     pos = deformation.pos_coeffs.detach().cpu().numpy()  # [D,3,K]
-    extra[idx, 1 : 1 + 3 * K] = pos.reshape(len(idx), 3 * K)
+    extra[idx, 1:1 + 3 * K] = pos.reshape(len(idx), 3 * K)
     if rotation:
         rot = deformation.rot_coeffs.detach().cpu().numpy()
-        extra[idx, 1 + 3 * K :] = rot.reshape(len(idx), 3 * K)
+        extra[idx, 1 + 3 * K:] = rot.reshape(len(idx), 3 * K)
     data = np.concatenate([std, extra], axis=1).astype("<f4")
     all_names = names + extra_names
     header = "ply\nformat binary_little_endian 1.0\ncomment anigs animated 3DGS: see the .json sidecar\n"
@@ -95,9 +86,8 @@ def load_animated_ply(path: str | Path, num_frames: int) -> tuple[Gaussians, DCT
     rotation = "dct_rot_x_1" in col
     idx = np.nonzero(raw[:, col["dyn"]] > 0.5)[0]
     d = DCTDeformation(torch.from_numpy(idx), num_frames, K, rotation=rotation, num_gaussians=g.num)
-    take = lambda kind: torch.from_numpy(
-        np.stack([raw[idx][:, [col[f"dct_{kind}_{a}_{k}"] for k in range(1, K + 1)]] for a in AXES], axis=1).copy()
-    )
+    take = lambda kind: torch.from_numpy(np.stack(
+        [raw[idx][:, [col[f"dct_{kind}_{a}_{k}"] for k in range(1, K + 1)]] for a in AXES], axis=1).copy())
     with torch.no_grad():
         d.pos_coeffs.copy_(take("pos"))
         if rotation:
@@ -119,6 +109,6 @@ def sidecar(deformation: DCTDeformation, fps: float, ply_name: str, extra_names:
         "extra_properties": extra_names,
         "formula": FORMULA,
         "note": "max_offset/max_angle soft limits of training are baked out: coefficients are applied as written "
-        "only when the model had no limits; otherwise use the frame sequence for exact playback",
+                "only when the model had no limits; otherwise use the frame sequence for exact playback",
         "limits": {"max_offset": deformation.max_offset is not None, "max_angle": deformation.max_angle is not None},
     }

@@ -5,17 +5,14 @@ is a **backward** map: the warped image is ``out(p) = src(p + d(p))``. With this
 ``d = 0`` is the identity and a frame ``t`` of an animated clip is ``frame_0`` sampled at
 ``p + d_t(p)``. :func:`backward_flow` estimates exactly this field between two frames.
 """
-
 from __future__ import annotations
 
 import cv2
 import numpy as np
 
-_PRESETS = {
-    "ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
-    "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
-    "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM,
-}
+_PRESETS = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
+            "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
+            "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}
 
 
 def _gray_u8(image: np.ndarray) -> np.ndarray:
@@ -72,9 +69,8 @@ def warp(image: np.ndarray, disp: np.ndarray, grid: tuple[np.ndarray, np.ndarray
     gx, gy = grid if grid is not None else identity_grid(H, W)
     mx = (gx + disp[..., 0]).astype(np.float32)
     my = (gy + disp[..., 1]).astype(np.float32)
-    return cv2.remap(
-        np.ascontiguousarray(image, dtype=np.float32), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-    )
+    return cv2.remap(np.ascontiguousarray(image, dtype=np.float32), mx, my, cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REPLICATE)
 
 
 def field_gradient_max(disp: np.ndarray) -> float:

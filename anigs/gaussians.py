@@ -11,7 +11,6 @@ PLY layout (as written by the original 3DGS code and read by every viewer):
 ``x y z nx ny nz f_dc_0..2 f_rest_0..(3C-4) opacity scale_0..2 rot_0..3``, float32,
 ``f_rest`` channel-major (all R coefficients, then G, then B).
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -72,11 +71,8 @@ class Gaussians:
     # ---- construction --------------------------------------------------------
     @staticmethod
     def from_points(
-        points: torch.Tensor,
-        colors: torch.Tensor,
-        scales: torch.Tensor | float = 0.01,
-        opacity: float = 0.1,
-        sh_degree: int = 0,
+        points: torch.Tensor, colors: torch.Tensor, scales: torch.Tensor | float = 0.01,
+        opacity: float = 0.1, sh_degree: int = 0,
     ) -> "Gaussians":
         """Isotropic Gaussians at ``points`` [N,3] with ``colors`` [N,3] in [0,1]."""
         n = points.shape[0]
@@ -122,26 +118,19 @@ class Gaussians:
     # ---- manipulation --------------------------------------------------------
     def params(self) -> dict[str, torch.Tensor]:
         return {
-            "means": self.means,
-            "quats": self.quats,
-            "log_scales": self.log_scales,
-            "opacity_logits": self.opacity_logits,
-            "sh": self.sh,
+            "means": self.means, "quats": self.quats, "log_scales": self.log_scales,
+            "opacity_logits": self.opacity_logits, "sh": self.sh,
         }
 
     def to(self, device: torch.device | str) -> "Gaussians":
-        return Gaussians(
-            **{k: v.to(device) for k, v in self.params().items()},
-            extras={k: (v.to(device) if torch.is_tensor(v) else v) for k, v in self.extras.items()},
-        )
+        return Gaussians(**{k: v.to(device) for k, v in self.params().items()},
+                         extras={k: (v.to(device) if torch.is_tensor(v) else v) for k, v in self.extras.items()})
 
     def detach(self) -> "Gaussians":
         return Gaussians(**{k: v.detach().clone() for k, v in self.params().items()}, extras=dict(self.extras))
 
     def subset(self, index: torch.Tensor) -> "Gaussians":
-        extras = {
-            k: (v[index] if torch.is_tensor(v) and v.shape[:1] == (self.num,) else v) for k, v in self.extras.items()
-        }
+        extras = {k: (v[index] if torch.is_tensor(v) and v.shape[:1] == (self.num,) else v) for k, v in self.extras.items()}
         return Gaussians(**{k: v[index] for k, v in self.params().items()}, extras=extras)
 
     def with_sh_degree(self, degree: int) -> "Gaussians":
@@ -150,9 +139,7 @@ class Gaussians:
         sh = self.sh[:, :c]
         if sh.shape[1] < c:
             sh = torch.cat([sh, sh.new_zeros(self.num, c - sh.shape[1], 3)], 1)
-        return Gaussians(
-            self.means, self.quats, self.log_scales, self.opacity_logits, sh.contiguous(), dict(self.extras)
-        )
+        return Gaussians(self.means, self.quats, self.log_scales, self.opacity_logits, sh.contiguous(), dict(self.extras))
 
     @staticmethod
     def concat(parts: Iterable["Gaussians"]) -> "Gaussians":
@@ -186,33 +173,19 @@ class Gaussians:
 # ---------------------------------------------------------------------------
 # PLY
 _PLY_TYPES = {
-    "char": "i1",
-    "int8": "i1",
-    "uchar": "u1",
-    "uint8": "u1",
-    "short": "i2",
-    "int16": "i2",
-    "ushort": "u2",
-    "uint16": "u2",
-    "int": "i4",
-    "int32": "i4",
-    "uint": "u4",
-    "uint32": "u4",
-    "float": "f4",
-    "float32": "f4",
-    "double": "f8",
-    "float64": "f8",
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
+    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
+    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
 }
 
 
 def ply_property_names(sh_degree: int) -> list[str]:
     """Property order of the standard 3DGS PLY for a given SH degree."""
     n_rest = 3 * ((sh_degree + 1) ** 2 - 1)
-    return (
-        ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"]
-        + [f"f_rest_{i}" for i in range(n_rest)]
-        + ["opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"]
-    )
+    return (["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"]
+            + [f"f_rest_{i}" for i in range(n_rest)]
+            + ["opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"])
 
 
 def save_ply(g: Gaussians, path: str | Path) -> None:
@@ -221,20 +194,15 @@ def save_ply(g: Gaussians, path: str | Path) -> None:
     n, c = g.num, g.sh.shape[1]
     names = ply_property_names(g.sh_degree)
     cols = [
-        g.means.numpy(),
-        np.zeros((n, 3), np.float32),
-        g.sh[:, 0].numpy(),
+        g.means.numpy(), np.zeros((n, 3), np.float32), g.sh[:, 0].numpy(),
         # channel-major: [N, 3, C-1] flattened
         g.sh[:, 1:].transpose(1, 2).reshape(n, 3 * (c - 1)).numpy(),
-        g.opacity_logits[:, None].numpy(),
-        g.log_scales.numpy(),
-        g.quats.numpy(),
+        g.opacity_logits[:, None].numpy(), g.log_scales.numpy(), g.quats.numpy(),
     ]
     data = np.concatenate(cols, axis=1).astype("<f4")
     assert data.shape[1] == len(names)
     header = "ply\nformat binary_little_endian 1.0\nelement vertex {}\n{}end_header\n".format(
-        n, "".join(f"property float {p}\n" for p in names)
-    )
+        n, "".join(f"property float {p}\n" for p in names))
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             fh.write(header.encode("ascii"))
@@ -296,22 +264,8 @@ def load_ply(path: str | Path) -> Gaussians:
                 raise ValueError(f"{path}: truncated PLY ({len(raw)} of {dtype.itemsize * n} vertex bytes)")
             rec = np.frombuffer(raw, dtype=dtype, count=n)
             arr = {name: rec[name].astype(np.float64) for name, _ in props}
-    required = [
-        "x",
-        "y",
-        "z",
-        "f_dc_0",
-        "f_dc_1",
-        "f_dc_2",
-        "opacity",
-        "scale_0",
-        "scale_1",
-        "scale_2",
-        "rot_0",
-        "rot_1",
-        "rot_2",
-        "rot_3",
-    ]
+    required = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+                "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"]
     missing = [k for k in required if k not in arr]
     if missing:
         raise ValueError(f"{path}: not a 3DGS PLY, missing properties {missing}")

@@ -5,7 +5,6 @@ RGB float32 [H,W,3] in [0,1]; ``load_inputs`` pairs a cameras JSON with its imag
 the image size. ``write_rgb_png`` writes an RGB image; ``read_mask`` (the one mask reader),
 ``read_mask_png`` and ``write_mask_png`` read and write masks. Writes are atomic.
 """
-
 from __future__ import annotations
 
 import logging
@@ -94,10 +93,8 @@ def load_inputs(images: str | Path, cameras: str | Path, compact: bool = False):
         imgs.append(torch.from_numpy(arr))
         out_cams.append(cam)
     if missing:
-        raise FileNotFoundError(
-            f"{len(missing)} of {len(cams)} cameras in {cameras} have no image in {image_dir}: "
-            f"{missing[:10]}{' ...' if len(missing) > 10 else ''}"
-        )
+        raise FileNotFoundError(f"{len(missing)} of {len(cams)} cameras in {cameras} have no image in {image_dir}: "
+                                f"{missing[:10]}{' ...' if len(missing) > 10 else ''}")
     return imgs, out_cams
 
 

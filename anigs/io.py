@@ -2,7 +2,6 @@
 
 An interrupted job therefore never leaves a half-written artifact under its final name.
 """
-
 from __future__ import annotations
 
 import json

@@ -4,7 +4,6 @@
 rotated according to their EXIF orientation (COLMAP ignores that tag), optionally
 downscaled so the longest side is at most ``max_side``, and written as PNGs.
 """
-
 from __future__ import annotations
 
 import logging
@@ -72,10 +71,8 @@ def report_unreadable(bad: list[str], folder: Path, skip: bool) -> None:
         return
     listing = "\n  ".join(bad)
     if not skip:
-        raise ValueError(
-            f"{len(bad)} unreadable or corrupt image file(s) in {folder} "
-            f"(set skip_unreadable to ignore them):\n  {listing}"
-        )
+        raise ValueError(f"{len(bad)} unreadable or corrupt image file(s) in {folder} "
+                         f"(set skip_unreadable to ignore them):\n  {listing}")
     log.warning("skipping %d unreadable or corrupt image file(s) in %s:\n  %s", len(bad), folder, listing)
 
 
@@ -105,10 +102,8 @@ def screen_photos(paths: list[Path], folder: Path, skip: bool = False) -> list[P
     if blank:
         listing = ", ".join(q.name for q in blank)
         if not skip:
-            raise ValueError(
-                f"{len(blank)} blank photo(s) in {folder} (black, white or one colour; set "
-                f"skip_unreadable to leave them out): {listing}"
-            )
+            raise ValueError(f"{len(blank)} blank photo(s) in {folder} (black, white or one colour; set "
+                             f"skip_unreadable to leave them out): {listing}")
         log.warning("leaving out %d blank photo(s) in %s: %s", len(blank), folder, listing)
     keep, copies, seen = [], [], {}
     for p in paths:
@@ -123,19 +118,15 @@ def screen_photos(paths: list[Path], folder: Path, skip: bool = False) -> list[P
     if copies:
         log.warning("leaving out %d copies of other photos in %s: %s", len(copies), folder, ", ".join(copies))
     if len(keep) < MIN_IMAGES:
-        raise ValueError(
-            f"only {len(keep)} distinct photo(s) in {folder} (a capture needs at least {MIN_IMAGES} "
-            f"photos from different viewpoints); copies: {', '.join(copies) or 'none'}"
-        )
+        raise ValueError(f"only {len(keep)} distinct photo(s) in {folder} (a capture needs at least {MIN_IMAGES} "
+                         f"photos from different viewpoints); copies: {', '.join(copies) or 'none'}")
     median = float(np.median([aspects[p] for p in keep]))
     odd = [p for p in keep if abs(aspects[p] / median - 1) > 0.05]
     if odd:
         sizes = ", ".join(f"{p.name} ({_size(p)})" for p in odd)
-        raise ValueError(
-            f"{len(odd)} photo(s) in {folder} have another shape than the capture's (aspect "
-            f"{median:.3f}): {sizes}; a panorama, crop or screenshot cannot share the photos' "
-            "camera: remove it"
-        )
+        raise ValueError(f"{len(odd)} photo(s) in {folder} have another shape than the capture's (aspect "
+                         f"{median:.3f}): {sizes}; a panorama, crop or screenshot cannot share the photos' "
+                         "camera: remove it")
     return keep
 
 
@@ -151,13 +142,8 @@ def require_min_images(n: int, folder: Path, what: str = "readable images") -> N
         raise ValueError(f"need at least {MIN_IMAGES} {what} in {folder}, found {n}")
 
 
-def import_photos(
-    src_dir: str | Path,
-    dst_dir: str | Path,
-    max_side: int | None = None,
-    skip_unreadable: bool = False,
-    screen: bool = True,
-) -> list[str]:
+def import_photos(src_dir: str | Path, dst_dir: str | Path, max_side: int | None = None,
+                  skip_unreadable: bool = False, screen: bool = True) -> list[str]:
     """Copy JPEG/PNG photos from ``src_dir`` to ``dst_dir`` as upright RGB PNGs.
 
     Args:
@@ -184,9 +170,8 @@ def import_photos(
     for p in files:
         key = p.stem.lower()
         if key in stems:
-            raise ValueError(
-                f"photos {stems[key].name} and {p.name} in {src_dir} would both be written as {p.stem}.png; rename one"
-            )
+            raise ValueError(f"photos {stems[key].name} and {p.name} in {src_dir} would both be written "
+                             f"as {p.stem}.png; rename one")
         stems[key] = p
     good, bad = check_images(files)  # decode everything first: fail before writing anything
     report_unreadable(bad, src_dir, skip_unreadable)
@@ -214,20 +199,12 @@ def import_photos(
         with atomic_path(dst_dir / name) as tmp:
             im.save(tmp, format="PNG")
         written.append(name)
-    stale = sorted(
-        q.name
-        for q in dst_dir.iterdir()
-        if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES and q.name not in written
-    )
+    stale = sorted(q.name for q in dst_dir.iterdir()
+                   if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES and q.name not in written)
     if stale:
         log.info("removing %d stale image(s) from %s: %s", len(stale), dst_dir, ", ".join(stale))
         for n in stale:
             (dst_dir / n).unlink()
-    log.info(
-        "imported %d photo(s) from %s into %s%s",
-        len(written),
-        src_dir,
-        dst_dir,
-        f" (longest side <= {max_side})" if max_side else "",
-    )
+    log.info("imported %d photo(s) from %s into %s%s", len(written), src_dir, dst_dir,
+             f" (longest side <= {max_side})" if max_side else "")
     return sorted(written)

@@ -1,6 +1,5 @@
 """Per-pixel helpers for RGB frames [H,W,3] and bool masks [H,W]: the frame check, colour
 saturation, small-component morphology and the mask overlay of the contact sheets."""
-
 from __future__ import annotations
 
 import cv2
@@ -18,10 +17,8 @@ def check_image(image: np.ndarray, name: str = "") -> np.ndarray:
     bad = ~np.isfinite(img)
     if bad.any():
         ys, xs = np.nonzero(bad.any(-1))
-        raise ValueError(
-            f"frame {name!r}: {len(ys)} pixels are NaN/Inf (first at x={xs[0]}, y={ys[0]}); "
-            "the rendered frame is broken, refusing to compute a mask"
-        )
+        raise ValueError(f"frame {name!r}: {len(ys)} pixels are NaN/Inf (first at x={xs[0]}, y={ys[0]}); "
+                         "the rendered frame is broken, refusing to compute a mask")
     return np.clip(img, 0.0, 1.0)
 
 

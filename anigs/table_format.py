@@ -1,6 +1,5 @@
 """The table model of :mod:`anigs.tables` (:class:`Cell`, :class:`Table` with numbered n/a
 footnotes) and its renderings: CSV, Markdown and LaTeX."""
-
 from __future__ import annotations
 
 import csv
@@ -63,11 +62,8 @@ def to_csv(t: Table) -> str:
     section = ""
     for i, (label, cells) in enumerate(t.rows):
         section = t.sections.get(i, section)
-        w.writerow(
-            ([section] if t.sections else [])
-            + _split_label(t, label)
-            + [c.text() if c.note is None else f"n/a [{c.note}]" for c in cells]
-        )
+        w.writerow(([section] if t.sections else []) + _split_label(t, label)
+                   + [c.text() if c.note is None else f"n/a [{c.note}]" for c in cells])
     for i, note in enumerate(t.footnotes, 1):
         w.writerow([f"# [{i}] {note}"])
     return buf.getvalue()
@@ -82,12 +78,8 @@ def _md_escape(s: str) -> str:
 
 
 def to_markdown(t: Table) -> str:
-    lines = [
-        f"**{t.title}**",
-        "",
-        "| " + " | ".join(_md_escape(h) for h in t.header) + " |",
-        "|" + "|".join([":--"] * _n_label_cols(t) + ["--:"] * (len(t.header) - _n_label_cols(t))) + "|",
-    ]
+    lines = [f"**{t.title}**", "", "| " + " | ".join(_md_escape(h) for h in t.header) + " |",
+             "|" + "|".join([":--"] * _n_label_cols(t) + ["--:"] * (len(t.header) - _n_label_cols(t))) + "|"]
     width = len(t.header)
     for i, (label, cells) in enumerate(t.rows):
         if i in t.sections:
@@ -105,18 +97,8 @@ def to_markdown(t: Table) -> str:
 
 def _tex_escape(s: str) -> str:
     out = s
-    for a, b in (
-        ("\\", r"\textbackslash{}"),
-        ("&", r"\&"),
-        ("%", r"\%"),
-        ("$", r"\$"),
-        ("#", r"\#"),
-        ("_", r"\_"),
-        ("{", r"\{"),
-        ("}", r"\}"),
-        ("~", r"\textasciitilde{}"),
-        ("^", r"\^{}"),
-    ):
+    for a, b in (("\\", r"\textbackslash{}"), ("&", r"\&"), ("%", r"\%"), ("$", r"\$"), ("#", r"\#"),
+                 ("_", r"\_"), ("{", r"\{"), ("}", r"\}"), ("~", r"\textasciitilde{}"), ("^", r"\^{}")):
         out = out.replace(a, b) if a != "\\" else out.replace(a, "\x00")
     out = out.replace("\x00", r"\textbackslash{}")
     return out.replace("ComposedV2V", r"\textsc{ComposedV2V}")
@@ -125,17 +107,10 @@ def _tex_escape(s: str) -> str:
 def to_latex(t: Table) -> str:
     ncols = len(t.header)
     nvals = ncols - _n_label_cols(t)
-    lines = [
-        r"\begin{table}[t]",
-        r"\centering",
-        r"\caption{" + _tex_escape(t.title) + "}",
-        r"\label{tab:" + t.name + "}",
-        r"\footnotesize",
-        r"\begin{tabular}{" + "l" * (ncols - nvals) + "c" * nvals + "}",
-        r"\toprule",
-        " & ".join(_tex_escape(h) for h in t.header) + r" \\",
-        r"\midrule",
-    ]
+    lines = [r"\begin{table}[t]", r"\centering", r"\caption{" + _tex_escape(t.title) + "}",
+             r"\label{tab:" + t.name + "}", r"\footnotesize",
+             r"\begin{tabular}{" + "l" * (ncols - nvals) + "c" * nvals + "}",
+             r"\toprule", " & ".join(_tex_escape(h) for h in t.header) + r" \\", r"\midrule"]
     for i, (label, cells) in enumerate(t.rows):
         if i in t.sections:
             if i:
@@ -149,10 +124,7 @@ def to_latex(t: Table) -> str:
         lines.append(" & ".join([_tex_escape(x) for x in _split_label(t, label)] + texts) + r" \\")
     lines += [r"\bottomrule", r"\end{tabular}"]
     if t.footnotes:
-        lines.append(
-            r"\par\smallskip{\scriptsize "
-            + " ".join(f"$^{{{i}}}$ {_tex_escape(n)}." for i, n in enumerate(t.footnotes, 1))
-            + "}"
-        )
+        lines.append(r"\par\smallskip{\scriptsize " + " ".join(f"$^{{{i}}}$ {_tex_escape(n)}."
+                                                                for i, n in enumerate(t.footnotes, 1)) + "}")
     lines.append(r"\end{table}")
     return "\n".join(lines) + "\n"

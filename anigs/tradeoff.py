@@ -21,7 +21,6 @@ uses (static, views, masks, from the scene that computed them) plus every job of
 to its final renders (evaluation and export excluded), so a row says what the result cost to
 compute.
 """
-
 from __future__ import annotations
 
 import copy
@@ -133,9 +132,8 @@ def _same_as_base(value: Any, section: str, key: str, base_value) -> bool:
     return current is not None and value == current
 
 
-def sweep_points(
-    knobs: dict[str, list], base: str, variant_overrides: dict[str, dict], base_value=None
-) -> list[SweepPoint]:
+def sweep_points(knobs: dict[str, list], base: str, variant_overrides: dict[str, dict],
+                 base_value=None) -> list[SweepPoint]:
     """Sweep points of ``knobs`` {"section.key": [values] | "section": [mappings] | None} around ``base``.
 
     ``base_value(knob)`` (optional; knob = "section.key") gives the base's effective setting; a
@@ -144,27 +142,21 @@ def sweep_points(
     values are not mappings, or an unknown base.
     """
     if base not in variant_overrides:
-        raise ValueError(
-            f"tradeoff.base: variant {base!r} is not defined under variant_overrides "
-            f"(defined: {sorted(variant_overrides)})"
-        )
+        raise ValueError(f"tradeoff.base: variant {base!r} is not defined under variant_overrides "
+                         f"(defined: {sorted(variant_overrides)})")
     points = []
     for knob, values in knobs.items():
         if values is None:  # null drops a knob set by an earlier config file
             continue
         section, _, key = knob.partition(".")
         if section not in VARIANT_SECTIONS + SCENE_STAGES:
-            raise ValueError(
-                f"tradeoff.knobs: {knob!r} is not <section>.<key> of a per-variant section "
-                f"{VARIANT_SECTIONS} or a per-scene stage {SCENE_STAGES}"
-            )
+            raise ValueError(f"tradeoff.knobs: {knob!r} is not <section>.<key> of a per-variant section "
+                             f"{VARIANT_SECTIONS} or a per-scene stage {SCENE_STAGES}")
         if not isinstance(values, list) or not values:
             raise ValueError(f"tradeoff.knobs.{knob}: give a non-empty list of values, got {values!r}")
         if not key and not all(isinstance(v, dict) and v for v in values):
-            raise ValueError(
-                f"tradeoff.knobs.{knob}: a bare section knob takes mappings of its keys "
-                f"(e.g. {{width: 128, height: 96}}), got {values!r}"
-            )
+            raise ValueError(f"tradeoff.knobs.{knob}: a bare section knob takes mappings of its keys "
+                             f"(e.g. {{width: 128, height: 96}}), got {values!r}")
         for v in values:
             base_ov = copy.deepcopy(variant_overrides[base])
             if _same_as_base(v, section, key, base_value):
@@ -173,16 +165,8 @@ def sweep_points(
                 ov = deep_merge(base_ov, {section: _knob_value(v, key)})
                 points.append(SweepPoint(variant_name(knob, v), knob, v, ov))
             else:
-                points.append(
-                    SweepPoint(
-                        base,
-                        knob,
-                        v,
-                        base_ov,
-                        scene_tag=DERIVED_SEP + variant_name(knob, v),
-                        scene_overrides={section: _knob_value(v, key)},
-                    )
-                )
+                points.append(SweepPoint(base, knob, v, base_ov, scene_tag=DERIVED_SEP + variant_name(knob, v),
+                                         scene_overrides={section: _knob_value(v, key)}))
     return points
 
 
@@ -193,15 +177,13 @@ def point_benchmarks(results: str | Path, scene: str, variant: str) -> tuple[lis
     """
     shared = [Path(results) / stage_owner(scene, s) / "benchmarks" / f"{s}.tsv" for s in SCENE_STAGES]
     shared = [p for p in shared if p.exists()]
-    own = sorted(
-        p for p in (Path(results) / scene / variant / "benchmarks").rglob("*.tsv") if p.name not in EXCLUDED_BENCHMARKS
-    )
+    own = sorted(p for p in (Path(results) / scene / variant / "benchmarks").rglob("*.tsv")
+                 if p.name not in EXCLUDED_BENCHMARKS)
     return shared, own
 
 
-def report_rows(
-    points: Sequence[SweepPoint], results: str | Path, scene: str, metrics: dict[str, dict]
-) -> list[dict[str, Any]]:
+def report_rows(points: Sequence[SweepPoint], results: str | Path, scene: str,
+                metrics: dict[str, dict]) -> list[dict[str, Any]]:
     """One row per point: knob, value, variant, run (its results folder), seconds and
     variant_seconds (wall), cpu_seconds and variant_cpu_seconds (CPU time: comparable when the
     machine was shared), jobs, then every metric value.
@@ -217,18 +199,13 @@ def report_rows(
         own_s, own_cpu = benchmark_seconds(own), benchmark_seconds(own, "cpu_time")
         shared_cpu = benchmark_seconds(shared, "cpu_time")
         value = json.dumps(p.value, sort_keys=True) if isinstance(p.value, dict) else p.value
-        row: dict[str, Any] = {
-            "scene": scene,
-            "knob": p.knob,
-            "value": value,
-            "variant": p.variant,
-            "run": run,
-            "seconds": round(benchmark_seconds(shared) + own_s, 3),
-            "variant_seconds": round(own_s, 3),
-            "cpu_seconds": None if own_cpu is None or shared_cpu is None else round(shared_cpu + own_cpu, 3),
-            "variant_cpu_seconds": None if own_cpu is None else round(own_cpu, 3),
-            "jobs": len(own),
-        }
+        row: dict[str, Any] = {"scene": scene, "knob": p.knob, "value": value, "variant": p.variant, "run": run,
+                               "seconds": round(benchmark_seconds(shared) + own_s, 3),
+                               "variant_seconds": round(own_s, 3),
+                               "cpu_seconds": None if own_cpu is None or shared_cpu is None
+                               else round(shared_cpu + own_cpu, 3),
+                               "variant_cpu_seconds": None if own_cpu is None else round(own_cpu, 3),
+                               "jobs": len(own)}
         for name, rec in sorted(metrics[run].get("metrics", {}).items()):
             row[name] = rec.get("value") if rec.get("available") else None
         rows.append(row)
@@ -237,7 +214,6 @@ def report_rows(
 
 # ---- the Pareto front: the settings no other is both faster and better than ----
 
-
 def pareto_front(times: Sequence[float | None], values: Sequence[float | None], lower_is_better: bool) -> list[int]:
     """Indices of the points on the time-versus-metric Pareto front, fastest first.
 
@@ -245,14 +221,14 @@ def pareto_front(times: Sequence[float | None], values: Sequence[float | None], 
     one of the two. Equal points (the same time and value) are all on it; of points with equal
     times only the best value is. Points whose time or value is None or NaN are left out.
     """
-
     def ok(x) -> bool:
         return x is not None and not np.isnan(float(x))
 
     idx = [i for i in range(len(times)) if ok(times[i]) and ok(values[i])]
     t = {i: float(times[i]) for i in idx}
     v = {i: float(values[i]) if lower_is_better else -float(values[i]) for i in idx}  # lower is better
-    front = [i for i in idx if not any(t[j] <= t[i] and v[j] <= v[i] and (t[j] < t[i] or v[j] < v[i]) for j in idx)]
+    front = [i for i in idx if not any(t[j] <= t[i] and v[j] <= v[i] and (t[j] < t[i] or v[j] < v[i])
+                                       for j in idx)]
     return sorted(front, key=lambda i: (t[i], v[i], i))
 
 
@@ -269,12 +245,8 @@ def metric_directions(metrics: dict[str, dict]) -> dict[str, bool | None]:
     return out
 
 
-def report_fronts(
-    rows: Sequence[dict[str, Any]],
-    metric_names: Sequence[str],
-    directions: dict[str, bool | None],
-    time_key: str = "seconds",
-) -> dict[str, list[int]]:
+def report_fronts(rows: Sequence[dict[str, Any]], metric_names: Sequence[str], directions: dict[str, bool | None],
+                  time_key: str = "seconds") -> dict[str, list[int]]:
     """Metric -> indices into ``rows`` of its Pareto front over every point (:func:`pareto_front`
     of ``time_key`` against the metric), for the metrics with a direction and at least one value."""
     fronts = {}
@@ -299,23 +271,15 @@ def _fmt(x: Any, seconds: bool = False) -> str:
     return str(x)
 
 
-def front_section(
-    rows: Sequence[dict[str, Any]],
-    fronts: dict[str, list[int]],
-    directions: dict[str, bool | None],
-    metric_names: Sequence[str] = (),
-    time_key: str = "seconds",
-) -> str:
+def front_section(rows: Sequence[dict[str, Any]], fronts: dict[str, list[int]],
+                  directions: dict[str, bool | None], metric_names: Sequence[str] = (),
+                  time_key: str = "seconds") -> str:
     """Markdown "On the front": per metric, the settings on its front, fastest first (knob = value,
     run, seconds, the metric); a point that stands for several knob values (the base) names them
     all. Metrics of ``metric_names`` without a direction or a value are named as such."""
-    lines = [
-        "## On the front",
-        "",
-        f"Per metric, the settings that no other beats in both {time_key} and the metric, fastest "
-        "first: under a time budget, run the last one that fits.",
-        "",
-    ]
+    lines = ["## On the front", "",
+             f"Per metric, the settings that no other beats in both {time_key} and the metric, fastest "
+             "first: under a time budget, run the last one that fits.", ""]
     for m, idx in fronts.items():
         lines += [f"### {m} ({'higher' if directions[m] else 'lower'} is better)", ""]
         runs: dict[str, list[int]] = {}
@@ -324,44 +288,27 @@ def front_section(
         for run, ii in runs.items():
             r = rows[ii[0]]
             setting = ", ".join(f"{rows[i]['knob']} = {rows[i]['value']}" for i in ii)
-            cpu = (
-                f" (CPU {_fmt(r['cpu_seconds'], True)} s)"
-                if time_key != "cpu_seconds" and r.get("cpu_seconds") is not None
-                else ""
-            )
+            cpu = (f" (CPU {_fmt(r['cpu_seconds'], True)} s)" if time_key != "cpu_seconds"
+                   and r.get("cpu_seconds") is not None else "")
             lines.append(f"- {setting} (`{run}`): {_fmt(r.get(time_key), True)} s{cpu}, {m} {_fmt(r.get(m))}")
         lines.append("")
     for m in metric_names:
         if m in fronts:
             continue
-        why = (
-            "it has no direction (closeness to a reference matters)"
-            if directions.get(m) is None and any(r.get(m) is not None for r in rows)
-            else "no point has a value"
-        )
+        why = ("it has no direction (closeness to a reference matters)" if directions.get(m) is None
+               and any(r.get(m) is not None for r in rows) else "no point has a value")
         lines += [f"### {m}: no front, {why}", ""]
     return "\n".join(lines)
 
 
-def markdown_report(
-    rows: Sequence[dict[str, Any]],
-    metric_names: Sequence[str],
-    fronts: dict[str, list[int]],
-    directions: dict[str, bool | None],
-    title: str = "Accuracy versus time",
-) -> str:
+def markdown_report(rows: Sequence[dict[str, Any]], metric_names: Sequence[str], fronts: dict[str, list[int]],
+                    directions: dict[str, bool | None], title: str = "Accuracy versus time") -> str:
     """Markdown of the report: one table row per point (knob, value, run, seconds, CPU seconds and
     the metrics, a ✓ after a value on its metric's front), then :func:`front_section`."""
     shown = [m for m in metric_names if any(r.get(m) is not None for r in rows)]
     head = ["knob", "value", "run", "seconds", "cpu_seconds", *shown]
-    lines = [
-        f"# {title}",
-        "",
-        "✓: on the metric's Pareto front (time against the metric, over every point).",
-        "",
-        "| " + " | ".join(head) + " |",
-        "|" + "---|" * len(head),
-    ]
+    lines = [f"# {title}", "", "✓: on the metric's Pareto front (time against the metric, over every point).", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for i, r in enumerate(rows):
         cells = [_fmt(r.get(k), k.endswith("seconds")) for k in head[:5]]
         cells += [_fmt(r.get(m)) + (" ✓" if i in fronts.get(m, ()) else "") for m in shown]
@@ -384,3 +331,4 @@ def write_csv(rows: Sequence[dict[str, Any]], path: str | Path) -> Path:
 
 def knob_filename(knob: str) -> str:
     return knob.replace(".", "-")
+

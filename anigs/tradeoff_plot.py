@@ -1,5 +1,4 @@
 """The accuracy-versus-time sweep's plot: one PNG per knob (:mod:`anigs.tradeoff`)."""
-
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,14 +7,8 @@ from typing import Any, Sequence
 import numpy as np
 
 
-def plot_knob(
-    rows: Sequence[dict[str, Any]],
-    knob: str,
-    metric_names: Sequence[str],
-    path: str | Path,
-    panel: tuple[int, int] = (360, 260),
-    fronts: dict[str, list[int]] | None = None,
-) -> Path:
+def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[str], path: str | Path,
+              panel: tuple[int, int] = (360, 260), fronts: dict[str, list[int]] | None = None) -> Path:
     """PNG with one panel per metric: metric (y) against seconds (x), points labelled by value.
 
     ``fronts`` (:func:`anigs.tradeoff.report_fronts`: metric -> indices into ``rows``): each panel also draws its

@@ -3,7 +3,6 @@ the wrong type) rejected with a message naming them. (The workflow config, scene
 
 A field typed with a config dataclass is a nested section (``masks.vegetation``): its mapping is
 parsed into that dataclass, and an unknown key in it fails naming its whole path."""
-
 from __future__ import annotations
 
 import dataclasses
@@ -19,9 +18,8 @@ def reject_unknown_keys(cls: type, d: Mapping[str, Any], where: str, error: type
         raise error(f"{where}: unknown keys {unknown}; allowed: {sorted(known)}")
 
 
-def from_dict(
-    cls: type, d: Mapping[str, Any] | None, where: str, error: type[Exception] = ValueError, check_types: bool = False
-):
+def from_dict(cls: type, d: Mapping[str, Any] | None, where: str, error: type[Exception] = ValueError,
+              check_types: bool = False):
     """Build dataclass ``cls`` from a config mapping; unknown keys raise ``error`` naming them.
 
     A ``cls`` instance is returned as it is. Fields typed with a dataclass (nested sections) are

@@ -7,7 +7,6 @@ deflated: on rendered float16 frames deflate saves only about 25% of the bytes (
 mantissa bits are noise to it) and costs 0.39 s per 256x192x25 clip against 0.008 s stored,
 which was 40% of a round job's time on the demo (``benchmarks/clip_io.py``).
 """
-
 from __future__ import annotations
 
 import json
@@ -69,9 +68,8 @@ def write_mp4(path: str | Path, clip, fps: int = 24, quality: int = 8) -> None:
     if H % 2 or W % 2:
         frames = np.pad(frames, ((0, 0), (0, H % 2), (0, W % 2), (0, 0)), mode="edge")
     with atomic_path(path) as tmp:
-        with imageio.get_writer(
-            tmp, fps=fps, codec="libx264", quality=quality, pixelformat="yuv420p", macro_block_size=1, format="FFMPEG"
-        ) as w:
+        with imageio.get_writer(tmp, fps=fps, codec="libx264", quality=quality, pixelformat="yuv420p",
+                                macro_block_size=1, format="FFMPEG") as w:
             for f in frames:
                 w.append_data(f)
 

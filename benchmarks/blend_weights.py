@@ -11,7 +11,6 @@ and process-CPU ms per call of each, their ratio, and the largest difference of 
 (total and inside-mask, pixel units) over all cameras. The machine may be shared: the CPU-time
 figures are the steadier ones then.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -48,12 +47,8 @@ def main(argv: list[str] | None = None) -> dict:
     if args.cameras:
         cams = cams[: args.cameras]
     run_masks = MasksOutputs(args.run / "masks")
-    masks = [
-        run_masks.view_mask(cam.name) >= 0.5
-        if run_masks.has_view_mask(cam.name)
-        else np.zeros((cam.height, cam.width), bool)
-        for cam in cams
-    ]
+    masks = [run_masks.view_mask(cam.name) >= 0.5 if run_masks.has_view_mask(cam.name)
+             else np.zeros((cam.height, cam.width), bool) for cam in cams]
 
     paths = {"old (forward+backward)": blend_weights_backward, "new (forward only)": blend_weights}
     wall = {k: [] for k in paths}
@@ -73,20 +68,16 @@ def main(argv: list[str] | None = None) -> dict:
                 wall[k].append(1e3 * (time.perf_counter() - w0))
                 cpu[k].append(1e3 * (time.process_time() - c0))
 
-    print(
-        f"scene: {g.num} Gaussians, {len(cams)} cameras {cams[0].width}x{cams[0].height}, "
-        f"{args.repeat} calls per camera and path, threads={args.threads}"
-    )
+    print(f"scene: {g.num} Gaussians, {len(cams)} cameras {cams[0].width}x{cams[0].height}, "
+          f"{args.repeat} calls per camera and path, threads={args.threads}")
     out = {}
     for k in paths:
         out[k] = (statistics.median(wall[k]), statistics.median(cpu[k]))
         print(f"  {k:24s} median {out[k][0]:7.2f} ms wall, {out[k][1]:7.2f} ms CPU per call")
     (ow, oc), (nw, nc) = out.values()
     print(f"  speed-up old/new: {ow / nw:.2f}x wall, {oc / nc:.2f}x CPU")
-    print(
-        f"  max |weight difference|: {max_diff:.3g} pixels (largest total weight {max_w:.3g}; "
-        f"max relative difference of totals >= 1e-3: {max_rel:.3g})"
-    )
+    print(f"  max |weight difference|: {max_diff:.3g} pixels (largest total weight {max_w:.3g}; "
+          f"max relative difference of totals >= 1e-3: {max_rel:.3g})")
     return {"old_ms": ow, "new_ms": nw, "old_cpu_ms": oc, "new_cpu_ms": nc, "max_abs_diff": max_diff}
 
 

@@ -6,7 +6,6 @@ Without arguments a synthetic 25x192x256 clip (smooth image plus render-like noi
 real clips (for example a finished run's ``round4/target/*.npz``) for the figures in benchmarks/README.md.
 Prints the median write and read time and the size per format, and the ratios.
 """
-
 from __future__ import annotations
 
 import argparse

@@ -7,7 +7,6 @@ ROOTs are path prefixes replaced by a placeholder inside JSON and clip metadata 
 of each run, when they differ). .json are compared as data, .npz array by array (metadata as JSON),
 .pt tensor by tensor; logs/ and benchmarks/ are skipped (timings).
 """
-
 from __future__ import annotations
 
 import argparse
@@ -18,20 +17,8 @@ from pathlib import Path
 import numpy as np
 
 SKIP_DIRS = {"logs", "benchmarks"}
-SKIP_KEYS = {
-    "seconds",
-    "timings_s",
-    "seconds_per_step",
-    "cpu_s",
-    "cpu_seconds",
-    "load_average",
-    "eval_seconds",
-    "fit_seconds",
-    "train_seconds",
-    "train_cpu_seconds",
-    "step_ms_median",
-    "step_ms_median_final",
-}
+SKIP_KEYS = {"seconds", "timings_s", "seconds_per_step", "cpu_s", "cpu_seconds", "load_average", "eval_seconds",
+             "fit_seconds", "train_seconds", "train_cpu_seconds", "step_ms_median", "step_ms_median_final"}
 
 
 def _norm(x, roots: list[str]):
@@ -87,11 +74,8 @@ def same_content(a: Path, b: Path, roots: list[str]) -> bool:
 
 
 def files(root: Path) -> dict[str, Path]:
-    return {
-        p.relative_to(root).as_posix(): p
-        for p in root.rglob("*")
-        if p.is_file() and not SKIP_DIRS & set(p.relative_to(root).parts)
-    }
+    return {p.relative_to(root).as_posix(): p for p in root.rglob("*")
+            if p.is_file() and not SKIP_DIRS & set(p.relative_to(root).parts)}
 
 
 def main() -> int:

@@ -10,7 +10,6 @@ pixels left out of it as magnified beyond the photos' sampling, edge share, pitc
 and the edge share of the clip's first frame (:func:`anigs.views.content.edge_share`). Prints one
 line per view with the same numbers. Default output: ``{scene}/{variant}/contact_final.png``.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -56,14 +55,11 @@ def main() -> int:
         strip = np.concatenate([_u8(p, args.scale) for p in panels], 1)
         v = views.get(row.name, {})
         es = edge_share(first)
-        txt = (
-            f"{row.name}: coverage {v.get('coverage', float('nan')):.2f}  content "
-            f"{v.get('content') if v.get('content') is None else round(v['content'], 2)}"
-            + (f" (magnified {v['magnified']:.2f})" if v.get("magnified") is not None else "")
-            + "  edge share (view) "
-            f"{v.get('edge_share') if v.get('edge_share') is None else round(v['edge_share'], 2)}  "
-            f"(first frame) {es:.2f}  pitch {v.get('pitch', float('nan')):+.0f}  mask {mask.mean():.2f}"
-        )
+        txt = (f"{row.name}: coverage {v.get('coverage', float('nan')):.2f}  content "
+               f"{v.get('content') if v.get('content') is None else round(v['content'], 2)}"
+               + (f" (magnified {v['magnified']:.2f})" if v.get("magnified") is not None else "") + "  edge share (view) "
+               f"{v.get('edge_share') if v.get('edge_share') is None else round(v['edge_share'], 2)}  "
+               f"(first frame) {es:.2f}  pitch {v.get('pitch', float('nan')):+.0f}  mask {mask.mean():.2f}")
         print(txt)
         parts += [strip, _caption(txt + "   [first | last | mask | max change]", strip.shape[1])]
     sheet = np.concatenate(parts, 0)

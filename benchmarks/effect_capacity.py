@@ -22,7 +22,6 @@ learned displacement power above the region's ground-truth band (``hf``; the gro
 share in brackets). With ``--identity-tree`` (a copy of the package before the key existed) the
 K12 update also runs on that code and the two ``model.pt`` files are compared byte for byte.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -62,11 +61,8 @@ def _run(cmd: list[str], log: Path, env: dict | None = None) -> dict:
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if rc != 0:
         sys.exit(f"failed ({rc}): {' '.join(cmd)}\n{log.read_text()[-3000:]}")
-    return {
-        "wall_s": round(wall, 2),
-        "cpu_s": round((r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime), 2),
-        "load": [round(x, 2) for x in load],
-    }
+    return {"wall_s": round(wall, 2), "cpu_s": round((r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime), 2),
+            "load": [round(x, 2) for x in load]}
 
 
 def _anigs(threads: int) -> list[str]:
@@ -132,7 +128,8 @@ def per_effect(model: Path, canonical: Path, labels: np.ndarray, demo: Path) -> 
     gt_g = gt.gt_gaussians()
     gt_labels = gt.gt_labels()
     params = MotionParams.from_dict(motion["params"])
-    off = gt_clip_offsets(params, gt_g.means, torch.as_tensor(gt.gt_anchors()), torch.as_tensor(gt_labels).long())
+    off = gt_clip_offsets(params, gt_g.means, torch.as_tensor(gt.gt_anchors()),
+                          torch.as_tensor(gt_labels).long())
     moving = (off.abs().amax(dim=(0, 2)) > 0).numpy()
     gt_traj = (gt_g.means[None] + off).permute(1, 0, 2).double().numpy()  # [M,T',3]
     ext_l = scene_extent(sfm_stage.Outputs(demo / "sfm").cameras())
@@ -158,7 +155,7 @@ def _above_band(traj: np.ndarray, cycles: int) -> float:
     x = traj - traj.mean(axis=1, keepdims=True)
     p = (np.abs(np.fft.rfft(x, axis=1)) ** 2).sum(axis=(0, 2))  # [T//2+1], bin = cycles per clip
     total = p[1:].sum()
-    return float(p[cycles + 1 :].sum() / total) if total > 0 else float("nan")
+    return float(p[cycles + 1:].sum() / total) if total > 0 else float("nan")
 
 
 def main() -> int:
@@ -168,12 +165,8 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=Path("/tmp/capC/bench"))
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--variants", default=",".join(VARIANTS))
-    ap.add_argument(
-        "--identity-tree",
-        type=Path,
-        default=None,
-        help="a copy of the package before effect_num_bases: its K12 model.pt must be byte-identical",
-    )
+    ap.add_argument("--identity-tree", type=Path, default=None,
+                    help="a copy of the package before effect_num_bases: its K12 model.pt must be byte-identical")
     ap.add_argument("--no-eval", action="store_true", help="skip final + eval (the per-effect GT metrics remain)")
     ap.add_argument("--seed-delta", type=int, default=0, help="add this to the recorded update seed (seed noise)")
     a = ap.parse_args()
@@ -198,27 +191,12 @@ def main() -> int:
         rd = UpdateOutputs(v_out / f"round{R}")
         model = rd.path("model")
         model.parent.mkdir(exist_ok=True)
-        masks = masks_folder(
-            demo, out / ("masks_labelled" if VARIANTS[name] else "masks_plain"), labels_path if VARIANTS[name] else None
-        )
+        masks = masks_folder(demo, out / ("masks_labelled" if VARIANTS[name] else "masks_plain"),
+                             labels_path if VARIANTS[name] else None)
         init = Path(ref["extra"]["init_model"]).parent
-        upd_args = [
-            "update",
-            "--static",
-            str(demo / "static"),
-            "--init",
-            str(init),
-            "--targets",
-            *ref["extra"]["targets"],
-            "--views",
-            str(demo / "views"),
-            "--masks",
-            str(masks),
-            "--out",
-            str(rd.root),
-            "--params",
-            json.dumps(cfg, sort_keys=True),
-        ]
+        upd_args = ["update", "--static", str(demo / "static"), "--init", str(init), "--targets", *ref["extra"]["targets"],
+                    "--views", str(demo / "views"), "--masks", str(masks), "--out", str(rd.root),
+                    "--params", json.dumps(cfg, sort_keys=True)]
         row = {"update": _run(_anigs(a.threads) + upd_args, v_out / "logs" / "update.log")}
         info = rd.json("log")
         row["train_s"] = round(info["seconds"], 2)
@@ -233,76 +211,22 @@ def main() -> int:
             row["identity_update"] = _run(_anigs(a.threads) + args, v_out / "logs" / "identity.log", env)
             row["identical_to_before"] = old.path("model").read_bytes() == model.read_bytes()
         exp = v_out / "export"
-        row["export"] = _run(
-            _anigs(a.threads)
-            + [
-                "export",
-                "--static",
-                str(demo / "static"),
-                "--model",
-                str(rd.root),
-                "--out",
-                str(exp),
-                "--params",
-                "{}",
-            ],
-            v_out / "logs" / "export.log",
-        )
+        row["export"] = _run(_anigs(a.threads) + ["export", "--static", str(demo / "static"), "--model", str(rd.root),
+                                                   "--out", str(exp), "--params", "{}"], v_out / "logs" / "export.log")
         row["export_bytes"] = {p.name: p.stat().st_size for p in sorted(exp.iterdir()) if p.is_file()}
         if not a.no_eval:
             fin = FinalOutputs(vdir / "final").json("summary")["config"]
-            row["final"] = _run(
-                _anigs(a.threads)
-                + [
-                    "final",
-                    "--static",
-                    str(demo / "static"),
-                    "--model",
-                    str(rd.root),
-                    "--views",
-                    str(demo / "views"),
-                    "--sfm",
-                    str(demo / "sfm"),
-                    "--masks",
-                    str(demo / "masks"),
-                    "--out",
-                    str(v_out / "final"),
-                    "--params",
-                    json.dumps(fin),
-                ],
-                v_out / "logs" / "final.log",
-            )
+            row["final"] = _run(_anigs(a.threads) + [
+                "final", "--static", str(demo / "static"), "--model", str(rd.root), "--views", str(demo / "views"),
+                "--sfm", str(demo / "sfm"), "--masks", str(demo / "masks"), "--out", str(v_out / "final"),
+                "--params", json.dumps(fin)], v_out / "logs" / "final.log")
             ev = EvalOutputs(vdir / "eval").record()["config"]
             ev["multiview_capture"] = False
-            row["eval"] = _run(
-                _anigs(a.threads)
-                + [
-                    "eval",
-                    "--final",
-                    str(v_out / "final"),
-                    "--masks",
-                    str(demo / "masks"),
-                    "--model",
-                    str(rd.root),
-                    "--static",
-                    str(demo / "static"),
-                    "--sfm",
-                    str(demo / "sfm"),
-                    "--capture",
-                    str(demo / "capture"),
-                    "--scene",
-                    "demo",
-                    "--method",
-                    "Ours",
-                    "--variant",
-                    name,
-                    "--out",
-                    str(v_out / "eval"),
-                    "--params",
-                    json.dumps(ev),
-                ],
-                v_out / "logs" / "eval.log",
-            )
+            row["eval"] = _run(_anigs(a.threads) + [
+                "eval", "--final", str(v_out / "final"), "--masks", str(demo / "masks"), "--model", str(rd.root),
+                "--static", str(demo / "static"), "--sfm", str(demo / "sfm"), "--capture", str(demo / "capture"),
+                "--scene", "demo", "--method", "Ours", "--variant", name,
+                "--out", str(v_out / "eval"), "--params", json.dumps(ev)], v_out / "logs" / "eval.log")
             m = EvalOutputs(v_out / "eval").record()["metrics"]
             row["metrics"] = {k: m[k]["value"] for k in m}
         row["effects"] = per_effect(model, canonical, labels, demo)
@@ -316,10 +240,8 @@ def _print(rows: dict, R: int, threads: int, seed: int) -> None:
     names = list(rows)
     w = max(14, *(len(n) + 2 for n in names))
     line = lambda label, vals: print(f"{label:<34}" + "".join(f"{v:>{w}}" for v in vals))
-    print(
-        f"\nround {R} update per variant (--threads {threads}, seed {seed}); load = 1/5/15-min load average "
-        "before the update"
-    )
+    print(f"\nround {R} update per variant (--threads {threads}, seed {seed}); load = 1/5/15-min load average "
+          "before the update")
     line("variant", names)
     line("update wall s", [r["update"]["wall_s"] for r in rows.values()])
     line("update CPU s", [r["update"]["cpu_s"] for r in rows.values()])
@@ -333,15 +255,9 @@ def _print(rows: dict, R: int, threads: int, seed: int) -> None:
     for f in (ExportOutputs.LAYOUT["ply"].name, ExportOutputs.LAYOUT["compact"].name):
         line(f"export {f} bytes", [r["export_bytes"].get(f, "-") for r in rows.values()])
     if all("metrics" in r for r in rows.values()):
-        for k, fmt in (
-            ("gt/amplitude_w1", ".6f"),
-            ("gt/frequency_w1", ".5f"),
-            ("gt/rms_amplitude_ratio", ".4f"),
-            ("static_outside_mask_still", ".6f"),
-            ("static_abs_diff", ".3e"),
-            ("dynamic_flow", ".5f"),
-            ("multiview/psnr_novel", ".3f"),
-        ):
+        for k, fmt in (("gt/amplitude_w1", ".6f"), ("gt/frequency_w1", ".5f"), ("gt/rms_amplitude_ratio", ".4f"),
+                       ("static_outside_mask_still", ".6f"), ("static_abs_diff", ".3e"), ("dynamic_flow", ".5f"),
+                       ("multiview/psnr_novel", ".3f")):
             line(k, [format(r["metrics"].get(k, float("nan")), fmt) for r in rows.values()])
     for region in REGION_GT_CYCLES:
         if not all(region in r["effects"] for r in rows.values()):
@@ -355,10 +271,8 @@ def _print(rows: dict, R: int, threads: int, seed: int) -> None:
         line(f"  {region} hf share (GT)", [f"{x['hf']:.4f} ({x['hf_gt']:.3f})" for x in e])
     for n, r in rows.items():
         if "identical_to_before" in r:
-            print(
-                f"{n}: model.pt byte-identical to the code before the key: {r['identical_to_before']}; "
-                f"to the demo's own round-{R} model.pt: {r['same_bytes_as_demo']}"
-            )
+            print(f"{n}: model.pt byte-identical to the code before the key: {r['identical_to_before']}; "
+                  f"to the demo's own round-{R} model.pt: {r['same_bytes_as_demo']}")
 
 
 if __name__ == "__main__":

@@ -9,7 +9,6 @@ central interval, clips per side, views, and the seconds spent rendering the eva
 running I3D on them and computing the distances (the reference's line: the ground truth's).
 Seconds per I3D clip are the feature seconds over the clips.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -32,18 +31,9 @@ def rows(scene_dir: Path) -> list[dict]:
     if refs.exists("reference"):
         ref = refs.json("reference")
         secs = ref.get("seconds") or {}
-        out.append(
-            {
-                "run": "ground truth (reference)",
-                "value": None,
-                "clips": ref.get("clips"),
-                "views": ref.get("views"),
-                "render_s": secs.get("render"),
-                "features_s": secs.get("features"),
-                "total_s": ref.get("seconds_total"),
-                "gt_vbench": ref.get("gt_vbench"),
-            }
-        )
+        out.append({"run": "ground truth (reference)", "value": None, "clips": ref.get("clips"),
+                    "views": ref.get("views"), "render_s": secs.get("render"), "features_s": secs.get("features"),
+                    "total_s": ref.get("seconds_total"), "gt_vbench": ref.get("gt_vbench")})
         still = ref.get("still_control")
         if still:
             out.append(_line("static scene, no motion (control)", still, still.get("seconds") or {}))
@@ -60,19 +50,10 @@ def _line(label: str, m: dict, secs: dict, total=None) -> dict:
         return {"run": label, "value": None, "reason": m.get("reason")}
     b = m.get("bootstrap") or {}
     s = m.get("samples") or {}
-    return {
-        "run": label,
-        "value": m["value"],
-        "std": b.get("std"),
-        "interval": b.get("interval"),
-        "clips": s.get("test"),
-        "reference_clips": s.get("reference"),
-        "views": s.get("views"),
-        "render_s": secs.get("render"),
-        "features_s": secs.get("features"),
-        "frechet_s": (m.get("protocol") or {}).get("frechet_seconds"),
-        "total_s": total,
-    }
+    return {"run": label, "value": m["value"], "std": b.get("std"), "interval": b.get("interval"),
+            "clips": s.get("test"), "reference_clips": s.get("reference"), "views": s.get("views"),
+            "render_s": secs.get("render"), "features_s": secs.get("features"),
+            "frechet_s": (m.get("protocol") or {}).get("frechet_seconds"), "total_s": total}
 
 
 def _f(x, fmt=".2f"):
@@ -88,34 +69,26 @@ def main() -> int:
     if not table:
         print(f"no FVD-GT records under {args.scene_dir} (run `snakemake tables`)")
         return 1
-    print(
-        "| run | FVD-GT | bootstrap std | 90% interval | clips (GT) | views | render s | I3D s | s per clip | FD+bootstrap s |"
-    )
+    print("| run | FVD-GT | bootstrap std | 90% interval | clips (GT) | views | render s | I3D s | s per clip | FD+bootstrap s |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for r in table:
         iv = r.get("interval")
         per = r["features_s"] / r["clips"] if r.get("features_s") and r.get("clips") else None
-        print(
-            f"| {r['run']} | {_f(r.get('value')) or 'n/a ' + str(r.get('reason') or '')} | {_f(r.get('std'))} | "
-            f"{'' if not iv else f'{iv[0]:.2f} - {iv[1]:.2f}'} | {r.get('clips') or ''}"
-            f"{' (' + str(r['reference_clips']) + ')' if r.get('reference_clips') else ''} | {r.get('views') or ''} | "
-            f"{_f(r.get('render_s'), '.1f')} | {_f(r.get('features_s'), '.1f')} | {_f(per)} | {_f(r.get('frechet_s'), '.1f')} |"
-        )
+        print(f"| {r['run']} | {_f(r.get('value')) or 'n/a ' + str(r.get('reason') or '')} | {_f(r.get('std'))} | "
+              f"{'' if not iv else f'{iv[0]:.2f} - {iv[1]:.2f}'} | {r.get('clips') or ''}"
+              f"{' (' + str(r['reference_clips']) + ')' if r.get('reference_clips') else ''} | {r.get('views') or ''} | "
+              f"{_f(r.get('render_s'), '.1f')} | {_f(r.get('features_s'), '.1f')} | {_f(per)} | {_f(r.get('frechet_s'), '.1f')} |")
     gt = next((r.get("gt_vbench") for r in table if r.get("gt_vbench")), None)
     if gt:
-        print(
-            f"\nground truth's own VBench figures on the evaluation views: flickering {gt['temporal_flickering']:.5f}, "
-            f"dynamic-degree proxy {gt['dynamic_degree_proxy']:.2f}"
-        )
+        print(f"\nground truth's own VBench figures on the evaluation views: flickering {gt['temporal_flickering']:.5f}, "
+              f"dynamic-degree proxy {gt['dynamic_degree_proxy']:.2f}")
     gaps = paired_gaps(args.scene_dir)
     if gaps:
         print("\nPaired gaps (the same bootstrap draws of views for both; an interval that excludes 0 is a real gap):")
         print("| A - B | mean | std | 90% interval |")
         print("|---|---|---|---|")
         for g in gaps:
-            print(
-                f"| {g['pair']} | {g['mean']:.2f} | {g['std']:.2f} | {g['interval'][0]:.2f} - {g['interval'][1]:.2f} |"
-            )
+            print(f"| {g['pair']} | {g['mean']:.2f} | {g['std']:.2f} | {g['interval'][0]:.2f} - {g['interval'][1]:.2f} |")
     if args.json:
         args.json.write_text(json.dumps({"rows": table, "gaps": gaps}, indent=1))
     return 0
@@ -152,7 +125,7 @@ def paired_gaps(scene_dir: Path) -> list[dict]:
     order = [k for k in ("Ours", "no motion") if k in sets] + [k for k in sets if k not in ("Ours", "no motion")]
     out = []
     for i, base in enumerate(order):  # every pair once: later minus earlier
-        for name in order[i + 1 :]:
+        for name in order[i + 1:]:
             g = bootstrap_gap(sets[name], sets[base], f_gt, views, cfg["bootstrap"], cfg["seed"], cfg["level"])
             out.append({"pair": f"{name} - {base}", **g.to_dict()})
     return out

@@ -13,7 +13,6 @@ mean plus 2 cm noise), so that the static fit needs neither COLMAP nor the workf
 (the CPU rehearsal) shrinks every size. ``--device`` is ``cuda`` on the GPU machine; ``cpu``
 rehearses the same code on the CPU (the gsplat comparison then uses the torch backend).
 """
-
 from __future__ import annotations
 
 import argparse
@@ -56,37 +55,18 @@ def part_env(args) -> dict:
     import shutil
     import subprocess
 
-    out = {
-        "python": platform.python_version(),
-        "torch": torch.__version__,
-        "cuda_available": torch.cuda.is_available(),
-        "cpu_count": os.cpu_count(),
-        "torch_threads": torch.get_num_threads(),
-    }
+    out = {"python": platform.python_version(), "torch": torch.__version__, "cuda_available": torch.cuda.is_available(),
+           "cpu_count": os.cpu_count(), "torch_threads": torch.get_num_threads()}
     if torch.cuda.is_available():
         p = torch.cuda.get_device_properties(0)
-        out.update(
-            gpu=p.name,
-            capability=f"{p.major}.{p.minor}",
-            gpu_mem_gib=round(p.total_memory / 2**30, 1),
-            torch_cuda=torch.version.cuda,
-        )
+        out.update(gpu=p.name, capability=f"{p.major}.{p.minor}", gpu_mem_gib=round(p.total_memory / 2**30, 1),
+                   torch_cuda=torch.version.cuda)
     nvcc = shutil.which("nvcc")
     if nvcc:
         v = subprocess.run([nvcc, "--version"], capture_output=True, text=True).stdout.strip().splitlines()
         out["nvcc"] = v[-1] if v else "?"
-    for name in (
-        "gsplat",
-        "diffusers",
-        "transformers",
-        "snakemake",
-        "pycolmap",
-        "opencv-python-headless",
-        "opencv-contrib-python-headless",
-        "imageio-ffmpeg",
-        "jsonschema",
-        "numpy",
-    ):
+    for name in ("gsplat", "diffusers", "transformers", "snakemake", "pycolmap", "opencv-python-headless",
+                 "opencv-contrib-python-headless", "imageio-ffmpeg", "jsonschema", "numpy"):
         out[f"pkg:{name}"] = _version(name)
     return out
 
@@ -133,49 +113,23 @@ def part_static(args) -> dict:
 
     imgs, cams, pts, cols, bg = _load_capture(Path(args.dir))
     backend = args.backend
-    cfg = FitConfig(
-        iterations=args.iterations,
-        background=tuple(bg),
-        device=args.device,
-        backend=backend,
-        eval_every=args.eval_every,
-    )
+    cfg = FitConfig(iterations=args.iterations, background=tuple(bg), device=args.device, backend=backend,
+                    eval_every=args.eval_every)
     g, m = fit_static(imgs, cams, pts, cols, cfg, progress=False)
     if args.ply:
         g.save_ply(args.ply)
-    keep = (
-        "test_psnr",
-        "train_psnr",
-        "num_gaussians",
-        "iterations",
-        "seconds",
-        "train_seconds",
-        "step_ms_median",
-        "step_ms_median_final",
-        "torch_threads",
-    )
-    return {
-        **{k: m.get(k) for k in keep},
-        "device": args.device,
-        "backend": backend,
-        "curve": [{k: r[k] for k in ("iteration", "test_psnr", "train_seconds", "num_gaussians")} for r in m["curve"]],
-    }
+    keep = ("test_psnr", "train_psnr", "num_gaussians", "iterations", "seconds", "train_seconds",
+            "step_ms_median", "step_ms_median_final", "torch_threads")
+    return {**{k: m.get(k) for k in keep}, "device": args.device, "backend": backend,
+            "curve": [{k: r[k] for k in ("iteration", "test_psnr", "train_seconds", "num_gaussians")} for r in m["curve"]]}
 
 
 def _render_grads(g, cam, dev: torch.device, backend: str, bg: list[float], weights):
     from anigs.render import rasterize
 
     leaves = [t.detach().to(dev).clone().requires_grad_(True) for t in (g.means, g.quats, g.scales, g.opacities, g.sh)]
-    rgb, alpha, _ = rasterize(
-        *leaves,
-        cam.torch_viewmat(dev),
-        cam.torch_K(dev),
-        cam.width,
-        cam.height,
-        sh_degree=g.sh_degree,
-        background=torch.tensor(bg, device=dev),
-        backend=backend,
-    )
+    rgb, alpha, _ = rasterize(*leaves, cam.torch_viewmat(dev), cam.torch_K(dev), cam.width, cam.height,
+                              sh_degree=g.sh_degree, background=torch.tensor(bg, device=dev), backend=backend)
     wr, wa = (w.to(dev) for w in weights)
     ((rgb * wr).sum() + (alpha * wa).sum()).backward()
     _sync(dev)
@@ -209,22 +163,15 @@ def part_agree(args) -> dict:
     rows, worst = [], {n: (1.0, 0.0) for n in names}
     gen = torch.Generator().manual_seed(0)
     for cam in cams[:: max(1, len(cams) // args.views)][: args.views]:
-        weights = (
-            torch.randn(cam.height, cam.width, 3, generator=gen),
-            torch.randn(cam.height, cam.width, generator=gen),
-        )
+        weights = (torch.randn(cam.height, cam.width, 3, generator=gen), torch.randn(cam.height, cam.width, generator=gen))
         t0 = time.perf_counter()
         rgb_f, grads_f = _render_grads(g, cam, dev, fast, bg, weights)
         t_fast = time.perf_counter() - t0
         t0 = time.perf_counter()
         rgb_c, grads_c = _render_grads(g, cam, torch.device("cpu"), "cpu", bg, weights)
         t_cpu = time.perf_counter() - t0
-        row = {
-            "view": cam.name,
-            "psnr": float(psnr(rgb_f.clamp(0, 1), rgb_c.clamp(0, 1))),
-            "seconds_fast": t_fast,
-            "seconds_cpu": t_cpu,
-        }
+        row = {"view": cam.name, "psnr": float(psnr(rgb_f.clamp(0, 1), rgb_c.clamp(0, 1))),
+               "seconds_fast": t_fast, "seconds_cpu": t_cpu}
         for n, a, b in zip(names, grads_f, grads_c):
             cos = float(torch.nn.functional.cosine_similarity(a.flatten().double(), b.flatten().double(), dim=0))
             rel = float((a - b).norm() / b.norm().clamp_min(1e-30))
@@ -236,18 +183,11 @@ def part_agree(args) -> dict:
             _save_comparison(args.png, rgb_f, rgb_c)
     min_psnr = min(r["psnr"] for r in rows)
     grads_ok = all(c >= MIN_GRAD_COSINE and r <= MAX_GRAD_REL for c, r in worst.values())
-    return {
-        "backend": fast,
-        "model": str(args.ply),
-        "gaussians": g.num,
-        "views": len(rows),
-        "min_psnr": min_psnr,
-        "mean_psnr": float(np.mean([r["psnr"] for r in rows])),
-        "worst_grad": {n: {"min_cos": c, "max_rel": r} for n, (c, r) in worst.items()},
-        "tolerance": {"psnr_db": MIN_PSNR_DB, "grad_cos": MIN_GRAD_COSINE, "grad_rel": MAX_GRAD_REL},
-        "pass": bool(min_psnr >= MIN_PSNR_DB and grads_ok),
-        "rows": rows,
-    }
+    return {"backend": fast, "model": str(args.ply), "gaussians": g.num, "views": len(rows), "min_psnr": min_psnr,
+            "mean_psnr": float(np.mean([r["psnr"] for r in rows])),
+            "worst_grad": {n: {"min_cos": c, "max_rel": r} for n, (c, r) in worst.items()},
+            "tolerance": {"psnr_db": MIN_PSNR_DB, "grad_cos": MIN_GRAD_COSINE, "grad_rel": MAX_GRAD_REL},
+            "pass": bool(min_psnr >= MIN_PSNR_DB and grads_ok), "rows": rows}
 
 
 def part_ltx(args) -> dict:
@@ -281,25 +221,12 @@ def part_ltx(args) -> dict:
     loss.backward()
     _sync(dev)
     t_sds = time.perf_counter() - t0
-    ok = bool(
-        np.isfinite(out).all()
-        and out.shape == clip.shape
-        and torch.isfinite(loss)
-        and torch.isfinite(coeffs.grad).all()
-    )
+    ok = bool(np.isfinite(out).all() and out.shape == clip.shape and torch.isfinite(loss)
+              and torch.isfinite(coeffs.grad).all())
     peak = torch.cuda.max_memory_allocated(dev) / 2**20 if dev.type == "cuda" else None
-    return {
-        "device": str(dev),
-        "dtype": str(prior.dtype).replace("torch.", ""),
-        "clip": [T, H, W],
-        "sigmas": sigmas,
-        "build_seconds": t_build,
-        "load_seconds": t_load,
-        "refine_seconds": t_refine,
-        "sds_seconds": t_sds,
-        "finite": ok,
-        "peak_gpu_mib": peak,
-    }
+    return {"device": str(dev), "dtype": str(prior.dtype).replace("torch.", ""), "clip": [T, H, W],
+            "sigmas": sigmas, "build_seconds": t_build, "load_seconds": t_load,
+            "refine_seconds": t_refine, "sds_seconds": t_sds, "finite": ok, "peak_gpu_mib": peak}
 
 
 def _update_scene(n: int, dyn_frac: float, views: int, w: int, h: int, T: int):
@@ -314,12 +241,8 @@ def _update_scene(n: int, dyn_frac: float, views: int, w: int, h: int, T: int):
     scales = torch.exp(torch.empty(n).uniform_(math.log(0.02), math.log(0.05), generator=g))
     G = Gaussians.from_points(pts, torch.rand(n, 3, generator=g), scales, opacity=0.6)
     mask = torch.rand(n, generator=g) < dyn_frac
-    cams = [
-        Camera(
-            intrinsics_from_fov(60, w, h), look_at((5 * math.cos(a), 5 * math.sin(a), 2.0), (0, 0, 0.5)), w, h, f"v{k}"
-        )
-        for k, a in enumerate(2 * math.pi * k / views for k in range(views))
-    ]
+    cams = [Camera(intrinsics_from_fov(60, w, h), look_at((5 * math.cos(a), 5 * math.sin(a), 2.0), (0, 0, 0.5)), w, h,
+                   f"v{k}") for k, a in enumerate(2 * math.pi * k / views for k in range(views))]
     with torch.no_grad():
         data = [ViewData(c, render_frame(G, None, c, 0)[None].repeat(T, 1, 1, 1)) for c in cams]
     return G, mask, data
@@ -331,46 +254,22 @@ def part_update(args) -> dict:
 
     size = (3000, 0.3, 3, 64, 48, 9) if args.small else (30_000, 0.3, 8, 256, 192, 25)
     G, mask, views = _update_scene(*size)
-    ucfg = dict(
-        num_bases=12,
-        views_per_step=2,
-        cano_views_per_step=1,
-        lambda_cano=0.1,
-        seed=0,
-        device=args.device,
-        backend=args.backend,
-        spatial_lr_scale=1.0,
-    )
+    ucfg = dict(num_bases=12, views_per_step=2, cano_views_per_step=1, lambda_cano=0.1, seed=0, device=args.device,
+                backend=args.backend, spatial_lr_scale=1.0)
     run_update(G, mask, views, UpdateConfig(steps=1, **ucfg), progress=False)  # warm-up (kernels, allocator)
     t0 = time.perf_counter()
     res = run_update(G, mask, views, UpdateConfig(steps=args.steps, **ucfg), progress=False)
     wall = time.perf_counter() - t0
     losses = [h["loss"] for h in res.history if "loss" in h]
-    return {
-        "device": args.device,
-        "backend": args.backend,
-        "gaussians": size[0],
-        "dynamic": int(mask.sum()),
-        "views": size[2],
-        "size": f"{size[3]}x{size[4]}",
-        "frames": size[5],
-        "steps": res.steps,
-        "seconds": wall,
-        "steps_per_s": res.steps / max(res.seconds, 1e-9),
-        "first_loss": losses[0] if losses else None,
-        "last_loss": losses[-1] if losses else None,
-        "finite": all(bool(torch.isfinite(p).all()) for p in res.deformation.parameters()),
-    }
+    return {"device": args.device, "backend": args.backend, "gaussians": size[0], "dynamic": int(mask.sum()), "views": size[2],
+            "size": f"{size[3]}x{size[4]}", "frames": size[5], "steps": res.steps, "seconds": wall,
+            "steps_per_s": res.steps / max(res.seconds, 1e-9), "first_loss": losses[0] if losses else None,
+            "last_loss": losses[-1] if losses else None,
+            "finite": all(bool(torch.isfinite(p).all()) for p in res.deformation.parameters())}
 
 
-PARTS = {
-    "env": part_env,
-    "capture": part_capture,
-    "static": part_static,
-    "agree": part_agree,
-    "ltx": part_ltx,
-    "update": part_update,
-}
+PARTS = {"env": part_env, "capture": part_capture, "static": part_static, "agree": part_agree, "ltx": part_ltx,
+         "update": part_update}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -385,12 +284,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ply", type=Path, help="static: where the fitted model goes; agree: the model to render")
     ap.add_argument("--views", type=int, default=8, help="agree: views compared")
     ap.add_argument("--png", type=Path, help="agree: the first view, fast | CPU kernel | 10x difference")
-    ap.add_argument(
-        "--model",
-        type=Path,
-        default=Path("/tmp/anigs-gpu-check/ltx-tiny"),
-        help="ltx: where save_tiny_random_stack wrote (or writes) the tiny stack",
-    )
+    ap.add_argument("--model", type=Path, default=Path("/tmp/anigs-gpu-check/ltx-tiny"), help="ltx: where save_tiny_random_stack wrote (or writes) the tiny stack")
     ap.add_argument("--steps", type=int, default=120, help="update: optimisation steps")
     ap.add_argument("--small", action="store_true", help="small sizes (the CPU rehearsal)")
     args = ap.parse_args(argv)

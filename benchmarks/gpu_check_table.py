@@ -5,7 +5,6 @@
 Markdown, ready for benchmarks/README.md. A part that failed shows FAILED and the last line of its
 log; a skipped part says why.
 """
-
 from __future__ import annotations
 
 import json
@@ -33,23 +32,16 @@ def _static(work: Path) -> str:
     g, c = _load(work, "static"), _load(work, "static_cpu")
     if not g:
         return ""
-    out = (
-        f"{g['device']}/{g['backend']}: {g['iterations']} steps in {_f(g['train_seconds'])} s, step "
-        f"{_f(g['step_ms_median'], '.2f')} ms (median), held-out PSNR {_f(g['test_psnr'], '.2f')} dB, "
-        f"{g['num_gaussians']} Gaussians"
-    )
+    out = (f"{g['device']}/{g['backend']}: {g['iterations']} steps in {_f(g['train_seconds'])} s, step "
+           f"{_f(g['step_ms_median'], '.2f')} ms (median), held-out PSNR {_f(g['test_psnr'], '.2f')} dB, "
+           f"{g['num_gaussians']} Gaussians")
     if c:
         its = [r["iteration"] for r in c["curve"] if r["iteration"] > 0]
-        pairs = ", ".join(
-            f"{i}: {_f(_psnr_at(g['curve'], i), '.2f')} vs {_f(_psnr_at(c['curve'], i), '.2f')}" for i in its
-        )
-        ratio = (
-            c["step_ms_median"] / g["step_ms_median"] if g.get("step_ms_median") and c.get("step_ms_median") else None
-        )
-        out += (
-            f"; CPU ({c['torch_threads']} threads, {c['iterations']} steps): step {_f(c['step_ms_median'], '.2f')} ms "
-            f"({_f(ratio)}x); held-out PSNR at step {pairs} dB"
-        )
+        pairs = ", ".join(f"{i}: {_f(_psnr_at(g['curve'], i), '.2f')} vs {_f(_psnr_at(c['curve'], i), '.2f')}"
+                          for i in its)
+        ratio = c["step_ms_median"] / g["step_ms_median"] if g.get("step_ms_median") and c.get("step_ms_median") else None
+        out += (f"; CPU ({c['torch_threads']} threads, {c['iterations']} steps): step {_f(c['step_ms_median'], '.2f')} ms "
+                f"({_f(ratio)}x); held-out PSNR at step {pairs} dB")
     return out
 
 
@@ -65,12 +57,10 @@ def _agree(work: Path) -> str:
     grads = ", ".join(f"{n} {_f(v['min_cos'], '.4f')}/{_f(v['max_rel'], '.3f')}" for n, v in a["worst_grad"].items())
     tol = a["tolerance"]
     model = "the ground truth (the fit failed)" if a.get("model", "").endswith("gaussians.ply") else "the fitted model"
-    return (
-        f"{'PASS' if a['pass'] else 'OUTSIDE TOLERANCE'}: {a['backend']} vs CPU kernel on {model}, {a['gaussians']} Gaussians, "
-        f"{a['views']} views: image PSNR min {_f(a['min_psnr'], '.1f')} / mean {_f(a['mean_psnr'], '.1f')} dB "
-        f"(>= {tol['psnr_db']}); gradient worst cosine/relative L2 error {grads} "
-        f"(>= {tol['grad_cos']} / <= {tol['grad_rel']})"
-    )
+    return (f"{'PASS' if a['pass'] else 'OUTSIDE TOLERANCE'}: {a['backend']} vs CPU kernel on {model}, {a['gaussians']} Gaussians, "
+            f"{a['views']} views: image PSNR min {_f(a['min_psnr'], '.1f')} / mean {_f(a['mean_psnr'], '.1f')} dB "
+            f"(>= {tol['psnr_db']}); gradient worst cosine/relative L2 error {grads} "
+            f"(>= {tol['grad_cos']} / <= {tol['grad_rel']})")
 
 
 def _ltx(work: Path) -> str:
@@ -78,24 +68,20 @@ def _ltx(work: Path) -> str:
     if not r:
         return ""
     mem = f", peak GPU {_f(r['peak_gpu_mib'], '.0f')} MiB" if r.get("peak_gpu_mib") is not None else ""
-    return (
-        f"{r['device']} {r['dtype']}, clip {'x'.join(map(str, r['clip']))} (TxHxW), tiny random weights: "
-        f"load {_f(r['load_seconds'], '.2f')} s, refine ({len(r.get('sigmas') or []) - 1} steps) "
-        f"{_f(r['refine_seconds'], '.2f')} s, SDS loss+backward {_f(r['sds_seconds'], '.2f')} s, "
-        f"finite {r['finite']}{mem}"
-    )
+    return (f"{r['device']} {r['dtype']}, clip {'x'.join(map(str, r['clip']))} (TxHxW), tiny random weights: "
+            f"load {_f(r['load_seconds'], '.2f')} s, refine ({len(r.get('sigmas') or []) - 1} steps) "
+            f"{_f(r['refine_seconds'], '.2f')} s, SDS loss+backward {_f(r['sds_seconds'], '.2f')} s, "
+            f"finite {r['finite']}{mem}")
 
 
 def _update(work: Path) -> str:
     g, c = _load(work, "update"), _load(work, "update_cpu")
     if not g:
         return ""
-    out = (
-        f"{g['device']}/{g['backend']}: {g['steps']} steps in {_f(g['seconds'], '.2f')} s "
-        f"({_f(g['steps_per_s'], '.1f')} steps/s), {g['gaussians']} Gaussians ({g['dynamic']} dynamic), "
-        f"{g['views']} views {g['size']}x{g['frames']} frames, loss {_f(g['first_loss'], '.4f')} -> "
-        f"{_f(g['last_loss'], '.4f')}, finite {g['finite']}"
-    )
+    out = (f"{g['device']}/{g['backend']}: {g['steps']} steps in {_f(g['seconds'], '.2f')} s "
+           f"({_f(g['steps_per_s'], '.1f')} steps/s), {g['gaussians']} Gaussians ({g['dynamic']} dynamic), "
+           f"{g['views']} views {g['size']}x{g['frames']} frames, loss {_f(g['first_loss'], '.4f')} -> "
+           f"{_f(g['last_loss'], '.4f')}, finite {g['finite']}")
     if c:
         out += f"; CPU: {_f(c['steps_per_s'], '.2f')} steps/s ({c['steps']} steps)"
     return out
@@ -116,9 +102,7 @@ def _demo(work: Path) -> str:
         parts.append(f"static held-out PSNR {_f(json.loads(m.read_text()).get('test_psnr'), '.2f')} dB")
     rows = rule_breakdown(benchmark_files(res))
     if rows:
-        parts.append(
-            "job seconds by rule: " + ", ".join(f"{r['rule']} {r['seconds']:.1f} ({r['jobs']})" for r in rows[:7])
-        )
+        parts.append("job seconds by rule: " + ", ".join(f"{r['rule']} {r['seconds']:.1f} ({r['jobs']})" for r in rows[:7]))
     return "; ".join(parts)
 
 
@@ -126,11 +110,8 @@ def _env(work: Path) -> str:
     e = _load(work, "env")
     if not e:
         return ""
-    gpu = (
-        f"{e.get('gpu')} (sm {e.get('capability')}, {e.get('gpu_mem_gib')} GiB, CUDA {e.get('torch_cuda')})"
-        if e.get("gpu")
-        else "no GPU"
-    )
+    gpu = f"{e.get('gpu')} (sm {e.get('capability')}, {e.get('gpu_mem_gib')} GiB, CUDA {e.get('torch_cuda')})" \
+        if e.get("gpu") else "no GPU"
     pk = ", ".join(f"{k[4:]} {v}" for k, v in e.items() if k.startswith("pkg:") and v)
     return f"{gpu}; {e.get('cpu_count')} CPUs; Python {e.get('python')}, torch {e.get('torch')}; {pk}"
 
@@ -143,16 +124,8 @@ def _gsplat(work: Path) -> str:
     return f"{how} in {_f(r['seconds'])} s (TORCH_CUDA_ARCH_LIST={r['arch']}, MAX_JOBS={r['max_jobs']})"
 
 
-SUMMARY = {
-    "env": _env,
-    "gsplat": _gsplat,
-    "static": _static,
-    "static_cpu": _static_cpu,
-    "agree": _agree,
-    "ltx": _ltx,
-    "update": _update,
-    "demo": _demo,
-}
+SUMMARY = {"env": _env, "gsplat": _gsplat, "static": _static, "static_cpu": _static_cpu, "agree": _agree, "ltx": _ltx,
+           "update": _update, "demo": _demo}
 
 
 def table(work: Path) -> str:

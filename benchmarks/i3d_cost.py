@@ -10,7 +10,6 @@ After one warm-up call per batch size, prints the median wall-clock and process-
 per clip, and the load average before and after (the machine may be shared: with a load above
 the core count the wall-clock figure is inflated, the CPU-time one less so).
 """
-
 from __future__ import annotations
 
 import argparse
@@ -55,19 +54,13 @@ def main(argv: list[str] | None = None) -> dict:
                 cpu.append((time.process_time() - c0) / b)
         out["per_clip"][b] = {"wall": statistics.median(wall), "cpu": statistics.median(cpu)}
     out["load_average"] = {"before": load_before, "after": os.getloadavg()}
-    print(
-        f"torch {torch.__version__}, {args.threads} threads, {os.cpu_count()} cores; weights loaded in "
-        f"{out['load_seconds']:.1f} s"
-    )
+    print(f"torch {torch.__version__}, {args.threads} threads, {os.cpu_count()} cores; weights loaded in "
+          f"{out['load_seconds']:.1f} s")
     for b, r in out["per_clip"].items():
-        print(
-            f"batch {b}: {r['wall']:.2f} s wall, {r['cpu']:.2f} s CPU per {args.frames}-frame clip "
-            f"({args.crop}x{args.crop} crop -> 224x224), median of {args.repeat}"
-        )
+        print(f"batch {b}: {r['wall']:.2f} s wall, {r['cpu']:.2f} s CPU per {args.frames}-frame clip "
+              f"({args.crop}x{args.crop} crop -> 224x224), median of {args.repeat}")
     la, lb = out["load_average"]["before"], out["load_average"]["after"]
-    print(
-        f"load average (1, 5, 15 min) before {tuple(round(v, 1) for v in la)}, after {tuple(round(v, 1) for v in lb)}"
-    )
+    print(f"load average (1, 5, 15 min) before {tuple(round(v, 1) for v in la)}, after {tuple(round(v, 1) for v in lb)}")
     return out
 
 

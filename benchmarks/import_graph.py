@@ -18,7 +18,6 @@ edge to ``anigs.x.y`` when that is a module, else to ``anigs.x``. Imports under
 (for example gsplat's, to compare the share of imports inside functions); the layering applies
 to anigs only.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -29,25 +28,9 @@ from pathlib import Path
 
 # Layers of anigs, bottom (0) to top; a package may import its own layer and the ones below.
 LAYERS: list[tuple[str, set[str]]] = [
-    (
-        "base: data types, IO, device, math",
-        {
-            "io",
-            "device",
-            "config",
-            "configs",
-            "typed_config",
-            "images",
-            "video",
-            "flow",
-            "cameras",
-            "gaussians",
-            "geometry",
-            "benchmark_tsv",
-            "photos",
-            "pixels",
-        },
-    ),
+    ("base: data types, IO, device, math", {
+        "io", "device", "config", "configs", "typed_config", "images", "video", "flow", "cameras",
+        "gaussians", "geometry", "benchmark_tsv", "photos", "pixels"}),
     ("compiled kernels: rasterizer, SSIM", {"render", "ssim", "fused_ssim", "ssim_kernel"}),
     ("scene sources: synthetic scene, SfM", {"synth", "sfm"}),
     ("scene analysis: static fit, effects, views", {"static", "effects", "views"}),
@@ -71,13 +54,11 @@ def module_name(path: Path, root: Path) -> str:
 def _is_type_checking(node: ast.If) -> bool:
     t = node.test
     return (isinstance(t, ast.Name) and t.id == "TYPE_CHECKING") or (
-        isinstance(t, ast.Attribute) and t.attr == "TYPE_CHECKING"
-    )
+        isinstance(t, ast.Attribute) and t.attr == "TYPE_CHECKING")
 
 
 def _imports(tree: ast.Module):
     """Yield (node, inside_function) for every import statement that runs (not TYPE_CHECKING)."""
-
     def walk(node, in_func: bool):
         for child in ast.iter_child_nodes(node):
             if isinstance(child, ast.If) and _is_type_checking(child):
@@ -88,7 +69,6 @@ def _imports(tree: ast.Module):
                 yield child, in_func
             funcy = isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
             yield from walk(child, in_func or funcy)
-
     yield from walk(tree, False)
 
 
@@ -100,7 +80,7 @@ def _targets(node, mod: str, is_pkg: bool, modules: set[str], top: str) -> list[
         base = node.module or ""
         if node.level:
             pkg = mod.split(".") if is_pkg else mod.split(".")[:-1]
-            pkg = pkg[: len(pkg) - (node.level - 1)]
+            pkg = pkg[:len(pkg) - (node.level - 1)]
             base = ".".join(pkg + ([base] if base else []))
         names = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names]
     out = []
@@ -186,10 +166,8 @@ def report(root: Path) -> None:
     modules, edges = scan(root)
     stmts = [f for flags in edges.values() for f in flags]
     inside = sum(stmts)
-    print(
-        f"# {top}: {len(modules)} modules, {len(stmts)} internal import statements, "
-        f"{inside} inside functions ({100 * inside / max(1, len(stmts)):.0f}%)"
-    )
+    print(f"# {top}: {len(modules)} modules, {len(stmts)} internal import statements, "
+          f"{inside} inside functions ({100 * inside / max(1, len(stmts)):.0f}%)")
 
     pk: dict[str, Counter] = defaultdict(Counter)
     for (a, b), flags in edges.items():
@@ -223,9 +201,8 @@ def report(root: Path) -> None:
                 where = "in function" if all(flags) else "module level"
                 print(f"{pa} -> {pb}: {a} -> {b} ({where})")
         print(f"back arrows: {back} module pairs")
-        hub = Counter(
-            package_of(a, top) for (a, b) in edges if package_of(b, top) == "masks" and package_of(a, top) != "masks"
-        )
+        hub = Counter(package_of(a, top) for (a, b) in edges
+                      if package_of(b, top) == "masks" and package_of(a, top) != "masks")
         print(f"packages importing masks: {dict(sorted(hub.items()))}")
 
     static: dict[str, set[str]] = defaultdict(set)
@@ -239,15 +216,12 @@ def report(root: Path) -> None:
     print(f"\n## Import cycles at module level: {len(at_import)}")
     for c in at_import:
         print("  " + " <-> ".join(c))
-
     def is_hidden(c: list[str]) -> bool:  # no module-level cycle inside it
         return not any(set(s) <= set(c) for s in at_import)
 
     hidden = [c for c in at_runtime if is_hidden(c)]
-    print(
-        f"## Import cycles at run time (module level + inside functions): {len(at_runtime)}, "
-        f"hidden by imports inside functions: {len(hidden)}"
-    )
+    print(f"## Import cycles at run time (module level + inside functions): {len(at_runtime)}, "
+          f"hidden by imports inside functions: {len(hidden)}")
     for c in at_runtime:
         print("  " + " <-> ".join(c) + ("   (hidden)" if is_hidden(c) else ""))
 

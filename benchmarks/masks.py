@@ -29,7 +29,6 @@ against the labels masks: the best any labelling of what the fitted render shows
 against ground-truth geometry; the appearance labels against the nearest-neighbour labels)
 and wall seconds per step.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -46,20 +45,14 @@ def _pr(pred: np.ndarray, truth: np.ndarray) -> dict:
     from anigs.masks.lift import precision_recall
 
     pr = precision_recall(pred, truth)
-    return {
-        "precision": round(pr["precision"], 4),
-        "recall": round(pr["recall"], 4),
-        "lifted": int(pred.sum()),
-        "truth": int(truth.sum()),
-    }
+    return {"precision": round(pr["precision"], 4), "recall": round(pr["recall"], 4),
+            "lifted": int(pred.sum()), "truth": int(truth.sum())}
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scene", help="scene result folder (e.g. results/demo)")
-    ap.add_argument(
-        "--params", default=None, help="masks config section as JSON or @file (default backend: vegetation)"
-    )
+    ap.add_argument("--params", default=None, help="masks config section as JSON or @file (default backend: vegetation)")
     ap.add_argument("--no-appearance", action="store_true", help="skip the appearance yardstick")
     ap.add_argument("--no-capture", action="store_true", help="segment and lift the queued views only")
     ap.add_argument("--threads", type=int, default=1)
@@ -93,15 +86,11 @@ def main(argv: list[str] | None = None) -> int:
 
     scene = Path(args.scene)
     cap, sfm_out = capture_stage.Outputs(scene / "capture"), sfm_stage.Outputs(scene / "sfm")
-    paths = {
-        "canonical": static_stage.Outputs(scene / "static").path("canonical"),
-        "views": views_stage.Outputs(scene / "views").path("views"),
-        "cameras": sfm_out.path("cameras"),
-        "labels": cap.path("gt_labels"),
-        "motion": cap.path("gt_motion"),
-        "gt_gaussians": cap.path("gt_gaussians"),
-        "gt_cameras": cap.path("gt_cameras"),
-    }
+    paths = {"canonical": static_stage.Outputs(scene / "static").path("canonical"),
+             "views": views_stage.Outputs(scene / "views").path("views"),
+             "cameras": sfm_out.path("cameras"), "labels": cap.path("gt_labels"),
+             "motion": cap.path("gt_motion"), "gt_gaussians": cap.path("gt_gaussians"),
+             "gt_cameras": cap.path("gt_cameras")}
     missing = [str(p) for p in paths.values() if not p.exists()]
     if missing:
         raise SystemExit(f"benchmarks/masks.py: missing {', '.join(missing)}")
@@ -148,21 +137,10 @@ def main(argv: list[str] | None = None) -> int:
     gt_cams = load_cameras(paths["gt_cameras"])
     to_gt, _ = align_cameras(sfm_cams, gt_cams)
     t = time.perf_counter()
-    truth = [
-        r["dynamic"]
-        for r in compute_masks(
-            LabelsBackend(gt, labels, effects, to_gaussians_frame=to_gt, **asdict(cfg.labels)), frames
-        )
-    ]
-    nn_dynamic = roi_from_labels(
-        g,
-        str(paths["labels"]),
-        str(paths["motion"]),
-        None,
-        str(paths["gt_gaussians"]),
-        str(paths["gt_cameras"]),
-        sfm_cams,
-    )
+    truth = [r["dynamic"] for r in compute_masks(LabelsBackend(gt, labels, effects, to_gaussians_frame=to_gt,
+                                                               **asdict(cfg.labels)), frames)]
+    nn_dynamic = roi_from_labels(g, str(paths["labels"]), str(paths["motion"]), None, str(paths["gt_gaussians"]),
+                                 str(paths["gt_cameras"]), sfm_cams)
     seconds["labels_yardstick"] = time.perf_counter() - t
 
     app_truth = app_dynamic = None
@@ -170,9 +148,7 @@ def main(argv: list[str] | None = None) -> int:
         t = time.perf_counter()
         app_lab, _, _ = appearance_labels(g, gt, labels, sfm_cams, to_labels_frame=to_gt)
         app_dynamic = np.isin(app_lab, ids)
-        app_truth = [
-            r["dynamic"] for r in compute_masks(LabelsBackend(g, app_lab, effects, **asdict(cfg.labels)), frames)
-        ]
+        app_truth = [r["dynamic"] for r in compute_masks(LabelsBackend(g, app_lab, effects, **asdict(cfg.labels)), frames)]
         seconds["appearance_yardstick"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -185,30 +161,19 @@ def main(argv: list[str] | None = None) -> int:
     ref_dyn, _ = lift_masks_report(g, cameras, truth, lift_cfg, ground=ground)
 
     views = []
-    print(
-        f"scene {scene}  backend {cfg.backend}  views {len(frames)}  capture photos lifted "
-        f"{len(lift_cams) - len(frames)}  canonical Gaussians {g.num}"
-    )
+    print(f"scene {scene}  backend {cfg.backend}  views {len(frames)}  capture photos lifted "
+          f"{len(lift_cams) - len(frames)}  canonical Gaussians {g.num}")
     if ground is not None:
-        print(
-            f"ground plane: offset {ground.offset:.3f}, floor {ground.min_height:.3f}, measured layer "
-            f"{ground.layer:.3f}, cut {ground.cut_height(veg.ground_layer, veg.ground_max_margin):.3f} "
-            f"(camera height {ground.camera_height:.3f})"
-        )
+        print(f"ground plane: offset {ground.offset:.3f}, floor {ground.min_height:.3f}, measured layer "
+              f"{ground.layer:.3f}, cut {ground.cut_height(veg.ground_layer, veg.ground_max_margin):.3f} "
+              f"(camera height {ground.camera_height:.3f})")
     head = f"{'view':6s} {'mask%':>6s} {'labels%':>7s} {'IoU labels':>10s} {'(direct)':>8s}"
     print(head + (f" {'IoU appearance':>14s} {'ceiling':>7s}" if app_truth is not None else ""))
     for k, fr in enumerate(frames):
-        v = {
-            "id": fr.name,
-            "fraction": float(masks[k].mean()),
-            "labels_fraction": float(truth[k].mean()),
-            "iou_labels": mask_iou(masks[k], truth[k]),
-            "iou_labels_direct": mask_iou(direct[k], truth[k]),
-        }
-        line = (
-            f"{fr.name:6s} {100 * v['fraction']:6.1f} {100 * v['labels_fraction']:7.1f} {v['iou_labels']:10.3f} "
-            f"{v['iou_labels_direct']:8.3f}"
-        )
+        v = {"id": fr.name, "fraction": float(masks[k].mean()), "labels_fraction": float(truth[k].mean()),
+             "iou_labels": mask_iou(masks[k], truth[k]), "iou_labels_direct": mask_iou(direct[k], truth[k])}
+        line = (f"{fr.name:6s} {100 * v['fraction']:6.1f} {100 * v['labels_fraction']:7.1f} {v['iou_labels']:10.3f} "
+                f"{v['iou_labels_direct']:8.3f}")
         if app_truth is not None:
             v["iou_appearance"] = mask_iou(masks[k], app_truth[k])
             v["ceiling_labels"] = mask_iou(app_truth[k], truth[k])
@@ -227,26 +192,14 @@ def main(argv: list[str] | None = None) -> int:
         lift["labels_masks_lifted_vs_appearance"] = _pr(ref_dyn, app_dynamic)
         lift["ceiling: appearance_vs_nn"] = _pr(app_dynamic, nn_dynamic)
     for key, v in lift.items():
-        print(
-            f"lift {key:36s} precision {v['precision']:.3f}  recall {v['recall']:.3f}  "
-            f"({v['lifted']} lifted, {v['truth']} dynamic)"
-        )
+        print(f"lift {key:36s} precision {v['precision']:.3f}  recall {v['recall']:.3f}  "
+              f"({v['lifted']} lifted, {v['truth']} dynamic)")
     print("seconds " + "  ".join(f"{k} {v:.1f}" for k, v in seconds.items()))
     if args.json:
-        print(
-            json.dumps(
-                {
-                    "scene": str(scene),
-                    "backend": cfg.backend,
-                    "views": views,
-                    "summary": summary,
-                    "lift": lift,
-                    "lift_info": lift_info,
-                    "ground": None if ground is None else ground.to_dict(),
-                    "seconds": {k: round(v, 2) for k, v in seconds.items()},
-                }
-            )
-        )
+        print(json.dumps({"scene": str(scene), "backend": cfg.backend, "views": views, "summary": summary,
+                          "lift": lift, "lift_info": lift_info,
+                          "ground": None if ground is None else ground.to_dict(),
+                          "seconds": {k: round(v, 2) for k, v in seconds.items()}}))
     return 0
 
 

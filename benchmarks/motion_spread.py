@@ -12,7 +12,6 @@ needs runs that differ only by chance (another seed).
 
     python benchmarks/motion_spread.py /work/wt/base/results/demo results/noreg/demo [--boot 200]
 """
-
 from __future__ import annotations
 
 import argparse
@@ -53,9 +52,8 @@ def analyse(scene_dir: Path, variant: str, boot: int, seed: int) -> dict:
     labels = np.load(gt_dir / "labels.npy")
     params = MotionParams.from_dict(read_json(gt_dir / "motion.json")["params"])
     names = {int(k): v for k, v in read_json(gt_dir / "motion.json")["labels"].items()}
-    off = gt_clip_offsets(
-        params, gt_g.means, torch.as_tensor(np.load(gt_dir / "anchors.npy")), torch.as_tensor(labels).long()
-    )
+    off = gt_clip_offsets(params, gt_g.means, torch.as_tensor(np.load(gt_dir / "anchors.npy")),
+                          torch.as_tensor(labels).long())
     moving = (off.abs().amax(dim=(0, 2)) > 0).numpy()
     gt_traj = (gt_g.means[moving][None] + off[:, moving]).permute(1, 0, 2).double().numpy()
     cams = load_cameras(scene_dir / "sfm" / "cameras.json")
@@ -64,13 +62,10 @@ def analyse(scene_dir: Path, variant: str, boot: int, seed: int) -> dict:
     a_g, f_g = trajectory_stats(gt_traj, scene_extent(gt_cams))
     f_g = f_g[np.isfinite(f_g)]
     ok = np.isfinite(f_l)
-    out = {
-        "dynamic": int(len(a_l)),
-        "gaussians": int(canon.num),
-        "amplitude_w1": float(wasserstein_distance(a_l, a_g)),
-        "frequency_w1": float(wasserstein_distance(f_l[ok], f_g)),
-        "rms_amplitude_ratio": float(np.sqrt(np.mean(a_l**2)) / np.sqrt(np.mean(a_g**2))),
-    }
+    out = {"dynamic": int(len(a_l)), "gaussians": int(canon.num),
+           "amplitude_w1": float(wasserstein_distance(a_l, a_g)),
+           "frequency_w1": float(wasserstein_distance(f_l[ok], f_g)),
+           "rms_amplitude_ratio": float(np.sqrt(np.mean(a_l ** 2)) / np.sqrt(np.mean(a_g ** 2)))}
     rng = np.random.default_rng(seed)
     ab, fb = [], []
     for _ in range(boot):
@@ -88,31 +83,21 @@ def analyse(scene_dir: Path, variant: str, boot: int, seed: int) -> dict:
     by = {}
     for k in np.unique(lab):
         m = lab == k
-        by[names.get(int(k), str(k))] = {
-            "n": int(m.sum()),
-            "amp_median": float(np.median(a_l[m])),
-            "freq_median": float(np.nanmedian(f_l[m])),
-        }
+        by[names.get(int(k), str(k))] = {"n": int(m.sum()), "amp_median": float(np.median(a_l[m])),
+                                         "freq_median": float(np.nanmedian(f_l[m]))}
     gl = labels[moving]
     a_gt_all, f_gt_all = trajectory_stats(gt_traj, scene_extent(gt_cams))
     for k in np.unique(gl):
         m = gl == k
         name = names.get(int(k), str(k))
         by.setdefault(name, {"n": 0})
-        by[name].update(
-            {
-                "gt_n": int(m.sum()),
-                "gt_amp_median": float(np.median(a_gt_all[m])),
-                "gt_freq_median": float(np.nanmedian(f_gt_all[m])),
-            }
-        )
+        by[name].update({"gt_n": int(m.sum()), "gt_amp_median": float(np.median(a_gt_all[m])),
+                         "gt_freq_median": float(np.nanmedian(f_gt_all[m]))})
     out["by_label"] = by
     metrics = scene_dir / variant / "eval" / "metrics.json"
     if metrics.exists():
         m = json.loads(metrics.read_text()).get("metrics", {})
-        out["eval"] = {
-            k: m.get(k, {}).get("value") for k in ("gt/amplitude_w1", "gt/frequency_w1", "multiview/psnr_novel")
-        }
+        out["eval"] = {k: m.get(k, {}).get("value") for k in ("gt/amplitude_w1", "gt/frequency_w1", "multiview/psnr_novel")}
     return out
 
 
@@ -126,17 +111,13 @@ def main() -> None:
     for s in args.scenes:
         r = analyse(s, args.variant, args.boot, args.seed)
         print(f"== {s}: {r['dynamic']} dynamic of {r['gaussians']} Gaussians; eval {r.get('eval')}")
-        print(
-            f"   amplitude W1 {r['amplitude_w1']:.6f} (bootstrap sd {r['amplitude_w1_boot_sd']:.6f}), "
-            f"frequency W1 {r['frequency_w1']:.5f} (sd {r['frequency_w1_boot_sd']:.5f}), "
-            f"RMS amplitude ratio {r['rms_amplitude_ratio']:.3f}"
-        )
+        print(f"   amplitude W1 {r['amplitude_w1']:.6f} (bootstrap sd {r['amplitude_w1_boot_sd']:.6f}), "
+              f"frequency W1 {r['frequency_w1']:.5f} (sd {r['frequency_w1_boot_sd']:.5f}), "
+              f"RMS amplitude ratio {r['rms_amplitude_ratio']:.3f}")
         for name, b in sorted(r["by_label"].items()):
-            print(
-                f"   {name:>14}: learned {b['n']:5d} amp {b.get('amp_median', float('nan')):.5f} "
-                f"freq {b.get('freq_median', float('nan')):.3f} | GT {b.get('gt_n', 0):5d} "
-                f"amp {b.get('gt_amp_median', float('nan')):.5f} freq {b.get('gt_freq_median', float('nan')):.3f}"
-            )
+            print(f"   {name:>14}: learned {b['n']:5d} amp {b.get('amp_median', float('nan')):.5f} "
+                  f"freq {b.get('freq_median', float('nan')):.3f} | GT {b.get('gt_n', 0):5d} "
+                  f"amp {b.get('gt_amp_median', float('nan')):.5f} freq {b.get('gt_freq_median', float('nan')):.3f}")
 
 
 if __name__ == "__main__":

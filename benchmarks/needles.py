@@ -16,7 +16,6 @@ fit: held-out PSNR / SSIM, Gaussians, how many have a largest/middle scale ratio
 many no training photo resolves (largest std dev > 8% of the width in every photo holding it),
 and the seconds. ``--png`` writes the first held-out photo, and each fit's render of it, side by side.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -83,39 +82,24 @@ def main() -> int:
     over = {k: json.loads(v) for k, v in (s.split("=", 1) for s in args.set)}
     _, test = split_holdout(len(imgs), 8)
     out, renders = {}, []
-    for name, reg in (("off", {"enabled": False}), ("on", over))[int(args.skip_off) :]:
+    for name, reg in (("off", {"enabled": False}), ("on", over))[int(args.skip_off):]:
         cfg = FitConfig.from_dict({"iterations": args.iterations, "background": list(bg), "regularize": reg})
         t = time.perf_counter()
         g, m = fit_static(imgs, cams, pts, cols, cfg, progress=False)
-        row = {
-            "test_psnr": round(m["test_psnr"], 3),
-            "test_ssim": round(m["test_ssim"], 4),
-            "num_gaussians": g.num,
-            **_stats(g, cams, set(test)),
-            "seconds": round(time.perf_counter() - t, 1),
-        }
+        row = {"test_psnr": round(m["test_psnr"], 3), "test_ssim": round(m["test_ssim"], 4),
+               "num_gaussians": g.num, **_stats(g, cams, set(test)), "seconds": round(time.perf_counter() - t, 1)}
         out[name] = row
-        print(
-            f"regularize {name}: held-out PSNR {row['test_psnr']:.2f} dB, SSIM {row['test_ssim']:.3f}, "
-            f"{row['num_gaussians']} Gaussians, {row['needles_over_10']} with largest/middle scale > 10, "
-            f"{row['unresolved_8pct']} unresolved, {row['seconds']:.0f} s",
-            flush=True,
-        )
+        print(f"regularize {name}: held-out PSNR {row['test_psnr']:.2f} dB, SSIM {row['test_ssim']:.3f}, "
+              f"{row['num_gaussians']} Gaussians, {row['needles_over_10']} with largest/middle scale > 10, "
+              f"{row['unresolved_8pct']} unresolved, {row['seconds']:.0f} s", flush=True)
         if args.png is not None and test:
             with torch.no_grad():
-                rgb, _, _ = _render(
-                    _to_params(g, torch.device("cpu")),
-                    cams[test[0]],
-                    g.sh_degree,
-                    torch.tensor(bg, dtype=torch.float32),
-                    "auto",
-                )
+                rgb, _, _ = _render(_to_params(g, torch.device("cpu")), cams[test[0]], g.sh_degree,
+                                    torch.tensor(bg, dtype=torch.float32), "auto")
             renders.append(rgb.clamp(0, 1).numpy())
     if "off" in out:
-        print(
-            f"held-out PSNR change: {out['on']['test_psnr'] - out['off']['test_psnr']:+.2f} dB "
-            f"({len(test)} held-out of {len(imgs)} photos)"
-        )
+        print(f"held-out PSNR change: {out['on']['test_psnr'] - out['off']['test_psnr']:+.2f} dB "
+              f"({len(test)} held-out of {len(imgs)} photos)")
     if args.json:
         print(json.dumps(out))
     if args.png is not None and renders:

@@ -6,7 +6,6 @@ issue 28 (float32 twice -> uint8 once). One mode per process, so each peak is it
 
 Prints JSON: photos, peak RSS (MiB), RSS before loading (Python + torch), MiB held.
 """
-
 from __future__ import annotations
 
 import json
@@ -31,13 +30,8 @@ def main(images: str, cameras: str, mode: str) -> dict:
     else:
         raise SystemExit(f"mode must be before or after, got {mode!r}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    return {
-        "mode": mode,
-        "photos": len(imgs),
-        "peak_rss_mib": round(peak),
-        "rss_before_loading_mib": round(base),
-        "held_mib": round(held_mib),
-    }
+    return {"mode": mode, "photos": len(imgs), "peak_rss_mib": round(peak), "rss_before_loading_mib": round(base),
+            "held_mib": round(held_mib)}
 
 
 if __name__ == "__main__":

@@ -28,7 +28,6 @@ Writes a contact sheet (:mod:`anigs.metrics.contact`; default ``{results}/{scene
 contact_sheet.png``): per view the first frame of the final clip, its masks, and a heat map of
 ``max |I_t - I_0|`` with the outline of the mask dilated as eval's stillness metric dilates it.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -68,19 +67,9 @@ def _snakemake(args, scene_dir: Path, variant_dir: Path, *extra: str) -> tuple[l
     from anigs.stages.effects import Outputs as EffectsOutputs
 
     exe = Path(sys.executable).with_name("snakemake")
-    cmd = [
-        str(exe) if exe.exists() else "snakemake",
-        "--cores",
-        str(args.cores),
-        *extra,
-        "--config",
-        f'scenes=["{args.scene}"]',
-        f"results={args.results}",
-        *args.config,
-        "--",
-        str(EvalOutputs(variant_dir / "eval").path("metrics")),
-        str(EffectsOutputs(scene_dir / "effects").path("effects")),
-    ]
+    cmd = [str(exe) if exe.exists() else "snakemake", "--cores", str(args.cores), *extra,
+           "--config", f'scenes=["{args.scene}"]', f"results={args.results}", *args.config,
+           "--", str(EvalOutputs(variant_dir / "eval").path("metrics")), str(EffectsOutputs(scene_dir / "effects").path("effects"))]
     env = {**os.environ}
     if args.photos:
         env["ANIGS_PHOTOS"] = str(Path(args.photos).resolve())
@@ -94,9 +83,8 @@ def run_workflow(args, scene_dir: Path, variant_dir: Path) -> float:
     t0 = time.perf_counter()
     res = subprocess.run(cmd, cwd=ROOT, env=env, check=False)
     if res.returncode:
-        raise SystemExit(
-            f"snakemake failed (exit {res.returncode}); see the logs under {scene_dir}/logs and {variant_dir}/logs"
-        )
+        raise SystemExit(f"snakemake failed (exit {res.returncode}); see the logs under {scene_dir}/logs "
+                         f"and {variant_dir}/logs")
     return time.perf_counter() - t0
 
 
@@ -145,58 +133,34 @@ def figures(args, scene_dir: Path, variant_dir: Path) -> dict:
     n_folder = sum(1 for p in photos.iterdir() if p.suffix.lower() in PHOTO_EXT) if photos and photos.is_dir() else None
     rep = stage_json(scene_dir, "sfm", "report")
     if rep:
-        fig["sfm"] = {
-            "registered": rep["registered"],
-            "images": rep["images"],
-            "photos_in_folder": n_folder,
-            "unregistered": rep.get("unregistered_images", []),
-            "points": rep.get("num_points"),
-            "reprojection_px": rep.get("mean_reprojection_error_px"),
-        }
+        fig["sfm"] = {"registered": rep["registered"], "images": rep["images"], "photos_in_folder": n_folder,
+                      "unregistered": rep.get("unregistered_images", []), "points": rep.get("num_points"),
+                      "reprojection_px": rep.get("mean_reprojection_error_px")}
     st = stage_json(scene_dir, "static", "metrics")
     if st:
-        fig["static"] = {
-            k: st.get(k)
-            for k in (
-                "test_psnr",
-                "test_ssim",
-                "test_views",
-                "train_psnr",
-                "train_views",
-                "num_gaussians",
-                "iterations",
-            )
-        }
+        fig["static"] = {k: st.get(k) for k in ("test_psnr", "test_ssim", "test_views", "train_psnr", "train_views",
+                                                 "num_gaussians", "iterations")}
     vj = stage_json(scene_dir, "views", "views")
     if vj:
         cov = [v.get("coverage") for v in vj["views"]]
-        fig["views"] = {
-            "queued": len(cov),
-            "min_coverage": args.min_coverage,
-            "covered": sum(1 for c in cov if c is not None and c >= args.min_coverage),
-            "coverage": {v["id"]: c for v, c in zip(vj["views"], cov)},
-            "layout": (vj.get("layout") or {}).get("kind", (vj.get("layout") or {}).get("layout")),
-            "rejected": len((vj.get("scene_coverage") or {}).get("rejected", [])),
-        }
+        fig["views"] = {"queued": len(cov), "min_coverage": args.min_coverage,
+                        "covered": sum(1 for c in cov if c is not None and c >= args.min_coverage),
+                        "coverage": {v["id"]: c for v, c in zip(vj["views"], cov)},
+                        "layout": (vj.get("layout") or {}).get("kind", (vj.get("layout") or {}).get("layout")),
+                        "rejected": len((vj.get("scene_coverage") or {}).get("rejected", []))}
     ej = stage_json(scene_dir, "effects", "effects")
     if ej:
-        fig["effects"] = {
-            "detected": ej.get("detected"),
-            "chosen": ej.get("chosen"),
-            "dynamic_gaussian_fraction": ej.get("dynamic_fraction"),
-            "pixel_fraction": {e: r["pixel_fraction"] for e, r in ej["effects"].items()},
-            "gaussian_fraction": {e: r["gaussian_fraction"] for e, r in ej["effects"].items()},
-        }
+        fig["effects"] = {"detected": ej.get("detected"), "chosen": ej.get("chosen"),
+                          "dynamic_gaussian_fraction": ej.get("dynamic_fraction"),
+                          "pixel_fraction": {e: r["pixel_fraction"] for e, r in ej["effects"].items()},
+                          "gaussian_fraction": {e: r["gaussian_fraction"] for e, r in ej["effects"].items()}}
     mj = stage_json(scene_dir, "masks", "report")
     if mj and mj.get("views"):
         vs = mj["views"]
         effs = sorted({e for v in vs for e in v.get("effects", {})})
-        fig["masks"] = {
-            "views": len(vs),
-            "dynamic_mean": sum(v["fraction"] for v in vs) / len(vs),
-            "dynamic_per_view": {v["id"]: v["fraction"] for v in vs},
-            "effect_mean": {e: sum(v.get("effects", {}).get(e, 0.0) for v in vs) / len(vs) for e in effs},
-        }
+        fig["masks"] = {"views": len(vs), "dynamic_mean": sum(v["fraction"] for v in vs) / len(vs),
+                        "dynamic_per_view": {v["id"]: v["fraction"] for v in vs},
+                        "effect_mean": {e: sum(v.get("effects", {}).get(e, 0.0) for v in vs) / len(vs) for e in effs}}
     ev = read_json(EvalOutputs(variant_dir / "eval").path("metrics"))
     if ev:
         rec = ev["metrics"].get("static_outside_mask_still")
@@ -207,13 +171,8 @@ def figures(args, scene_dir: Path, variant_dir: Path) -> dict:
         else:
             pv = rec.get("per_view") or {}
             worst = min(pv, key=pv.get) if pv else None
-            fig["still"] = {
-                "available": True,
-                "mean": rec["value"],
-                "worst_view": worst,
-                "worst": pv.get(worst) if worst else None,
-                "per_view": pv,
-            }
+            fig["still"] = {"available": True, "mean": rec["value"], "worst_view": worst,
+                            "worst": pv.get(worst) if worst else None, "per_view": pv}
     fig["seconds"], fig["stale_tsvs"] = stage_seconds(scene_dir, args.variant)
     return fig
 
@@ -242,47 +201,35 @@ def report(fig: dict) -> None:
     print(f"\n== photo scene {fig['scene']} ({fig['variant']}), results in {fig['results']}")
     s = fig.get("sfm")
     if s:
-        print(
-            f"registered photos: {s['registered']}/{s['images']} (photo folder: {s['photos_in_folder']}); "
-            f"{s['points']} points, mean reprojection error {_f(s['reprojection_px'], '.2f')} px"
-            + (f"; unregistered: {', '.join(s['unregistered'])}" if s["unregistered"] else "")
-        )
+        print(f"registered photos: {s['registered']}/{s['images']} (photo folder: {s['photos_in_folder']}); "
+              f"{s['points']} points, mean reprojection error {_f(s['reprojection_px'], '.2f')} px"
+              + (f"; unregistered: {', '.join(s['unregistered'])}" if s["unregistered"] else ""))
     s = fig.get("static")
     if s:
-        print(
-            f"static fit: held-out PSNR {_f(s['test_psnr'], '.2f')} dB (SSIM {_f(s['test_ssim'])}) over "
-            f"{s['test_views']} held-out photos; train PSNR {_f(s['train_psnr'], '.2f')} dB over {s['train_views']}; "
-            f"{s['num_gaussians']} Gaussians, {s['iterations']} iterations"
-        )
+        print(f"static fit: held-out PSNR {_f(s['test_psnr'], '.2f')} dB (SSIM {_f(s['test_ssim'])}) over "
+              f"{s['test_views']} held-out photos; train PSNR {_f(s['train_psnr'], '.2f')} dB over {s['train_views']}; "
+              f"{s['num_gaussians']} Gaussians, {s['iterations']} iterations")
     s = fig.get("views")
     if s:
         cov = " ".join(f"{v}:{_f(c, '.2f')}" for v, c in s["coverage"].items())
-        print(
-            f"views: {s['covered']} of {s['queued']} queued views have coverage >= {s['min_coverage']} "
-            f"(layout {s['layout']}, {s['rejected']} directions rejected); {cov}"
-        )
+        print(f"views: {s['covered']} of {s['queued']} queued views have coverage >= {s['min_coverage']} "
+              f"(layout {s['layout']}, {s['rejected']} directions rejected); {cov}")
     s = fig.get("effects")
     if s:
-        print(
-            f"effects: detected {s['detected']}, chosen {s['chosen']}; dynamic Gaussians "
-            f"{100 * (s['dynamic_gaussian_fraction'] or 0):.1f}%"
-        )
+        print(f"effects: detected {s['detected']}, chosen {s['chosen']}; dynamic Gaussians "
+              f"{100 * (s['dynamic_gaussian_fraction'] or 0):.1f}%")
         for e, pf in s["pixel_fraction"].items():
             print(f"  {e:14s} photo pixels {100 * pf:5.1f}%   Gaussians {100 * s['gaussian_fraction'][e]:5.1f}%")
     s = fig.get("masks")
     if s:
-        print(
-            f"masks ({s['views']} views): dynamic {100 * s['dynamic_mean']:.1f}% of the pixels (mean); "
-            + ", ".join(f"{e} {100 * v:.1f}%" for e, v in s["effect_mean"].items())
-        )
+        print(f"masks ({s['views']} views): dynamic {100 * s['dynamic_mean']:.1f}% of the pixels (mean); "
+              + ", ".join(f"{e} {100 * v:.1f}%" for e, v in s["effect_mean"].items()))
         print("  per view: " + " ".join(f"{v}:{100 * f:.1f}%" for v, f in s["dynamic_per_view"].items()))
     s = fig.get("still")
     if s:
         if s["available"]:
-            print(
-                f"static_outside_mask_still: mean {_f(s['mean'])}, worst {s['worst_view']} {_f(s['worst'])}; "
-                + " ".join(f"{v}:{_f(x)}" for v, x in s["per_view"].items())
-            )
+            print(f"static_outside_mask_still: mean {_f(s['mean'])}, worst {s['worst_view']} {_f(s['worst'])}; "
+                  + " ".join(f"{v}:{_f(x)}" for v, x in s["per_view"].items()))
         else:
             print(f"static_outside_mask_still: not available ({s['reason']})")
     sec = fig.get("seconds") or {}
@@ -290,34 +237,26 @@ def report(fig: dict) -> None:
         print("seconds per stage (Snakemake benchmark TSVs, summed over a stage's jobs):")
         for st, r in sec.items():
             print(f"  {st:14s} {r['jobs']:3d} job(s) {r['s']:9.1f} s wall {r['cpu_s']:9.1f} s CPU")
-        print(
-            f"  {'total':14s} {sum(r['jobs'] for r in sec.values()):3d} job(s) "
-            f"{sum(r['s'] for r in sec.values()):9.1f} s wall {sum(r['cpu_s'] for r in sec.values()):9.1f} s CPU"
-        )
+        print(f"  {'total':14s} {sum(r['jobs'] for r in sec.values()):3d} job(s) "
+              f"{sum(r['s'] for r in sec.values()):9.1f} s wall {sum(r['cpu_s'] for r in sec.values()):9.1f} s CPU")
     if fig.get("stale_tsvs"):
-        print(
-            f"  (left out as stale, from an earlier run: {len(fig['stale_tsvs'])} TSV(s), e.g. "
-            f"{', '.join(fig['stale_tsvs'][:3])})"
-        )
+        print(f"  (left out as stale, from an earlier run: {len(fig['stale_tsvs'])} TSV(s), e.g. "
+              f"{', '.join(fig['stale_tsvs'][:3])})")
     c = fig.get("contact_sheet")
     if c:
         print(f"contact sheet: {c['path']}")
         for r in c["rows"]:
             if "mask_fraction" in r:
-                print(
-                    f"  {r['view']}: mask {100 * r['mask_fraction']:.1f}%, mask pixels moving "
-                    f"{100 * r['mask_moving']:.0f}%, still outside {_f(r['outside_still'])}, "
-                    f"largest change outside {_f(r['outside_max_change'])}"
-                )
+                print(f"  {r['view']}: mask {100 * r['mask_fraction']:.1f}%, mask pixels moving "
+                      f"{100 * r['mask_moving']:.0f}%, still outside {_f(r['outside_still'])}, "
+                      f"largest change outside {_f(r['outside_max_change'])}")
             else:
                 print(f"  {r['view']}: no mask; largest change {_f(r['max_change'])}")
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument(
-        "--photos", default=None, help="folder of the photos (becomes ANIGS_PHOTOS; needed unless --no-run)"
-    )
+    ap.add_argument("--photos", default=None, help="folder of the photos (becomes ANIGS_PHOTOS; needed unless --no-run)")
     ap.add_argument("--scene", default="photos", help="scene file in config/scenes whose photos: is ${ANIGS_PHOTOS}")
     ap.add_argument("--results", type=Path, default=Path("/tmp/photo-bench/results"), help="workflow results folder")
     ap.add_argument("--variant", default="full")
@@ -325,9 +264,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--config", nargs="*", default=[], metavar="KEY=VALUE", help="more snakemake --config entries")
     ap.add_argument("--min-coverage", type=float, default=0.8, help="coverage a queued view counts from")
     ap.add_argument("--no-run", action="store_true", help="report on the results that are there")
-    ap.add_argument(
-        "--sheet", default=None, help="contact sheet PNG (default {results}/{scene}/{variant}/contact_sheet.png)"
-    )
+    ap.add_argument("--sheet", default=None, help="contact sheet PNG (default {results}/{scene}/{variant}/contact_sheet.png)")
     ap.add_argument("--json", action="store_true", help="print the figures as one JSON line too")
     args = ap.parse_args(argv)
     if args.photos is None and not args.no_run:

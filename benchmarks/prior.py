@@ -18,7 +18,6 @@ Sections:
    pictures, so the comparison is made in latent space).
 Timings are the best of 2 runs; on a shared 2-core machine they are still inflated by contention.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -103,7 +102,6 @@ def bench_ltx(sizes, frames) -> None:
             clip, _ = scene(T, H, W)
             _, dt = timed(lambda: prior.refine(clip, None, "trees sway", 0, 0.6))
             from anigs.refine.prior.ltx import padded_shape
-
             print(f"{T:>6} {W:>4}x{H:<4} {str(padded_shape(T, H, W)):>14} {dt:>8.2f}")
 
     T, H, W = 17, 96, 128

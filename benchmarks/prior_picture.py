@@ -12,7 +12,6 @@ labels of frame 0, and writes for people to look at:
 
     python benchmarks/prior_picture.py --out results/bench/prior_picture
 """
-
 from __future__ import annotations
 
 import argparse
@@ -44,26 +43,12 @@ def label_masks(g, cam):
     lab = g.extras["label"]
     feats = torch.stack([sum((lab == LABEL_IDS[n]).float() for n in names) for names in groups.values()], 1)
     with torch.no_grad():
-        img, _, _ = rasterize(
-            g.means,
-            g.quats,
-            g.scales,
-            g.opacities,
-            feats,
-            cam.torch_viewmat("cpu"),
-            cam.torch_K("cpu"),
-            cam.width,
-            cam.height,
-            background=torch.zeros(3),
-        )
+        img, _, _ = rasterize(g.means, g.quats, g.scales, g.opacities, feats, cam.torch_viewmat("cpu"),
+                              cam.torch_K("cpu"), cam.width, cam.height, background=torch.zeros(3))
     img = img.numpy()
     hard = {k: (img[..., i] > 0.5).astype(np.float32) for i, k in enumerate(groups)}
-    return {
-        "foliage_sway": hard["foliage"],
-        "leaf_flutter": hard["foliage"],
-        "grass_wave": hard["grass"],
-        "flower_bob": hard["flowers"],
-    }, hard
+    return {"foliage_sway": hard["foliage"], "leaf_flutter": hard["foliage"], "grass_wave": hard["grass"],
+            "flower_bob": hard["flowers"]}, hard
 
 
 def main() -> None:
@@ -99,42 +84,31 @@ def main() -> None:
     t_render = time.perf_counter() - t0
     masks, hard = label_masks(g, cam)
 
-    prior = get_prior(
-        "procedural", {"effects": ["foliage_sway", "leaf_flutter", "grass_wave", "flower_bob"], "fps": motion.fps}
-    )
+    prior = get_prior("procedural", {"effects": ["foliage_sway", "leaf_flutter", "grass_wave", "flower_bob"],
+                                     "fps": motion.fps})
     ccfg = ComposeConfig(dilate_px=args.dilate)
     m = soft_mask(union_mask(dilate_masks(masks, args.dilate), args.height, args.width))
     composed = compose(rendered, m)
     t0 = time.perf_counter()
     refined, info = composed_v2v(prior, rendered, masks, "trees and grass in the wind", args.seed, args.strength, ccfg)
     t_refine = time.perf_counter() - t0
-    raw, _ = composed_v2v(
-        prior,
-        rendered,
-        masks,
-        "trees and grass in the wind",
-        args.seed,
-        args.strength,
-        ComposeConfig(compose=False, dilate_px=args.dilate),
-    )
+    raw, _ = composed_v2v(prior, rendered, masks, "trees and grass in the wind", args.seed, args.strength,
+                          ComposeConfig(compose=False, dilate_px=args.dilate))
 
     clips = [rendered, composed, refined, raw]
     sep = np.ones((T, args.height, 2, 3), np.float32)
-    write_mp4(
-        out / "side_by_side.mp4", np.concatenate(sum(([c, sep] for c in clips), [])[:-1], axis=2), fps=int(motion.fps)
-    )
+    write_mp4(out / "side_by_side.mp4", np.concatenate(sum(([c, sep] for c in clips), [])[:-1], axis=2),
+              fps=int(motion.fps))
     fol = hard["foliage"]
     ys, xs = np.nonzero(fol) if fol.any() else (np.array([args.height // 2]), np.array([args.width // 2]))
-    row = int(np.percentile(ys, 25))  # upper part of the crowns: largest sway
+    row = int(np.percentile(ys, 25))   # upper part of the crowns: largest sway
     col = int(np.median(xs[np.abs(ys - row) < 3])) if np.any(np.abs(ys - row) < 3) else args.width // 2
     up = lambda a: np.repeat(np.repeat(a, 2, 0), 2, 1)  # noqa: E731
     hsep = np.ones((4, 2 * args.width, 3), np.float32)
     save_png(out / "xt_slices.png", np.concatenate(sum(([up(c[:, row]), hsep] for c in clips), [])[:-1], 0))
     vsep = np.ones((2 * args.height, 4, 3), np.float32)
-    save_png(
-        out / "yt_slices.png",
-        np.concatenate(sum(([up(c[:, :, col].transpose(1, 0, 2)), vsep] for c in clips), [])[:-1], 1),
-    )
+    save_png(out / "yt_slices.png", np.concatenate(sum(([up(c[:, :, col].transpose(1, 0, 2)), vsep]
+                                                        for c in clips), [])[:-1], 1))
     tint = rendered[0].copy()
     for key, colour in (("foliage", (0, 1, 0)), ("grass", (1, 1, 0)), ("flowers", (1, 0, 1))):
         tint[hard[key] > 0] = 0.5 * tint[hard[key] > 0] + 0.5 * np.array(colour, np.float32)
@@ -143,17 +117,12 @@ def main() -> None:
     save_png(out / "frame0_masks.png", tint)
 
     static = m == 0
-
     def static_motion(c):  # mean |frame t - frame 0| over static pixels
         return float(np.abs(c[:, static] - c[0][static]).mean())
-
     def dyn_motion(c):
         return float(np.abs(c[:, ~static] - c[0][~static]).mean())
-
-    print(
-        f"demo camera {args.camera}: {T} frames {args.width}x{args.height}, {g.means.shape[0]} Gaussians, "
-        f"dynamic mask {100 * (~static).mean():.1f}% (x-t row {row}, y-t column {col})"
-    )
+    print(f"demo camera {args.camera}: {T} frames {args.width}x{args.height}, {g.means.shape[0]} Gaussians, "
+          f"dynamic mask {100 * (~static).mean():.1f}% (x-t row {row}, y-t column {col})")
     print(f"render {t_render:.2f}s; ComposedV2V procedural refine {t_refine:.2f}s (strength {args.strength})")
     for name, c in zip(("rendered", "composed", "refined", "refined w/o compose"), clips):
         print(f"  {name:22s} static |I_t - I_0| mean {static_motion(c):.5f}   dynamic {dyn_motion(c):.5f}")

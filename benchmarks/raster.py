@@ -10,7 +10,6 @@ the reported peak RSS is that run's alone. Prints wall-clock medians (what a use
 and process CPU-time medians (robust when the machine is shared), and the load average
 before and after (timings from a busy machine are not comparable with quiet ones).
 """
-
 from __future__ import annotations
 
 import argparse
@@ -48,11 +47,7 @@ def _worker(scene: str, backend: str, repeat: int, threads: int) -> dict:
             # per-pixel candidate lists are padded to the longest one: estimate before running
             est = W * H * 4.0 * 10 * float(area.sum()) / max(W * H, 1) * 4 / 1e9
             if est > TORCH_MEM_LIMIT_GB:
-                return {
-                    "scene": scene,
-                    "backend": backend,
-                    "skipped": f"estimated {est:.0f} GB > {TORCH_MEM_LIMIT_GB} GB",
-                }
+                return {"scene": scene, "backend": backend, "skipped": f"estimated {est:.0f} GB > {TORCH_MEM_LIMIT_GB} GB"}
     leaves = [t.clone().requires_grad_(True) for t in sc[:5]]
 
     def fwd():
@@ -76,20 +71,9 @@ def _worker(scene: str, backend: str, repeat: int, threads: int) -> dict:
     fw, fc = timed(fwd)
     bw, bc = timed(fwd_bwd)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    return {
-        "scene": scene,
-        "backend": backend,
-        "n": n,
-        "size": f"{W}x{H}",
-        "threads": threads,
-        "fwd_ms": fw,
-        "fwd_bwd_ms": bw,
-        "fwd_cpu_ms": fc,
-        "fwd_bwd_cpu_ms": bc,
-        "pairs": pairs,
-        "pairs_per_s": pairs / (fw / 1e3),
-        "peak_rss_mb": peak_mb,
-    }
+    return {"scene": scene, "backend": backend, "n": n, "size": f"{W}x{H}", "threads": threads,
+            "fwd_ms": fw, "fwd_bwd_ms": bw, "fwd_cpu_ms": fc, "fwd_bwd_cpu_ms": bc,
+            "pairs": pairs, "pairs_per_s": pairs / (fw / 1e3), "peak_rss_mb": peak_mb}
 
 
 def main() -> None:
@@ -116,52 +100,31 @@ def main() -> None:
     for scene in args.scenes.split(","):
         for backend in backends:
             rep = args.repeat if backend != "torch" else max(2, args.repeat // 5)
-            res = subprocess.run(
-                [
-                    sys.executable,
-                    __file__,
-                    "--worker",
-                    scene,
-                    backend,
-                    "--repeat",
-                    str(rep),
-                    "--threads",
-                    str(args.threads),
-                ],
-                capture_output=True,
-                text=True,
-            )
+            res = subprocess.run([sys.executable, __file__, "--worker", scene, backend, "--repeat", str(rep),
+                                  "--threads", str(args.threads)], capture_output=True, text=True)
             if res.returncode != 0:
                 rows.append({"scene": scene, "backend": backend, "skipped": res.stderr.strip().splitlines()[-1]})
             else:
                 rows.append(json.loads(res.stdout.strip().splitlines()[-1]))
     load_after = os.getloadavg()
-    print(
-        f"threads={args.threads}  (wall = median wall-clock, cpu = median process CPU time)  "
-        f"load average (1/5/15 min) before {'/'.join(f'{x:.2f}' for x in load_before)}, "
-        f"after {'/'.join(f'{x:.2f}' for x in load_after)}"
-    )
-    print(
-        f"{'scene':6} {'backend':7} {'fwd ms':>9} {'fwd+bwd ms':>11} {'fwd cpu':>9} {'f+b cpu':>9} "
-        f"{'Mpairs/s':>9} {'peak MB':>8}"
-    )
+    print(f"threads={args.threads}  (wall = median wall-clock, cpu = median process CPU time)  "
+          f"load average (1/5/15 min) before {'/'.join(f'{x:.2f}' for x in load_before)}, "
+          f"after {'/'.join(f'{x:.2f}' for x in load_after)}")
+    print(f"{'scene':6} {'backend':7} {'fwd ms':>9} {'fwd+bwd ms':>11} {'fwd cpu':>9} {'f+b cpu':>9} "
+          f"{'Mpairs/s':>9} {'peak MB':>8}")
     for r in rows:
         if "skipped" in r:
             print(f"{r['scene']:6} {r['backend']:7} skipped: {r['skipped']}")
             continue
-        print(
-            f"{r['scene']:6} {r['backend']:7} {r['fwd_ms']:9.1f} {r['fwd_bwd_ms']:11.1f} {r['fwd_cpu_ms']:9.1f} "
-            f"{r['fwd_bwd_cpu_ms']:9.1f} {r['pairs_per_s'] / 1e6:9.1f} {r['peak_rss_mb']:8.0f}"
-        )
+        print(f"{r['scene']:6} {r['backend']:7} {r['fwd_ms']:9.1f} {r['fwd_bwd_ms']:11.1f} {r['fwd_cpu_ms']:9.1f} "
+              f"{r['fwd_bwd_cpu_ms']:9.1f} {r['pairs_per_s'] / 1e6:9.1f} {r['peak_rss_mb']:8.0f}")
     by = {(r["scene"], r["backend"]): r for r in rows if "skipped" not in r}
     for scene in args.scenes.split(","):
         c, t = by.get((scene, "cpu")), by.get((scene, "torch"))
         if c and t:
-            print(
-                f"{scene}: cpu/torch speed-up forward {t['fwd_ms'] / c['fwd_ms']:.1f}x, "
-                f"forward+backward {t['fwd_bwd_ms'] / c['fwd_bwd_ms']:.1f}x "
-                f"(CPU time: {t['fwd_bwd_cpu_ms'] / c['fwd_bwd_cpu_ms']:.1f}x)"
-            )
+            print(f"{scene}: cpu/torch speed-up forward {t['fwd_ms'] / c['fwd_ms']:.1f}x, "
+                  f"forward+backward {t['fwd_bwd_ms'] / c['fwd_bwd_ms']:.1f}x "
+                  f"(CPU time: {t['fwd_bwd_cpu_ms'] / c['fwd_bwd_cpu_ms']:.1f}x)")
 
 
 if __name__ == "__main__":

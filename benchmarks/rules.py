@@ -12,7 +12,6 @@ Per rule: jobs, wall seconds and CPU seconds (sums over jobs of each job's mean 
 memory (the largest ``max_rss``, MB), the most wall time first, then the total. ``--compare BEFORE``
 prints BEFORE's figures beside RESULTS' and the ratios RESULTS / BEFORE (< 1: faster now).
 """
-
 from __future__ import annotations
 
 import argparse
@@ -41,17 +40,8 @@ def _table(head: list[str], rows: list[list[str]]) -> str:
 def breakdown_table(rows: list[dict]) -> str:
     total = breakdown_total(rows)
     all_s = total["seconds"] or 1.0
-    cells = [
-        [
-            r["rule"],
-            str(r["jobs"]),
-            _f(r["seconds"]),
-            f"{100 * r['seconds'] / all_s:.1f}",
-            _f(r["cpu_seconds"]),
-            _f(r["max_rss_mb"], ".0f"),
-        ]
-        for r in rows + [total]
-    ]
+    cells = [[r["rule"], str(r["jobs"]), _f(r["seconds"]), f"{100 * r['seconds'] / all_s:.1f}",
+              _f(r["cpu_seconds"]), _f(r["max_rss_mb"], ".0f")] for r in rows + [total]]
     return _table(["rule", "jobs", "wall s", "wall %", "CPU s", "peak RSS MB"], cells)
 
 
@@ -60,39 +50,17 @@ def compare_table(rows: list[dict]) -> str:
         b, a = r["jobs_before"], r["jobs_after"]
         return f"{'-' if b is None else b}/{'-' if a is None else a}"
 
-    cells = [
-        [
-            r["rule"],
-            jobs(r),
-            _f(r["seconds_before"]),
-            _f(r["seconds_after"]),
-            _f(r["seconds_ratio"], ".2f"),
-            _f(r["cpu_seconds_before"]),
-            _f(r["cpu_seconds_after"]),
-            _f(r["cpu_seconds_ratio"], ".2f"),
-        ]
-        for r in rows
-    ]
-    return _table(
-        [
-            "rule",
-            "jobs b/a",
-            "wall s before",
-            "wall s after",
-            "after/before",
-            "CPU s before",
-            "CPU s after",
-            "after/before",
-        ],
-        cells,
-    )
+    cells = [[r["rule"], jobs(r), _f(r["seconds_before"]), _f(r["seconds_after"]), _f(r["seconds_ratio"], ".2f"),
+              _f(r["cpu_seconds_before"]), _f(r["cpu_seconds_after"]), _f(r["cpu_seconds_ratio"], ".2f")]
+             for r in rows]
+    return _table(["rule", "jobs b/a", "wall s before", "wall s after", "after/before",
+                   "CPU s before", "CPU s after", "after/before"], cells)
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument(
-        "results", nargs="?", default="results", help="results folder of a Snakemake run (default results/)"
-    )
+    ap.add_argument("results", nargs="?", default="results",
+                    help="results folder of a Snakemake run (default results/)")
     ap.add_argument("--compare", metavar="BEFORE", help="an earlier run's results folder: before / after per rule")
     ap.add_argument("--json", metavar="OUT", help="also write the table(s) as JSON")
     args = ap.parse_args(argv)
@@ -109,9 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     print(breakdown_table(after))
     if args.compare:
         before = load(args.compare)
-        cmp = compare_breakdowns(before, after) + compare_breakdowns(
-            [breakdown_total(before)], [breakdown_total(after)]
-        )
+        cmp = (compare_breakdowns(before, after)
+               + compare_breakdowns([breakdown_total(before)], [breakdown_total(after)]))
         print(f"\nbefore: {args.compare}, after: {args.results}")
         print(compare_table(cmp))
         out.update(before=args.compare, before_rules=before, before_total=breakdown_total(before), compare=cmp)

@@ -38,7 +38,6 @@ e.g. a feature budget). ``--full`` runs every point of every axis at the demo's 
 Points already in ``OUT/results.jsonl`` are not run again (delete the file to re-measure).
 Prints markdown tables (per point; exponents) and writes them to ``OUT/scaling.md``.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -59,12 +58,8 @@ ROOT = Path(__file__).resolve().parents[1]
 AXES: dict[str, tuple[int, list[int], list[int], list[str]]] = {
     "photos": (48, [24, 48, 96, 192, 384], [24, 48, 96], ["capture", "sfm", "static"]),
     "photo_res": (320, [320, 640, 1280], [320, 640, 1280], ["capture", "sfm", "static"]),
-    "gaussians": (
-        30_000,
-        [30_000, 100_000, 300_000, 1_000_000],
-        [30_000, 100_000, 300_000],
-        ["render_clip", "refine", "update"],
-    ),
+    "gaussians": (30_000, [30_000, 100_000, 300_000, 1_000_000], [30_000, 100_000, 300_000],
+                  ["render_clip", "refine", "update"]),
     "view_res": (256, [256, 512, 1024], [256, 512, 1024], ["render_clip", "refine", "update"]),
     "frames": (25, [25, 49, 121], [25, 49, 121], ["render_clip", "refine", "update"]),
     "views": (12, [6, 12, 24], [6, 12, 24], ["render_clip", "refine", "update"]),
@@ -91,12 +86,8 @@ def measure(cmd: list[str], log: Path, env: dict | None = None) -> dict:
     if proc.returncode != 0:
         tail = log.read_text(errors="replace")[-2000:]
         raise RuntimeError(f"{' '.join(cmd[:3])} ... failed ({proc.returncode}); log {log}:\n{tail}")
-    return {
-        "wall_s": wall,
-        "cpu_s": ru.ru_utime + ru.ru_stime,
-        "rss_mib": ru.ru_maxrss / 1024.0,
-        "load": os.getloadavg()[0],
-    }
+    return {"wall_s": wall, "cpu_s": ru.ru_utime + ru.ru_stime, "rss_mib": ru.ru_maxrss / 1024.0,
+            "load": os.getloadavg()[0]}
 
 
 def fit_exponent(xs, ys) -> float:
@@ -143,49 +134,21 @@ def photo_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
     d = work / f"{axis}-{value}"
     shutil.rmtree(d, ignore_errors=True)
     out: dict[str, dict] = {}
-    out["capture"] = measure(
-        anigs_cmd(args.threads, "capture", "--params", json.dumps(synth), "--out", str(d / "capture")),
-        d / "capture.log",
-    )
+    out["capture"] = measure(anigs_cmd(args.threads, "capture", "--params", json.dumps(synth), "--out",
+                                       str(d / "capture")), d / "capture.log")
     if args.smoke:
         return out  # SfM needs real-sized photos
     sfm = {**sec("sfm"), **json.loads(args.sfm_params)}
-    out["sfm"] = measure(
-        anigs_cmd(
-            args.threads,
-            "sfm",
-            "--images",
-            str(d / "capture" / "images"),
-            "--out",
-            str(d / "sfm"),
-            "--gt-cameras",
-            str(d / "capture" / "gt" / "cameras.json"),
-            "--params",
-            json.dumps(sfm),
-        ),
-        d / "sfm.log",
-    )
+    out["sfm"] = measure(anigs_cmd(args.threads, "sfm", "--images", str(d / "capture" / "images"), "--out",
+                                   str(d / "sfm"), "--gt-cameras", str(d / "capture" / "gt" / "cameras.json"),
+                                   "--params", json.dumps(sfm)), d / "sfm.log")
     static = {**sec("static"), "device": config["device"], "seed": config["seed"]}
     if args.static_iterations:
         static["iterations"] = args.static_iterations
-    out["static"] = measure(
-        anigs_cmd(
-            args.threads,
-            "static",
-            "--images",
-            str(d / "sfm" / "images"),
-            "--cameras",
-            str(d / "sfm" / "cameras.json"),
-            "--points",
-            str(d / "sfm" / "points.npz"),
-            "--out",
-            str(d / "static"),
-            "--params",
-            json.dumps(static),
-            "--no-progress",
-        ),
-        d / "static.log",
-    )
+    out["static"] = measure(anigs_cmd(args.threads, "static", "--images", str(d / "sfm" / "images"),
+                                      "--cameras", str(d / "sfm" / "cameras.json"), "--points",
+                                      str(d / "sfm" / "points.npz"), "--out", str(d / "static"),
+                                      "--params", json.dumps(static), "--no-progress"), d / "static.log")
     m = json.loads((d / "static" / "metrics.json").read_text())
     out["static"].update(test_psnr=m["test_psnr"], num_gaussians=m["num_gaussians"])
     if not args.keep:
@@ -229,24 +192,10 @@ def animation_inputs(axis: str, value: int, args, d: Path) -> tuple[Path, Path, 
     labels = np.load(masks_src / "effect_labels.npy")
     if axis == "gaussians" and value != AXES["gaussians"][0]:
         # in a child process: this one stays small (torch not imported), see measure()
-        code = (
-            "import sys, numpy as np; sys.path.insert(0, sys.argv[1]); from scaling import split_gaussians; "
-            "np.save(sys.argv[4], split_gaussians(sys.argv[2], int(sys.argv[3]), sys.argv[5]))"
-        )
-        subprocess.run(
-            [
-                sys.executable,
-                "-c",
-                code,
-                str(Path(__file__).parent),
-                str(ply),
-                str(value),
-                str(d / "split_index.npy"),
-                str(d / "canonical.ply"),
-            ],
-            check=True,
-            cwd=ROOT,
-        )
+        code = ("import sys, numpy as np; sys.path.insert(0, sys.argv[1]); from scaling import split_gaussians; "
+                "np.save(sys.argv[4], split_gaussians(sys.argv[2], int(sys.argv[3]), sys.argv[5]))")
+        subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), str(ply), str(value),
+                        str(d / "split_index.npy"), str(d / "canonical.ply")], check=True, cwd=ROOT)
         idx = np.load(d / "split_index.npy")
         ply, dyn, labels = d / "canonical.ply", dyn[idx], labels[idx]
     base_views = views["views"]
@@ -281,58 +230,20 @@ def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
     ply, views_json, masks, ids = animation_inputs(axis, value, args, d)
     frames = value if axis == "frames" else sec("animate")["frames"]
     render_p = {**sec("render_clip"), "num_frames": frames, "device": config["device"]}
-    refine_p = {
-        **sec("refine"),
-        "prompt": scene.get("prompt", ""),
-        "seed": config["seed"],
-        "effects": list(sec("effects")["requested"]) if sec("effects")["requested"] != "auto" else [],
-    }
-    update_p = {
-        **sec("update"),
-        "device": config["device"],
-        "seed": config["seed"] + 1000,
-        "steps": args.update_steps or sec("update")["steps"],
-    }
+    refine_p = {**sec("refine"), "prompt": scene.get("prompt", ""), "seed": config["seed"],
+                "effects": list(sec("effects")["requested"]) if sec("effects")["requested"] != "auto" else []}
+    update_p = {**sec("update"), "device": config["device"], "seed": config["seed"] + 1000,
+                "steps": args.update_steps or sec("update")["steps"]}
     out: dict[str, dict] = {}
     targets = []
     for v in ids[:1]:  # render_clip and refine cost the same for every view: one is measured
         clip, target = d / "render" / f"{v}.npz", d / "target" / f"{v}.npz"
-        r = measure(
-            anigs_cmd(
-                1,
-                "render_clip",
-                "--canonical",
-                str(ply),
-                "--view-json",
-                str(views_json),
-                "--view-id",
-                v,
-                "--out",
-                str(clip),
-                "--params",
-                json.dumps(render_p),
-            ),
-            d / "logs" / f"render_clip_{v}.log",
-        )
-        f = measure(
-            anigs_cmd(
-                1,
-                "refine",
-                "--clip",
-                str(clip),
-                "--mask",
-                str(masks / f"{v}.png"),
-                "--round",
-                "1",
-                "--view",
-                v,
-                "--out",
-                str(target),
-                "--params",
-                json.dumps(refine_p),
-            ),
-            d / "logs" / f"refine_{v}.log",
-        )
+        r = measure(anigs_cmd(1, "render_clip", "--canonical", str(ply), "--view-json", str(views_json),
+                              "--view-id", v, "--out", str(clip), "--params", json.dumps(render_p)),
+                    d / "logs" / f"render_clip_{v}.log")
+        f = measure(anigs_cmd(1, "refine", "--clip", str(clip), "--mask", str(masks / f"{v}.png"), "--round", "1",
+                              "--view", v, "--out", str(target), "--params", json.dumps(refine_p)),
+                    d / "logs" / f"refine_{v}.log")
         _add(out, "render_clip", r)
         _add(out, "refine", f)
         targets.append(str(target))
@@ -340,29 +251,11 @@ def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
         dst = d / "target" / f"{v}.npz"
         shutil.copyfile(targets[0], dst)
         targets.append(str(dst))
-    out["update"] = measure(
-        anigs_cmd(
-            args.threads,
-            "update",
-            "--canonical",
-            str(ply),
-            "--targets",
-            *targets,
-            "--view-json",
-            str(views_json),
-            "--dynamic",
-            str(masks / "dynamic.npy"),
-            "--effect-labels",
-            str(masks / "effect_labels.npy"),
-            "--out",
-            str(d / "model.pt"),
-            "--log-json",
-            str(d / "update.json"),
-            "--params",
-            json.dumps(update_p),
-        ),
-        d / "logs" / "update.log",
-    )
+    out["update"] = measure(anigs_cmd(args.threads, "update", "--canonical", str(ply), "--targets", *targets,
+                                      "--view-json", str(views_json), "--dynamic", str(masks / "dynamic.npy"),
+                                      "--effect-labels", str(masks / "effect_labels.npy"), "--out",
+                                      str(d / "model.pt"), "--log-json", str(d / "update.json"), "--params",
+                                      json.dumps(update_p)), d / "logs" / "update.log")
     if not args.keep:
         shutil.rmtree(d / "render", ignore_errors=True)
         shutil.rmtree(d / "target", ignore_errors=True)
@@ -402,11 +295,9 @@ def report(rows: list[dict]) -> str:
         if not pts:
             continue
         stages = [s for s in AXES[axis][3] if any(s in r["stages"] for r in pts)]
-        lines += [
-            f"\n**{axis}** (CPU s / wall s / peak RSS MiB; load = 1-min load average at the end)\n",
-            "| " + axis + " | " + " | ".join(stages) + " | load |",
-            "|---" * (len(stages) + 2) + "|",
-        ]
+        lines += [f"\n**{axis}** (CPU s / wall s / peak RSS MiB; load = 1-min load average at the end)\n",
+                  "| " + axis + " | " + " | ".join(stages) + " | load |",
+                  "|---" * (len(stages) + 2) + "|"]
         for r in pts:
             cells = []
             for s in stages:
@@ -418,20 +309,13 @@ def report(rows: list[dict]) -> str:
             have = [r for r in pts if s in r["stages"]]
             xs = [r["value"] for r in have]
             cpu = [r["stages"][s]["cpu_s"] for r in have]
-            expo[(axis, s)] = (
-                fit_exponent(xs, cpu),
-                fit_exponent(xs, [r["stages"][s]["rss_mib"] for r in have]),
-                len(have),
-                fit_exponent(xs[-2:], cpu[-2:]),
-            )
+            expo[(axis, s)] = (fit_exponent(xs, cpu), fit_exponent(xs, [r["stages"][s]["rss_mib"] for r in have]),
+                               len(have), fit_exponent(xs[-2:], cpu[-2:]))
     if expo:
-        lines += [
-            "\n**Growth exponents** (slope of log CPU s / log peak RSS against log axis value, least squares "
-            "over the points; and of CPU s between the two largest points, where a process' fixed start-up "
-            "cost weighs least)\n",
-            "| axis | stage | CPU exponent | CPU, two largest | RSS exponent | points |",
-            "|---|---|---|---|---|---|",
-        ]
+        lines += ["\n**Growth exponents** (slope of log CPU s / log peak RSS against log axis value, least squares "
+                  "over the points; and of CPU s between the two largest points, where a process' fixed start-up "
+                  "cost weighs least)\n",
+                  "| axis | stage | CPU exponent | CPU, two largest | RSS exponent | points |", "|---|---|---|---|---|---|"]
         for (axis, s), (c, m, n, c2) in expo.items():
             lines.append(f"| {axis} | {s} | {_fmt(c)} | {_fmt(c2)} | {_fmt(m)} | {n} |")
         worst = max(((k, v) for k, v in expo.items() if math.isfinite(v[0])), key=lambda kv: kv[1][0], default=None)
@@ -488,23 +372,11 @@ def main(argv: list[str] | None = None) -> int:
         if any(a not in PHOTO_AXES for a in axes) and not (Path(args.scene) / "masks" / "dynamic.npy").exists():
             ap.error(f"--scene {args.scene}: no finished demo run there (masks/dynamic.npy); run `snakemake` first")
         done = {(r["axis"], r["value"], r.get("setup")) for r in load_results(results)}
-        setup = json.dumps(
-            {
-                k: getattr(args, k)
-                for k in ("smoke", "static_iterations", "update_steps", "res_photos", "sfm_params", "threads")
-            },
-            sort_keys=True,
-        )
+        setup = json.dumps({k: getattr(args, k) for k in ("smoke", "static_iterations", "update_steps", "res_photos",
+                                                            "sfm_params", "threads")}, sort_keys=True)
         for a in axes:
-            values = (
-                [int(float(x)) for x in args.points.split(",")]
-                if args.points
-                else SMOKE[a]
-                if args.smoke
-                else AXES[a][1]
-                if args.full
-                else AXES[a][2]
-            )
+            values = ([int(float(x)) for x in args.points.split(",")] if args.points else
+                      SMOKE[a] if args.smoke else AXES[a][1] if args.full else AXES[a][2])
             for v in values:
                 if (a, v, setup) in done:
                     continue

@@ -13,7 +13,6 @@ The second form compares two feature databases of the same photos: keypoints and
 per image, raw matches and two-view geometries (configuration, inlier matches, F/E/H) per pair,
 and prints every pair that differs: where two runs diverge.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -35,20 +34,8 @@ def run_once(capture: Path, out: Path, params: str, threads: int, keep_work: boo
     from anigs.stages.sfm import Outputs as SfmOutputs
 
     cap = CaptureOutputs(capture)
-    cmd = [
-        sys.executable,
-        "-m",
-        "anigs.cli",
-        "--threads",
-        str(threads),
-        "sfm",
-        "--images",
-        str(cap.path("images")),
-        "--out",
-        str(out),
-        "--params",
-        params,
-    ]
+    cmd = [sys.executable, "-m", "anigs.cli", "--threads", str(threads), "sfm", "--images", str(cap.path("images")),
+           "--out", str(out), "--params", params]
     gt = cap.path("gt_cameras")
     if gt.exists():
         cmd += ["--gt-cameras", str(gt)]
@@ -74,10 +61,8 @@ def repeat(args) -> None:
         secs.append(s)
         print(f"run {k:2d}  {md5}  {s:6.1f} s  load {os.getloadavg()[0]:.1f}", flush=True)
     counts = collections.Counter(md5s)
-    print(
-        f"\n{args.runs} runs, {len(counts)} distinct cameras.json; median {statistics.median(secs):.1f} s per run "
-        f"(min {min(secs):.1f}, max {max(secs):.1f})"
-    )
+    print(f"\n{args.runs} runs, {len(counts)} distinct cameras.json; median {statistics.median(secs):.1f} s per run "
+          f"(min {min(secs):.1f}, max {max(secs):.1f})")
     for md5, n in counts.most_common():
         print(f"  {md5}  {n} run(s)")
 
@@ -106,11 +91,8 @@ def compare_databases(a: Path, b: Path) -> int:
         print(f"keypoints and descriptors: {'identical' if same_features else 'DIFFER'} ({len(ims)} images)")
         ga, gb = _geometries(da), _geometries(db_)
         ids = sorted(ims)
-        pairs = sorted(
-            set(ga)
-            | set(gb)
-            | {(i, j) for i in ids for j in ids if i < j and (da.exists_matches(i, j) or db_.exists_matches(i, j))}
-        )
+        pairs = sorted(set(ga) | set(gb) | {(i, j) for i in ids for j in ids if i < j and
+                                           (da.exists_matches(i, j) or db_.exists_matches(i, j))})
         n_match_diff, n_geom_diff = 0, 0
         for p in pairs:
             ma = np.asarray(da.read_matches(*p)) if da.exists_matches(*p) else np.zeros((0, 2))
@@ -119,26 +101,16 @@ def compare_databases(a: Path, b: Path) -> int:
             g1, g2 = ga.get(p), gb.get(p)
             ia = np.asarray(g1.inlier_matches) if g1 is not None else np.zeros((0, 2))
             ib = np.asarray(g2.inlier_matches) if g2 is not None else np.zeros((0, 2))
-            geom_same = (
-                (g1 is None and g2 is None)
-                or g1 is not None
-                and g2 is not None
-                and g1.config == g2.config
-                and ia.shape == ib.shape
-                and np.array_equal(ia, ib)
-                and np.array_equal(np.asarray(g1.F), np.asarray(g2.F))
-                and np.array_equal(np.asarray(g1.E), np.asarray(g2.E))
-                and np.array_equal(np.asarray(g1.H), np.asarray(g2.H))
-            )
+            geom_same = (g1 is None and g2 is None) or g1 is not None and g2 is not None and g1.config == g2.config and ia.shape == ib.shape \
+                and np.array_equal(ia, ib) and np.array_equal(np.asarray(g1.F), np.asarray(g2.F)) \
+                and np.array_equal(np.asarray(g1.E), np.asarray(g2.E)) and np.array_equal(np.asarray(g1.H), np.asarray(g2.H))
             n_match_diff += not raw_same
             n_geom_diff += not geom_same
             if not (raw_same and geom_same):
-                print(
-                    f"pair {ims[p[0]]} - {ims[p[1]]}: raw matches {len(ma)} vs {len(mb)}"
-                    f"{'' if raw_same else ' (DIFFER)'}; verified "
-                    f"{getattr(g1, 'config', None)} {len(ia)} inliers vs {getattr(g2, 'config', None)} {len(ib)}"
-                    f"{'' if geom_same else ' (DIFFER)'}"
-                )
+                print(f"pair {ims[p[0]]} - {ims[p[1]]}: raw matches {len(ma)} vs {len(mb)}"
+                      f"{'' if raw_same else ' (DIFFER)'}; verified "
+                      f"{getattr(g1, 'config', None)} {len(ia)} inliers vs {getattr(g2, 'config', None)} {len(ib)}"
+                      f"{'' if geom_same else ' (DIFFER)'}")
         print(f"{len(pairs)} pairs: raw matches differ for {n_match_diff}, two-view geometries for {n_geom_diff}")
         order_a = [pycolmap.pair_id_to_image_pair(p) for p in da.read_two_view_geometries()[0]]
         order_b = [pycolmap.pair_id_to_image_pair(p) for p in db_.read_two_view_geometries()[0]]
@@ -154,11 +126,8 @@ def main() -> None:
     ap.add_argument("capture", nargs="?", help="capture folder with images/ (and gt/cameras.json)")
     ap.add_argument("--runs", type=int, default=20)
     ap.add_argument("--out", default="/tmp/sfm-determinism")
-    ap.add_argument(
-        "--params",
-        default='{"camera_model": "SIMPLE_PINHOLE", "sift_peak_threshold": 0.004}',
-        help="the sfm section as JSON (default: the demo scene's sfm keys)",
-    )
+    ap.add_argument("--params", default='{"camera_model": "SIMPLE_PINHOLE", "sift_peak_threshold": 0.004}',
+                    help="the sfm section as JSON (default: the demo scene's sfm keys)")
     ap.add_argument("--threads", type=int, default=2, help="anigs --threads (what the workflow rule gives)")
     ap.add_argument("--keep-work", action="store_true", help="keep every run's COLMAP database")
     ap.add_argument("--compare-db", nargs=2, metavar="DB", help="compare two feature databases and exit")

@@ -9,7 +9,6 @@ process spent on the interpreter, imports and arguments before its work began) a
 (``cpu_time``; separate update jobs start the same way, so their start-up is taken as the median
 round job's). Prints the share per round and overall.
 """
-
 from __future__ import annotations
 
 import argparse

@@ -29,7 +29,6 @@ Examples::
     python benchmarks/static_fit.py --quick            # shorter runs, small sweep
     python benchmarks/static_fit.py --scene results/demo --iterations 1000 --no-sweep --threads 1
 """
-
 from __future__ import annotations
 
 import os
@@ -130,18 +129,8 @@ def draw_plot(path: Path, series: dict[str, list[tuple[float, float]]], title: s
     d.text((L + 200, H - 20), "training wall seconds", fill="black")
     d.text((8, T - 25), "held-out PSNR (dB)", fill="black")
     d.text((L + 150, 10), title, fill="black")
-    palette = [
-        (31, 119, 180),
-        (255, 127, 14),
-        (44, 160, 44),
-        (214, 39, 40),
-        (148, 103, 189),
-        (140, 86, 75),
-        (227, 119, 194),
-        (127, 127, 127),
-        (188, 189, 34),
-        (23, 190, 207),
-    ]
+    palette = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
+               (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207)]
     for i, (name, s) in enumerate(series.items()):
         col = palette[i % len(palette)]
         xy = [(X(x), Y(y)) for x, y in s if np.isfinite(y)]
@@ -158,9 +147,8 @@ def _median_ms(xs: list[float]) -> float:
     return float(np.median(xs)) * 1e3
 
 
-def step_vs_raster(
-    g, imgs: list[torch.Tensor], cams: list[Camera], cfg: FitConfig, curve: list[dict], repeat: int
-) -> list[dict]:
+def step_vs_raster(g, imgs: list[torch.Tensor], cams: list[Camera], cfg: FitConfig, curve: list[dict],
+                   repeat: int) -> list[dict]:
     """Rows (what, wall ms, CPU ms, ratio to the rasterizer) comparing the fit's step with the
     rasterizer's forward+backward at the fitted Gaussians (see the module docstring)."""
     import anigs.static.fit as F
@@ -178,9 +166,8 @@ def step_vs_raster(
     upstream = torch.rand(H, W, 3, generator=gen) * 1e-3  # a fixed image gradient
 
     def raster(i: int) -> None:
-        rgb, _, _ = rasterize(
-            *leaves, *mats[i], cams[i].width, cams[i].height, sh_degree=deg, background=bg, backend=cfg.backend
-        )
+        rgb, _, _ = rasterize(*leaves, *mats[i], cams[i].width, cams[i].height, sh_degree=deg, background=bg,
+                              backend=cfg.backend)
         rgb.backward(upstream)
         for t in leaves:
             t.grad = None
@@ -190,21 +177,14 @@ def step_vs_raster(
     if has_step:
         params = F._to_params(g.detach(), dev)
         params = {k: torch.nn.Parameter(v.detach().clone()) for k, v in params.items()}  # trained in place
-        lr = {
-            "means": cfg.lr_means_final,
-            "quats": cfg.lr_quats,
-            "log_scales": cfg.lr_scales,
-            "opacity_logits": cfg.lr_opacity,
-            "sh_dc": cfg.lr_sh_dc,
-            "sh_rest": cfg.lr_sh_rest,
-        }
+        lr = {"means": cfg.lr_means_final, "quats": cfg.lr_quats, "log_scales": cfg.lr_scales,
+              "opacity_logits": cfg.lr_opacity, "sh_dc": cfg.lr_sh_dc, "sh_rest": cfg.lr_sh_rest}
         opt = F.make_optimizer(params, lr)
         guard = F.DivergenceGuard(opt, list(params), dev)
 
         def step(i: int) -> None:
-            F.train_step(
-                params, opt, cams[i], imgs[i], deg, bg, cfg.backend, cfg.ssim_weight, mats=mats[i], guard=guard, step=1
-            )
+            F.train_step(params, opt, cams[i], imgs[i], deg, bg, cfg.backend, cfg.ssim_weight, mats=mats[i],
+                         guard=guard, step=1)
 
         from anigs.ssim import fused_ssim, ssim
 
@@ -215,7 +195,6 @@ def step_vs_raster(
                 x = pred[i].clone().requires_grad_(True)
                 w = cfg.ssim_weight
                 ((1 - w) * (x - imgs[i]).abs().mean() + w * (1 - ssim_fn(x, imgs[i]))).backward()
-
             return run
 
         for p in params.values():
@@ -224,12 +203,8 @@ def step_vs_raster(
         def adam(i: int) -> None:
             opt.step()
 
-        fns = {
-            "training step (train_step)": step,
-            **fns,
-            "loss fwd+bwd, fused SSIM": loss_with(fused_ssim),
-            "loss fwd+bwd, reference SSIM": loss_with(ssim),
-        }
+        fns = {"training step (train_step)": step, **fns, "loss fwd+bwd, fused SSIM": loss_with(fused_ssim),
+               "loss fwd+bwd, reference SSIM": loss_with(ssim)}
     wall: dict[str, list[float]] = {k: [] for k in fns}
     cpu: dict[str, list[float]] = {k: [] for k in fns}
     for r in range(repeat + 2):  # two warm-up rounds
@@ -259,15 +234,8 @@ def step_vs_raster(
         n = b["iteration"] - a["iteration"]
         fw = (b["train_seconds"] - a["train_seconds"]) / n * 1e3
         fc = (b["train_cpu_seconds"] - a["train_cpu_seconds"]) / n * 1e3
-        rows.append(
-            {
-                "what": f"fit, mean step over iterations {a['iteration']}-{b['iteration']}",
-                "wall_ms": fw,
-                "cpu_ms": fc,
-                "wall_ratio": fw / rw,
-                "cpu_ratio": fc / rc,
-            }
-        )
+        rows.append({"what": f"fit, mean step over iterations {a['iteration']}-{b['iteration']}",
+                     "wall_ms": fw, "cpu_ms": fc, "wall_ratio": fw / rw, "cpu_ratio": fc / rc})
     for name in wall:
         w, c = _median_ms(wall[name]), _median_ms(cpu[name])
         rows.append({"what": name, "wall_ms": w, "cpu_ms": c, "wall_ratio": w / rw, "cpu_ratio": c / rc})
@@ -288,12 +256,8 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true", help="1000 iterations, scales 0.5,1.0, budgets 15000,30000")
     ap.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
     ap.add_argument("--no-sweep", action="store_true", help="the default run only (and the step comparison)")
-    ap.add_argument(
-        "--step-repeat",
-        type=int,
-        default=30,
-        help="interleaved repetitions of the step-versus-rasterizer comparison (0 = skip it)",
-    )
+    ap.add_argument("--step-repeat", type=int, default=30,
+                    help="interleaved repetitions of the step-versus-rasterizer comparison (0 = skip it)")
     args = ap.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -316,10 +280,8 @@ def main() -> int:
         runs += [(f"res x{s:g}", s, default_budget) for s in scales if s != 1.0]
         runs += [(f"budget {b // 1000}k", 1.0, b) for b in budgets if b != default_budget]
 
-    print(
-        f"scene: {what}; {len(imgs)} images {cams[0].width}x{cams[0].height}, {len(pts)} points; "
-        f"torch threads {torch.get_num_threads()}, cpus {os.cpu_count()}; load average {_load()}"
-    )
+    print(f"scene: {what}; {len(imgs)} images {cams[0].width}x{cams[0].height}, {len(pts)} points; "
+          f"torch threads {torch.get_num_threads()}, cpus {os.cpu_count()}; load average {_load()}")
     args.out.mkdir(parents=True, exist_ok=True)
     rows, series, summary, step_rows = [], {}, [], []
     for name, s, budget in runs:
@@ -335,83 +297,50 @@ def main() -> int:
 
             _, test = split_holdout(len(imgs), cfg.holdout_every)
             bgt = torch.tensor(cfg.background, dtype=torch.float32)
-            full = evaluate(
-                _to_params(g, "cpu"), [imgs[i] for i in test], [cams[i] for i in test], g.sh_degree, bgt, cfg.backend
-            )["psnr"]
-        summary.append(
-            {
-                "run": name,
-                "size": f"{cm[0].width}x{cm[0].height}",
-                "max_gaussians": budget,
-                "num_gaussians": m["num_gaussians"],
-                "train_seconds": round(m["train_seconds"], 1),
-                "train_cpu_seconds": round(m["train_cpu_seconds"], 1),
-                "test_psnr": round(m["test_psnr"], 3),
-                "test_psnr_full_res": round(full, 3),
-                "train_psnr": round(m["train_psnr"], 3),
-            }
-        )
+            full = evaluate(_to_params(g, "cpu"), [imgs[i] for i in test], [cams[i] for i in test],
+                            g.sh_degree, bgt, cfg.backend)["psnr"]
+        summary.append({"run": name, "size": f"{cm[0].width}x{cm[0].height}", "max_gaussians": budget,
+                        "num_gaussians": m["num_gaussians"], "train_seconds": round(m["train_seconds"], 1),
+                        "train_cpu_seconds": round(m["train_cpu_seconds"], 1), "test_psnr": round(m["test_psnr"], 3),
+                        "test_psnr_full_res": round(full, 3), "train_psnr": round(m["train_psnr"], 3)})
         for r in m["curve"]:
-            rows.append(
-                {
-                    "run": name,
-                    "width": cm[0].width,
-                    "height": cm[0].height,
-                    "max_gaussians": budget,
-                    "iteration": r["iteration"],
-                    "train_seconds": round(r["train_seconds"], 2),
-                    "train_cpu_seconds": round(r["train_cpu_seconds"], 2),
-                    "test_psnr": round(r["test_psnr"], 3),
-                    "test_ssim": round(r["test_ssim"], 4),
-                    "num_gaussians": r["num_gaussians"],
-                }
-            )
+            rows.append({"run": name, "width": cm[0].width, "height": cm[0].height, "max_gaussians": budget,
+                         "iteration": r["iteration"], "train_seconds": round(r["train_seconds"], 2),
+                         "train_cpu_seconds": round(r["train_cpu_seconds"], 2),
+                         "test_psnr": round(r["test_psnr"], 3), "test_ssim": round(r["test_ssim"], 4),
+                         "num_gaussians": r["num_gaussians"]})
         series[f"{name} ({cm[0].width}x{cm[0].height})"] = [(r["train_seconds"], r["test_psnr"]) for r in m["curve"]]
         if name == "default" and args.step_repeat > 0:
             step_rows = step_vs_raster(g, im, cm, cfg, m["curve"], args.step_repeat)
             if m.get("step_ms_median_final") is not None:
-                print(
-                    f"fit: median step {m['step_ms_median']:.1f} ms, {m['step_ms_median_final']:.1f} ms from "
-                    f"iteration {m['final_steps_from']} (constant Gaussian count)"
-                )
-        print(
-            f"{name:>12}: {cm[0].width}x{cm[0].height}, budget {budget}: held-out PSNR {m['test_psnr']:.2f} dB "
-            f"({full:.2f} dB at full resolution), "
-            f"train PSNR {m['train_psnr']:.2f} dB, {m['num_gaussians']} Gaussians, train {m['train_seconds']:.0f} s "
-            f"(wall {wall:.0f} s)"
-        )
+                print(f"fit: median step {m['step_ms_median']:.1f} ms, {m['step_ms_median_final']:.1f} ms from "
+                      f"iteration {m['final_steps_from']} (constant Gaussian count)")
+        print(f"{name:>12}: {cm[0].width}x{cm[0].height}, budget {budget}: held-out PSNR {m['test_psnr']:.2f} dB "
+              f"({full:.2f} dB at full resolution), "
+              f"train PSNR {m['train_psnr']:.2f} dB, {m['num_gaussians']} Gaussians, train {m['train_seconds']:.0f} s "
+              f"(wall {wall:.0f} s)")
     print()
     print(f"{'run':>12} {'size':>8} {'budget':>7} {'iter':>6} {'seconds':>8} {'PSNR':>7} {'SSIM':>6} {'#G':>7}")
     for r in rows:
-        print(
-            f"{r['run']:>12} {r['width']:>4}x{r['height']:<3} {r['max_gaussians']:>7} {r['iteration']:>6} "
-            f"{r['train_seconds']:>8.1f} {r['test_psnr']:>7.2f} {r['test_ssim']:>6.3f} {r['num_gaussians']:>7}"
-        )
+        print(f"{r['run']:>12} {r['width']:>4}x{r['height']:<3} {r['max_gaussians']:>7} {r['iteration']:>6} "
+              f"{r['train_seconds']:>8.1f} {r['test_psnr']:>7.2f} {r['test_ssim']:>6.3f} {r['num_gaussians']:>7}")
     if step_rows:
         r0 = step_rows[0]
-        print(
-            f"\nstep versus rasterizer: {r0['num_gaussians']} Gaussians, {r0['size']}, SH degree {r0['sh_degree']}, "
-            f"{r0['repeat']} interleaved repetitions, torch threads {torch.get_num_threads()}, "
-            f"load average {_load()}"
-        )
+        print(f"\nstep versus rasterizer: {r0['num_gaussians']} Gaussians, {r0['size']}, SH degree {r0['sh_degree']}, "
+              f"{r0['repeat']} interleaved repetitions, torch threads {torch.get_num_threads()}, "
+              f"load average {_load()}")
         print(f"{'':>42} {'wall ms':>8} {'CPU ms':>8} {'x raster (wall)':>16} {'x raster (CPU)':>15}")
         for r in step_rows:
-            print(
-                f"{r['what']:>42} {r['wall_ms']:>8.2f} {r['cpu_ms']:>8.2f} {r['wall_ratio']:>16.2f} "
-                f"{r['cpu_ratio']:>15.2f}"
-            )
+            print(f"{r['what']:>42} {r['wall_ms']:>8.2f} {r['cpu_ms']:>8.2f} {r['wall_ratio']:>16.2f} "
+                  f"{r['cpu_ratio']:>15.2f}")
     csv_path, png_path = args.out / "static_fit.csv", args.out / "static_fit.png"
     sum_path = args.out / "static_fit_summary.csv"
     from anigs.io import atomic_path
 
     tables = [(csv_path, rows), (sum_path, summary)]
     if step_rows:
-        tables.append(
-            (
-                args.out / "static_fit_step.csv",
-                [{k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()} for r in step_rows],
-            )
-        )
+        tables.append((args.out / "static_fit_step.csv", [{k: (round(v, 3) if isinstance(v, float) else v)
+                                                            for k, v in r.items()} for r in step_rows]))
     for path, table in tables:
         with atomic_path(path) as tmp:
             with open(tmp, "w", newline="") as fh:

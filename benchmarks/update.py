@@ -15,7 +15,6 @@ Each configuration runs in its own subprocess so the peak RSS is that run's alon
 includes the target clips held in memory (V * T * H * W * 3 float32), listed separately.
 Prints wall-clock (what a user waits) and process CPU time (robust when the machine is shared).
 """
-
 from __future__ import annotations
 
 import argparse
@@ -51,15 +50,8 @@ def _cameras(v: int, w: int, h: int):
     out = []
     for k in range(v):
         a = 2 * math.pi * k / v
-        out.append(
-            Camera(
-                intrinsics_from_fov(60, w, h),
-                look_at((5 * math.cos(a), 5 * math.sin(a), 2.0), (0, 0, 0.5)),
-                w,
-                h,
-                f"v{k}",
-            )
-        )
+        out.append(Camera(intrinsics_from_fov(60, w, h), look_at((5 * math.cos(a), 5 * math.sin(a), 2.0), (0, 0, 0.5)),
+                          w, h, f"v{k}"))
     return out
 
 
@@ -81,16 +73,9 @@ def _worker(cfg: dict, steps: int, threads: int) -> dict:
     res = run_update(G, mask, views, UpdateConfig(steps=steps, **ucfg), progress=False)
     cpu = time.process_time() - c0
     clips_mb = cfg["views"] * cfg["T"] * cfg["height"] * cfg["width"] * 3 * 4 / 2**20
-    return {
-        **cfg,
-        "D": int(mask.sum()),
-        "steps": steps,
-        "threads": threads,
-        "wall_steps_per_s": steps / res.seconds,
-        "cpu_s_per_step": cpu / steps,
-        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-        "clips_mb": clips_mb,
-    }
+    return {**cfg, "D": int(mask.sum()), "steps": steps, "threads": threads,
+            "wall_steps_per_s": steps / res.seconds, "cpu_s_per_step": cpu / steps,
+            "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "clips_mb": clips_mb}
 
 
 def _run(cfg: dict, steps: int, threads: int) -> dict:
@@ -117,14 +102,10 @@ def main() -> None:
         rows += [(f"dyn={f:.0%}", {**BASE, "dyn_frac": f}) for f in (0.1, 1.0)]
         rows += [(f"{w}x{h}", {**BASE, "width": w, "height": h}) for w, h in ((128, 96), (512, 384))]
         rows += [("N=50k,T=49,V=12", {**BASE, "n": 50_000, "T": 49, "views": 12})]
-    print(
-        f"model update benchmark: {args.steps} steps per configuration, {args.threads} torch/OpenMP threads; "
-        "one step = 2 renders at random t + 1 canonical render, backward, Adam"
-    )
-    hdr = (
-        f"{'config':<16}{'N':>7}{'D':>7}{'K':>4}{'T':>4}{'V':>4}{'size':>9}{'steps/s':>9}{'cpu s/step':>11}"
-        f"{'peak MB':>9}{'clips MB':>9}"
-    )
+    print(f"model update benchmark: {args.steps} steps per configuration, {args.threads} torch/OpenMP threads; "
+          "one step = 2 renders at random t + 1 canonical render, backward, Adam")
+    hdr = f"{'config':<16}{'N':>7}{'D':>7}{'K':>4}{'T':>4}{'V':>4}{'size':>9}{'steps/s':>9}{'cpu s/step':>11}" \
+          f"{'peak MB':>9}{'clips MB':>9}"
     print(hdr)
     print("-" * len(hdr))
     for name, cfg in rows:
@@ -132,12 +113,9 @@ def main() -> None:
         if "error" in r:
             print(f"{name:<16} error: {r['error']}")
             continue
-        print(
-            f"{name:<16}{r['n']:>7}{r['D']:>7}{r['K']:>4}{r['T']:>4}{r['views']:>4}"
-            f"{str(r['width']) + 'x' + str(r['height']):>9}{r['wall_steps_per_s']:>9.2f}{r['cpu_s_per_step']:>11.3f}"
-            f"{r['peak_rss_mb']:>9.0f}{r['clips_mb']:>9.0f}",
-            flush=True,
-        )
+        print(f"{name:<16}{r['n']:>7}{r['D']:>7}{r['K']:>4}{r['T']:>4}{r['views']:>4}"
+              f"{str(r['width']) + 'x' + str(r['height']):>9}{r['wall_steps_per_s']:>9.2f}{r['cpu_s_per_step']:>11.3f}"
+              f"{r['peak_rss_mb']:>9.0f}{r['clips_mb']:>9.0f}", flush=True)
 
 
 if __name__ == "__main__":

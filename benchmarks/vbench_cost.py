@@ -4,7 +4,6 @@
 
 Process CPU seconds, one thread: what the VBench figures add to the final job's clip metrics.
 """
-
 from __future__ import annotations
 
 import argparse

@@ -15,7 +15,6 @@
 
 Writes ``--out``/viewer_bench.json and prints a summary. Needs chromium, chromedriver, selenium.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -35,21 +34,10 @@ def _driver(width: int, height: int, gpu: bool):
     from selenium.webdriver.chrome.service import Service
 
     opts = webdriver.ChromeOptions()
-    flags = [
-        "--headless=new",
-        "--no-sandbox",
-        "--disable-dev-shm-usage",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        "--no-first-run",
-        f"--window-size={width},{height}",
-    ]
-    flags += (
-        ["--use-angle=vulkan", "--enable-features=Vulkan", "--ignore-gpu-blocklist"]
-        if gpu
-        else ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
-    )
+    flags = ["--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-background-networking",
+             "--disable-component-update", "--disable-sync", "--no-first-run", f"--window-size={width},{height}"]
+    flags += ["--use-angle=vulkan", "--enable-features=Vulkan", "--ignore-gpu-blocklist"] if gpu else \
+        ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
     for f in flags:
         opts.add_argument(f)
     drv = webdriver.Chrome(service=Service(shutil.which("chromedriver") or "/usr/bin/chromedriver"), options=opts)
@@ -68,14 +56,9 @@ def _sizes(out: Path, canonical, deformation) -> dict:
     dct_ply = (out / "ply_export" / "animated.ply").stat().st_size
     compact = (out / "scene.anigs").stat().st_size
     shutil.rmtree(out / "ply_export")
-    return {
-        "compact_bytes": compact,
-        "frame_plys_bytes": frame_bytes,
-        "num_frame_plys": len(frames),
-        "dct_ply_bytes": dct_ply,
-        "today_export_bytes": frame_bytes + dct_ply,
-        "ratio_today_over_compact": (frame_bytes + dct_ply) / compact,
-    }
+    return {"compact_bytes": compact, "frame_plys_bytes": frame_bytes, "num_frame_plys": len(frames),
+            "dct_ply_bytes": dct_ply, "today_export_bytes": frame_bytes + dct_ply,
+            "ratio_today_over_compact": (frame_bytes + dct_ply) / compact}
 
 
 def main() -> int:
@@ -88,12 +71,8 @@ def main() -> int:
     p.add_argument("--times", type=float, nargs="+", default=[0.0, 7.5, 24.0])
     p.add_argument("--frames", type=int, default=10)
     p.add_argument("--scales", type=float, nargs="+", default=[1.0, 4.0])
-    p.add_argument(
-        "--target",
-        default="auto",
-        choices=["auto", "rgba32f", "rgba16f", "rgba8"],
-        help="the viewer's accumulation target (auto: the most precise blendable one)",
-    )
+    p.add_argument("--target", default="auto", choices=["auto", "rgba32f", "rgba16f", "rgba8"],
+                   help="the viewer's accumulation target (auto: the most precise blendable one)")
     p.add_argument("--gpu", action="store_true", help="hardware WebGL (ANGLE on Vulkan) instead of SwiftShader")
     a = p.parse_args()
 
@@ -105,21 +84,15 @@ def main() -> int:
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     canonical, deformation, _ = load_animated(a.model, a.canonical)
-    result = {
-        "num_gaussians": canonical.num,
-        "num_dynamic": deformation.num_dynamic,
-        "num_frames": deformation.num_frames,
-        "num_bases": deformation.num_bases,
-        "sh_degree": canonical.sh_degree,
-        "sizes": _sizes(out, canonical, deformation),
-    }
+    result = {"num_gaussians": canonical.num, "num_dynamic": deformation.num_dynamic,
+              "num_frames": deformation.num_frames, "num_bases": deformation.num_bases,
+              "sh_degree": canonical.sh_degree, "sizes": _sizes(out, canonical, deformation)}
     t0 = time.perf_counter()
     summary = build_viewer(a.model, out / "viewer", a.views, canonical=a.canonical)
     result["build_s"] = time.perf_counter() - t0
     result["viewer_folder_bytes"] = summary["folder_bytes"]
-    bg = torch.tensor(
-        json.loads((out / "viewer" / "config.js").read_text().split("=", 1)[1].rstrip().rstrip(";"))["background"]
-    )
+    bg = torch.tensor(json.loads((out / "viewer" / "config.js").read_text().split("=", 1)[1].rstrip().rstrip(";"))
+                      ["background"])
     cams = cameras_from_views(json.loads(Path(a.views).read_text()))
     times = [min(max(t, 0.0), deformation.num_frames - 1) for t in a.times]
     server = start_server(out / "viewer")
@@ -127,38 +100,26 @@ def main() -> int:
     try:
         t0 = time.perf_counter()
         drv.get(server.url + f"?scale=1&paused=1&target={a.target}")
-        info = drv.execute_async_script(
-            "const d = arguments[0]; window.anigsViewer.ready.then("
-            "v => v.renderExact().then(() => d(v.info())), e => d('ERROR ' + e));"
-        )
+        info = drv.execute_async_script("const d = arguments[0]; window.anigsViewer.ready.then("
+                                        "v => v.renderExact().then(() => d(v.info())), e => d('ERROR ' + e));")
         if not isinstance(info, dict):
             raise RuntimeError(info)
         result["load_s"] = time.perf_counter() - t0
         result["gl_renderer"] = drv.execute_script(
             "const gl = window.anigsViewer.renderer.gl, e = gl.getExtension('WEBGL_debug_renderer_info');"
-            "return e ? gl.getParameter(e.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);"
-        )
+            "return e ? gl.getParameter(e.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);")
         agreement = []
-        for vi, cam in enumerate(cams[: a.num_views]):
+        for vi, cam in enumerate(cams[:a.num_views]):
             for t in times:
                 b64 = drv.execute_async_script(
                     "const [i, t, d] = arguments, v = window.anigsViewer; v.setView(i); v.setTime(t);"
-                    "v.renderExact().then(() => d(v.pixelsBase64()));",
-                    vi,
-                    t,
-                )
+                    "v.renderExact().then(() => d(v.pixelsBase64()));", vi, t)
                 ours = np.frombuffer(base64.b64decode(b64), np.uint8).reshape(cam.height, cam.width, 4)[..., :3] / 255.0
                 with torch.no_grad():
                     ref = render_gaussians(deformation(canonical, t), cam, background=bg)[0].clamp(0, 1).numpy()
                 mse = float(((ours - ref) ** 2).mean())
-                agreement.append(
-                    {
-                        "view": cam.name,
-                        "t": t,
-                        "psnr_db": 10 * math.log10(1 / max(mse, 1e-12)),
-                        "max_abs": float(np.abs(ours - ref).max()),
-                    }
-                )
+                agreement.append({"view": cam.name, "t": t, "psnr_db": 10 * math.log10(1 / max(mse, 1e-12)),
+                                  "max_abs": float(np.abs(ours - ref).max())})
                 if vi == 0:
                     from PIL import Image
 
@@ -168,21 +129,16 @@ def main() -> int:
         fps = []
         for s in a.scales:
             drv.get(server.url + f"?scale={s:g}&paused=1&target={a.target}")
-            drv.execute_async_script(
-                "const d = arguments[0]; window.anigsViewer.ready.then(v => v.renderExact().then(() => d(1)));"
-            )
+            drv.execute_async_script("const d = arguments[0]; window.anigsViewer.ready.then("
+                                     "v => v.renderExact().then(() => d(1)));")
             fps.append(drv.execute_script("return window.anigsViewer.benchmark(arguments[0])", a.frames))
         result["frame_rate"] = fps
         drv.get(server.url + f"?paused=1&target={a.target}")  # the page as a user sees it (fit to the window)
-        drv.execute_async_script(
-            "const d = arguments[0]; window.anigsViewer.ready.then("
-            "v => { v.setTime(12); return v.renderExact(); }).then(() => d(1));"
-        )
+        drv.execute_async_script("const d = arguments[0]; window.anigsViewer.ready.then("
+                                 "v => { v.setTime(12); return v.renderExact(); }).then(() => d(1));")
         drv.save_screenshot(str(out / "shot_page.png"))
-        drv.execute_async_script(
-            "const d = arguments[0], v = window.anigsViewer; document.getElementById('moving')"
-            ".click(); v.renderExact().then(() => d(1));"
-        )
+        drv.execute_async_script("const d = arguments[0], v = window.anigsViewer; document.getElementById('moving')"
+                                 ".click(); v.renderExact().then(() => d(1));")
         drv.save_screenshot(str(out / "shot_moving.png"))
         from selenium.webdriver.common.action_chains import ActionChains
         from selenium.webdriver.common.by import By
@@ -196,22 +152,16 @@ def main() -> int:
         server.stop()
     (out / "viewer_bench.json").write_text(json.dumps(result, indent=1))
     s = result["sizes"]
-    print(
-        f"{result['num_gaussians']} Gaussians, {result['num_dynamic']} dynamic, T={result['num_frames']}, "
-        f"K={result['num_bases']}, SH {result['sh_degree']}; renderer: {result['gl_renderer']}"
-    )
-    print(
-        f"compact {s['compact_bytes'] / 1e6:.2f} MB vs today's export {s['today_export_bytes'] / 1e6:.1f} MB "
-        f"({s['num_frame_plys']} frame PLYs {s['frame_plys_bytes'] / 1e6:.1f} MB + DCT PLY "
-        f"{s['dct_ply_bytes'] / 1e6:.1f} MB): {s['ratio_today_over_compact']:.1f}x smaller"
-    )
+    print(f"{result['num_gaussians']} Gaussians, {result['num_dynamic']} dynamic, T={result['num_frames']}, "
+          f"K={result['num_bases']}, SH {result['sh_degree']}; renderer: {result['gl_renderer']}")
+    print(f"compact {s['compact_bytes'] / 1e6:.2f} MB vs today's export {s['today_export_bytes'] / 1e6:.1f} MB "
+          f"({s['num_frame_plys']} frame PLYs {s['frame_plys_bytes'] / 1e6:.1f} MB + DCT PLY "
+          f"{s['dct_ply_bytes'] / 1e6:.1f} MB): {s['ratio_today_over_compact']:.1f}x smaller")
     for r in result["agreement"]:
         print(f"  {r['view']:>14s} t={r['t']:<5g} PSNR {r['psnr_db']:.2f} dB  max |diff| {r['max_abs']:.3f}")
     for f in result["frame_rate"]:
-        print(
-            f"  {f['width']}x{f['height']}: {f['ms_per_frame']:.1f} ms/frame ({f['fps']:.1f} fps), "
-            f"sort {f['sort_ms']:.1f} ms, {f['splats']} splats, target {f['target']}"
-        )
+        print(f"  {f['width']}x{f['height']}: {f['ms_per_frame']:.1f} ms/frame ({f['fps']:.1f} fps), "
+              f"sort {f['sort_ms']:.1f} ms, {f['splats']} splats, target {f['target']}")
     return 0
 
 

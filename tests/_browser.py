@@ -3,7 +3,6 @@ chromium-driver driven by Selenium. Nothing downloads a browser or a driver (the
 to Selenium explicitly). Tests skip when a piece is missing; with ANIGS_REQUIRE_BROWSER=1 (CI)
 a missing piece is an error instead.
 """
-
 from __future__ import annotations
 
 import importlib.util
@@ -14,36 +13,17 @@ from pathlib import Path
 import pytest
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-CHROMEDRIVER = shutil.which("chromedriver") or (
-    "/usr/bin/chromedriver" if Path("/usr/bin/chromedriver").exists() else None
-)
-MISSING = [
-    name
-    for name, ok in (
-        ("chromium", CHROMIUM),
-        ("chromedriver", CHROMEDRIVER),
-        ("selenium", importlib.util.find_spec("selenium")),
-    )
-    if not ok
-]
+CHROMEDRIVER = shutil.which("chromedriver") or ("/usr/bin/chromedriver" if Path("/usr/bin/chromedriver").exists() else None)
+MISSING = [name for name, ok in (("chromium", CHROMIUM), ("chromedriver", CHROMEDRIVER),
+                                 ("selenium", importlib.util.find_spec("selenium"))) if not ok]
 if MISSING and os.environ.get("ANIGS_REQUIRE_BROWSER") == "1":
     raise RuntimeError(f"ANIGS_REQUIRE_BROWSER=1 but {', '.join(MISSING)} missing (bash envs/browser.sh)")
 
-needs_browser = pytest.mark.skipif(
-    bool(MISSING),
-    reason=f"browser test needs {', '.join(MISSING)}: run "
-    "`bash envs/browser.sh` (apt chromium chromium-driver as root, pip selenium)",
-)
+needs_browser = pytest.mark.skipif(bool(MISSING), reason=f"browser test needs {', '.join(MISSING)}: run "
+                                   "`bash envs/browser.sh` (apt chromium chromium-driver as root, pip selenium)")
 
-FLAGS = (
-    "--headless=new",
-    "--no-sandbox",
-    "--disable-dev-shm-usage",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-)
+FLAGS = ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-background-networking",
+         "--disable-component-update", "--disable-sync", "--no-first-run")
 WEBGL_FLAGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader")  # WebGL on the software renderer
 
 
@@ -57,7 +37,6 @@ def chrome(window: tuple[int, int] = (1280, 860), webgl: bool = False, download_
     for flag in FLAGS + (WEBGL_FLAGS if webgl else ()) + (f"--window-size={window[0]},{window[1]}",):
         opts.add_argument(flag)
     if download_dir is not None:
-        opts.add_experimental_option(
-            "prefs", {"download.default_directory": str(download_dir), "download.prompt_for_download": False}
-        )
+        opts.add_experimental_option("prefs", {"download.default_directory": str(download_dir),
+                                               "download.prompt_for_download": False})
     return webdriver.Chrome(service=Service(CHROMEDRIVER), options=opts)

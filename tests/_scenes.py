@@ -1,6 +1,5 @@
 """Scenes shared by the tests and benchmarks: random Gaussians (rasterizer) and a ground with a
 swaying shrub, its ring of cameras and a ground-truth sway (deformation, model update, baselines)."""
-
 from __future__ import annotations
 
 import math
@@ -12,9 +11,8 @@ from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.gaussians import Gaussians
 
 
-def random_scene(
-    n: int, width: int, height: int, sh_degree: int = 0, seed: int = 0, fov: float = 60.0, dtype=torch.float32
-):
+def random_scene(n: int, width: int, height: int, sh_degree: int = 0, seed: int = 0, fov: float = 60.0,
+                 dtype=torch.float32):
     """n Gaussians in a 2x2x2 cube 4 units in front of an identity camera.
 
     Returns (means, quats, scales, opacities, colors_or_sh, viewmat, K).
@@ -53,10 +51,10 @@ def sway_scene(seed: int = 0, n_dyn: int = 200, grid: int = 15, anisotropic: boo
     scales = torch.cat([torch.full((grid * grid,), 0.07), torch.full((n_dyn,), 0.04)])
     G = Gaussians.from_points(pts, cols, scales, opacity=0.9)
     if anisotropic:
-        G.log_scales[grid * grid :, 0] += 1.0
+        G.log_scales[grid * grid:, 0] += 1.0
         G.quats = torch.randn(G.num, 4, generator=g)
     mask = torch.zeros(G.num, dtype=torch.bool)
-    mask[grid * grid :] = True
+    mask[grid * grid:] = True
     return G, mask
 
 

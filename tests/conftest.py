@@ -1,7 +1,6 @@
 """Shared pytest options (``--device``, default cpu; the ``gpu`` marker) and fixtures (``one_thread``).
 
 Shared scene builders live in ``tests/_scenes.py``."""
-
 from __future__ import annotations
 
 import pytest

@@ -7,7 +7,6 @@ is the same arithmetic as ``torch.optim.Adam`` (its single-tensor path, which it
 amsgrad, weight decay and maximize off) followed by ``torch.optim.lr_scheduler.ExponentialLR``, op
 for op, so on the CPU the parameters come out bit for bit the same (``tests/animate/test_adam.py``).
 """
-
 from __future__ import annotations
 
 from collections.abc import Iterable
@@ -22,9 +21,8 @@ class Adam:
     every group's ``lr`` by ``gamma`` (``ExponentialLR``; ``gamma=1`` keeps it constant).
     """
 
-    def __init__(
-        self, groups: Iterable[dict], betas: tuple[float, float] = (0.9, 0.999), eps: float = 1e-8, gamma: float = 1.0
-    ):
+    def __init__(self, groups: Iterable[dict], betas: tuple[float, float] = (0.9, 0.999), eps: float = 1e-8,
+                 gamma: float = 1.0):
         self.param_groups = [dict(g, params=list(g["params"])) for g in groups]
         if not self.param_groups:
             raise ValueError("Adam: no parameter groups")
@@ -50,11 +48,9 @@ class Adam:
                     continue
                 st = self.state.get(p)
                 if st is None:
-                    st = self.state[p] = {
-                        "step": torch.tensor(0.0),
-                        "exp_avg": torch.zeros_like(p, memory_format=torch.preserve_format),
-                        "exp_avg_sq": torch.zeros_like(p, memory_format=torch.preserve_format),
-                    }
+                    st = self.state[p] = {"step": torch.tensor(0.0),
+                                          "exp_avg": torch.zeros_like(p, memory_format=torch.preserve_format),
+                                          "exp_avg_sq": torch.zeros_like(p, memory_format=torch.preserve_format)}
                 grad, exp_avg, exp_avg_sq = p.grad, st["exp_avg"], st["exp_avg_sq"]
                 st["step"] += 1
                 exp_avg.lerp_(grad, 1 - beta1)

@@ -6,7 +6,6 @@ inside, or else stay still: their DCT coefficients are dropped and their canonic
 the static fit's again. :func:`anigs.masks.contain.contain_motion` finds the factors; this module
 applies them to an :class:`anigs.animate.update.UpdateResult`.
 """
-
 from __future__ import annotations
 
 import time
@@ -27,19 +26,14 @@ def contain_result(result, static: Gaussians, cameras: list[Camera], masks: list
     counts that ``update.json`` reports under ``containment``."""
     t0 = time.perf_counter()
     d = result.deformation
-    factor, _, worst = contain_motion(
-        result.canonical, d, cameras, masks, cfg.contain_margin_px, cfg.contain_max_outside_px
-    )
+    factor, _, worst = contain_motion(result.canonical, d, cameras, masks, cfg.contain_margin_px,
+                                      cfg.contain_max_outside_px)
     keep = factor > 0
-    info = {
-        "margin_px": cfg.contain_margin_px,
-        "max_outside_px": cfg.contain_max_outside_px,
-        "dynamic_before": int(len(keep)),
-        "dynamic_after": int(keep.sum()),
-        "attenuated": {str(f): int((factor == f).sum()) for f in sorted(set(factor.tolist())) if 0 < f < 1},
-        "frozen": int((~keep).sum()),
-        "frozen_by_view": {c.name: int(((worst == k) & ~keep).sum()) for k, c in enumerate(cameras)},
-    }
+    info = {"margin_px": cfg.contain_margin_px, "max_outside_px": cfg.contain_max_outside_px,
+            "dynamic_before": int(len(keep)), "dynamic_after": int(keep.sum()),
+            "attenuated": {str(f): int((factor == f).sum()) for f in sorted(set(factor.tolist())) if 0 < f < 1},
+            "frozen": int((~keep).sum()),
+            "frozen_by_view": {c.name: int(((worst == k) & ~keep).sum()) for k, c in enumerate(cameras)}}
     if (factor < 1).any():
         d = scaled_motion(d, factor)
         k = torch.from_numpy(keep)

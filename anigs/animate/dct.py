@@ -1,6 +1,5 @@
 """The paper's DCT basis over T frames and the smooth amplitude limits of the deformation
 (:mod:`anigs.animate.deform` has the formulas and why)."""
-
 from __future__ import annotations
 
 import math
@@ -15,13 +14,8 @@ def max_num_bases(num_frames: int) -> int:
     return max(int(num_frames) - 1, 0)
 
 
-def dct_basis(
-    t: torch.Tensor | float | int,
-    num_frames: int,
-    num_bases: int,
-    dtype: torch.dtype = torch.float32,
-    device: torch.device | str | None = None,
-) -> torch.Tensor:
+def dct_basis(t: torch.Tensor | float | int, num_frames: int, num_bases: int,
+              dtype: torch.dtype = torch.float32, device: torch.device | str | None = None) -> torch.Tensor:
     """The paper's DCT basis.
 
     Args:
@@ -54,13 +48,9 @@ def soft_limit(x: torch.Tensor, limit: torch.Tensor) -> torch.Tensor:
     return x * scale
 
 
-def offset_limits(
-    canonical_means: torch.Tensor,
-    dynamic_index: torch.Tensor,
-    max_offset_frac: float | None = None,
-    max_offset_abs: float | None = None,
-    anchors: torch.Tensor | None = None,
-) -> torch.Tensor | None:
+def offset_limits(canonical_means: torch.Tensor, dynamic_index: torch.Tensor,
+                  max_offset_frac: float | None = None, max_offset_abs: float | None = None,
+                  anchors: torch.Tensor | None = None) -> torch.Tensor | None:
     """Per-dynamic-Gaussian offset limit [D] (None when no limit is configured).
 
     ``L = min(frac * |mu - anchor|, abs)``; anchors [D,3] default to the ground points (x, y, 0).

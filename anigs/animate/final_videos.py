@@ -1,7 +1,6 @@
 """The final playback of an animated scene: camera-fixed videos with space-time slices, and a
 moving-camera video with time running (the paper's figures). The final stage calls these with its
 ``Outputs`` (``out.path(key, view=...)`` gives every file's place)."""
-
 from __future__ import annotations
 
 import logging
@@ -10,31 +9,16 @@ import numpy as np
 import torch
 
 from anigs.animate.frames import render_clip
-from anigs.animate.playback import (
-    camera_path,
-    highlight,
-    most_animated_row_col,
-    pingpong_times,
-    slice_images,
-    static_change,
-)
+from anigs.animate.playback import camera_path, highlight, most_animated_row_col, pingpong_times, slice_images, \
+    static_change
 from anigs.cameras import Camera
 from anigs.video import save_clip, save_png, write_mp4
 
 log = logging.getLogger("anigs.final")
 
 
-def view_video(
-    canonical,
-    deformation,
-    cam: Camera,
-    times: torch.Tensor,
-    bg: torch.Tensor,
-    mask: np.ndarray | None,
-    out,
-    fps: int,
-    slice_upsample: int,
-) -> dict:
+def view_video(canonical, deformation, cam: Camera, times: torch.Tensor, bg: torch.Tensor, mask: np.ndarray | None,
+               out, fps: int, slice_upsample: int) -> dict:
     """Render ``cam``'s clip at ``times`` and write its clip, mp4 and x-t / y-t slices of the most animated
     row/column (inside ``mask``, bool [H,W], when given) to ``out``; returns its ``final.json`` entry."""
     T = len(times)
@@ -49,13 +33,9 @@ def view_video(
     save_png(out.path("slice_yt", view=cam.name), yt)
     save_png(out.path("slice_frame", view=cam.name), highlight(clip[0], row, col))
     log.info("final: %s (%dx%d, %d frames) peak motion std %.4f", cam.name, cam.width, cam.height, T, peak)
-    return {
-        "row": row,
-        "col": col,
-        "peak_temporal_std": peak,
-        "static_max_change": static_change(clip, mask) if mask is not None else None,
-        "dynamic_fraction": float(mask.mean()) if mask is not None else None,
-    }
+    return {"row": row, "col": col, "peak_temporal_std": peak,
+            "static_max_change": static_change(clip, mask) if mask is not None else None,
+            "dynamic_fraction": float(mask.mean()) if mask is not None else None}
 
 
 def path_video(canonical, deformation, cameras: list[Camera], period: int, bg: torch.Tensor, path, cfg) -> dict:

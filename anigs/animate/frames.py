@@ -3,7 +3,6 @@
 ``deformation=None`` (round 0: the static canonical model) renders the canonical scene at
 every frame.
 """
-
 from __future__ import annotations
 
 import torch
@@ -28,29 +27,16 @@ def deformed(canonical: Gaussians, deformation: DCTDeformation | None, t: float 
     return canonical if deformation is None else deformation(canonical, t)
 
 
-def render_frame(
-    canonical: Gaussians,
-    deformation: DCTDeformation | None,
-    camera: Camera,
-    t: float | int | torch.Tensor,
-    background=None,
-    backend: str = "auto",
-) -> torch.Tensor:
+def render_frame(canonical: Gaussians, deformation: DCTDeformation | None, camera: Camera,
+                 t: float | int | torch.Tensor, background=None, backend: str = "auto") -> torch.Tensor:
     """Frame t (fractional allowed) seen by ``camera``: rgb [H,W,3] (differentiable)."""
     g = deformed(canonical, deformation, t)
     rgb, _, _ = render_gaussians(g, camera, background=_background(background, g.device), backend=backend)
     return rgb
 
 
-def render_clip(
-    canonical: Gaussians,
-    deformation: DCTDeformation | None,
-    camera: Camera,
-    num_frames: int,
-    background=None,
-    backend: str = "auto",
-    times: torch.Tensor | None = None,
-) -> torch.Tensor:
+def render_clip(canonical: Gaussians, deformation: DCTDeformation | None, camera: Camera, num_frames: int,
+                background=None, backend: str = "auto", times: torch.Tensor | None = None) -> torch.Tensor:
     """Camera-fixed clip [T,H,W,3] (no gradient) at frames 0..T-1 (or at ``times`` [T]).
 
     Without a deformation, or with no dynamic Gaussians, the canonical render is computed once
@@ -58,10 +44,8 @@ def render_clip(
     """
     if times is None:
         if deformation is not None and deformation.num_dynamic and deformation.num_frames != num_frames:
-            raise ValueError(
-                f"render_clip: the model has T={deformation.num_frames} frames, asked for {num_frames} "
-                "(pass explicit fractional times to resample)"
-            )
+            raise ValueError(f"render_clip: the model has T={deformation.num_frames} frames, asked for {num_frames} "
+                             "(pass explicit fractional times to resample)")
         if num_frames < 1:
             raise ValueError(f"render_clip: num_frames must be >= 1, got {num_frames}")
         times = torch.arange(num_frames)

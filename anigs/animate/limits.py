@@ -1,7 +1,6 @@
 """Per-Gaussian limits and capacity of a model update, resolved from its config: offset and angle
 limits [D] (:func:`limits_from_config`) and DCT bases per dynamic Gaussian [D]
 (:func:`bases_from_config`), per effect label of the dynamic mask."""
-
 from __future__ import annotations
 
 import logging
@@ -43,13 +42,9 @@ def bases_from_config(mask: torch.Tensor, cfg: UpdateConfig, num_bases: int) -> 
     per_label: dict[int, int] = {}
     by_name = {k: v for k, v in cfg.effect_num_bases.items() if k in names}
     if by_name and mask.dtype == torch.bool:
-        log.warning(
-            "update: effect_num_bases names effects %s but the dynamic mask is bool (no per-Gaussian effect "
-            "labels: pass --effect-labels, the masks stage's effect_labels.npy): every dynamic Gaussian uses "
-            "%d bases",
-            sorted(by_name),
-            num_bases,
-        )
+        log.warning("update: effect_num_bases names effects %s but the dynamic mask is bool (no per-Gaussian effect "
+                    "labels: pass --effect-labels, the masks stage's effect_labels.npy): every dynamic Gaussian uses "
+                    "%d bases", sorted(by_name), num_bases)
         by_name = {}
         if not any(k not in names for k in cfg.effect_num_bases):
             return None
@@ -66,9 +61,8 @@ def bases_from_config(mask: torch.Tensor, cfg: UpdateConfig, num_bases: int) -> 
     return kd
 
 
-def limits_from_config(
-    canonical_means: torch.Tensor, mask: torch.Tensor, cfg: UpdateConfig
-) -> tuple[torch.Tensor | None, torch.Tensor | None]:
+def limits_from_config(canonical_means: torch.Tensor, mask: torch.Tensor, cfg: UpdateConfig
+                       ) -> tuple[torch.Tensor | None, torch.Tensor | None]:
     """Per-dynamic-Gaussian offset [D] and angle [D] limits from the config (None = unlimited).
 
     ``mask`` [N] is bool or integer effect labels (0 = static); ``effect_limits`` keys are
@@ -82,11 +76,8 @@ def limits_from_config(
     ang = torch.full((d,), _UNLIMITED)
     any_off = any_ang = False
     for lab in torch.unique(labels).tolist():
-        spec = {
-            "max_offset_frac": cfg.max_offset_frac,
-            "max_offset_abs": cfg.max_offset_abs,
-            "max_angle_deg": cfg.max_angle_deg,
-        }
+        spec = {"max_offset_frac": cfg.max_offset_frac, "max_offset_abs": cfg.max_offset_abs,
+                "max_angle_deg": cfg.max_angle_deg}
         spec.update(cfg.effect_limits.get(str(lab), {}))
         sel = labels == lab
         lim = offset_limits(canonical_means, idx[sel], spec["max_offset_frac"], spec["max_offset_abs"])

@@ -9,7 +9,6 @@ it an :class:`SDSContext` whose ``render_subclip`` renders a short camera-fixed 
 training view with gradients through one chosen frame (the paper back-propagates through a
 single frame of the 4m+1 rendered frames for memory).
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -75,10 +74,8 @@ def prior_sds_hook(prior, prompt: str = "", frames: int = 9) -> SDSHook:
     frames, renders it with gradients through one random frame, and returns the prior's SDS loss.
     """
     if not getattr(prior, "has_score", False):
-        raise ValueError(
-            f"video prior {getattr(prior, 'name', prior)!r} has no score: it cannot provide an SDS "
-            "loss (set lambda_sds: 0, or use a prior with a score such as ltx)"
-        )
+        raise ValueError(f"video prior {getattr(prior, 'name', prior)!r} has no score: it cannot provide an SDS "
+                         "loss (set lambda_sds: 0, or use a prior with a score such as ltx)")
 
     def hook(ctx: SDSContext) -> torch.Tensor:
         g = ctx.generator

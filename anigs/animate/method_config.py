@@ -2,7 +2,6 @@
 ``animate.lifting`` (:mod:`anigs.baselines.lifting`) and ``animate.physics``
 (:mod:`anigs.baselines.physics`). Here, not beside the baselines, so that the ``animate``
 section parses without loading them (the workflow parses it when it builds the job graph)."""
-
 from __future__ import annotations
 
 import math
@@ -19,15 +18,15 @@ class CommonConfig:
     """The keys both baselines' configs share, and their ``from_dict`` (unknown keys rejected),
     ``to_dict`` and checks."""
 
-    num_bases: int = 16  # DCT K of the output model (clamped to T-1)
-    flow_preset: str = "medium"  # OpenCV DIS preset of the 2D motion: ultrafast | fast | medium
-    fb_threshold_px: float = 1.0  # forward-backward flow check: tracks whose loop error exceeds this (px) are dropped
-    depth_tol: float = 0.05  # visibility: projected depth <= rendered depth * (1 + depth_tol)
-    min_alpha: float = 0.5  # visibility: rendered opacity at the Gaussian's pixel at least this
+    num_bases: int = 16            # DCT K of the output model (clamped to T-1)
+    flow_preset: str = "medium"    # OpenCV DIS preset of the 2D motion: ultrafast | fast | medium
+    fb_threshold_px: float = 1.0   # forward-backward flow check: tracks whose loop error exceeds this (px) are dropped
+    depth_tol: float = 0.05        # visibility: projected depth <= rendered depth * (1 + depth_tol)
+    min_alpha: float = 0.5         # visibility: rendered opacity at the Gaussian's pixel at least this
     background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])  # background colour of the visibility renders
-    backend: str = "auto"  # rasterizer backend of the visibility renders
-    device: str = "auto"  # torch device of the visibility renders
-    seed: int = 0  # random seed (the fits are deterministic; kept for uniformity)
+    backend: str = "auto"          # rasterizer backend of the visibility renders
+    device: str = "auto"           # torch device of the visibility renders
+    seed: int = 0                  # random seed (the fits are deterministic; kept for uniformity)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None):
@@ -55,8 +54,8 @@ class CommonConfig:
 class LiftingConfig(CommonConfig):
     """The lifting baseline's config (its workflow config section)."""
 
-    ridge: float = 1e-3  # Tikhonov weight relative to the mean squared Jacobian gain (px^2 per unit^2)
-    fill_neighbors: int = 8  # Gaussians seen by no view: IDW mean of this many observed neighbours (0 = still)
+    ridge: float = 1e-3          # Tikhonov weight relative to the mean squared Jacobian gain (px^2 per unit^2)
+    fill_neighbors: int = 8      # Gaussians seen by no view: IDW mean of this many observed neighbours (0 = still)
 
     def validate(self) -> None:
         super().validate()
@@ -70,29 +69,29 @@ class LiftingConfig(CommonConfig):
 class PhysicsConfig(CommonConfig):
     """The physics baseline's config (its workflow config section)."""
 
-    fps: float = 24.0  # frame rate of the clips (the procedural prior's default)
-    substeps: int = 4  # integrator steps per frame
-    integrator: str = "midpoint"  # midpoint (trapezoidal, energy-conserving) | euler (backward Euler)
-    warmup_s: float = 1.0  # final simulation starts this long before frame 0 (in the steady state)
-    k_neighbors: int = 8  # springs per Gaussian (kNN)
-    anchor_neighbors: int = 4  # anchor springs per Gaussian near the static scene
-    anchor_radius: float = 1.5  # anchor reach, x median spring length
-    regions_per_effect: int = 3  # k-means regions per effect label (material field resolution)
-    wind_modes: int = 3  # harmonics of the wind
+    fps: float = 24.0                    # frame rate of the clips (the procedural prior's default)
+    substeps: int = 4                    # integrator steps per frame
+    integrator: str = "midpoint"         # midpoint (trapezoidal, energy-conserving) | euler (backward Euler)
+    warmup_s: float = 1.0                # final simulation starts this long before frame 0 (in the steady state)
+    k_neighbors: int = 8                 # springs per Gaussian (kNN)
+    anchor_neighbors: int = 4            # anchor springs per Gaussian near the static scene
+    anchor_radius: float = 1.5           # anchor reach, x median spring length
+    regions_per_effect: int = 3          # k-means regions per effect label (material field resolution)
+    wind_modes: int = 3                  # harmonics of the wind
     wind_freqs_hz: list = field(default_factory=list)  # explicit wind frequencies (Hz); empty = j * fps / T
-    wind_dir_deg: float = 0.0  # travel direction of gusts (from +x towards +y)
-    gust_speed: float = 0.0  # gust phase speed, scene units / s (0 = spatially uniform wind)
-    stiffness_init: float = 100.0  # 1/s^2 per unit mass (sqrt = 10 rad/s, ~1.6 Hz)
+    wind_dir_deg: float = 0.0            # travel direction of gusts (from +x towards +y)
+    gust_speed: float = 0.0              # gust phase speed, scene units / s (0 = spatially uniform wind)
+    stiffness_init: float = 100.0        # 1/s^2 per unit mass (sqrt = 10 rad/s, ~1.6 Hz)
     stiffness_bounds: list = field(default_factory=lambda: [1.0, 1e5])  # natural frequencies ~0.16-50 Hz
-    damping_init: float = 2.0  # 1/s
+    damping_init: float = 2.0            # 1/s
     damping_bounds: list = field(default_factory=lambda: [1e-3, 1e3])  # search range of the damping (1/s)
-    grid_stiffness: int = 16  # coarse start: shared stiffness values log-spaced over stiffness_bounds
-    grid_damping: int = 3  # ... times shared damping values damping_init * 4^(j - (n-1)/2)
-    sweeps: int = 1  # coordinate sweeps after the grid: each log-parameter scanned alone
-    scan_points: int = 13  # ... at this many values over +-1 decade around its current value
-    max_evals: int = 100  # Nelder-Mead evaluations to polish (0 = grid and sweeps only)
-    wind_ridge: float = 1e-6  # ridge of the wind least squares, relative to the mean normal-matrix diagonal
-    fit_view: str | int | None = None  # view id (camera name) or index; None = the view seeing most dynamic Gaussians
+    grid_stiffness: int = 16             # coarse start: shared stiffness values log-spaced over stiffness_bounds
+    grid_damping: int = 3                # ... times shared damping values damping_init * 4^(j - (n-1)/2)
+    sweeps: int = 1                      # coordinate sweeps after the grid: each log-parameter scanned alone
+    scan_points: int = 13                # ... at this many values over +-1 decade around its current value
+    max_evals: int = 100                 # Nelder-Mead evaluations to polish (0 = grid and sweeps only)
+    wind_ridge: float = 1e-6             # ridge of the wind least squares, relative to the mean normal-matrix diagonal
+    fit_view: str | int | None = None    # view id (camera name) or index; None = the view seeing most dynamic Gaussians
 
     def validate(self) -> None:
         super().validate()
@@ -115,6 +114,4 @@ class PhysicsConfig(CommonConfig):
         if self.gust_speed < 0:
             raise ValueError("PhysicsConfig: gust_speed must be >= 0")
         if self.grid_stiffness < 1 or self.grid_damping < 1 or self.sweeps < 0 or self.scan_points < 2:
-            raise ValueError(
-                "PhysicsConfig: grid_stiffness >= 1, grid_damping >= 1, sweeps >= 0, scan_points >= 2 required"
-            )
+            raise ValueError("PhysicsConfig: grid_stiffness >= 1, grid_damping >= 1, sweeps >= 0, scan_points >= 2 required")

@@ -9,7 +9,6 @@ the model on all targets of round r. Ablations change only which files feed whic
 * ``dataset_update: false``  -- each view's target is generated once, from the static model,
   in the first round that contains the view, and reused afterwards.
 """
-
 from __future__ import annotations
 
 import math

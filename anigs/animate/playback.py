@@ -1,6 +1,5 @@
 """Playing the animated scene back: ping-pong loop times, a smooth camera path through the
 capture cameras, and space-time slices of the most animated patch (the paper's x-t / y-t figures)."""
-
 from __future__ import annotations
 
 import numpy as np
@@ -81,3 +80,4 @@ def static_change(clip: np.ndarray, mask: np.ndarray | None) -> float:
     if mask is not None:
         diff = np.where(mask, 0, diff)
     return float(diff.max())
+

@@ -5,7 +5,6 @@ any round: a deformation with an empty dynamic set (so every frame is the canoni
 for bit) in the same format as a trained model, so that the final renders, the export, the
 viewer and the evaluation run unchanged and say why nothing moves.
 """
-
 from __future__ import annotations
 
 from pathlib import Path
@@ -21,23 +20,16 @@ def still_deformation(num_gaussians: int, num_frames: int, num_bases: int) -> DC
     return DCTDeformation(torch.zeros(0, dtype=torch.long), num_frames, num_bases, num_gaussians=num_gaussians)
 
 
-def write_still_model(
-    canonical_path: str | Path, out: str | Path, num_frames: int, num_bases: int, reason: str
-) -> dict:
+def write_still_model(canonical_path: str | Path, out: str | Path, num_frames: int, num_bases: int,
+                      reason: str) -> dict:
     """Write the still model of the canonical scene at ``canonical_path`` to ``out``; ``reason`` (why
     nothing moves) is stored in the model's ``extra`` and returned with the model's shape."""
     if not reason:
         raise ValueError("write_still_model: say why nothing moves (reason)")
     canonical = Gaussians.load_ply(canonical_path)
     deformation = still_deformation(canonical.num, num_frames, num_bases)
-    info = {
-        "still": True,
-        "reason": reason,
-        "num_gaussians": canonical.num,
-        "num_frames": int(num_frames),
-        "num_bases": int(num_bases),
-    }
-    save_model(
-        out, deformation, canonical, config={"num_frames": int(num_frames), "num_bases": int(num_bases)}, extra=info
-    )
+    info = {"still": True, "reason": reason, "num_gaussians": canonical.num, "num_frames": int(num_frames),
+            "num_bases": int(num_bases)}
+    save_model(out, deformation, canonical, config={"num_frames": int(num_frames), "num_bases": int(num_bases)},
+               extra=info)
     return info

@@ -1,6 +1,5 @@
 """The trainable state of a model update: the canonical parameters its group trains
 (:class:`Trainable`), the optimiser's parameter groups and the finite-value check."""
-
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -32,14 +31,8 @@ class Trainable:
     def canonical(self) -> Gaussians:
         b = self.base
         if self.group == "deformation+positions":
-            return Gaussians(
-                b.means.index_copy(0, self.idx, self.params["dyn_means"]),
-                b.quats,
-                b.log_scales,
-                b.opacity_logits,
-                b.sh,
-                extras=b.extras,
-            )
+            return Gaussians(b.means.index_copy(0, self.idx, self.params["dyn_means"]), b.quats, b.log_scales,
+                             b.opacity_logits, b.sh, extras=b.extras)
         if self.group == "all":
             return Gaussians(**self.params, extras=b.extras)
         return b
@@ -50,14 +43,8 @@ def param_groups(cfg: UpdateConfig, deformation: DCTDeformation, tr: Trainable, 
     groups = [{"params": [deformation.pos_coeffs], "lr": cfg.lr_position_coeffs * spatial, "name": "pos_coeffs"}]
     if deformation.rot_coeffs is not None:
         groups.append({"params": [deformation.rot_coeffs], "lr": cfg.lr_rotation_coeffs, "name": "rot_coeffs"})
-    lrs = {
-        "dyn_means": cfg.lr_means * spatial,
-        "means": cfg.lr_means * spatial,
-        "quats": cfg.lr_quats,
-        "log_scales": cfg.lr_scales,
-        "opacity_logits": cfg.lr_opacity,
-        "sh": cfg.lr_sh,
-    }
+    lrs = {"dyn_means": cfg.lr_means * spatial, "means": cfg.lr_means * spatial, "quats": cfg.lr_quats,
+           "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity, "sh": cfg.lr_sh}
     for k, p in tr.params.items():
         groups.append({"params": [p], "lr": lrs[k], "name": k})
     return groups

@@ -1,6 +1,5 @@
 """The training data of one model update: target clips with their cameras, static references and
 the dynamic set (:class:`anigs.animate.update.ViewData` inputs)."""
-
 from __future__ import annotations
 
 from pathlib import Path
@@ -32,13 +31,8 @@ def load_reference(path: str | Path) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(img))
 
 
-def target_cameras(
-    targets: list[str],
-    metas: list[dict],
-    views_json: str | Path | None,
-    view_ids: list[str] | None,
-    camera_json: list[str] | None,
-) -> list[Camera]:
+def target_cameras(targets: list[str], metas: list[dict], views_json: str | Path | None, view_ids: list[str] | None,
+                   camera_json: list[str] | None) -> list[Camera]:
     """One camera per target clip: from ``camera_json`` (one file each), else from ``views_json`` with
     ``view_ids`` (default: the targets' file stems), else from each clip's metadata (``camera``)."""
     n = len(targets)
@@ -59,15 +53,8 @@ def target_cameras(
     return cams
 
 
-def training_views(
-    canonical,
-    targets: list[str],
-    views_json: str | Path | None,
-    view_ids: list[str] | None,
-    camera_json: list[str] | None,
-    static_refs: list[str] | None,
-    cfg,
-) -> list:
+def training_views(canonical, targets: list[str], views_json: str | Path | None, view_ids: list[str] | None,
+                   camera_json: list[str] | None, static_refs: list[str] | None, cfg) -> list:
     """One :class:`anigs.animate.update.ViewData` per target clip: its frames, its camera
     (:func:`target_cameras`) and its static reference for L_cano (``static_refs``, else renders of the
     ``canonical`` Gaussians when ``cfg.lambda_cano > 0``, else none). ``cfg``: the update config."""
@@ -86,23 +73,19 @@ def training_views(
     return [ViewData(c, torch.from_numpy(clip), r) for c, clip, r in zip(cams, clips, refs)]
 
 
-def dynamic_set(
-    dynamic: np.ndarray, num_gaussians: int, where: str, labels: np.ndarray | None = None, labels_where: str = ""
-) -> torch.Tensor:
+def dynamic_set(dynamic: np.ndarray, num_gaussians: int, where: str, labels: np.ndarray | None = None,
+                labels_where: str = "") -> torch.Tensor:
     """The dynamic selection of an update: bool [N] (or int effect labels [N], 0 = static). With
     ``labels`` (int [N], the masks stage's effect labels) these, checked to label exactly the dynamic
     Gaussians. ``where``/``labels_where`` name the files in errors."""
     out = torch.from_numpy(dynamic)
     if out.ndim != 1 or out.shape[0] != num_gaussians:
-        raise ValueError(
-            f"{where}: shape {tuple(out.shape)}, expected [{num_gaussians}] (one per Gaussian of the canonical scene)"
-        )
+        raise ValueError(f"{where}: shape {tuple(out.shape)}, expected [{num_gaussians}] (one per Gaussian "
+                         f"of the canonical scene)")
     if labels is not None:
         lab = torch.from_numpy(labels.astype(np.int64))
         if lab.shape != out.shape or not torch.equal(lab != 0, out != 0):
-            raise ValueError(
-                f"update: {labels_where} (effect labels, shape {tuple(lab.shape)}) does not "
-                f"label exactly the dynamic Gaussians of {where}: re-run the masks stage"
-            )
+            raise ValueError(f"update: {labels_where} (effect labels, shape {tuple(lab.shape)}) does not "
+                             f"label exactly the dynamic Gaussians of {where}: re-run the masks stage")
         out = lab
     return out

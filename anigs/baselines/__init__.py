@@ -8,7 +8,6 @@
 Both take the model update's inputs and return a DCT deformation model (``model.pt``), so
 final renders, export and evaluation treat them exactly like ours.
 """
-
 from anigs.baselines.base import BASELINES, BaselineResult
 from anigs.baselines.registry import fit_baseline, get_baseline, run_baseline
 

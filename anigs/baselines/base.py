@@ -22,7 +22,6 @@ K, the same function space as our model). The trajectories start at the canonica
 (frame 0 of every target is the static render), so the model's t = 0 render matches it up to
 the DCT truncation.
 """
-
 from __future__ import annotations
 
 import logging
@@ -59,9 +58,8 @@ class BaselineResult:
     seconds: float = 0.0
 
 
-def prepare(
-    cls: type, config: Any, canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData], what: str
-) -> tuple[Any, torch.Tensor, int, Gaussians, Gaussians]:
+def prepare(cls: type, config: Any, canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData],
+            what: str) -> tuple[Any, torch.Tensor, int, Gaussians, Gaussians]:
     """The shared start of every baseline fit: (config of ``cls``, validated; dynamic index [D];
     T; the canonical scene on the CPU; a copy on the configured device for the visibility renders)."""
     cfg = config if isinstance(config, cls) else cls.from_dict(config)
@@ -71,9 +69,8 @@ def prepare(
     return cfg, idx, T, canonical, canonical.to(get_device(cfg.device))
 
 
-def check_inputs(
-    canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData], what: str
-) -> tuple[torch.Tensor, int]:
+def check_inputs(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData], what: str
+                 ) -> tuple[torch.Tensor, int]:
     """Validate the shared inputs; returns (dynamic index [D] long, T)."""
     if not views:
         raise ValueError(f"{what}: no views (refined target clips) given")
@@ -83,23 +80,18 @@ def check_inputs(
     for i, v in enumerate(views):
         c = v.clip
         if c.ndim != 4 or c.shape[-1] != 3 or c.shape[0] != T:
-            raise ValueError(
-                f"{what}: view {i} ({v.camera.name!r}) clip has shape {tuple(c.shape)}; "
-                f"expected [T={T},H,W,3] like view 0"
-            )
+            raise ValueError(f"{what}: view {i} ({v.camera.name!r}) clip has shape {tuple(c.shape)}; "
+                             f"expected [T={T},H,W,3] like view 0")
         if tuple(c.shape[1:3]) != (v.camera.height, v.camera.width):
-            raise ValueError(
-                f"{what}: view {i} clip is {c.shape[2]}x{c.shape[1]} but its camera is "
-                f"{v.camera.width}x{v.camera.height}"
-            )
+            raise ValueError(f"{what}: view {i} clip is {c.shape[2]}x{c.shape[1]} but its camera is "
+                             f"{v.camera.width}x{v.camera.height}")
         if not bool(torch.isfinite(torch.as_tensor(c)).all()):
             raise ValueError(f"{what}: view {i} ({v.camera.name!r}) clip has NaN or Inf values")
     return idx, T
 
 
-def trajectories_to_deformation(
-    canonical: Gaussians, dynamic_index: torch.Tensor, trajectories: torch.Tensor, num_bases: int
-) -> tuple[Gaussians, DCTDeformation]:
+def trajectories_to_deformation(canonical: Gaussians, dynamic_index: torch.Tensor, trajectories: torch.Tensor,
+                                num_bases: int) -> tuple[Gaussians, DCTDeformation]:
     """Project world trajectories [T,D,3] of the dynamic rows onto the DCT basis.
 
     Returns (canonical with ``means[dynamic_index]`` = temporal mean of each trajectory, the
@@ -117,14 +109,8 @@ def trajectories_to_deformation(
     deformation = DCTDeformation(idx, T, K, rotation=False, num_gaussians=canonical.num)
     means = canonical.means.detach().clone()
     if idx.numel() == 0:
-        return Gaussians(
-            means,
-            canonical.quats,
-            canonical.log_scales,
-            canonical.opacity_logits,
-            canonical.sh,
-            extras=canonical.extras,
-        ), deformation
+        return Gaussians(means, canonical.quats, canonical.log_scales, canonical.opacity_logits, canonical.sh,
+                         extras=canonical.extras), deformation
     mean = traj.mean(0)  # [D,3]
     if K > 0:
         B = deformation.basis(torch.arange(T)).to(torch.float64)  # [T,K]
@@ -134,14 +120,12 @@ def trajectories_to_deformation(
             deformation.pos_coeffs.copy_(coeffs.T.reshape(idx.numel(), 3, K).to(deformation.pos_coeffs.dtype))
     means[idx] = mean.to(means.dtype)
     deformation.pos_coeffs.requires_grad_(False)
-    return Gaussians(
-        means, canonical.quats, canonical.log_scales, canonical.opacity_logits, canonical.sh, extras=canonical.extras
-    ), deformation
+    return Gaussians(means, canonical.quats, canonical.log_scales, canonical.opacity_logits, canonical.sh,
+                     extras=canonical.extras), deformation
 
 
-def finish(
-    canonical: Gaussians, idx: torch.Tensor, traj: torch.Tensor, num_bases: int, info: dict[str, Any], t0: float
-) -> BaselineResult:
+def finish(canonical: Gaussians, idx: torch.Tensor, traj: torch.Tensor, num_bases: int, info: dict[str, Any],
+           t0: float) -> BaselineResult:
     """Project trajectories [T,D,3] to the DCT model and wrap everything in a :class:`BaselineResult`."""
     canon, deformation = trajectories_to_deformation(canonical, idx, traj, num_bases)
     if idx.numel():

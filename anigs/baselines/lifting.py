@@ -36,7 +36,6 @@ regularisers; the refined clips come from our prior (the same targets our model 
 not from Gaussians2Life's own multi-view generation; and the output is truncated to K DCT
 bases (K = T-1 keeps the trajectories exactly).
 """
-
 from __future__ import annotations
 
 import logging
@@ -55,9 +54,8 @@ from anigs.gaussians import Gaussians
 log = logging.getLogger("anigs.baselines.lifting")
 
 
-def lift_displacements(
-    jac: np.ndarray, disp: np.ndarray, weight: np.ndarray, ridge: float = 1e-3
-) -> tuple[np.ndarray, np.ndarray]:
+def lift_displacements(jac: np.ndarray, disp: np.ndarray, weight: np.ndarray, ridge: float = 1e-3
+                       ) -> tuple[np.ndarray, np.ndarray]:
     """Per-Gaussian weighted least-squares 3D displacements from V views.
 
     Args:
@@ -71,10 +69,10 @@ def lift_displacements(
     jac = np.asarray(jac, np.float64)
     disp = np.asarray(disp, np.float64)
     w = np.asarray(weight, np.float64)
-    jtj = np.einsum("vdki,vdkj->vdij", jac, jac)  # [V,D,3,3]
-    A = np.einsum("vtd,vdij->tdij", w, jtj)  # [T,D,3,3]
-    b = np.einsum("vtd,vdki,vtdk->tdi", w, jac, disp)  # [T,D,3]
-    wsum = w.sum(0)  # [T,D]
+    jtj = np.einsum("vdki,vdkj->vdij", jac, jac)                        # [V,D,3,3]
+    A = np.einsum("vtd,vdij->tdij", w, jtj)                             # [T,D,3,3]
+    b = np.einsum("vtd,vdki,vtdk->tdi", w, jac, disp)                   # [T,D,3]
+    wsum = w.sum(0)                                                     # [T,D]
     gain = np.einsum("vtd,vd->td", w, np.trace(jtj, axis1=-2, axis2=-1) / 2.0) / np.maximum(wsum, 1e-300)
     lam = ridge * np.where(wsum > 0, gain, 1.0)
     A = A + lam[..., None, None] * np.eye(3)
@@ -107,12 +105,8 @@ def fill_unobserved(points: np.ndarray, delta: np.ndarray, observed: np.ndarray,
     return out
 
 
-def fit(
-    canonical: Gaussians,
-    dynamic_mask: torch.Tensor,
-    views: list[ViewData],
-    config: LiftingConfig | Mapping[str, Any] | None = None,
-) -> BaselineResult:
+def fit(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData],
+        config: LiftingConfig | Mapping[str, Any] | None = None) -> BaselineResult:
     """Lift the views' 2D motion to per-Gaussian 3D trajectories (module docstring).
 
     Args:
@@ -132,26 +126,12 @@ def fit(
         return finish(canonical, idx, torch.zeros(T, 0, 3, dtype=torch.float64), cfg.num_bases, info, t0)
     obs = []
     for v in views:
-        o = observe_view(
-            shown,
-            idx,
-            v.camera,
-            np.asarray(v.clip, np.float32),
-            cfg.flow_preset,
-            cfg.fb_threshold_px,
-            cfg.depth_tol,
-            cfg.min_alpha,
-            cfg.background,
-            cfg.backend,
-        )
+        o = observe_view(shown, idx, v.camera, np.asarray(v.clip, np.float32), cfg.flow_preset,
+                         cfg.fb_threshold_px, cfg.depth_tol, cfg.min_alpha, cfg.background, cfg.backend)
         obs.append(o)
-        log.info(
-            "lifting: view %s sees %d of %d dynamic Gaussians (%.0f%% of their tracks consistent)",
-            v.camera.name,
-            int(o.visible.sum()),
-            idx.numel(),
-            100.0 * o.weight[1:].sum() / max(o.visible.sum() * max(T - 1, 1), 1),
-        )
+        log.info("lifting: view %s sees %d of %d dynamic Gaussians (%.0f%% of their tracks consistent)",
+                 v.camera.name, int(o.visible.sum()), idx.numel(),
+                 100.0 * o.weight[1:].sum() / max(o.visible.sum() * max(T - 1, 1), 1))
     jac = np.stack([o.jac for o in obs])
     disp = np.stack([o.disp for o in obs])
     weight = np.stack([o.weight for o in obs])
@@ -161,20 +141,10 @@ def fit(
     delta = fill_unobserved(pts, delta, observed, cfg.fill_neighbors)
     traj = torch.from_numpy(pts[None] + delta)
     n_views = np.stack([o.visible for o in obs]).sum(0)
-    info.update(
-        {
-            "visible_per_view": [int(o.visible.sum()) for o in obs],
-            "seen_by_no_view": int((n_views == 0).sum()),
-            "seen_by_two_or_more": int((n_views >= 2).sum()),
-            "observed_fraction": float(observed[1:].mean()) if T > 1 else 1.0,
-        }
-    )
+    info.update({"visible_per_view": [int(o.visible.sum()) for o in obs],
+                 "seen_by_no_view": int((n_views == 0).sum()), "seen_by_two_or_more": int((n_views >= 2).sum()),
+                 "observed_fraction": float(observed[1:].mean()) if T > 1 else 1.0})
     res = finish(canonical, idx, traj, cfg.num_bases, info, t0)
-    log.info(
-        "lifting baseline: %d dynamic Gaussians, %d seen by no view, RMS displacement %.4g, %.1f s",
-        idx.numel(),
-        info["seen_by_no_view"],
-        info.get("displacement_rms", 0.0),
-        res.seconds,
-    )
+    log.info("lifting baseline: %d dynamic Gaussians, %d seen by no view, RMS displacement %.4g, %.1f s",
+             idx.numel(), info["seen_by_no_view"], info.get("displacement_rms", 0.0), res.seconds)
     return res

@@ -6,7 +6,6 @@ harmonic, per horizontal axis) whose amplitudes are solved in closed form; only 
 stiffness and damping are searched. Shapes: D dynamic Gaussians, M harmonics, B = 2M basis
 forces per axis, T frames, R regions.
 """
-
 from __future__ import annotations
 
 import math
@@ -61,7 +60,7 @@ class WindResponse:
     def __init__(self, graph: SpringGraph, cfg: PhysicsConfig, num_frames: int) -> None:
         self.graph, self.cfg, self.T = graph, cfg, num_frames
         freqs = list(cfg.wind_freqs_hz) or [j * cfg.fps / max(num_frames, 2) for j in range(1, cfg.wind_modes + 1)]
-        self.omega = 2 * math.pi * np.asarray(freqs, np.float64)  # [M]
+        self.omega = 2 * math.pi * np.asarray(freqs, np.float64)              # [M]
         if cfg.gust_speed > 0:
             a = math.radians(cfg.wind_dir_deg)
             along = graph.rest[:, :2] @ np.array([math.cos(a), math.sin(a)])
@@ -91,14 +90,12 @@ class WindResponse:
             cols.append(splu(A).solve(np.exp(-1j * self.phase[:, m]).astype(np.complex128)))
         X = np.stack(cols, 1)
         if not np.isfinite(X).all():
-            raise FloatingPointError(
-                "physics baseline: the harmonic response is not finite (resonance without damping)"
-            )
+            raise FloatingPointError("physics baseline: the harmonic response is not finite (resonance without damping)")
         return X
 
     def _state(self, X: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Steady-state displacement and velocity [D,2M] at time t from the amplitudes X [D,M]."""
-        e = X * np.exp(1j * self.omega * t)[None]  # [D,M]
+        e = X * np.exp(1j * self.omega * t)[None]                              # [D,M]
         u = np.concatenate([e.real, (-1j * e).real], 1)
         v = np.concatenate([(1j * self.omega * e).real, (self.omega * e).real], 1)
         return u, v
@@ -140,10 +137,10 @@ class WindResponse:
 
 def _design(U: np.ndarray, obs: ViewObservation, sel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Weighted design matrix [T*V*2, 2M*2] and target [T*V*2] for the wind amplitudes (x, y axes)."""
-    Uv = U[:, sel]  # [T,V,B]
-    J = obs.jac[sel][:, :, :2]  # [V,2,2]: pixel per world x, y
-    phi = np.einsum("tvb,vka->tvkba", Uv, J)  # [T,V,2,B,2]
-    sw = np.sqrt(obs.weight[:, sel])[..., None]  # [T,V,1]
+    Uv = U[:, sel]                                     # [T,V,B]
+    J = obs.jac[sel][:, :, :2]                         # [V,2,2]: pixel per world x, y
+    phi = np.einsum("tvb,vka->tvkba", Uv, J)           # [T,V,2,B,2]
+    sw = np.sqrt(obs.weight[:, sel])[..., None]        # [T,V,1]
     A = (phi * sw[..., None, None]).reshape(-1, Uv.shape[2] * 2)
     y = (obs.disp[:, sel] * sw).reshape(-1)
     return A, y
@@ -185,15 +182,8 @@ class MaterialFit:
         return np.exp(np.clip(self.theta[R:], self.log_bounds[0][1], self.log_bounds[1][1]))
 
 
-def fit_material(
-    graph: SpringGraph,
-    region: np.ndarray,
-    num_regions: int,
-    obs: ViewObservation,
-    sel: np.ndarray,
-    cfg: PhysicsConfig,
-    num_frames: int,
-) -> MaterialFit:
+def fit_material(graph: SpringGraph, region: np.ndarray, num_regions: int, obs: ViewObservation,
+                 sel: np.ndarray, cfg: PhysicsConfig, num_frames: int) -> MaterialFit:
     """Fit per-region stiffness and damping to the tracks ``obs`` of the Gaussians ``sel`` (indices into D).
 
     The wind is solved in closed form at every evaluation (steady-state responses); the material
@@ -247,16 +237,12 @@ def fit_material(
         # local polish: Nelder-Mead from a small simplex (a bounded Powell line search spans the whole
         # bounds and jumps into other resonance basins); bounds by clipping inside evaluate
         simplex = np.vstack([theta, theta + 0.1 * np.eye(2 * R)])
-        res = minimize(
-            lambda th: evaluate(th)[0],
-            theta,
-            method="Nelder-Mead",
-            options={"maxfev": cfg.max_evals, "initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-9},
-        )
+        res = minimize(lambda th: evaluate(th)[0], theta, method="Nelder-Mead",
+                       options={"maxfev": cfg.max_evals, "initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-9})
         nfev += int(res.nfev)
         if res.fun <= best:
             theta, best = np.clip(res.x, blo, bhi), float(res.fun)
     th = np.clip(theta, blo, bhi)
-    U = wind.responses(np.exp(th[:R])[region], np.exp(th[R:])[region])  # the implicit simulation
+    U = wind.responses(np.exp(th[:R])[region], np.exp(th[R:])[region])   # the implicit simulation
     a, loss = solve_wind(*_design(U, obs, sel), cfg.wind_ridge)
     return MaterialFit(theta, a, U, loss0, loss, nfev, (lo, hi), wind)

@@ -41,7 +41,6 @@ photometric loss on rendered frames, and the gradient-free fit of the few materi
 (the wind is solved in closed form) replaces back-propagation through the simulator; the video
 is our prior's refined clip of the view, not a separately generated one.
 """
-
 from __future__ import annotations
 
 import logging
@@ -76,19 +75,13 @@ def pick_view(canonical: Gaussians, idx: torch.Tensor, views: list[ViewData], cf
         if str(cfg.fit_view) not in names:
             raise ValueError(f"physics baseline: fit_view {cfg.fit_view!r} is not one of the views {names}")
         return names.index(str(cfg.fit_view))
-    counts = [
-        int(visibility(canonical, idx, v.camera, cfg.depth_tol, cfg.min_alpha, cfg.background, cfg.backend)[0].sum())
-        for v in views
-    ]
+    counts = [int(visibility(canonical, idx, v.camera, cfg.depth_tol, cfg.min_alpha, cfg.background,
+                             cfg.backend)[0].sum()) for v in views]
     return int(np.argmax(counts))
 
 
-def fit(
-    canonical: Gaussians,
-    dynamic_mask: torch.Tensor,
-    views: list[ViewData],
-    config: PhysicsConfig | Mapping[str, Any] | None = None,
-) -> BaselineResult:
+def fit(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData],
+        config: PhysicsConfig | Mapping[str, Any] | None = None) -> BaselineResult:
     """Fit the material field and the wind to one view's refined clip, then simulate (module docstring).
 
     Args:
@@ -118,60 +111,28 @@ def fit(
     R = len(region_label)
     vi = pick_view(shown, idx, views, cfg)
     view = views[vi]
-    obs = observe_view(
-        shown,
-        idx,
-        view.camera,
-        np.asarray(view.clip, np.float32),
-        cfg.flow_preset,
-        cfg.fb_threshold_px,
-        cfg.depth_tol,
-        cfg.min_alpha,
-        cfg.background,
-        cfg.backend,
-    )
+    obs = observe_view(shown, idx, view.camera, np.asarray(view.clip, np.float32), cfg.flow_preset,
+                       cfg.fb_threshold_px, cfg.depth_tol, cfg.min_alpha, cfg.background, cfg.backend)
     sel = np.nonzero(obs.visible)[0]
     if len(sel) == 0:
-        raise ValueError(
-            f"physics baseline: the fit view {view.camera.name!r} sees none of the {idx.numel()} "
-            "dynamic Gaussians; choose another fit_view"
-        )
+        raise ValueError(f"physics baseline: the fit view {view.camera.name!r} sees none of the {idx.numel()} "
+                         "dynamic Gaussians; choose another fit_view")
     fitres = fit_material(graph, region, R, obs, sel, cfg, T)
     a, U, wind = fitres.amplitudes, fitres.responses, fitres.wind
     loss0, loss, nfev = fitres.loss_initial, fitres.loss, fitres.evaluations
     B = U.shape[2]
-    amp = a.reshape(B, 2)  # [B, (x, y)]
+    amp = a.reshape(B, 2)                                        # [B, (x, y)]
     disp = np.zeros((T, idx.numel(), 3))
     disp[..., :2] = np.einsum("tdb,ba->tda", U, amp)
     traj = torch.from_numpy(X[None] + disp)
     k_r, c_r = fitres.stiffness, fitres.damping
-    info.update(
-        {
-            "fit_view": view.camera.name,
-            "visible_in_fit_view": int(len(sel)),
-            "regions": R,
-            "region_labels": region_label,
-            "region_sizes": np.bincount(region, minlength=R).tolist(),
-            "stiffness": k_r.tolist(),
-            "damping": c_r.tolist(),
-            "wind_freqs_hz": (wind.omega / (2 * math.pi)).tolist(),
-            "wind_amplitudes": amp.tolist(),
-            "relative_residual_initial": loss0,
-            "relative_residual": loss,
-            "evaluations": nfev,
-            "springs": int(len(graph.edges)),
-            "anchor_springs": int(len(graph.anchor_node)),
-        }
-    )
+    info.update({"fit_view": view.camera.name, "visible_in_fit_view": int(len(sel)), "regions": R,
+                 "region_labels": region_label, "region_sizes": np.bincount(region, minlength=R).tolist(),
+                 "stiffness": k_r.tolist(), "damping": c_r.tolist(),
+                 "wind_freqs_hz": (wind.omega / (2 * math.pi)).tolist(), "wind_amplitudes": amp.tolist(),
+                 "relative_residual_initial": loss0, "relative_residual": loss, "evaluations": nfev,
+                 "springs": int(len(graph.edges)), "anchor_springs": int(len(graph.anchor_node))})
     res = finish(canonical, idx, traj, cfg.num_bases, info, t0)
-    log.info(
-        "physics baseline: view %s (%d visible), %d regions, residual %.3f -> %.3f in %d evaluations, %.1f s",
-        view.camera.name,
-        len(sel),
-        R,
-        loss0,
-        loss,
-        nfev,
-        res.seconds,
-    )
+    log.info("physics baseline: view %s (%d visible), %d regions, residual %.3f -> %.3f in %d evaluations, %.1f s",
+             view.camera.name, len(sel), R, loss0, loss, nfev, res.seconds)
     return res

@@ -1,6 +1,5 @@
 """The baselines by name: ``get_baseline``, ``fit_baseline`` and ``run_baseline`` (the path-level
 entry point of the update stage's baseline variants)."""
-
 from __future__ import annotations
 
 import logging
@@ -33,20 +32,14 @@ def get_baseline(name: str) -> FitFn:
     return FITS[name]
 
 
-def fit_baseline(
-    name: str,
-    canonical: Gaussians,
-    dynamic_mask: torch.Tensor,
-    views: list[ViewData],
-    config: Mapping[str, Any] | None = None,
-) -> BaselineResult:
+def fit_baseline(name: str, canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData],
+                 config: Mapping[str, Any] | None = None) -> BaselineResult:
     """Fit baseline ``name`` (see module docstring); the same inputs as ``run_update``."""
     return get_baseline(name)(canonical, dynamic_mask, views, config)
 
 
-def load_views(
-    targets: list[str | Path], view_json: str | Path | None = None, view_ids: list[str] | None = None
-) -> list[ViewData]:
+def load_views(targets: list[str | Path], view_json: str | Path | None = None,
+               view_ids: list[str] | None = None) -> list[ViewData]:
     """Target clips (.npz) and their cameras: from ``view_json`` by view id (default: the file
     stems), else from each clip's metadata (``camera``)."""
     if view_ids is not None and len(view_ids) != len(targets):
@@ -64,17 +57,10 @@ def load_views(
     return views
 
 
-def run_baseline(
-    method: str,
-    canonical: str | Path | Gaussians,
-    dynamic: str | Path | np.ndarray | torch.Tensor,
-    targets: list[str | Path],
-    out: str | Path,
-    params: Mapping[str, Any] | None = None,
-    view_json: str | Path | None = None,
-    view_ids: list[str] | None = None,
-    log_json: str | Path | None = None,
-) -> BaselineResult:
+def run_baseline(method: str, canonical: str | Path | Gaussians, dynamic: str | Path | np.ndarray | torch.Tensor,
+                 targets: list[str | Path], out: str | Path, params: Mapping[str, Any] | None = None,
+                 view_json: str | Path | None = None, view_ids: list[str] | None = None,
+                 log_json: str | Path | None = None) -> BaselineResult:
     """Path-level entry point for a CLI stage: fit ``method`` and write ``out`` (a ``model.pt``
     readable by :func:`anigs.animate.deform.load_model`).
 
@@ -100,39 +86,15 @@ def run_baseline(
     views = load_views(list(targets), view_json, view_ids)
     result = fit_baseline(method, canon, mask, views, params)
     cfg = dict(params or {})
-    save_model(
-        out,
-        result.deformation,
-        result.canonical,
-        {"method": method, **cfg},
-        extra={
-            "kind": MODEL_KIND,
-            "method": method,
-            "targets": [str(t) for t in targets],
-            "info": _jsonable(result.info),
-        },
-    )
+    save_model(out, result.deformation, result.canonical, {"method": method, **cfg},
+               extra={"kind": MODEL_KIND, "method": method, "targets": [str(t) for t in targets],
+                      "info": _jsonable(result.info)})
     total = time.perf_counter() - t0
     if log_json is not None:
-        write_json(
-            log_json,
-            {
-                "method": method,
-                "seconds": total,
-                "fit_seconds": result.seconds,
-                "info": _jsonable(result.info),
-                "config": cfg,
-            },
-        )
-    log.info(
-        "%s baseline: wrote %s (%d dynamic Gaussians, K=%d, T=%d) in %.1f s",
-        method,
-        out,
-        result.deformation.num_dynamic,
-        result.deformation.num_bases,
-        result.deformation.num_frames,
-        total,
-    )
+        write_json(log_json, {"method": method, "seconds": total, "fit_seconds": result.seconds,
+                              "info": _jsonable(result.info), "config": cfg})
+    log.info("%s baseline: wrote %s (%d dynamic Gaussians, K=%d, T=%d) in %.1f s", method, out,
+             result.deformation.num_dynamic, result.deformation.num_bases, result.deformation.num_frames, total)
     return result
 
 

@@ -30,7 +30,6 @@ never increases, for zero damping too):
 
 The matrix is factorised once (sparse LU) per parameter set and step.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -66,9 +65,8 @@ class SpringGraph:
         return int(self.rest.shape[0])
 
 
-def build_graph(
-    rest: np.ndarray, static: np.ndarray, k_neighbors: int = 8, anchor_neighbors: int = 4, anchor_radius: float = 1.5
-) -> SpringGraph:
+def build_graph(rest: np.ndarray, static: np.ndarray, k_neighbors: int = 8, anchor_neighbors: int = 4,
+                anchor_radius: float = 1.5) -> SpringGraph:
     """Spring graph of the dynamic points rest [D,3] anchored to the static points static [S,3] (see module doc)."""
     X = np.asarray(rest, np.float64).reshape(-1, 3)
     S = np.asarray(static, np.float64).reshape(-1, 3)
@@ -78,10 +76,8 @@ def build_graph(
     if not (np.isfinite(X).all() and np.isfinite(S).all()):
         raise ValueError("mass-spring system: positions contain NaN or Inf")
     if len(S) == 0:
-        raise ValueError(
-            f"mass-spring system: the scene has no static Gaussian to anchor the {D} dynamic "
-            "Gaussians to; an unanchored system drifts away under any wind"
-        )
+        raise ValueError(f"mass-spring system: the scene has no static Gaussian to anchor the {D} dynamic "
+                         "Gaussians to; an unanchored system drifts away under any wind")
     if k_neighbors < 1 or anchor_neighbors < 0 or not anchor_radius >= 0:
         raise ValueError("mass-spring system: k_neighbors >= 1, anchor_neighbors >= 0, anchor_radius >= 0 required")
     edges = np.zeros((0, 2), np.int64)
@@ -109,11 +105,8 @@ def build_graph(
         ok = np.isfinite(dist)
         a_node = list(np.nonzero(ok)[0])
         a_idx = list(nn[ok])
-    adj = (
-        sp.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(D, D))
-        if len(edges)
-        else sp.coo_matrix((D, D))
-    )
+    adj = sp.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(D, D)) if len(edges) else \
+        sp.coo_matrix((D, D))
     ncomp, comp = connected_components(adj, directed=False)
     anchored = np.zeros(ncomp, bool)
     anchored[comp[np.asarray(a_node, np.int64)]] = True
@@ -163,14 +156,8 @@ class ImplicitIntegrator:
     steps towards the static equilibrium). Both factorise their [D,D] matrix once.
     """
 
-    def __init__(
-        self,
-        graph: SpringGraph,
-        stiffness: np.ndarray | float,
-        damping: np.ndarray | float,
-        dt: float,
-        scheme: str = "midpoint",
-    ) -> None:
+    def __init__(self, graph: SpringGraph, stiffness: np.ndarray | float, damping: np.ndarray | float,
+                 dt: float, scheme: str = "midpoint") -> None:
         dt = float(dt)
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"mass-spring system: time step must be finite and > 0, got {dt}")
@@ -180,13 +167,12 @@ class ImplicitIntegrator:
         self.D, self.dt, self.scheme = D, dt, scheme
         self.K = stiffness_matrix(graph, stiffness)
         self.c = _check_field(damping, D, "damping")
-        a = 1.0 if scheme == "euler" else 0.5  # weight of the new state in C and K terms
+        a = 1.0 if scheme == "euler" else 0.5   # weight of the new state in C and K terms
         A = sp.identity(D, format="csc") + sp.diags(a * dt * self.c, format="csc") + (a * a * dt * dt) * self.K
         self._lu = splu(A.tocsc())
 
-    def step(
-        self, u: np.ndarray, v: np.ndarray, f: np.ndarray, f_prev: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
+    def step(self, u: np.ndarray, v: np.ndarray, f: np.ndarray, f_prev: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray]:
         """One step from (u [D,C], v [D,C]); ``f`` is the force at the end of the step, ``f_prev`` at its
         start (midpoint averages the two; default: f). Returns (u, v) at the end of the step."""
         h = self.dt
@@ -207,19 +193,10 @@ class ImplicitIntegrator:
         return float(0.5 * (v * v).sum() + 0.5 * (u * (self.K @ u)).sum())
 
 
-def simulate(
-    graph: SpringGraph,
-    stiffness: np.ndarray | float,
-    damping: np.ndarray | float,
-    force: Callable[[float], np.ndarray],
-    dt: float,
-    steps: int,
-    record_every: int = 1,
-    u0: np.ndarray | None = None,
-    v0: np.ndarray | None = None,
-    t0: float = 0.0,
-    scheme: str = "midpoint",
-) -> np.ndarray:
+def simulate(graph: SpringGraph, stiffness: np.ndarray | float, damping: np.ndarray | float,
+             force: Callable[[float], np.ndarray], dt: float, steps: int, record_every: int = 1,
+             u0: np.ndarray | None = None, v0: np.ndarray | None = None, t0: float = 0.0,
+             scheme: str = "midpoint") -> np.ndarray:
     """Integrate ``steps`` steps from (u0, v0) (default rest) starting at time t0.
 
     ``force(t)`` -> [D,C] at time t. Returns the displacements [R,D,C] after every
@@ -243,9 +220,7 @@ def simulate(
         f_prev = f
         if n % record_every == 0:
             if not (np.isfinite(u).all() and np.isfinite(v).all()):
-                raise FloatingPointError(
-                    f"mass-spring simulation: non-finite state at step {n} (t = {t0 + n * dt:.4g} s);"
-                    " check that the forcing is finite"
-                )
+                raise FloatingPointError(f"mass-spring simulation: non-finite state at step {n} (t = {t0 + n * dt:.4g} s);"
+                                         " check that the forcing is finite")
             out.append(u.copy())
     return np.stack(out)

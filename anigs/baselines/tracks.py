@@ -11,7 +11,6 @@
 Pixel convention (:mod:`anigs.cameras`): pixel centres at integer + 0.5, so array element
 (row y, col x) is sampled at continuous position (x + 0.5, y + 0.5).
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,9 +24,8 @@ from anigs.gaussians import Gaussians
 from anigs.render import render_gaussians
 
 
-def forward_tracks(
-    clip: np.ndarray, preset: str = "medium", fb_threshold_px: float = 1.0
-) -> tuple[np.ndarray, np.ndarray]:
+def forward_tracks(clip: np.ndarray, preset: str = "medium", fb_threshold_px: float = 1.0
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """Forward displacements [T,H,W,2] (px, ``d[0] = 0``) and validity [T,H,W] bool of a clip [T,H,W,3].
 
     ``clip[0](p) ≈ clip[t](p + d[t](p))``; valid where the backward flow brings ``p + d`` back
@@ -38,11 +36,11 @@ def forward_tracks(
     disp = np.zeros((T, H, W, 2), np.float32)
     valid = np.ones((T, H, W), bool)
     for t in range(1, T):
-        fwd = backward_flow(clip[0], clip[t], preset)  # clip[0](p) ≈ clip[t](p + fwd(p))
-        bwd = backward_flow(clip[t], clip[0], preset)  # clip[t](q) ≈ clip[0](q + bwd(q))
-        loop = fwd + warp(bwd, fwd)  # bwd sampled at p + fwd(p)
+        fwd = backward_flow(clip[0], clip[t], preset)   # clip[0](p) ≈ clip[t](p + fwd(p))
+        bwd = backward_flow(clip[t], clip[0], preset)   # clip[t](q) ≈ clip[0](q + bwd(q))
+        loop = fwd + warp(bwd, fwd)                     # bwd sampled at p + fwd(p)
         disp[t] = fwd
-        valid[t] = np.sqrt((loop**2).sum(-1)) <= fb_threshold_px
+        valid[t] = np.sqrt((loop ** 2).sum(-1)) <= fb_threshold_px
     return disp, valid
 
 
@@ -57,7 +55,8 @@ def sample_bilinear(field: np.ndarray, uv: np.ndarray) -> np.ndarray:
     x1, y1 = np.minimum(x0 + 1, W - 1), np.minimum(y0 + 1, H - 1)
     wx, wy = (x - x0)[None, :, None], (y - y0)[None, :, None]
     f = field.astype(np.float64)
-    return (1 - wy) * ((1 - wx) * f[:, y0, x0] + wx * f[:, y0, x1]) + wy * ((1 - wx) * f[:, y1, x0] + wx * f[:, y1, x1])
+    return ((1 - wy) * ((1 - wx) * f[:, y0, x0] + wx * f[:, y0, x1])
+            + wy * ((1 - wx) * f[:, y1, x0] + wx * f[:, y1, x1]))
 
 
 def projection_jacobians(points: np.ndarray, camera: Camera) -> np.ndarray:
@@ -70,9 +69,9 @@ def projection_jacobians(points: np.ndarray, camera: Camera) -> np.ndarray:
     fx, fy = camera.K[0, 0], camera.K[1, 1]
     jp = np.zeros((len(p), 2, 3))
     jp[:, 0, 0] = fx / z
-    jp[:, 0, 2] = -fx * p[:, 0] / z**2
+    jp[:, 0, 2] = -fx * p[:, 0] / z ** 2
     jp[:, 1, 1] = fy / z
-    jp[:, 1, 2] = -fy * p[:, 1] / z**2
+    jp[:, 1, 2] = -fy * p[:, 1] / z ** 2
     return jp @ camera.R
 
 
@@ -94,15 +93,9 @@ class ViewObservation:
     depth: np.ndarray
 
 
-def visibility(
-    canonical: Gaussians,
-    dynamic_index: torch.Tensor,
-    camera: Camera,
-    depth_tol: float = 0.05,
-    min_alpha: float = 0.5,
-    background=None,
-    backend: str = "auto",
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def visibility(canonical: Gaussians, dynamic_index: torch.Tensor, camera: Camera, depth_tol: float = 0.05,
+               min_alpha: float = 0.5, background=None, backend: str = "auto"
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(visible [D] bool, uv [D,2], depth [D]) of the dynamic Gaussians in ``camera``.
 
     A Gaussian is visible when its centre projects inside the image in front of the camera,
@@ -110,7 +103,8 @@ def visibility(
     rendered (alpha-normalised expected) depth times ``1 + depth_tol``.
     """
     with torch.no_grad():
-        bg = None if background is None else torch.as_tensor(background, dtype=torch.float32, device=canonical.device)
+        bg = None if background is None else torch.as_tensor(background, dtype=torch.float32,
+                                                              device=canonical.device)
         _, alpha, meta = render_gaussians(canonical, camera, background=bg, backend=backend)
     alpha = alpha.detach().cpu().double().numpy()
     rdepth = meta["depth"].detach().cpu().double().numpy()
@@ -126,24 +120,15 @@ def visibility(
     return ok, np.nan_to_num(uv), z
 
 
-def observe_view(
-    canonical: Gaussians,
-    dynamic_index: torch.Tensor,
-    camera: Camera,
-    clip: np.ndarray,
-    preset: str = "medium",
-    fb_threshold_px: float = 1.0,
-    depth_tol: float = 0.05,
-    min_alpha: float = 0.5,
-    background=None,
-    backend: str = "auto",
-) -> ViewObservation:
+def observe_view(canonical: Gaussians, dynamic_index: torch.Tensor, camera: Camera, clip: np.ndarray,
+                 preset: str = "medium", fb_threshold_px: float = 1.0, depth_tol: float = 0.05,
+                 min_alpha: float = 0.5, background=None, backend: str = "auto") -> ViewObservation:
     """Tracks of one refined clip [T,H,W,3] at the dynamic Gaussians the view sees (see :class:`ViewObservation`)."""
     visible, uv, depth = visibility(canonical, dynamic_index, camera, depth_tol, min_alpha, background, backend)
     disp, valid = forward_tracks(np.asarray(clip, np.float32), preset, fb_threshold_px)
-    d = sample_bilinear(disp, uv)  # [T,D,2]
+    d = sample_bilinear(disp, uv)                                  # [T,D,2]
     xi = np.clip(uv[:, 0].astype(np.int64), 0, camera.width - 1)
     yi = np.clip(uv[:, 1].astype(np.int64), 0, camera.height - 1)
-    w = valid[:, yi, xi] & visible[None]  # [T,D]
+    w = valid[:, yi, xi] & visible[None]                            # [T,D]
     pts = canonical.means.detach().cpu().double().numpy()[dynamic_index.cpu().numpy()]
     return ViewObservation(camera, visible, uv, d, w.astype(np.float64), projection_jacobians(pts, camera), depth)

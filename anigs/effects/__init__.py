@@ -5,19 +5,9 @@ the fitted static model (colour indices, height above the fitted ground, planari
 multi-view consistency; no downloaded weights). ``EffectsResult.to_json()`` is the
 ``effects.json`` object, ``save_overview`` writes the overview PNG.
 """
-
 from anigs.effects.config import EFFECT_REGION, EFFECTS, REGION_EFFECTS, REGIONS, Config
 from anigs.effects.detect import EffectResult, EffectsResult, detect_effects
 from anigs.effects.overview import save_overview
 
-__all__ = [
-    "Config",
-    "EFFECTS",
-    "EFFECT_REGION",
-    "REGIONS",
-    "REGION_EFFECTS",
-    "EffectResult",
-    "EffectsResult",
-    "detect_effects",
-    "save_overview",
-]
+__all__ = ["Config", "EFFECTS", "EFFECT_REGION", "REGIONS", "REGION_EFFECTS", "EffectResult", "EffectsResult",
+           "detect_effects", "save_overview"]

@@ -9,7 +9,6 @@ scene does not contain is reported (``requested_not_found``) and skipped.
 :func:`decide_effects` runs the detection (:func:`anigs.effects.detect_effects`), the user's
 corrections and the choice, and gives the effects stage what it writes.
 """
-
 from __future__ import annotations
 
 import logging
@@ -28,9 +27,8 @@ def is_auto(requested: Sequence[str] | str | None) -> bool:
     return requested in (None, "auto") or (not isinstance(requested, str) and len(requested) == 0)
 
 
-def choose(
-    detected: Sequence[str], requested: Sequence[str] | str | None, named: Sequence[str] | None = None
-) -> tuple[list[str], list[str]]:
+def choose(detected: Sequence[str], requested: Sequence[str] | str | None,
+           named: Sequence[str] | None = None) -> tuple[list[str], list[str]]:
     """(effects to simulate, requested effects the scene does not contain).
 
     ``requested``: ``"auto"``, ``None`` or ``[]`` = every detected effect, or with ``named`` (the
@@ -56,14 +54,11 @@ def prompt_note(kinds, by_prompt: bool, chosen: Sequence[str]) -> str:
     if not by_prompt:
         return "the scene's effects list overrides the prompt"
     if not kinds.regions:
-        return (
-            f"the prompt {kinds.prompt!r} names nothing that moves (no word of the vocabulary in "
-            "anigs/effects/vocabulary.py), so the scene stays still"
-        )
+        return (f"the prompt {kinds.prompt!r} names nothing that moves (no word of the vocabulary in "
+                "anigs/effects/vocabulary.py), so the scene stays still")
     words = "; ".join(f"{w} -> {', '.join(r)}" for w, r in kinds.matches.items())
     return f"the prompt names {', '.join(kinds.regions)} ({words}); only these were looked for" + (
-        "" if chosen else ", and none was found, so the scene stays still"
-    )
+        "" if chosen else ", and none was found, so the scene stays still")
 
 
 @dataclass
@@ -78,9 +73,8 @@ class Decision:
     report: dict
 
 
-def decide_effects(
-    photos: Sequence[np.ndarray], cams: Sequence, g, cfg: Config, requested: Sequence[str] | str | None
-) -> Decision:
+def decide_effects(photos: Sequence[np.ndarray], cams: Sequence, g, cfg: Config,
+                   requested: Sequence[str] | str | None) -> Decision:
     """Detect the effects in ``photos`` [H,W,3] seen by ``cams`` with the canonical model ``g``, apply
     the user's corrections (``cfg.drop``, ``force``, ``boxes``, ``selections``) and choose."""
     from anigs.effects import detect_effects
@@ -92,44 +86,26 @@ def decide_effects(
     if cfg.drop or cfg.force or cfg.boxes or cfg.selections:
         from anigs.effects.corrections import apply_corrections
 
-        for note in apply_corrections(
-            res, g.means.detach().double().numpy(), cfg.drop, cfg.force, cfg.boxes, cfg.selections, cfg.selection_tol
-        ):
+        for note in apply_corrections(res, g.means.detach().double().numpy(), cfg.drop, cfg.force, cfg.boxes,
+                                      cfg.selections, cfg.selection_tol):
             log.info("effects: correction: %s", note)
     named = None
     if by_prompt:  # the prompt's kinds, and those the user's corrections make move
-        named = kinds.effects + [
-            e for r in getattr(res, "user_regions", []) for e in REGION_EFFECTS[r] if e not in kinds.effects
-        ]
+        named = kinds.effects + [e for r in getattr(res, "user_regions", []) for e in REGION_EFFECTS[r]
+                                 if e not in kinds.effects]
     chosen, missing = choose(res.detected, requested, named)
     for e in missing:
-        log.warning(
-            "effects: %s was asked for but the scene does not contain it: skipped (%s)", e, res.effects[e].reason
-        )
+        log.warning("effects: %s was asked for but the scene does not contain it: skipped (%s)", e,
+                    res.effects[e].reason)
     dynamic = res.dynamic(chosen)
     report = res.to_json()
-    report.update(
-        {
-            "requested": "auto" if is_auto(requested) else list(requested),
-            "chosen": chosen,
-            "requested_not_found": missing,
-            "prompt": {
-                **(kinds.to_json() if kinds is not None else {"prompt": None, "regions": None, "words": {}}),
-                "used": by_prompt,
-                "note": prompt_note(kinds, by_prompt, chosen),
-            },
-            "corrections": getattr(res, "notes", [])[1:],
-            "num_dynamic": int(dynamic.sum()),
-            "dynamic_fraction": float(dynamic.mean()) if len(dynamic) else 0.0,
-        }
-    )
+    report.update({"requested": "auto" if is_auto(requested) else list(requested),
+                   "chosen": chosen, "requested_not_found": missing,
+                   "prompt": {**(kinds.to_json() if kinds is not None else {"prompt": None, "regions": None, "words": {}}),
+                              "used": by_prompt, "note": prompt_note(kinds, by_prompt, chosen)},
+                   "corrections": getattr(res, "notes", [])[1:],
+                   "num_dynamic": int(dynamic.sum()), "dynamic_fraction": float(dynamic.mean()) if len(dynamic) else 0.0})
     log.info("effects: %s", report["prompt"]["note"])
-    log.info(
-        "effects: detected %s; simulating %s (%d of %d Gaussians)%s",
-        res.detected or "nothing",
-        chosen or "nothing",
-        int(dynamic.sum()),
-        g.num,
-        f"; asked for but not found: {missing}" if missing else "",
-    )
+    log.info("effects: detected %s; simulating %s (%d of %d Gaussians)%s", res.detected or "nothing",
+             chosen or "nothing", int(dynamic.sum()), g.num, f"; asked for but not found: {missing}" if missing else "")
     return Decision(res, dynamic, report)

@@ -4,7 +4,6 @@ A *region* is what the detector finds (foliage, grass, flowers, water); an *effe
 animation simulates. Foliage carries two effects (``foliage_sway``, ``leaf_flutter``) that share
 its masks and Gaussians.
 """
-
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
@@ -37,23 +36,23 @@ class Config:
     #: are localised (anigs/effects/vocabulary.py); null = no prompt
     prompt: str | None = None
     # photos
-    max_photos: int = 24  # photos analysed (evenly spaced over the capture)
-    max_side: int = 400  # photos are downscaled to this longest side (px)
-    min_alpha: float = 0.5  # pixels where the fitted model is thinner than this are empty (sky)
+    max_photos: int = 24             # photos analysed (evenly spaced over the capture)
+    max_side: int = 400              # photos are downscaled to this longest side (px)
+    min_alpha: float = 0.5           # pixels where the fitted model is thinner than this are empty (sky)
     # geometry
     #: world up: "z" (the SfM stage writes z-up) or "auto" (estimated from the cameras and points)
     up: str = "z"
-    neighbour_radius: float = 0.06  # 3D neighbourhood radius for planarity, x the median photo depth
-    neighbours: int = 32  # at most this many neighbours per Gaussian
+    neighbour_radius: float = 0.06   # 3D neighbourhood radius for planarity, x the median photo depth
+    neighbours: int = 32             # at most this many neighbours per Gaussian
     wall_max_variation: float = 0.04  # surface variation below this = locally planar (walls, floors, pictures)
-    wall_max_upness: float = 0.35  # |normal . up| below this = vertical
-    floor_min_upness: float = 0.85  # |normal . up| above this = horizontal
-    ground_margin: float = 0.03  # ground layer: surfaces below this x camera height are ground
+    wall_max_upness: float = 0.35    # |normal . up| below this = vertical
+    floor_min_upness: float = 0.85   # |normal . up| above this = horizontal
+    ground_margin: float = 0.03      # ground layer: surfaces below this x camera height are ground
     #: ... and below this quantile of how deep the photos see under the ground plane, mirrored upwards (the top of the
     #: seen ground)
     ground_seen_quantile: float = 0.9
     ground_min_support: float = 0.03  # the ground plane counts when this fraction of Gaussians lies on it
-    ground_max_below: float = 0.1  # ... and at most this fraction lies clearly under it
+    ground_max_below: float = 0.1    # ... and at most this fraction lies clearly under it
     #: plants rising above this x camera height are trees and bushes (foliage); lower ones grass or flower beds
     grass_max_height: float = 0.2
     #: ... and so are plant pixels within this (x photo diagonal) of such a part of the same plant (a bush's lowest
@@ -62,17 +61,17 @@ class Config:
     # colour
     green_hue: tuple = (62.0, 170.0)  # hue band of vegetation (degrees)
     green_min_saturation: float = 0.16  # HSV saturation a vegetation pixel needs at least
-    min_value: float = 0.03  # darker pixels carry no colour (dark foliage is still found above this)
+    min_value: float = 0.03          # darker pixels carry no colour (dark foliage is still found above this)
     flower_min_saturation: float = 0.45  # HSV saturation a blossom pixel needs at least
-    flower_min_value: float = 0.4  # brightest channel of a blossom (darker saturated: soil, bark)
+    flower_min_value: float = 0.4    # brightest channel of a blossom (darker saturated: soil, bark)
     #: blossoms are saturated colours outside this band (red, yellow, blue, violet)
     flower_green_hue: tuple = (68.0, 215.0)
-    white_flowers: bool = True  # bright near-white blobs inside vegetation count as blossoms
+    white_flowers: bool = True       # bright near-white blobs inside vegetation count as blossoms
     flower_radius_frac: float = 0.025  # a blossom lies within this of vegetation
-    flower_min_ring: float = 0.25  # share of a blossom's surroundings that must be vegetation
+    flower_min_ring: float = 0.25    # share of a blossom's surroundings that must be vegetation
     #: a blossom lies at most this x its depth behind that vegetation (a wall seen past a bush lies farther)
     flower_max_behind: float = 0.1
-    flower_bed_frac: float = 0.015  # closing radius joining blossoms (and the stems between them) into beds
+    flower_bed_frac: float = 0.015   # closing radius joining blossoms (and the stems between them) into beds
     flower_rim_frac: float = 0.008  # blossoms grow this far over their blended, less saturated rim
     #: low plant components (and low plant pixels' surroundings) with blossoms on this share of their area are beds
     flower_bed_share: float = 0.1
@@ -81,16 +80,16 @@ class Config:
     water_hue: tuple = (165.0, 265.0)  # bluish / cyan hues of water (sky reflection, depth)
     water_min_saturation: float = 0.2  # HSV saturation a water pixel needs at least
     water_max_texture: float = 0.035  # local luminance std of water (weakly textured)
-    water_max_height: float = 0.06  # water lies below this x camera height above the ground plane
+    water_max_height: float = 0.06   # water lies below this x camera height above the ground plane
     reflect_min_spread: float = 0.25  # colour spread across photos (relative) that marks a reflective surface
-    texture_frac: float = 0.012  # window of the local luminance std
+    texture_frac: float = 0.012      # window of the local luminance std
     # geometry rules (anigs/effects/rules.py): what cannot move
-    link_frac: float = 1.0  # a region's Gaussians within this x neighbour radius form one numbered candidate
-    min_candidate: int = 10  # parts with fewer Gaussians are checked by the rules but not numbered
-    plane_tol: float = 0.25  # a Gaussian within this x neighbour radius of a plane lies on it
+    link_frac: float = 1.0           # a region's Gaussians within this x neighbour radius form one numbered candidate
+    min_candidate: int = 10          # parts with fewer Gaussians are checked by the rules but not numbered
+    plane_tol: float = 0.25          # a Gaussian within this x neighbour radius of a plane lies on it
     #: foliage / flowers with this share on a large plane lie on a wall, floor, facade, picture, rug or lawn: still
     plane_max_share: float = 0.6
-    plane_min_extent: float = 2.0  # ... on up to 3 planes each spanning at least this x neighbour radius
+    plane_min_extent: float = 2.0    # ... on up to 3 planes each spanning at least this x neighbour radius
     #: ... each a surface: its band from 1 to 2 plane_tol off holds at most this x its Gaussians (a slice through
     #: flower heads holds more)
     plane_max_outside: float = 0.2
@@ -102,9 +101,9 @@ class Config:
     crown_min_height: float = 0.4
     # regions and decisions
     min_component_frac: float = 0.0004  # components smaller than this share of the photo are dropped
-    min_pixel_fraction: float = 0.002  # an effect needs this share of the photos' pixels ...
+    min_pixel_fraction: float = 0.002   # an effect needs this share of the photos' pixels ...
     min_gaussian_fraction: float = 0.001  # ... and of the Gaussians ...
-    min_gaussians: int = 20  # ... and at least this many Gaussians ...
+    min_gaussians: int = 20          # ... and at least this many Gaussians ...
     min_photo_fraction: float = 0.1  # ... and a region in this share of the photos (at least 2)
     # the user's corrections (anigs/effects/corrections.py; numbers as in overview.png)
     drop: list = field(default_factory=list)  # numbered candidates of overview.png that must not move
@@ -115,8 +114,8 @@ class Config:
     selections: list = field(default_factory=list)
     #: a selected splat matches the fitted Gaussian within this x the model's bounding-box diagonal
     selection_tol: float = 0.0001
-    vote_threshold: float = 0.5  # a Gaussian joins the region voted by this share of the photos that see it
-    propagate_k: int = 8  # Gaussians seen by no photo take the majority of their k neighbours
+    vote_threshold: float = 0.5      # a Gaussian joins the region voted by this share of the photos that see it
+    propagate_k: int = 8             # Gaussians seen by no photo take the majority of their k neighbours
 
     def __post_init__(self) -> None:
         if isinstance(self.requested, str) and self.requested != "auto":
@@ -124,15 +123,12 @@ class Config:
         if not isinstance(self.requested, str):
             unknown = [e for e in self.requested if e not in EFFECTS]
             if unknown:
-                raise ValueError(
-                    f"effects.requested: unknown effect(s) {unknown}; the valid effects are {list(EFFECTS)}"
-                )
+                raise ValueError(f"effects.requested: unknown effect(s) {unknown}; the valid effects are {list(EFFECTS)}")
         if self.up not in ("z", "auto"):
             raise ValueError(f"effects.up must be 'z' or 'auto', got {self.up!r}")
         if self.max_photos < 1 or self.max_side < 16:
-            raise ValueError(
-                f"effects: max_photos ({self.max_photos}) must be >= 1 and max_side ({self.max_side}) >= 16"
-            )
+            raise ValueError(f"effects: max_photos ({self.max_photos}) must be >= 1 and max_side "
+                             f"({self.max_side}) >= 16")
         for name in ("green_hue", "flower_green_hue", "water_hue"):
             v = tuple(float(x) for x in getattr(self, name))
             if len(v) != 2 or not 0 <= v[0] < v[1] <= 360:

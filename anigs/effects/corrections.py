@@ -13,7 +13,6 @@
 ``still`` wins over everything else. Candidate numbers are those of the run without corrections
 (detection is deterministic, so the overview's numbers stay valid when the scene file changes).
 """
-
 from __future__ import annotations
 
 from pathlib import Path
@@ -38,35 +37,25 @@ def match_selection(path: str | Path, means: np.ndarray, tol: float) -> np.ndarr
     """Indices [M] of the Gaussians of ``means`` [N,3] at the selected splats' positions in ``path``."""
     from scipy.spatial import cKDTree
 
+
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(
-            f"effects.selections: no file {path} (export the selection from SuperSplat as a PLY "
-            "and give its path relative to the folder you run snakemake in)"
-        )
+        raise FileNotFoundError(f"effects.selections: no file {path} (export the selection from SuperSplat as a PLY "
+                                "and give its path relative to the folder you run snakemake in)")
     sel = load_ply(path).means.detach().double().numpy()
     diag = float(np.linalg.norm(means.max(0) - means.min(0))) or 1.0
     dist, idx = cKDTree(means).query(sel, k=1)
     ok = dist <= tol * diag
     if len(sel) == 0 or ok.mean() < MIN_MATCHED:
-        raise ValueError(
-            f"effects.selections: only {int(ok.sum())} of the {len(sel)} splats in {path} lie at a "
-            f"Gaussian of the fitted model (within {tol * diag:.3g}); was the model moved, rotated or "
-            "scaled in SuperSplat before the export? Reset its transform (or orbit the camera instead) "
-            "and export the selection again"
-        )
+        raise ValueError(f"effects.selections: only {int(ok.sum())} of the {len(sel)} splats in {path} lie at a "
+                         f"Gaussian of the fitted model (within {tol * diag:.3g}); was the model moved, rotated or "
+                         "scaled in SuperSplat before the export? Reset its transform (or orbit the camera instead) "
+                         "and export the selection again")
     return np.unique(idx[ok])
 
 
-def apply_corrections(
-    res,
-    means: np.ndarray,
-    drop: Sequence[int] = (),
-    force: Sequence[int] = (),
-    boxes: Sequence[dict] = (),
-    selections: Sequence[dict] = (),
-    tol: float = 1e-4,
-) -> list[str]:
+def apply_corrections(res, means: np.ndarray, drop: Sequence[int] = (), force: Sequence[int] = (),
+                      boxes: Sequence[dict] = (), selections: Sequence[dict] = (), tol: float = 1e-4) -> list[str]:
     """Apply the corrections to ``res`` (an :class:`~anigs.effects.detect.EffectsResult`) in place: its
     ``region_of`` and each effect's Gaussians and decision; returns one sentence per correction."""
     region = res.region_of.copy()
@@ -105,9 +94,7 @@ def apply_corrections(
         if lo.shape != (3,) or hi.shape != (3,) or (lo > hi).any():
             raise ValueError(f"effects.boxes[{i}]: needs min: [x, y, z] and max: [x, y, z] with min <= max, got {b}")
         inside = np.all((means >= lo) & (means <= hi), axis=1)
-        assign(
-            inside, _check_effect(b.get("effect", STILL), f"boxes[{i}].effect"), f"box {i} {lo.tolist()}..{hi.tolist()}"
-        )
+        assign(inside, _check_effect(b.get("effect", STILL), f"boxes[{i}].effect"), f"box {i} {lo.tolist()}..{hi.tolist()}")
     for i, s in enumerate(selections):
         if "ply" not in s:
             raise ValueError(f"effects.selections[{i}]: needs ply: PATH (a SuperSplat selection export), got {s}")
@@ -137,9 +124,7 @@ def _update(res, region: np.ndarray, wanted: set, notes: list[str]) -> None:
             if eff.detected and not was:
                 eff.reason = f"{r} moves because the scene file says so ({len(idx)} Gaussians). " + eff.reason
             elif was and not eff.detected:
-                eff.reason = (
-                    f"No {r}: the scene file's corrections left it {len(idx)} Gaussians "
-                    f"(at least {res.cfg.min_gaussians} needed). " + eff.reason
-                )
+                eff.reason = (f"No {r}: the scene file's corrections left it {len(idx)} Gaussians "
+                              f"(at least {res.cfg.min_gaussians} needed). " + eff.reason)
     res.user_regions = sorted(wanted, key=REGIONS.index)
     res.notes = ["Corrections of the scene file (the tinted masks show the detection before them):"] + notes

@@ -3,7 +3,6 @@
 All functions take RGB float [H,W,3] in [0,1] or bool / float maps [H,W] and return [H,W] maps
 (or per-component arrays indexed by the component label, 0 = background).
 """
-
 from __future__ import annotations
 
 import cv2
@@ -38,9 +37,8 @@ def green(img: np.ndarray, hue_band: tuple[float, float], min_sat: float, min_va
     return in_band(h, hue_band) & (s >= min_sat) & (v >= min_value) & (img[..., 1] >= img[..., 0])
 
 
-def colourful(
-    img: np.ndarray, green_band: tuple[float, float], min_sat: float, min_value: float, white: bool
-) -> np.ndarray:
+def colourful(img: np.ndarray, green_band: tuple[float, float], min_sat: float, min_value: float,
+              white: bool) -> np.ndarray:
     """Blossom colour: saturated and bright with a hue outside the green band (any other hue: red,
     yellow, blue, violet ...), or, with ``white``, bright near-white."""
     h, s, v = hsv(img)
@@ -100,7 +98,7 @@ def cue_median(labels: np.ndarray, n: int, values: np.ndarray, where: np.ndarray
     lab, v = lab[order], v[order]
     bounds = np.searchsorted(lab, np.arange(n + 1))
     for i in np.flatnonzero(bounds[1:] > bounds[:-1]):
-        seg = v[bounds[i] : bounds[i + 1]]
+        seg = v[bounds[i]:bounds[i + 1]]
         out[i] = float(seg[len(seg) // 2])
     return out
 
@@ -125,7 +123,7 @@ def component_quantile(labels: np.ndarray, n: int, values: np.ndarray, q: float)
     order = np.argsort(flat, kind="stable")
     bounds = np.searchsorted(flat[order], np.arange(n + 1))
     for i in range(1, n):
-        seg = v[order[bounds[i] : bounds[i + 1]]]
+        seg = v[order[bounds[i]:bounds[i + 1]]]
         seg = seg[np.isfinite(seg)]
         if len(seg):
             out[i] = float(np.quantile(seg, q))

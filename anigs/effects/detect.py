@@ -19,7 +19,6 @@ Confidence: detected, ``0.5 + 0.5 * mean(strength_px, strength_g, photo share, a
 ``strength = min(1, fraction / (3 * minimum))`` and ``agreement`` the mean vote share of the
 region's Gaussians; not detected, ``1 - 0.5 * min(1, max(pixel, Gaussian fraction / minimum))``.
 """
-
 from __future__ import annotations
 
 import logging
@@ -31,15 +30,8 @@ import numpy as np
 
 from anigs.cameras import Camera
 from anigs.effects.config import EFFECTS, REGION_EFFECTS, REGIONS, Config
-from anigs.effects.geometry import (
-    Ground,
-    colour_spread,
-    local_shape,
-    render_features,
-    scene_ground,
-    seen_ground_cut,
-    world_up,
-)
+from anigs.effects.geometry import (Ground, colour_spread, local_shape, render_features, scene_ground, seen_ground_cut,
+                                   world_up)
 from anigs.effects.reasons import reason
 from anigs.effects.regions import PhotoMaps, PhotoRegions, classify_photo
 from anigs.effects.rules import check_candidates
@@ -69,17 +61,11 @@ class EffectResult:
     agreement: float = 0.0
 
     def to_json(self) -> dict:
-        return {
-            "detected": bool(self.detected),
-            "pixel_fraction": round(float(self.pixel_fraction), 5),
-            "gaussian_fraction": round(float(self.gaussian_fraction), 5),
-            "confidence": round(float(self.confidence), 3),
-            "reason": self.reason,
-            "region": self.region,
-            "num_gaussians": int(len(self.indices)),
-            "photo_fraction": round(float(self.photo_fraction), 4),
-            "agreement": round(float(self.agreement), 4),
-        }
+        return {"detected": bool(self.detected), "pixel_fraction": round(float(self.pixel_fraction), 5),
+                "gaussian_fraction": round(float(self.gaussian_fraction), 5),
+                "confidence": round(float(self.confidence), 3), "reason": self.reason, "region": self.region,
+                "num_gaussians": int(len(self.indices)), "photo_fraction": round(float(self.photo_fraction), 4),
+                "agreement": round(float(self.agreement), 4)}
 
 
 @dataclass
@@ -93,9 +79,7 @@ class EffectsResult:
     ground: Ground
     cfg: Config
     candidates: list = field(default_factory=list)  # numbered 3D candidates (anigs.effects.rules.Candidate)
-    rejected_masks: list = field(
-        default_factory=list
-    )  # per photo: int8 [H,W], 1 + region of a rejected candidate's pixel, 0 none
+    rejected_masks: list = field(default_factory=list)  # per photo: int8 [H,W], 1 + region of a rejected candidate's pixel, 0 none
     fragments: dict = field(default_factory=dict)  # region -> Gaussians of unnumbered small parts the rules set aside
 
     @property
@@ -113,17 +97,12 @@ class EffectsResult:
 
     def to_json(self) -> dict:
         """The ``effects.json`` object: effect name -> decision under ``effects``, plus context."""
-        return {
-            "effects": {e: r.to_json() for e, r in self.effects.items()},
-            "detected": self.detected,
-            "num_gaussians": int(len(self.region_of)),
-            "photos": [c.name for c in self.cameras],
-            "ground": self.ground.to_dict(),
-            "config": self.cfg.to_dict(),
-            "candidates": [c.to_json() for c in self.candidates],
-            "rejected": [c.to_json() for c in self.candidates if not c.kept or c.moved_to],
-            "fragments": {k: int(v) for k, v in self.fragments.items()},
-        }
+        return {"effects": {e: r.to_json() for e, r in self.effects.items()}, "detected": self.detected,
+                "num_gaussians": int(len(self.region_of)), "photos": [c.name for c in self.cameras],
+                "ground": self.ground.to_dict(), "config": self.cfg.to_dict(),
+                "candidates": [c.to_json() for c in self.candidates],
+                "rejected": [c.to_json() for c in self.candidates if not c.kept or c.moved_to],
+                "fragments": {k: int(v) for k, v in self.fragments.items()}}
 
 
 def photo_indices(num_photos: int, max_photos: int) -> np.ndarray:
@@ -165,14 +144,8 @@ def _median_depth(means: np.ndarray, cams: Sequence[Camera]) -> float:
     return float(np.median(zs))
 
 
-def _lift(
-    means: np.ndarray,
-    max_scale: np.ndarray,
-    maps: Sequence[PhotoMaps],
-    regions: Sequence[PhotoRegions],
-    ground: Ground,
-    cfg: Config,
-) -> tuple[np.ndarray, np.ndarray]:
+def _lift(means: np.ndarray, max_scale: np.ndarray, maps: Sequence[PhotoMaps], regions: Sequence[PhotoRegions],
+          ground: Ground, cfg: Config) -> tuple[np.ndarray, np.ndarray]:
     """Region id [N] (-1 none) and vote share [N] of every Gaussian (see module docstring)."""
     n, r = len(means), len(REGIONS)
     votes = np.zeros((n, r + 1))
@@ -201,17 +174,9 @@ def _lift(
     return out, np.where(decided, top, 0.0)
 
 
-def _apply_rules(
-    g: Gaussians,
-    means: np.ndarray,
-    region_of: np.ndarray,
-    ground: Ground,
-    radius: float,
-    maps: Sequence[PhotoMaps],
-    regions: Sequence[PhotoRegions],
-    cfg: Config,
-    flat: np.ndarray,
-) -> tuple[np.ndarray, list, dict]:
+def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground: Ground, radius: float,
+                 maps: Sequence[PhotoMaps], regions: Sequence[PhotoRegions], cfg: Config,
+                 flat: np.ndarray) -> tuple[np.ndarray, list, dict]:
     """The geometry rules (:mod:`anigs.effects.rules`) on the lifted regions; the photos' masks lose
     the pixels of rejected candidates and small parts (and sunlit leaves move from flowers to foliage)."""
     colours = (0.5 + 0.28209479 * g.sh[:, 0, :]).clamp(0, 1).double().numpy()
@@ -221,24 +186,14 @@ def _apply_rules(
         cam_h = ground.plane.camera_height if ground.plane.camera_height > 0 else 1.0
     new, cands, fragments = check_candidates(means, colours, region_of, height, cam_h or 1.0, radius, cfg, flat)
     for name, count in fragments.items():
-        log.info(
-            "effects: %d %s Gaussians in parts under %d Gaussians set aside by the rules",
-            count,
-            name,
-            cfg.min_candidate,
-        )
+        log.info("effects: %d %s Gaussians in parts under %d Gaussians set aside by the rules", count, name,
+                 cfg.min_candidate)
     changed = [c for c in cands if not c.kept or c.moved_to]
     for p in maps:
         p.rejected = np.zeros(p.depth.shape, np.int8)
     for c in changed:
-        log.info(
-            "effects: candidate %d (%s, %d Gaussians) %s: %s",
-            c.number,
-            c.region,
-            len(c.indices),
-            f"moved to {c.moved_to}" if c.moved_to else "rejected",
-            c.reason,
-        )
+        log.info("effects: candidate %d (%s, %d Gaussians) %s: %s", c.number, c.region, len(c.indices),
+                 f"moved to {c.moved_to}" if c.moved_to else "rejected", c.reason)
     dropped = (new == -1) & (region_of >= 0)  # rejected candidates and small parts
     if not dropped.any() and not changed:
         return new, cands, fragments
@@ -264,13 +219,8 @@ def _apply_rules(
     return new, cands, fragments
 
 
-def detect_effects(
-    images: Sequence[np.ndarray],
-    cameras: Sequence[Camera],
-    gaussians: Gaussians,
-    cfg: Config | None = None,
-    kinds: Sequence[str] | None = None,
-) -> EffectsResult:
+def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaussians: Gaussians,
+                   cfg: Config | None = None, kinds: Sequence[str] | None = None) -> EffectsResult:
     """Detect foliage, grass, flowers and water in a scene (see module docstring).
 
     Args:
@@ -308,11 +258,8 @@ def detect_effects(
     if ground.plane is not None:
         seen = [np.where((p.alpha >= cfg.min_alpha) & (p.depth > 0), p.height, np.nan) for p in maps]
         ground.cut = seen_ground_cut(ground.plane, seen, cfg.ground_seen_quantile)
-        log.info(
-            "effects: ground cut %.3g above the plane (seen ground; the centres' layer reaches %.3g)",
-            ground.cut,
-            ground.plane.cut_height(),
-        )
+        log.info("effects: ground cut %.3g above the plane (seen ground; the centres' layer reaches %.3g)",
+                 ground.cut, ground.plane.cut_height())
     regions = [classify_photo(p, ground, cfg) for p in maps]
     kinds = list(REGIONS) if kinds is None else list(kinds)
     unknown = [k for k in kinds if k not in REGIONS]
@@ -323,9 +270,8 @@ def detect_effects(
             if name not in kinds:
                 reg.masks[name] = np.zeros_like(reg.masks[name])
     region_of, share = _lift(means, max_scale, maps, regions, ground, cfg)
-    region_of, candidates, fragments = _apply_rules(
-        g, means, region_of, ground, radius, maps, regions, cfg, variation < cfg.wall_max_variation
-    )
+    region_of, candidates, fragments = _apply_rules(g, means, region_of, ground, radius, maps, regions, cfg,
+                                                    variation < cfg.wall_max_variation)
     effects: dict[str, EffectResult] = {}
     n_photos = len(maps)
     min_photos = max(2, int(np.ceil(cfg.min_photo_fraction * n_photos))) if n_photos > 1 else 1
@@ -338,21 +284,11 @@ def detect_effects(
         with_region = int((fracs >= cfg.min_component_frac).sum())
         photo_frac = with_region / n_photos
         agreement = float(share[idx].mean()) if len(idx) else 0.0
-        ok = (
-            pf >= cfg.min_pixel_fraction
-            and gf >= cfg.min_gaussian_fraction
-            and len(idx) >= cfg.min_gaussians
-            and with_region >= min_photos
-        )
+        ok = (pf >= cfg.min_pixel_fraction and gf >= cfg.min_gaussian_fraction and len(idx) >= cfg.min_gaussians
+              and with_region >= min_photos)
         if ok:
-            score = np.mean(
-                [
-                    min(1.0, pf / (3 * cfg.min_pixel_fraction)),
-                    min(1.0, gf / (3 * cfg.min_gaussian_fraction)),
-                    photo_frac,
-                    agreement,
-                ]
-            )
+            score = np.mean([min(1.0, pf / (3 * cfg.min_pixel_fraction)), min(1.0, gf / (3 * cfg.min_gaussian_fraction)),
+                             photo_frac, agreement])
             conf = 0.5 + 0.5 * float(score)
         else:
             conf = 1.0 - 0.5 * min(1.0, max(pf / cfg.min_pixel_fraction, gf / cfg.min_gaussian_fraction))
@@ -362,16 +298,7 @@ def detect_effects(
             text = f"No {name} ({' and '.join(REGION_EFFECTS[name])} skipped): not looked for, the prompt does not name it."
         for eff in REGION_EFFECTS[name]:
             effects[eff] = EffectResult(eff, name, ok, pf, gf, conf, text, masks, idx, photo_frac, agreement)
-    res = EffectsResult(
-        effects,
-        photos,
-        cams,
-        region_of,
-        ground,
-        cfg,
-        candidates,
-        [getattr(p, "rejected", np.zeros(p.depth.shape, np.int8)) for p in maps],
-        fragments,
-    )
+    res = EffectsResult(effects, photos, cams, region_of, ground, cfg, candidates,
+                        [getattr(p, "rejected", np.zeros(p.depth.shape, np.int8)) for p in maps], fragments)
     log.info("effects: detected %s", res.detected or "nothing")
     return res

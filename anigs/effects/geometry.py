@@ -8,7 +8,6 @@
   of a Gaussian's centre (reflections change with the viewpoint; diffuse surfaces do not);
 - :func:`render_features`: up to 3 per-Gaussian features rendered as per-pixel maps.
 """
-
 from __future__ import annotations
 
 import logging
@@ -36,7 +35,7 @@ class Ground:
     up: np.ndarray
     support: float = 0.0  # share of the Gaussians lying on the plane
     note: str = ""
-    cut: float = 0.0  # seen surfaces lower than this above the plane are ground (:func:`seen_ground_cut`; 0: unset)
+    cut: float = 0.0      # seen surfaces lower than this above the plane are ground (:func:`seen_ground_cut`; 0: unset)
 
     def cut_height(self) -> float:
         """Height above the plane below which a seen surface is ground (``cut``, else the plane's own)."""
@@ -45,13 +44,9 @@ class Ground:
         return float(self.cut) if self.cut > 0 else float(self.plane.cut_height())
 
     def to_dict(self) -> dict:
-        return {
-            "found": self.plane is not None,
-            "up": self.up.tolist(),
-            "support": round(self.support, 4),
-            "note": self.note,
-            **({"plane": self.plane.to_dict(), "cut": round(self.cut_height(), 4)} if self.plane is not None else {}),
-        }
+        return {"found": self.plane is not None, "up": self.up.tolist(), "support": round(self.support, 4),
+                "note": self.note, **({"plane": self.plane.to_dict(), "cut": round(self.cut_height(), 4)}
+                                      if self.plane is not None else {})}
 
 
 def world_up(cameras: Sequence[Camera], mode: str = "z", points: np.ndarray | None = None) -> np.ndarray:
@@ -62,14 +57,8 @@ def world_up(cameras: Sequence[Camera], mode: str = "z", points: np.ndarray | No
     return estimate_up(cameras, points).up
 
 
-def scene_ground(
-    means: np.ndarray,
-    cameras: Sequence[Camera],
-    up: np.ndarray,
-    margin: float,
-    min_support: float,
-    max_below: float = 0.1,
-) -> Ground:
+def scene_ground(means: np.ndarray, cameras: Sequence[Camera], up: np.ndarray, margin: float,
+                 min_support: float, max_below: float = 0.1) -> Ground:
     """Ground plane of ``means`` [N,3] along ``up``; ``plane`` is None (with a note) when the cameras
     are not above it, fewer than ``min_support`` of the Gaussians lie within its layer, or more than
     ``max_below`` lie clearly under it (a close-up without visible ground)."""
@@ -81,26 +70,17 @@ def scene_ground(
     band = max(plane.cut_height(), 1e-9)
     support = float((np.abs(h) <= band).mean())
     if support < min_support:
-        return Ground(
-            None,
-            up,
-            support,
-            f"no ground plane: only {100 * support:.1f}% of the Gaussians lie on "
-            f"the lowest dense layer (needs {100 * min_support:.1f}%)",
-        )
+        return Ground(None, up, support, f"no ground plane: only {100 * support:.1f}% of the Gaussians lie on "
+                                         f"the lowest dense layer (needs {100 * min_support:.1f}%)")
     below = float((h < -max(band, 0.1 * plane.camera_height)).mean())
     if below > max_below:  # nothing real lies under the ground: this layer is not it
-        return Ground(
-            None,
-            up,
-            support,
-            f"no ground plane: {100 * below:.0f}% of the Gaussians lie under the "
-            f"lowest dense layer (at most {100 * max_below:.0f}% allowed)",
-        )
+        return Ground(None, up, support, f"no ground plane: {100 * below:.0f}% of the Gaussians lie under the "
+                                         f"lowest dense layer (at most {100 * max_below:.0f}% allowed)")
     return Ground(plane, up, support, "")
 
 
-def seen_ground_cut(plane: GroundPlane, heights: Sequence[np.ndarray], quantile: float, min_pixels: int = 100) -> float:
+def seen_ground_cut(plane: GroundPlane, heights: Sequence[np.ndarray], quantile: float,
+                    min_pixels: int = 100) -> float:
     """Height below which a seen surface is ground: the ``quantile`` of how deep the photos see
     surfaces under the plane (``heights`` [H,W] per photo, nan where nothing is seen), mirrored
     upwards; between ``plane.min_height`` and ``plane.cut_height()``.
@@ -131,12 +111,12 @@ def local_shape(means: np.ndarray, up: np.ndarray, radius: float, k: int = 32) -
     valid = np.isfinite(dist)
     cnt = valid.sum(1)
     safe = np.where(valid, idx, np.arange(n)[:, None])
-    nb = means[safe]  # [N,k,3]
+    nb = means[safe]                                                   # [N,k,3]
     w = valid[..., None].astype(np.float64)
     mu = (nb * w).sum(1) / np.maximum(cnt, 1)[:, None]
     d = (nb - mu[:, None]) * w
     cov = np.einsum("nki,nkj->nij", d, d) / np.maximum(cnt, 1)[:, None, None]
-    evals, evecs = np.linalg.eigh(cov)  # ascending
+    evals, evecs = np.linalg.eigh(cov)                                 # ascending
     variation = evals[:, 0] / np.maximum(evals.sum(1), 1e-18)
     upness = np.abs(evecs[:, :, 0] @ up)
     few = cnt < 4
@@ -144,9 +124,8 @@ def local_shape(means: np.ndarray, up: np.ndarray, radius: float, k: int = 32) -
     return variation, upness
 
 
-def colour_spread(
-    g: Gaussians, photos: Sequence[np.ndarray], cameras: Sequence[Camera], depths: Sequence[np.ndarray]
-) -> np.ndarray:
+def colour_spread(g: Gaussians, photos: Sequence[np.ndarray], cameras: Sequence[Camera],
+                  depths: Sequence[np.ndarray]) -> np.ndarray:
     """Relative spread [N] of the photos' luminance at each visible centre: std / (mean + 0.05);
     0 for Gaussians seen by fewer than 2 photos."""
     means = g.means.detach().double().numpy()
@@ -178,9 +157,8 @@ def render_features(g: Gaussians, features: np.ndarray, cam: Camera) -> tuple[np
     cols = torch.zeros(len(idx), 3)
     cols[:, :c] = torch.from_numpy(features[idx.numpy()])
     with torch.no_grad():
-        rgb, alpha, meta = rasterize(
-            *render_inputs(g, idx), cols, cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height
-        )
+        rgb, alpha, meta = rasterize(*render_inputs(g, idx), cols, cam.torch_viewmat(), cam.torch_K(),
+                                     cam.width, cam.height)
     a = alpha.numpy()
     maps = rgb.numpy()[..., :c] / np.maximum(a, 1e-6)[..., None]
     return maps, a, meta["depth"].numpy()

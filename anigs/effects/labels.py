@@ -8,7 +8,6 @@ one of the chosen effects'; the others (the masks backend found them, the effect
 no chosen region) take the label of the nearest labelled dynamic Gaussian, or foliage's when none
 is labelled.
 """
-
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -25,9 +24,8 @@ def effect_label_ids() -> dict[str, int]:
     return {e: 1 + REGIONS.index(EFFECT_REGION[e]) for e in EFFECTS}
 
 
-def effect_labels(
-    dynamic: np.ndarray, regions: np.ndarray, chosen_regions: Sequence[int], means: np.ndarray
-) -> tuple[np.ndarray, dict[str, int]]:
+def effect_labels(dynamic: np.ndarray, regions: np.ndarray, chosen_regions: Sequence[int],
+                  means: np.ndarray) -> tuple[np.ndarray, dict[str, int]]:
     """Per-Gaussian effect labels.
 
     Args:

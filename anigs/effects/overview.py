@@ -8,7 +8,6 @@ column (white: kept, red: rejected by a geometry rule, whose pixels are hatched 
 rejections and their reasons are listed below, so a scene file can drop or force a candidate by
 number (``effects: {drop: [N], force: [N]}``).
 """
-
 from __future__ import annotations
 
 import textwrap
@@ -77,17 +76,11 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
     for r in REGIONS:
         e = res.effects[REGION_EFFECTS[r][0]]
         state = f"found ({e.confidence:.2f})" if e.detected else f"not found ({e.confidence:.2f})"
-        header.append(
-            _text_block(
-                [f"{r}: {'+'.join(REGION_EFFECTS[r])}", state],
-                panel_width,
-                colour=tuple(0.6 * c for c in COLOURS[r]) if e.detected else (0.45, 0.45, 0.45),
-            )
-        )
+        header.append(_text_block([f"{r}: {'+'.join(REGION_EFFECTS[r])}", state], panel_width,
+                                  colour=tuple(0.6 * c for c in COLOURS[r]) if e.detected else (0.45, 0.45, 0.45)))
     hh = max(b.shape[0] for b in header)
-    rows.append(
-        np.concatenate([np.pad(b, ((0, hh - b.shape[0]), (0, 0), (0, 0)), constant_values=1.0) for b in header], 1)
-    )
+    rows.append(np.concatenate([np.pad(b, ((0, hh - b.shape[0]), (0, 0), (0, 0)), constant_values=1.0)
+                                for b in header], 1))
     for i in _pick_photos(res, photos):
         img = res.photos[i]
         h, w = img.shape[:2]
@@ -103,20 +96,11 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
                 rej = res.rejected_masks[i] == REGIONS.index(r) + 1
                 hatch = rej & (((np.arange(h)[:, None] + np.arange(w)[None]) // 2) % 3 == 0)
                 tinted = np.where(hatch[..., None], np.array([0.95, 0.1, 0.1], np.float32), tinted)
-            panel = (np.clip(cv2.resize(tinted, (panel_width, ph), interpolation=cv2.INTER_AREA), 0, 1) * 255).astype(
-                np.uint8
-            )
+            panel = (np.clip(cv2.resize(tinted, (panel_width, ph), interpolation=cv2.INTER_AREA), 0, 1) * 255
+                     ).astype(np.uint8)
             _numbers(panel, res, i, r, panel_width / w)
-            cv2.putText(
-                panel,
-                f"{res.cameras[i].name} {100 * m.mean():.1f}%",
-                (4, ph - 6),
-                FONT,
-                0.38,
-                (255, 255, 255),
-                1,
-                cv2.LINE_AA,
-            )
+            cv2.putText(panel, f"{res.cameras[i].name} {100 * m.mean():.1f}%", (4, ph - 6), FONT, 0.38,
+                        (255, 255, 255), 1, cv2.LINE_AA)
             panel = panel.astype(np.float32) / 255.0
             panels.append(np.pad(panel, ((2, 2), (2, 2), (0, 0)), constant_values=1.0))
         rows.append(np.concatenate(panels, 1))
@@ -128,15 +112,11 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
         lines.append(res.ground.note)
     changed = [c for c in res.candidates if not c.kept or c.moved_to]
     if res.candidates:
-        lines.append(
-            f"{len(res.candidates)} numbered candidates; {len(changed)} changed by geometry "
-            "(drop or force one in the scene file: effects: {drop: [N], force: [N]}):"
-        )
+        lines.append(f"{len(res.candidates)} numbered candidates; {len(changed)} changed by geometry "
+                     "(drop or force one in the scene file: effects: {drop: [N], force: [N]}):")
     for c in changed[:12]:
-        lines.append(
-            f"  #{c.number} {c.region} ({len(c.indices)} Gaussians) "
-            f"{'-> ' + c.moved_to if c.moved_to else 'rejected'}: {c.reason}"
-        )
+        lines.append(f"  #{c.number} {c.region} ({len(c.indices)} Gaussians) "
+                     f"{'-> ' + c.moved_to if c.moved_to else 'rejected'}: {c.reason}")
     if len(changed) > 12:
         lines.append(f"  ... and {len(changed) - 12} more (effects.json: rejected)")
     for note in getattr(res, "notes", []):

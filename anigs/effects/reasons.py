@@ -1,5 +1,4 @@
 """The sentence that explains each region's decision to a user."""
-
 from __future__ import annotations
 
 from anigs.effects.config import REGION_EFFECTS, Config
@@ -19,41 +18,23 @@ MOTION = {
 }
 
 
-def reason(
-    region: str,
-    detected: bool,
-    pixel_fraction: float,
-    gaussian_fraction: float,
-    photos_with: int,
-    photos: int,
-    cfg: Config,
-    ground: Ground,
-    rejected_green: float = 0.0,
-) -> str:
+def reason(region: str, detected: bool, pixel_fraction: float, gaussian_fraction: float, photos_with: int,
+           photos: int, cfg: Config, ground: Ground, rejected_green: float = 0.0) -> str:
     """One or two sentences: what was found (or not), how much, where, and what moves because of it."""
     effects = " and ".join(REGION_EFFECTS[region])
     if detected:
-        text = (
-            f"Found {region}: {WHAT[region]} covers {pixel_fraction:.1%} of the photos' pixels "
-            f"(in {photos_with} of {photos} photos) and {gaussian_fraction:.1%} of the Gaussians, "
-            f"{MOTION[region]}."
-        )
+        text = (f"Found {region}: {WHAT[region]} covers {pixel_fraction:.1%} of the photos' pixels "
+                f"(in {photos_with} of {photos} photos) and {gaussian_fraction:.1%} of the Gaussians, "
+                f"{MOTION[region]}.")
     elif region in ("grass", "water") and ground.plane is None:
-        why = (
-            "low vegetation cannot be told from trees without it (all vegetation counts as foliage)"
-            if region == "grass"
-            else "water is looked for on it only"
-        )
+        why = ("low vegetation cannot be told from trees without it (all vegetation counts as foliage)"
+               if region == "grass" else "water is looked for on it only")
         text = f"No {region} ({effects} skipped): the ground could not be found, and {why}."
     else:
-        text = (
-            f"No {region} ({effects} skipped): {WHAT[region]} covers only {pixel_fraction:.2%} of the "
-            f"photos' pixels (in {photos_with} of {photos} photos) and {gaussian_fraction:.2%} of the "
-            f"Gaussians; at least {cfg.min_pixel_fraction:.1%} and {cfg.min_gaussian_fraction:.1%} are needed."
-        )
+        text = (f"No {region} ({effects} skipped): {WHAT[region]} covers only {pixel_fraction:.2%} of the "
+                f"photos' pixels (in {photos_with} of {photos} photos) and {gaussian_fraction:.2%} of the "
+                f"Gaussians; at least {cfg.min_pixel_fraction:.1%} and {cfg.min_gaussian_fraction:.1%} are needed.")
     if region == "foliage" and rejected_green >= 0.001:
-        text += (
-            f" {rejected_green:.1%} of the pixels are green but lie on flat vertical surfaces or fill a "
-            "rectangle (a wall, a picture, a screen), so they were left still."
-        )
+        text += (f" {rejected_green:.1%} of the pixels are green but lie on flat vertical surfaces or fill a "
+                 "rectangle (a wall, a picture, a screen), so they were left still.")
     return text

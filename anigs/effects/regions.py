@@ -24,7 +24,6 @@ rendered per-Gaussian maps (surface variation, ``|normal . up|``, multi-view col
 7. *water*: low (near the ground plane), horizontal and planar, weakly textured cores with a
    bluish hue or a reflective (view-dependent) colour, grown over the same colour, not green.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -43,13 +42,13 @@ from anigs.geometry.ground import pixel_heights
 class PhotoMaps:
     """One photo with the model's renders at its camera (all [H,W] unless noted)."""
 
-    image: np.ndarray  # RGB [H,W,3] float32 in [0,1]
+    image: np.ndarray        # RGB [H,W,3] float32 in [0,1]
     camera: Camera
     depth: np.ndarray
     alpha: np.ndarray
-    variation: np.ndarray  # surface variation of the Gaussians seen
-    upness: np.ndarray  # |normal . up|
-    reflect: np.ndarray  # multi-view colour spread
+    variation: np.ndarray    # surface variation of the Gaussians seen
+    upness: np.ndarray       # |normal . up|
+    reflect: np.ndarray      # multi-view colour spread
     height: np.ndarray | None = None  # height above the ground plane of the Gaussians seen (None: no plane)
     name: str = ""
 
@@ -60,7 +59,7 @@ class PhotoRegions:
 
     masks: dict[str, np.ndarray]
     rejected_wall_green: int = 0  # green pixels on flat vertical surfaces / rectangular pictures
-    valid: int = 0  # pixels the model covers
+    valid: int = 0                # pixels the model covers
     extra: dict = field(default_factory=dict)
 
 
@@ -114,12 +113,8 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
     n_l, lab_l, _ = cues.components(plant & ~tall_px)
     # flowers: saturated non-green (any hue) or white blobs next to plants
     r_f = _px(cfg.flower_radius_frac, h, w)
-    col = (
-        cues.colourful(img, cfg.flower_green_hue, cfg.flower_min_saturation, cfg.flower_min_value, cfg.white_flowers)
-        & valid
-        & ~wall
-        & ~green_all
-    )
+    col = cues.colourful(img, cfg.flower_green_hue, cfg.flower_min_saturation, cfg.flower_min_value,
+                         cfg.white_flowers) & valid & ~wall & ~green_all
     near = cv2.dilate(plant.astype(np.uint8), cues.disk(r_f)) > 0
     # whole colourful blobs that reach within r_f of a plant: a large blossom's centre is farther
     # than r_f from any leaf, and belongs to the blossom all the same
@@ -145,7 +140,8 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
         k = 2 * r_f + 1
         share = cv2.blur(blossom.astype(np.float32), (k, k))
         flowers |= plant & ~tall_px & (share >= cfg.flower_bed_share)
-        bed = cv2.morphologyEx(blossom.astype(np.uint8), cv2.MORPH_CLOSE, cues.disk(_px(cfg.flower_bed_frac, h, w))) > 0
+        bed = cv2.morphologyEx(blossom.astype(np.uint8), cv2.MORPH_CLOSE,
+                               cues.disk(_px(cfg.flower_bed_frac, h, w))) > 0
         flowers |= bed & (plant | col) & valid & ~wall
         # blossom edges blend with their surroundings: grow over the less saturated rim
         _, sat, _ = cues.hsv(img)
@@ -162,9 +158,8 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
         hue, sat, _ = cues.hsv(img)
         reach = cfg.water_max_height * cam_h
         near_plane = valid & (height < max(ground.cut_height(), reach)) & (height > -reach)
-        colour = (cues.in_band(hue, cfg.water_hue) & (sat >= cfg.water_min_saturation)) | (
-            p.reflect >= cfg.reflect_min_spread
-        )
+        colour = (cues.in_band(hue, cfg.water_hue) & (sat >= cfg.water_min_saturation)) | \
+                 (p.reflect >= cfg.reflect_min_spread)
         base = near_plane & floor & colour & ~green_all & ~flowers
         tex = cues.texture(img, _px(cfg.texture_frac, h, w))
         core = cues.clean(base & (tex < cfg.water_max_texture), min_px, min_px)

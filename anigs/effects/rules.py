@@ -28,7 +28,6 @@ are counted per region (``fragments``).
 :class:`Candidate` per numbered candidate (kept or rejected, with the reason) and, per region, how
 many Gaussians of unnumbered small parts the rules set aside.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -60,18 +59,10 @@ class Candidate:
     figures: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
-        return {
-            "number": self.number,
-            "region": self.region,
-            "num_gaussians": int(len(self.indices)),
-            "centre": [round(float(x), 4) for x in self.centre],
-            "extent": round(float(self.extent), 4),
-            "kept": bool(self.kept),
-            "rule": self.rule,
-            "reason": self.reason,
-            "moved_to": self.moved_to,
-            "figures": {k: round(float(v), 4) for k, v in self.figures.items()},
-        }
+        return {"number": self.number, "region": self.region, "num_gaussians": int(len(self.indices)),
+                "centre": [round(float(x), 4) for x in self.centre], "extent": round(float(self.extent), 4),
+                "kept": bool(self.kept), "rule": self.rule, "reason": self.reason, "moved_to": self.moved_to,
+                "figures": {k: round(float(v), 4) for k, v in self.figures.items()}}
 
 
 def components(points: np.ndarray, link: float) -> np.ndarray:
@@ -125,17 +116,9 @@ def _hue(rgb: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(np.clip(rgb, 0, 1).astype(np.float32)[None], cv2.COLOR_RGB2HSV)[0, :, 0]
 
 
-def check_candidates(
-    means: np.ndarray,
-    colours: np.ndarray,
-    region_of: np.ndarray,
-    height: np.ndarray | None,
-    cam_height: float,
-    radius: float,
-    cfg: Config,
-    flat: np.ndarray | None = None,
-    seed: int = 0,
-) -> tuple[np.ndarray, list[Candidate], dict[str, int]]:
+def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarray, height: np.ndarray | None,
+                     cam_height: float, radius: float, cfg: Config, flat: np.ndarray | None = None,
+                     seed: int = 0) -> tuple[np.ndarray, list[Candidate], dict[str, int]]:
     """Split each region into numbered 3D candidates and apply the rules (module docstring).
 
     Args:
@@ -211,12 +194,8 @@ def _green(colours: np.ndarray, cfg: Config) -> np.ndarray:
     hue = _hue(colours)
     mx, mn = colours.max(1), colours.min(1)
     sat = (mx - mn) / np.maximum(mx, 1e-6)
-    return (
-        (hue >= cfg.green_hue[0])
-        & (hue <= cfg.green_hue[1])
-        & (sat >= cfg.green_min_saturation)
-        & (colours[:, 1] >= colours[:, 0])
-    )
+    return (hue >= cfg.green_hue[0]) & (hue <= cfg.green_hue[1]) & (sat >= cfg.green_min_saturation) & \
+        (colours[:, 1] >= colours[:, 0])
 
 
 def _plane_rule(cand: Candidate, means, is_plant, tree_all, link, tol, radius, cfg: Config, rng) -> None:
@@ -257,11 +236,9 @@ def _plane_rule(cand: Candidate, means, is_plant, tree_all, link, tol, radius, c
     cand.figures.update(on_plane=share, rising=rising, planes=len(extents), plane_extent=max(extents, default=0.0))
     if share >= cfg.plane_max_share and rising <= 0.25:
         cand.kept, cand.rule = False, "plane"
-        cand.reason = (
-            f"lies on {'a large flat surface' if len(extents) == 1 else f'{len(extents)} large flat surfaces'} "
-            f"({share:.0%} of its Gaussians within {tol:.3g} of planes up to {max(extents):.3g} across): "
-            "a wall, facade, floor, ceiling, picture, rug or mown lawn does not move"
-        )
+        cand.reason = (f"lies on {'a large flat surface' if len(extents) == 1 else f'{len(extents)} large flat surfaces'} "
+                       f"({share:.0%} of its Gaussians within {tol:.3g} of planes up to {max(extents):.3g} across): "
+                       "a wall, facade, floor, ceiling, picture, rug or mown lawn does not move")
 
 
 def _held_rule(cand: Candidate, means, holder_tree, holders, link, cfg: Config) -> None:
@@ -275,10 +252,8 @@ def _held_rule(cand: Candidate, means, holder_tree, holders, link, cfg: Config) 
     cand.figures["held"] = share
     if share < cfg.min_attached:
         cand.kept, cand.rule = False, "not_held"
-        cand.reason = (
-            f"is not held by a plant (only {share:.0%} of its Gaussians lie within {link:.3g} of leaves or "
-            "stems): a blossom grows on a plant, this is a lamp, a window surround or paint seen next to one"
-        )
+        cand.reason = (f"is not held by a plant (only {share:.0%} of its Gaussians lie within {link:.3g} of leaves or "
+                       "stems): a blossom grows on a plant, this is a lamp, a window surround or paint seen next to one")
 
 
 def _sunlit_rule(cand: Candidate, colours, height, cam_height: float, cfg: Config) -> None:
@@ -291,8 +266,6 @@ def _sunlit_rule(cand: Candidate, colours, height, cam_height: float, cfg: Confi
     cand.figures["in_crown"] = high
     if high >= 0.5:
         cand.moved_to, cand.rule = "foliage", "sunlit_leaves"
-        cand.reason = (
-            f"yellow-green (hue {hue:.0f} deg) and high in a crown ({high:.0%} above "
-            f"{cfg.crown_min_height:g} x the camera height): "
-            "sunlit leaves, so they sway with the foliage instead of bobbing as flowers"
-        )
+        cand.reason = (f"yellow-green (hue {hue:.0f} deg) and high in a crown ({high:.0%} above "
+                       f"{cfg.crown_min_height:g} x the camera height): "
+                       "sunlit leaves, so they sway with the foliage instead of bobbing as flowers")

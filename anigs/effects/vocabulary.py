@@ -10,7 +10,6 @@ names nothing ("a room without plants").
 With ``effects: auto`` the effects stage localises only the regions the prompt names; a prompt
 that names none gives a still scene. config/README.md lists this table (generated from here).
 """
-
 from __future__ import annotations
 
 import re
@@ -19,118 +18,24 @@ from dataclasses import dataclass, field
 from anigs.effects.config import REGION_EFFECTS, REGIONS
 
 WORDS: dict[str, tuple[str, ...]] = {
-    "foliage": (
-        "tree",
-        "trees",
-        "leaf",
-        "leaves",
-        "foliage",
-        "bush",
-        "bushes",
-        "shrub",
-        "shrubs",
-        "hedge",
-        "hedges",
-        "plant",
-        "plants",
-        "frond",
-        "fronds",
-        "fern",
-        "ferns",
-        "branch",
-        "branches",
-        "twig",
-        "twigs",
-        "palm",
-        "palms",
-        "ivy",
-        "vine",
-        "vines",
-        "canopy",
-        "willow",
-        "willows",
-        "houseplant",
-        "houseplants",
-        "greenery",
-        "vegetation",
-        "weeping willow",
-    ),
-    "grass": (
-        "grass",
-        "grasses",
-        "lawn",
-        "lawns",
-        "meadow",
-        "meadows",
-        "reed",
-        "reeds",
-        "turf",
-        "wheat",
-        "field",
-        "fields",
-        "prairie",
-    ),
-    "flowers": (
-        "flower",
-        "flowers",
-        "blossom",
-        "blossoms",
-        "rose",
-        "roses",
-        "bloom",
-        "blooms",
-        "tulip",
-        "tulips",
-        "daisy",
-        "daisies",
-        "petal",
-        "petals",
-        "sunflower",
-        "sunflowers",
-        "lily",
-        "lilies",
-        "orchid",
-        "orchids",
-        "flowerbed",
-        "flowerbeds",
-        "flower bed",
-        "flower beds",
-    ),
-    "water": (
-        "water",
-        "pond",
-        "ponds",
-        "lake",
-        "lakes",
-        "river",
-        "rivers",
-        "fountain",
-        "fountains",
-        "sea",
-        "ocean",
-        "stream",
-        "streams",
-        "creek",
-        "pool",
-        "pools",
-        "waves",
-        "ripples",
-        "waterfall",
-    ),
+    "foliage": ("tree", "trees", "leaf", "leaves", "foliage", "bush", "bushes", "shrub", "shrubs", "hedge", "hedges",
+                "plant", "plants", "frond", "fronds", "fern", "ferns", "branch", "branches", "twig", "twigs",
+                "palm", "palms", "ivy", "vine", "vines", "canopy", "willow", "willows",
+                "houseplant", "houseplants", "greenery", "vegetation", "weeping willow"),
+    "grass": ("grass", "grasses", "lawn", "lawns", "meadow", "meadows", "reed", "reeds", "turf", "wheat", "field",
+              "fields", "prairie"),
+    "flowers": ("flower", "flowers", "blossom", "blossoms", "rose", "roses", "bloom", "blooms", "tulip", "tulips",
+                "daisy", "daisies", "petal", "petals", "sunflower", "sunflowers", "lily", "lilies", "orchid",
+                "orchids", "flowerbed", "flowerbeds", "flower bed", "flower beds"),
+    "water": ("water", "pond", "ponds", "lake", "lakes", "river", "rivers", "fountain", "fountains", "sea", "ocean",
+              "stream", "streams", "creek", "pool", "pools", "waves", "ripples", "waterfall"),
 }
 SCENE_WORDS: dict[str, tuple[str, ...]] = {
-    "garden": ("foliage", "grass", "flowers"),
-    "gardens": ("foliage", "grass", "flowers"),
-    "park": ("foliage", "grass", "flowers"),
-    "parks": ("foliage", "grass", "flowers"),
-    "backyard": ("foliage", "grass", "flowers"),
-    "yard": ("foliage", "grass", "flowers"),
-    "forest": ("foliage",),
-    "woods": ("foliage",),
-    "orchard": ("foliage",),
-    "jungle": ("foliage",),
-    "greenhouse": ("foliage", "flowers"),
-    "pasture": ("grass",),
+    "garden": ("foliage", "grass", "flowers"), "gardens": ("foliage", "grass", "flowers"),
+    "park": ("foliage", "grass", "flowers"), "parks": ("foliage", "grass", "flowers"),
+    "backyard": ("foliage", "grass", "flowers"), "yard": ("foliage", "grass", "flowers"),
+    "forest": ("foliage",), "woods": ("foliage",), "orchard": ("foliage",), "jungle": ("foliage",),
+    "greenhouse": ("foliage", "flowers"), "pasture": ("grass",),
 }
 NEGATIONS = ("no", "not", "without", "nor", "never")
 _TOKEN = re.compile(r"[a-z]+|[,.;:!?]")
@@ -152,12 +57,8 @@ class PromptKinds:
         return [e for r in self.regions for e in REGION_EFFECTS[r]]
 
     def to_json(self) -> dict:
-        return {
-            "prompt": self.prompt,
-            "regions": list(self.regions),
-            "words": dict(self.matches),
-            "negated": list(self.negated),
-        }
+        return {"prompt": self.prompt, "regions": list(self.regions), "words": dict(self.matches),
+                "negated": list(self.negated)}
 
 
 def _table() -> dict[str, tuple[str, ...]]:

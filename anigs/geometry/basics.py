@@ -1,5 +1,4 @@
 """Vector basics of scene geometry: unit vectors, angles, horizontal bases, camera axes."""
-
 from __future__ import annotations
 
 import logging

@@ -3,7 +3,6 @@
 :func:`scene_extent` (the 3DGS convention, from the cameras) scales the static fit's learning rates
 and densification; :func:`box_diagonal` (a robust box of the positions) scales the model update's.
 """
-
 from __future__ import annotations
 
 import math

@@ -1,7 +1,6 @@
 """Ground plane (:func:`estimate_ground`); the ground cue's plane with its floor and measured layer
 (:class:`GroundPlane`, :func:`ground_plane`) and the height of each pixel's surface above it
 (:func:`pixel_heights`)."""
-
 from __future__ import annotations
 
 import logging
@@ -30,18 +29,12 @@ class Ground:
     layer: float
     camera_height: float
     ref: float
-    method: str = "densest-layer"  # densest-layer | below-cameras | fallback
+    method: str = "densest-layer"   # densest-layer | below-cameras | fallback
     fallback: bool = False
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "normal": [float(v) for v in self.normal],
-            "offset": float(self.offset),
-            "layer": float(self.layer),
-            "camera_height": float(self.camera_height),
-            "method": self.method,
-            "fallback": self.fallback,
-        }
+        return {"normal": [float(v) for v in self.normal], "offset": float(self.offset), "layer": float(self.layer),
+                "camera_height": float(self.camera_height), "method": self.method, "fallback": self.fallback}
 
 
 def _densest_layer(h: np.ndarray, lo: float, top: float, width: float) -> float:
@@ -55,15 +48,8 @@ def _densest_layer(h: np.ndarray, lo: float, top: float, width: float) -> float:
     return float(near.mean()) if len(near) else float(c)
 
 
-def estimate_ground(
-    means: np.ndarray,
-    up: np.ndarray,
-    cameras: Sequence[Camera] = (),
-    bins: int = 400,
-    layer_quantile: float = 0.97,
-    layer_band: float = 0.5,
-    min_below: int = 10,
-) -> Ground:
+def estimate_ground(means: np.ndarray, up: np.ndarray, cameras: Sequence[Camera] = (), bins: int = 400,
+                    layer_quantile: float = 0.97, layer_band: float = 0.5, min_below: int = 10) -> Ground:
     """Ground plane of points ``means`` [N,3] along ``up`` [3].
 
     The densest thin layer below the median height (histogram peak refined by the mean of the
@@ -94,20 +80,13 @@ def estimate_ground(
             if len(below) >= min_below:
                 offset = _densest_layer(below, float(np.percentile(below, 0.5)), float(below.max()), width)
                 method = "below-cameras"
-                log.warning(
-                    "estimate_ground: the densest layer (median camera height %.3g above it) is not below "
-                    "the cameras; using the densest layer of the %d points below them",
-                    ref,
-                    len(below),
-                )
+                log.warning("estimate_ground: the densest layer (median camera height %.3g above it) is not below "
+                            "the cameras; using the densest layer of the %d points below them", ref, len(below))
             else:
                 offset = float(min(lo, ch.min()) - width)
                 method, fallback = "fallback", True
-                log.warning(
-                    "estimate_ground: no ground below the cameras (%d points below the lowest camera); "
-                    "fallback plane just below all content (the ground cue excludes nothing)",
-                    len(below),
-                )
+                log.warning("estimate_ground: no ground below the cameras (%d points below the lowest camera); "
+                            "fallback plane just below all content (the ground cue excludes nothing)", len(below))
             ref = float(np.median(ch - offset))
             if ref <= 0:  # cameras far below their own median: keep a positive reference length
                 ref = float(max(hi - lo, width))
@@ -146,24 +125,14 @@ class GroundPlane:
         return float(h)
 
     def to_dict(self) -> dict:
-        return {
-            "normal": np.asarray(self.normal).tolist(),
-            "offset": float(self.offset),
-            "min_height": float(self.min_height),
-            "layer": float(self.layer),
-            "camera_height": float(self.camera_height),
-        }
+        return {"normal": np.asarray(self.normal).tolist(), "offset": float(self.offset),
+                "min_height": float(self.min_height), "layer": float(self.layer),
+                "camera_height": float(self.camera_height)}
 
 
-def ground_plane(
-    means: np.ndarray,
-    up: np.ndarray,
-    cameras: Sequence[Camera] = (),
-    margin: float = 0.03,
-    bins: int = 400,
-    layer_quantile: float = 0.97,
-    layer_band: float = 0.5,
-) -> GroundPlane:
+def ground_plane(means: np.ndarray, up: np.ndarray, cameras: Sequence[Camera] = (),
+                 margin: float = 0.03, bins: int = 400, layer_quantile: float = 0.97,
+                 layer_band: float = 0.5) -> GroundPlane:
     """Ground plane of Gaussian centres ``means`` [N,3] along ``up`` [3] (:func:`estimate_ground`), with
     the floor and layer the ground cues of the masks and effects use.
 
@@ -192,7 +161,7 @@ def pixel_heights(depth: np.ndarray, cam: Camera, plane: GroundPlane) -> np.ndar
     h, w = depth.shape
     xs, ys = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
     Kinv = np.linalg.inv(cam.K)
-    rays = np.stack([xs, ys, np.ones_like(xs)], -1) @ Kinv.T  # camera coords at z=1
-    world_dirs = rays @ cam.R  # R^T applied per row
+    rays = np.stack([xs, ys, np.ones_like(xs)], -1) @ Kinv.T          # camera coords at z=1
+    world_dirs = rays @ cam.R                                           # R^T applied per row
     pts = cam.center + world_dirs * depth[..., None]
     return pts @ plane.normal - plane.offset

@@ -1,5 +1,4 @@
 """Capture layout (:func:`classify_layout`): forward-facing, orbit (inward) or walk."""
-
 from __future__ import annotations
 
 import logging
@@ -23,14 +22,11 @@ class Layout:
 
     kind: str
     metrics: dict[str, float]
-    focus: np.ndarray | None = None  # [3] where the optical axes meet (orbit / forward), else None
+    focus: np.ndarray | None = None    # [3] where the optical axes meet (orbit / forward), else None
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "kind": self.kind,
-            "metrics": {k: float(v) for k, v in self.metrics.items()},
-            "focus": None if self.focus is None else [float(v) for v in self.focus],
-        }
+        return {"kind": self.kind, "metrics": {k: float(v) for k, v in self.metrics.items()},
+                "focus": None if self.focus is None else [float(v) for v in self.focus]}
 
 
 def rays_meet(origins: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, float]:
@@ -46,9 +42,8 @@ def rays_meet(origins: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, float]
     return q, float(ev[0] / max(ev[-1], 1e-12))
 
 
-def axis_hits(
-    cameras: Sequence[Camera], points: np.ndarray, cone_deg: float = 6.0, quantile: float = 0.1, max_points: int = 20000
-) -> np.ndarray:
+def axis_hits(cameras: Sequence[Camera], points: np.ndarray, cone_deg: float = 6.0, quantile: float = 0.1,
+              max_points: int = 20000) -> np.ndarray:
     """Per camera: depth [C] of the first content along its optical axis (``quantile`` of the
     depths of the points within ``cone_deg`` of the axis, occlusion ignored); NaN when none."""
     P = np.asarray(points, np.float64)
@@ -66,16 +61,10 @@ def axis_hits(
     return out
 
 
-def classify_layout(
-    cameras: Sequence[Camera],
-    up: np.ndarray,
-    points: np.ndarray | None = None,
-    forward_resultant: float = 0.75,
-    forward_span_deg: float = 150.0,
-    orbit_span_deg: float = 180.0,
-    orbit_facing_deg: float = 35.0,
-    orbit_hit_ratio: float = 1.3,
-) -> Layout:
+def classify_layout(cameras: Sequence[Camera], up: np.ndarray, points: np.ndarray | None = None,
+                    forward_resultant: float = 0.75, forward_span_deg: float = 150.0,
+                    orbit_span_deg: float = 180.0, orbit_facing_deg: float = 35.0,
+                    orbit_hit_ratio: float = 1.3) -> Layout:
     """Forward-facing, inward orbit or walk-through/outward from camera poses (+ content points).
 
     Metrics (horizontal, in the plane orthogonal to ``up``): ``resultant`` = length of the mean
@@ -110,14 +99,8 @@ def classify_layout(
     gaps = np.diff(np.concatenate([az, az[:1] + 2 * math.pi]))
     span = float(360.0 - math.degrees(gaps.max())) if len(az) > 1 else 0.0
     ring = float(np.median(np.linalg.norm(to_q, axis=1)))
-    metrics = {
-        "resultant": resultant,
-        "span_deg": span,
-        "facing_deg": float(np.median(facing)),
-        "ring_radius": ring,
-        "conditioning": cond,
-        "num_cameras": float(len(cameras)),
-    }
+    metrics = {"resultant": resultant, "span_deg": span, "facing_deg": float(np.median(facing)),
+               "ring_radius": ring, "conditioning": cond, "num_cameras": float(len(cameras))}
     hit = float("nan")
     if points is not None and len(points) >= 10:
         cams_ok = [c for c, o in zip(cameras, ok) if o]
@@ -128,11 +111,8 @@ def classify_layout(
         metrics["hit_ratio"] = hit
     if resultant >= forward_resultant and span < forward_span_deg:
         kind = "forward"
-    elif (
-        span >= orbit_span_deg
-        and metrics["facing_deg"] <= orbit_facing_deg
-        and (math.isnan(hit) or hit <= orbit_hit_ratio)
-    ):
+    elif (span >= orbit_span_deg and metrics["facing_deg"] <= orbit_facing_deg
+          and (math.isnan(hit) or hit <= orbit_hit_ratio)):
         kind = "orbit"
     else:
         kind = "walk"

@@ -1,5 +1,4 @@
 """Label propagation over Gaussian centres: undecided points take the majority of their nearest decided ones."""
-
 from __future__ import annotations
 
 import numpy as np

@@ -4,7 +4,6 @@ torch: :func:`quat_to_rotmat` (any norm; zero -> identity), :func:`quat_multiply
 product), :func:`axis_angle_to_quat` (exponential map, exact identity at zero); numpy:
 :func:`quat_from_matrix`.
 """
-
 from __future__ import annotations
 
 import numpy as np
@@ -19,20 +18,11 @@ def quat_to_rotmat(quats: torch.Tensor) -> torch.Tensor:
     """
     q = F.normalize(quats, dim=-1, eps=1e-12)
     w, x, y, z = q.unbind(-1)
-    R = torch.stack(
-        [
-            1 - 2 * (y * y + z * z),
-            2 * (x * y - w * z),
-            2 * (x * z + w * y),
-            2 * (x * y + w * z),
-            1 - 2 * (x * x + z * z),
-            2 * (y * z - w * x),
-            2 * (x * z - w * y),
-            2 * (y * z + w * x),
-            1 - 2 * (x * x + y * y),
-        ],
-        dim=-1,
-    )
+    R = torch.stack([
+        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+    ], dim=-1)
     return R.reshape(quats.shape[:-1] + (3, 3))
 
 
@@ -40,15 +30,12 @@ def quat_multiply(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """Hamilton product a (x) b of quaternions [...,4] (w,x,y,z)."""
     aw, ax, ay, az = a.unbind(-1)
     bw, bx, by, bz = b.unbind(-1)
-    return torch.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        -1,
-    )
+    return torch.stack([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ], -1)
 
 
 def axis_angle_to_quat(w: torch.Tensor) -> torch.Tensor:

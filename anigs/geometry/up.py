@@ -1,5 +1,4 @@
 """Up direction of a capture (:func:`estimate_up`); the cues and the fallback are described in :mod:`anigs.geometry`."""
-
 from __future__ import annotations
 
 import logging
@@ -15,20 +14,20 @@ from anigs.geometry.planes import plane_cost, point_normals
 
 log = logging.getLogger("anigs.geometry")
 
-ROLL_PRIOR = (0.0, 0.5, 1.5, 0.5)  # cost of roll 0, 90, 180, 270 degrees (gravity cue of photo orientation)
+ROLL_PRIOR = (0.0, 0.5, 1.5, 0.5)   # cost of roll 0, 90, 180, 270 degrees (gravity cue of photo orientation)
 
 
 @dataclass
 class UpConfig:
     """Weights of the up-direction cues (see module docstring)."""
 
-    residual_deg: float = 10.0  # a camera's horizontal axis may tilt this much (hand-held roll)
+    residual_deg: float = 10.0    # a camera's horizontal axis may tilt this much (hand-held roll)
     pitch_scale_deg: float = 60.0  # pitch penalty (pitch / scale)^2, capped at 1.5
     roll_prior: tuple = ROLL_PRIOR
-    plane_weight: float = 2.0  # weight of the point-cloud plane cue (against the mean per-camera cost)
-    min_planarity: float = 0.5  # patches less planar than this are ignored
-    min_margin: float = 0.02  # per-camera cost margin below which two solutions are undecidable
-    prior_weight: float = 1e-3  # closed-form refinement: weak pull towards the mean image-up axis
+    plane_weight: float = 2.0     # weight of the point-cloud plane cue (against the mean per-camera cost)
+    min_planarity: float = 0.5    # patches less planar than this are ignored
+    min_margin: float = 0.02      # per-camera cost margin below which two solutions are undecidable
+    prior_weight: float = 1e-3    # closed-form refinement: weak pull towards the mean image-up axis
     degenerate_ratio: float = 0.02  # 2nd eigenvalue / largest of the horizontal axes' scatter below: one direction free
 
 
@@ -36,23 +35,18 @@ class UpConfig:
 class UpEstimate:
     """Result of :func:`estimate_up`."""
 
-    up: np.ndarray  # [3] unit
-    rolls_deg: list[int]  # per camera: 0, 90, 180 or 270
-    method: str  # cameras | cameras+planes | fallback-look-down | fallback-upright | fallback-z
+    up: np.ndarray                 # [3] unit
+    rolls_deg: list[int]           # per camera: 0, 90, 180 or 270
+    method: str                    # cameras | cameras+planes | fallback-look-down | fallback-upright | fallback-z
     fallback: bool = False
-    margin: float = float("inf")  # cost gap (per camera) to the best solution > 30 deg away
+    margin: float = float("inf")   # cost gap (per camera) to the best solution > 30 deg away
     notes: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         rolls = np.asarray(self.rolls_deg)
-        return {
-            "up": [float(v) for v in self.up],
-            "method": self.method,
-            "fallback": self.fallback,
-            "margin": float(self.margin) if math.isfinite(self.margin) else None,
-            "roll_counts": {str(r): int((rolls == r).sum()) for r in (0, 90, 180, 270)},
-            "notes": self.notes,
-        }
+        return {"up": [float(v) for v in self.up], "method": self.method, "fallback": self.fallback,
+                "margin": float(self.margin) if math.isfinite(self.margin) else None,
+                "roll_counts": {str(r): int((rolls == r).sum()) for r in (0, 90, 180, 270)}, "notes": self.notes}
 
 
 def _camera_cost(dirs: np.ndarray, a: np.ndarray, h: np.ndarray, cfg: UpConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -61,7 +55,7 @@ def _camera_cost(dirs: np.ndarray, a: np.ndarray, h: np.ndarray, cfg: UpConfig) 
     res = np.minimum((np.einsum("md,ckd->mck", dirs, h) / s) ** 2, 4.0)
     cos_p = np.clip(np.einsum("md,ckd->mck", dirs, a), -1, 1)
     pitch = np.degrees(np.arccos(cos_p)) / cfg.pitch_scale_deg
-    cost = res + np.minimum(pitch**2, 1.5) + np.asarray(cfg.roll_prior)[None, None, :]
+    cost = res + np.minimum(pitch ** 2, 1.5) + np.asarray(cfg.roll_prior)[None, None, :]
     k = np.argmin(cost, 2)
     return np.take_along_axis(cost, k[..., None], 2)[..., 0], k
 
@@ -78,7 +72,8 @@ def refine_up(a: np.ndarray, h: np.ndarray, prior_weight: float = 1e-3) -> np.nd
     return up if up @ ahat >= 0 else -up
 
 
-def estimate_up(cameras: Sequence[Camera], points: np.ndarray | None = None, cfg: UpConfig | None = None) -> UpEstimate:
+def estimate_up(cameras: Sequence[Camera], points: np.ndarray | None = None,
+                cfg: UpConfig | None = None) -> UpEstimate:
     """World up of a capture from its cameras (and optionally points [N,3]); never raises for geometry.
 
     See the module docstring for the cues and the fallback.
@@ -144,17 +139,13 @@ def estimate_up(cameras: Sequence[Camera], points: np.ndarray | None = None, cfg
         if angle_deg(rival[1], best_u) > 150:  # a sign tie (all photos sideways): the cameras look down
             fwd = np.stack([c.forward for c in cameras])
             u, kk = (best_u, best_k) if float(np.median(fwd @ best_u)) <= 0 else (rival[1], rival[2])
-            msg = (
-                "estimate_up: undecidable sign (up and -up fit equally, photos sideways without a visible "
-                "ground); falling back to the sign for which the cameras look down"
-            )
+            msg = ("estimate_up: undecidable sign (up and -up fit equally, photos sideways without a visible "
+                   "ground); falling back to the sign for which the cameras look down")
             log.warning(msg)
             return UpEstimate(unit(u), [int(90 * k) for k in kk], "fallback-look-down", True, margin, [msg])
         u0 = refine_up(a[:, 0], h[:, 0], cfg.prior_weight)
-        msg = (
-            f"estimate_up: undecidable (two solutions {angle_deg(best_u, solutions[1][1]):.0f} deg apart score "
-            f"within {margin:.3f}); falling back to upright photos (roll 0): up = the cameras' mean image-up axis"
-        )
+        msg = (f"estimate_up: undecidable (two solutions {angle_deg(best_u, solutions[1][1]):.0f} deg apart score "
+               f"within {margin:.3f}); falling back to upright photos (roll 0): up = the cameras' mean image-up axis")
         log.warning(msg)
         return UpEstimate(u0, [0] * C, "fallback-upright", True, margin, [msg])
     rolls = [int(90 * kk) for kk in best_k]

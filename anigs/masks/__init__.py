@@ -13,7 +13,6 @@ Use :func:`get_mask_backend` to build one by name and :func:`compute_masks` to r
 frames with the input and output checks (NaN pixels and wrong-size masks are errors). Mask
 files are read and written by :mod:`anigs.images`, frames checked by :mod:`anigs.pixels`.
 """
-
 from __future__ import annotations
 
 from typing import Any, Callable, Sequence
@@ -61,10 +60,8 @@ def compute_masks(backend: MaskBackend | str, frames: Sequence[Frame], **kwargs:
         img = check_image(fr.image, fr.name)
         fr = Frame(img, fr.camera, fr.depth, fr.alpha, fr.name, fr.background)
         if fr.camera is not None and (fr.camera.height, fr.camera.width) != fr.size:
-            raise ValueError(
-                f"frame {fr.name!r} is {fr.size[1]}x{fr.size[0]} (WxH) but its camera is "
-                f"{fr.camera.width}x{fr.camera.height}"
-            )
+            raise ValueError(f"frame {fr.name!r} is {fr.size[1]}x{fr.size[0]} (WxH) but its camera is "
+                             f"{fr.camera.width}x{fr.camera.height}")
         res = backend(fr)
         if "dynamic" not in res:
             raise RuntimeError(f"mask backend returned no 'dynamic' mask for frame {fr.name!r}")
@@ -84,13 +81,5 @@ def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
     return 1.0 if union == 0 else float((a & b).sum() / union)
 
 
-__all__ = [
-    "Frame",
-    "MaskBackend",
-    "MASK_BACKENDS",
-    "get_mask_backend",
-    "compute_masks",
-    "check_mask_size",
-    "mask_iou",
-    "render_frames",
-]
+__all__ = ["Frame", "MaskBackend", "MASK_BACKENDS", "get_mask_backend", "compute_masks", "check_mask_size",
+           "mask_iou", "render_frames"]

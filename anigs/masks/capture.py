@@ -4,7 +4,6 @@ Both the masks stage (the lift votes over the photos too) and the views stage on
 (regions of interest lifted from the photos) segment the photos the canonical model was fitted
 to; the rendered depth and alpha feed the vegetation backend's ground cue.
 """
-
 from __future__ import annotations
 
 import logging

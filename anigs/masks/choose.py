@@ -1,6 +1,5 @@
 """Which backend segments the masks stage's frames (``masks.backend``): the effects stage's
 chosen effects rendered per view (``effects``), vegetation cues, ground-truth labels or SAM2."""
-
 from __future__ import annotations
 
 import dataclasses
@@ -31,15 +30,9 @@ def _still(frame) -> dict[str, np.ndarray]:
     return {"dynamic": np.zeros(frame.image.shape[:2], bool)}
 
 
-def choose_backend(
-    cfg,
-    g: Gaussians,
-    veg: VegetationConfig,
-    ground: GroundPlane | None,
-    effects: EffectSets | None,
-    truth: GroundTruth | None,
-    recon_cameras: Sequence[Camera] | None,
-) -> Callable:
+def choose_backend(cfg, g: Gaussians, veg: VegetationConfig, ground: GroundPlane | None,
+                   effects: EffectSets | None, truth: GroundTruth | None,
+                   recon_cameras: Sequence[Camera] | None) -> Callable:
     """The backend ``cfg.backend`` names (``cfg``: the ``masks`` section), ready to segment frames."""
     if cfg.backend == "effects":
         from anigs.effects.config import EFFECT_REGION, REGIONS

@@ -1,6 +1,5 @@
 """Completing each view's mask with the pixels the lifted dynamic Gaussians dominate there, so
 every Gaussian that moves lies inside the masks the later stages composite with."""
-
 from __future__ import annotations
 
 from typing import Sequence

@@ -35,7 +35,6 @@ Measured (12 views each; before -> with both checks at their defaults):
 - flower-llff (photos): 0.834 (worst 0.40) -> 1.0 in every view, ``dynamic_abs_diff`` 0.0275 ->
   0.0266 (232 of 24311 stopped at rest; per round about 150 stopped and 450 slowed).
 """
-
 from __future__ import annotations
 
 import itertools
@@ -59,21 +58,16 @@ log = logging.getLogger("anigs.masks.contain")
 class ContainResult:
     """Outcome of :func:`contain_dynamic`."""
 
-    dynamic: np.ndarray  # bool [N]: the contained dynamic set
-    outside: np.ndarray  # float [N]: the largest weight (px) outside a view's dilated mask (0 for static)
-    worst_view: np.ndarray  # int [N]: the view of that largest weight (-1 for static)
+    dynamic: np.ndarray        # bool [N]: the contained dynamic set
+    outside: np.ndarray        # float [N]: the largest weight (px) outside a view's dilated mask (0 for static)
+    worst_view: np.ndarray     # int [N]: the view of that largest weight (-1 for static)
 
     def info(self, before: np.ndarray, names: Sequence[str], margin_px: int, max_outside_px: float) -> dict:
         frozen = before & ~self.dynamic
         per_view = {n: int((frozen & (self.worst_view == k)).sum()) for k, n in enumerate(names)}
-        return {
-            "margin_px": int(margin_px),
-            "max_outside_px": float(max_outside_px),
-            "dynamic_before": int(before.sum()),
-            "dynamic_after": int(self.dynamic.sum()),
-            "frozen": int(frozen.sum()),
-            "frozen_by_view": per_view,
-        }
+        return {"margin_px": int(margin_px), "max_outside_px": float(max_outside_px),
+                "dynamic_before": int(before.sum()), "dynamic_after": int(self.dynamic.sum()),
+                "frozen": int(frozen.sum()), "frozen_by_view": per_view}
 
 
 def dilate_mask(mask: np.ndarray, px: int) -> np.ndarray:
@@ -121,9 +115,8 @@ def _outside_region(mask: np.ndarray, cam: Camera, margin_px: int) -> tuple[np.n
     return outside, dist
 
 
-def outside_weights(
-    g: Gaussians, cameras: Sequence[Camera], masks: Sequence[np.ndarray], margin_px: int = 3
-) -> np.ndarray:
+def outside_weights(g: Gaussians, cameras: Sequence[Camera], masks: Sequence[np.ndarray],
+                    margin_px: int = 3) -> np.ndarray:
     """Blending weight [V,N] (pixel units) of every Gaussian on the pixels outside each view's
     mask dilated by ``margin_px``."""
     if len(cameras) != len(masks):
@@ -138,14 +131,8 @@ def outside_weights(
     return np.maximum(out, 0.0)
 
 
-def contain_dynamic(
-    g: Gaussians,
-    dynamic: np.ndarray,
-    cameras: Sequence[Camera],
-    masks: Sequence[np.ndarray],
-    margin_px: int = 3,
-    max_outside_px: float = 0.05,
-) -> ContainResult:
+def contain_dynamic(g: Gaussians, dynamic: np.ndarray, cameras: Sequence[Camera], masks: Sequence[np.ndarray],
+                    margin_px: int = 3, max_outside_px: float = 0.05) -> ContainResult:
     """The dynamic Gaussians whose footprint stays inside the dilated masks of every view (see the
     module docstring); ``dynamic`` [N] bool. Deterministic (exact rasterizer weights, fixed order)."""
     dynamic = np.asarray(dynamic, bool)
@@ -160,26 +147,15 @@ def contain_dynamic(
         outside = np.where(dynamic, w.max(0), 0.0)
         worst = np.where(dynamic, w.argmax(0), -1)
     keep = dynamic & (outside <= max_outside_px)
-    log.info(
-        "containment: %d of %d dynamic Gaussians reach more than %.3g px of weight outside the masks "
-        "dilated by %d px in some view: they stay still",
-        int((dynamic & ~keep).sum()),
-        int(dynamic.sum()),
-        max_outside_px,
-        margin_px,
-    )
+    log.info("containment: %d of %d dynamic Gaussians reach more than %.3g px of weight outside the masks "
+             "dilated by %d px in some view: they stay still", int((dynamic & ~keep).sum()), int(dynamic.sum()),
+             max_outside_px, margin_px)
     return ContainResult(keep, outside, worst)
 
 
-def motion_outside_weights(
-    canonical: Gaussians,
-    deformation,
-    cameras: Sequence[Camera],
-    masks: Sequence[np.ndarray],
-    margin_px: int = 3,
-    times: Sequence[float] | None = None,
-    views: Sequence[int] | None = None,
-) -> np.ndarray:
+def motion_outside_weights(canonical: Gaussians, deformation, cameras: Sequence[Camera], masks: Sequence[np.ndarray],
+                           margin_px: int = 3, times: Sequence[float] | None = None,
+                           views: Sequence[int] | None = None) -> np.ndarray:
     """Per view and dynamic Gaussian of ``deformation`` (a :class:`~anigs.animate.deform.DCTDeformation`
     over ``canonical``), [V,D]: the largest blending weight (px) the Gaussian puts outside the view's
     mask dilated by ``margin_px`` at any of the frame ``times`` (default: every integer frame).
@@ -197,7 +173,7 @@ def motion_outside_weights(
         return best
     canonical = canonical.detach().to("cpu")
     deformation = deformation.to("cpu")
-    for t in range(deformation.num_frames) if times is None else times:
+    for t in (range(deformation.num_frames) if times is None else times):
         with torch.no_grad():
             g = deformation(canonical, t)
         for k, (out, dist) in regions.items():
@@ -216,16 +192,9 @@ def scaled_motion(deformation, factors: np.ndarray):
     return type(deformation).from_state(state)
 
 
-def contain_motion(
-    canonical: Gaussians,
-    deformation,
-    cameras: Sequence[Camera],
-    masks: Sequence[np.ndarray],
-    margin_px: int = 3,
-    max_outside_px: float = 0.01,
-    times: Sequence[float] | None = None,
-    steps: Sequence[float] = (0.5, 0.25),
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def contain_motion(canonical: Gaussians, deformation, cameras: Sequence[Camera], masks: Sequence[np.ndarray],
+                   margin_px: int = 3, max_outside_px: float = 0.01, times: Sequence[float] | None = None,
+                   steps: Sequence[float] = (0.5, 0.25)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The trained motion's containment. Motion can carry a Gaussian that sits inside the masks out
     of them (a frond swaying across the mask border by more than the metric's band). A dynamic
     Gaussian of ``deformation`` whose footprint, in some frame and view, puts more than
@@ -249,15 +218,8 @@ def contain_motion(
     views = None  # all views first; then only those some Gaussian still left the masks in
     for _ in range(len(levels)):
         factors = np.array(levels)[level]
-        w = motion_outside_weights(
-            canonical,
-            scaled_motion(deformation, factors) if (factors < 1).any() else deformation,
-            cameras,
-            masks,
-            margin_px,
-            times,
-            views,
-        )  # [V,D]
+        w = motion_outside_weights(canonical, scaled_motion(deformation, factors) if (factors < 1).any()
+                                   else deformation, cameras, masks, margin_px, times, views)  # [V,D]
         outside[check], worst[check] = w.max(0)[check], np.where(w.max(0) > 0, w.argmax(0), -1)[check]
         leaks = check[None] & (w > max_outside_px)
         fail = leaks.any(0)
@@ -269,16 +231,8 @@ def contain_motion(
         if not check.any():
             break
     factor = np.array(levels + [0.0])[level]
-    log.info(
-        "containment of the motion: of %d dynamic Gaussians, %d keep their motion, %d move less (factors %s) "
-        "and %d stay still (more than %.3g px of weight outside the masks dilated by %d px in some frame and "
-        "view)",
-        D,
-        int((factor == 1).sum()),
-        int(((factor > 0) & (factor < 1)).sum()),
-        levels[1:],
-        int((factor == 0).sum()),
-        max_outside_px,
-        margin_px,
-    )
+    log.info("containment of the motion: of %d dynamic Gaussians, %d keep their motion, %d move less (factors %s) "
+             "and %d stay still (more than %.3g px of weight outside the masks dilated by %d px in some frame and "
+             "view)", D, int((factor == 1).sum()), int(((factor > 0) & (factor < 1)).sum()), levels[1:],
+             int((factor == 0).sum()), max_outside_px, margin_px)
     return factor, outside, worst

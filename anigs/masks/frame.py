@@ -1,5 +1,4 @@
 """One image to segment (:class:`Frame`), the mask backend type, and frames rendered from a Gaussian scene."""
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -51,14 +50,6 @@ def render_frames(gaussians, cameras: Sequence[Camera], background: Sequence[flo
         sub = gaussians.subset(frustum_subset(gaussians, cam))
         with torch.no_grad():
             rgb, alpha, meta = render_gaussians(sub, cam, background=bg)
-        frames.append(
-            Frame(
-                rgb.clamp(0, 1).numpy(),
-                cam,
-                meta["depth"].numpy(),
-                alpha.numpy(),
-                cam.name,
-                None if background is None else np.asarray(background, np.float32),
-            )
-        )
+        frames.append(Frame(rgb.clamp(0, 1).numpy(), cam, meta["depth"].numpy(), alpha.numpy(), cam.name,
+                            None if background is None else np.asarray(background, np.float32)))
     return frames

@@ -1,6 +1,5 @@
 """The first frame of each queued view, segmented by the masks stage: rendered from the canonical
 model, or read from a folder (``{id}.png``, or frame 0 of an ``{id}.npz`` clip)."""
-
 from __future__ import annotations
 
 from pathlib import Path

@@ -7,7 +7,6 @@ cameras of a reconstruction in another frame through a similarity between the tw
 sets (:func:`anigs.sfm.align.align_cameras`). :func:`roi_from_labels` turns ground-truth
 labels into the dynamic flags of a reconstruction's Gaussians.
 """
-
 from __future__ import annotations
 
 import logging
@@ -47,15 +46,8 @@ class LabelsBackend:
             frame (e.g. SfM -> ground truth); cameras are moved with it before rendering.
     """
 
-    def __init__(
-        self,
-        gaussians: Gaussians,
-        labels: np.ndarray,
-        effects: dict[str, Sequence[int]],
-        threshold: float = 0.5,
-        min_alpha: float = 0.3,
-        to_gaussians_frame: Similarity | None = None,
-    ):
+    def __init__(self, gaussians: Gaussians, labels: np.ndarray, effects: dict[str, Sequence[int]],
+                 threshold: float = 0.5, min_alpha: float = 0.3, to_gaussians_frame: Similarity | None = None):
         labels = np.asarray(labels)
         if labels.shape != (gaussians.num,):
             raise ValueError(f"labels backend: labels have shape {labels.shape}, Gaussians number {gaussians.num}")
@@ -72,15 +64,9 @@ class LabelsBackend:
         return label_masks(self.g, self.labels, self.effects, cam, self.threshold, self.min_alpha)
 
 
-def build(
-    gaussians: Gaussians,
-    labels: np.ndarray,
-    effects: dict[str, Sequence[int]] | None = None,
-    dynamic_labels: Sequence[int] | None = None,
-    threshold: float = 0.5,
-    min_alpha: float = 0.3,
-    to_gaussians_frame: Similarity | None = None,
-) -> LabelsBackend:
+def build(gaussians: Gaussians, labels: np.ndarray, effects: dict[str, Sequence[int]] | None = None,
+          dynamic_labels: Sequence[int] | None = None, threshold: float = 0.5, min_alpha: float = 0.3,
+          to_gaussians_frame: Similarity | None = None) -> LabelsBackend:
     """Registry entry: ``effects`` or (one effect ``dynamic`` of) ``dynamic_labels``."""
     if effects is None:
         if dynamic_labels is None:
@@ -89,15 +75,8 @@ def build(
     return LabelsBackend(gaussians, labels, effects, threshold, min_alpha, to_gaussians_frame)
 
 
-def roi_from_labels(
-    g: Gaussians,
-    labels_path: str,
-    motion_path: str | None,
-    dynamic_labels,
-    gt_gaussians: str | None,
-    gt_cameras: str | None,
-    cameras: list[Camera],
-) -> np.ndarray:
+def roi_from_labels(g: Gaussians, labels_path: str, motion_path: str | None, dynamic_labels, gt_gaussians: str | None,
+                    gt_cameras: str | None, cameras: list[Camera]) -> np.ndarray:
     """Dynamic flag [N] of the canonical Gaussians from ground-truth labels."""
     labels = np.load(labels_path)
     if motion_path:
@@ -111,8 +90,6 @@ def roi_from_labels(
         label_means = load_ply(gt_gaussians).means.detach().double().numpy()
         if gt_cameras:
             sim, rms = align_cameras(load_cameras(gt_cameras), cameras)
-            logging.getLogger("anigs.views").info(
-                "views: ground-truth frame -> camera frame: scale %.4g, camera centre RMS %.3g", sim.scale, rms
-            )
+            logging.getLogger("anigs.views").info("views: ground-truth frame -> camera frame: scale %.4g, camera centre RMS %.3g", sim.scale, rms)
     lab = labels_for(g.means.detach().double().numpy(), labels, label_means, sim)
     return np.isin(lab, ids)

@@ -2,7 +2,6 @@
 (:mod:`anigs.render.visibility`); dynamic when the fraction of positive votes is >=
 ``vote_threshold`` and it is visible in >= ``min_views`` views.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -22,18 +21,17 @@ from anigs.render.visibility import VisibilityConfig, as_means, blend_weights, c
 class LiftConfig:
     """Parameters of the 2D-to-3D mask lifting (config key ``lift``)."""
 
-    min_views: int = 1  # min views in which a Gaussian is visible to be dynamic
-    vote_threshold: float = 0.5  # min fraction of those views whose mask covers it
-    visibility: str = "weight"  # weight | depth | frustum
-    rel_tol: float = 0.03  # depth test: relative tolerance
-    scale_tol: float = 2.0  # depth test: tolerance in Gaussian max-scales
-    min_alpha: float = 0.5  # depth test: pixels below this alpha occlude nothing
-    min_weight: float = 0.05  # weight test: min summed blending weight (pixels)
-    #: Gaussians seen in < min_views views take the majority of their k nearest decided neighbours
-    #: (0 = they stay static)
-    propagate_k: int = 8
-    weighted_votes: bool = True  # weight visibility: votes weighted by blending weight
-    ground_cut: float = 0.5  # with a ground plane: static below this fraction of its min_height
+    min_views: int = 1            # min views in which a Gaussian is visible to be dynamic
+    vote_threshold: float = 0.5   # min fraction of those views whose mask covers it
+    visibility: str = "weight"    # weight | depth | frustum
+    rel_tol: float = 0.03         # depth test: relative tolerance
+    scale_tol: float = 2.0        # depth test: tolerance in Gaussian max-scales
+    min_alpha: float = 0.5        # depth test: pixels below this alpha occlude nothing
+    min_weight: float = 0.05      # weight test: min summed blending weight (pixels)
+    propagate_k: int = 8          # Gaussians seen in < min_views views take the majority of their
+                                  # k nearest decided neighbours (0 = they stay static)
+    weighted_votes: bool = True   # weight visibility: votes weighted by blending weight
+    ground_cut: float = 0.5       # with a ground plane: static below this fraction of its min_height
 
     def __post_init__(self) -> None:
         if self.ground_cut < 0:
@@ -51,23 +49,13 @@ class LiftConfig:
         return from_dict(LiftConfig, d, "lift config", ValueError)
 
     def visibility_config(self) -> "VisibilityConfig":
-        return VisibilityConfig(
-            mode=self.visibility,
-            rel_tol=self.rel_tol,
-            scale_tol=self.scale_tol,
-            min_alpha=self.min_alpha,
-            min_weight=self.min_weight,
-        )
+        return VisibilityConfig(mode=self.visibility, rel_tol=self.rel_tol, scale_tol=self.scale_tol,
+                                min_alpha=self.min_alpha, min_weight=self.min_weight)
 
 
-def lift_votes(
-    g: Gaussians | torch.Tensor | np.ndarray,
-    cameras: Sequence[Camera],
-    masks: Sequence[np.ndarray],
-    cfg: VisibilityConfig | None = None,
-    depths: Sequence[np.ndarray] | None = None,
-    weighted: bool = False,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def lift_votes(g: Gaussians | torch.Tensor | np.ndarray, cameras: Sequence[Camera], masks: Sequence[np.ndarray],
+               cfg: VisibilityConfig | None = None, depths: Sequence[np.ndarray] | None = None,
+               weighted: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Votes per Gaussian over the views: (positive [N], total [N], views seen [N int]).
 
     Per view a Gaussian that is visible votes 1 (positive when its pixel is in the mask). With
@@ -113,14 +101,9 @@ def precision_recall(pred: np.ndarray, truth: np.ndarray) -> dict[str, float]:
     return {"precision": tp / max(int(pred.sum()), 1), "recall": tp / max(int(truth.sum()), 1)}
 
 
-def lift_masks_report(
-    g: Gaussians | torch.Tensor | np.ndarray,
-    cameras: Sequence[Camera],
-    masks: Sequence[np.ndarray],
-    cfg: LiftConfig | None = None,
-    depths: Sequence[np.ndarray] | None = None,
-    ground=None,
-) -> tuple[np.ndarray, dict]:
+def lift_masks_report(g: Gaussians | torch.Tensor | np.ndarray, cameras: Sequence[Camera], masks: Sequence[np.ndarray],
+                      cfg: LiftConfig | None = None, depths: Sequence[np.ndarray] | None = None,
+                      ground=None) -> tuple[np.ndarray, dict]:
     """:func:`lift_masks` with a :class:`LiftConfig`; also returns counts (visible, voted, propagated).
 
     ``ground`` (a :class:`anigs.geometry.ground.GroundPlane`): Gaussians whose centre lies
@@ -141,32 +124,17 @@ def lift_masks_report(
     if ground is not None and cfg.ground_cut > 0:
         low = means @ np.asarray(ground.normal, float) - ground.offset < cfg.ground_cut * ground.min_height
         out &= ~low
-    info = {
-        "num_gaussians": int(len(means)),
-        "num_views": len(cameras),
-        "decided": int(decided.sum()),
-        "undecided": int((~decided).sum()),
-        "dynamic_voted": int(dyn.sum()),
-        "dynamic_propagated": int((out & ~decided).sum()),
-        "below_ground_cut": int(low.sum()),
-        "dynamic": int(out.sum()),
-        "visibility": cfg.visibility,
-        "weighted_votes": cfg.weighted_votes,
-    }
+    info = {"num_gaussians": int(len(means)), "num_views": len(cameras), "decided": int(decided.sum()),
+            "undecided": int((~decided).sum()), "dynamic_voted": int(dyn.sum()),
+            "dynamic_propagated": int((out & ~decided).sum()), "below_ground_cut": int(low.sum()),
+            "dynamic": int(out.sum()), "visibility": cfg.visibility, "weighted_votes": cfg.weighted_votes}
     return out, info
 
 
-def lift_masks(
-    g: Gaussians | torch.Tensor | np.ndarray,
-    cameras: Sequence[Camera],
-    masks: Sequence[np.ndarray],
-    min_views: int = 1,
-    vote_threshold: float = 0.5,
-    visibility: str = "depth",
-    depths: Sequence[np.ndarray] | None = None,
-    propagate_k: int = 0,
-    cfg: LiftConfig | None = None,
-) -> np.ndarray:
+def lift_masks(g: Gaussians | torch.Tensor | np.ndarray, cameras: Sequence[Camera], masks: Sequence[np.ndarray],
+               min_views: int = 1, vote_threshold: float = 0.5, visibility: str = "depth",
+               depths: Sequence[np.ndarray] | None = None, propagate_k: int = 0,
+               cfg: LiftConfig | None = None) -> np.ndarray:
     """Lift 2D masks (bool [H,W] per camera) to a dynamic flag per Gaussian, bool [N].
 
     ``g`` is a :class:`Gaussians` (needed for the ``depth`` test unless ``depths`` are given,
@@ -177,7 +145,6 @@ def lift_masks(
     ``cfg`` (a :class:`LiftConfig`) overrides the keyword parameters.
     """
     if cfg is None:
-        cfg = LiftConfig(
-            min_views=min_views, vote_threshold=vote_threshold, visibility=visibility, propagate_k=propagate_k
-        )
+        cfg = LiftConfig(min_views=min_views, vote_threshold=vote_threshold, visibility=visibility,
+                         propagate_k=propagate_k)
     return lift_masks_report(g, cameras, masks, cfg, depths)[0]

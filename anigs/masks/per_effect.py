@@ -1,6 +1,5 @@
 """Which effect each dynamic Gaussian belongs to, and one mask per chosen effect for the
 backends that give a single dynamic mask (vegetation, sam2)."""
-
 from __future__ import annotations
 
 import logging
@@ -24,20 +23,13 @@ def label_dynamic(g: Gaussians, dyn: np.ndarray, chosen: Sequence[str], regions:
     chosen_regions = sorted({effect_label_ids()[e] - 1 for e in chosen})
     labels, counts = effect_labels(dyn, regions, chosen_regions, g.means.detach().double().numpy())
     counts["per_region"] = {REGIONS[k - 1]: int((labels == k).sum()) for k in range(1, len(REGIONS) + 1)}
-    log.info(
-        "masks: effect labels of the %d dynamic Gaussians: %s (%d from the effects stage's regions, %d from "
-        "the nearest labelled one)",
-        int(dyn.sum()),
-        counts["per_region"],
-        counts["from_regions"],
-        counts["nearest"],
-    )
+    log.info("masks: effect labels of the %d dynamic Gaussians: %s (%d from the effects stage's regions, %d from "
+             "the nearest labelled one)", int(dyn.sum()), counts["per_region"], counts["from_regions"], counts["nearest"])
     return labels, counts
 
 
-def add_effect_masks(
-    g: Gaussians, labels: np.ndarray, chosen: Sequence[str], frames: Sequence[Frame], results: list[dict], opts: dict
-) -> None:
+def add_effect_masks(g: Gaussians, labels: np.ndarray, chosen: Sequence[str], frames: Sequence[Frame],
+                     results: list[dict], opts: dict) -> None:
     """Add to each view's ``results`` the render of each chosen effect's dynamic Gaussians (by their
     effect label), within the backend's mask."""
     ids = effect_label_ids()

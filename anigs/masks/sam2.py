@@ -14,7 +14,6 @@ Install: ``SAM2_BUILD_CUDA=0 pip install --no-build-isolation sam2`` plus a torc
 matching the installed torch (the PyPI torchvision is a CUDA build that fails to import with
 the CPU torch: sam2 imports torchvision).
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -27,25 +26,23 @@ from anigs.device import get_device
 from anigs.masks.frame import Frame
 from anigs.masks.vegetation import VegetationConfig, vegetation_mask
 
-INSTALL_HINT = (
-    "install the 'sam2' extra: SAM2_BUILD_CUDA=0 pip install --no-build-isolation sam2, "
-    "with a torchvision build that matches your torch (on a CPU-only torch the PyPI "
-    "torchvision, a CUDA build, fails to import)"
-)
+INSTALL_HINT = ("install the 'sam2' extra: SAM2_BUILD_CUDA=0 pip install --no-build-isolation sam2, "
+                "with a torchvision build that matches your torch (on a CPU-only torch the PyPI "
+                "torchvision, a CUDA build, fails to import)")
 
 
 @dataclass
 class Sam2Config:
     """Parameters of the SAM2 backend (config section ``masks.sam2``)."""
 
-    checkpoint: str | None = None  # local SAM2 checkpoint (.pt)
+    checkpoint: str | None = None            # local SAM2 checkpoint (.pt)
     model_config: str = "configs/sam2.1/sam2.1_hiera_t.yaml"  # config name inside the sam2 package
-    mode: str = "auto"  # auto | points
+    mode: str = "auto"                        # auto | points
     points: list = field(default_factory=list)  # [[x, y], ...] pixel prompts for mode 'points'
-    min_vegetation: float = 0.5  # auto: min fraction of vegetation pixels in a segment
-    points_per_side: int = 16  # auto: prompt grid density
-    device: str = "auto"  # auto | cpu | cuda
-    random_weights: bool = False  # tests only: allow checkpoint null
+    min_vegetation: float = 0.5               # auto: min fraction of vegetation pixels in a segment
+    points_per_side: int = 16                 # auto: prompt grid density
+    device: str = "auto"                      # auto | cpu | cuda
+    random_weights: bool = False              # tests only: allow checkpoint null
 
     def __post_init__(self) -> None:
         if self.mode not in ("auto", "points"):
@@ -65,9 +62,8 @@ def import_sam2():
         from sam2.build_sam import build_sam2
         from sam2.sam2_image_predictor import SAM2ImagePredictor
     except Exception as exc:  # torchvision's failure is a RuntimeError/AttributeError, not ImportError
-        raise ImportError(
-            f"the sam2 mask backend cannot import sam2 ({type(exc).__name__}: {exc}); " + INSTALL_HINT
-        ) from exc
+        raise ImportError(f"the sam2 mask backend cannot import sam2 ({type(exc).__name__}: {exc}); "
+                          + INSTALL_HINT) from exc
     return build_sam2, SAM2AutomaticMaskGenerator, SAM2ImagePredictor
 
 
@@ -76,15 +72,11 @@ class Sam2Backend:
 
     def __init__(self, cfg: Sam2Config, vegetation: VegetationConfig | None = None):
         if cfg.checkpoint is None and not cfg.random_weights:
-            raise ValueError(
-                "sam2 backend: set masks.sam2.checkpoint to a local SAM2 checkpoint (.pt), "
-                "e.g. sam2.1_hiera_tiny.pt from the SAM2 release page"
-            )
+            raise ValueError("sam2 backend: set masks.sam2.checkpoint to a local SAM2 checkpoint (.pt), "
+                             "e.g. sam2.1_hiera_tiny.pt from the SAM2 release page")
         if cfg.checkpoint is not None and not Path(cfg.checkpoint).is_file():
-            raise FileNotFoundError(
-                f"sam2 backend: checkpoint not found: {cfg.checkpoint} "
-                "(download a SAM2 checkpoint and point masks.sam2.checkpoint at it)"
-            )
+            raise FileNotFoundError(f"sam2 backend: checkpoint not found: {cfg.checkpoint} "
+                                    "(download a SAM2 checkpoint and point masks.sam2.checkpoint at it)")
         build_sam2, AutoGen, Predictor = import_sam2()
         dev = get_device(cfg.device)
         model = build_sam2(cfg.model_config, cfg.checkpoint, device=str(dev), apply_postprocessing=False)
@@ -107,16 +99,14 @@ class Sam2Backend:
         else:
             self.pred.set_image(img8)
             for x, y in self.cfg.points:
-                masks, scores, _ = self.pred.predict(
-                    point_coords=np.array([[x, y]], np.float32), point_labels=np.array([1]), multimask_output=True
-                )
+                masks, scores, _ = self.pred.predict(point_coords=np.array([[x, y]], np.float32),
+                                                     point_labels=np.array([1]), multimask_output=True)
                 out |= np.asarray(masks[int(np.argmax(scores))]) > 0
         return {"dynamic": out}
 
 
-def build(
-    config: dict | Sam2Config | None = None, vegetation: dict | VegetationConfig | None = None, **kwargs
-) -> Sam2Backend:
+def build(config: dict | Sam2Config | None = None, vegetation: dict | VegetationConfig | None = None,
+          **kwargs) -> Sam2Backend:
     """Registry entry: a config dict / dataclass, or the dataclass fields as keywords."""
     cfg = config if isinstance(config, Sam2Config) else Sam2Config.from_dict({**(config or {}), **kwargs})
     veg = vegetation

@@ -5,7 +5,6 @@ masks with it, keep only the Gaussians contained in every view's mask, and label
 :func:`segment_views` returns a :class:`MasksResult`; the stage writes it
 (:mod:`anigs.stages.masks`) and compares it with the ground truth (:func:`anigs.masks.truth.compare`).
 """
-
 from __future__ import annotations
 
 import logging
@@ -39,9 +38,8 @@ class MasksResult:
     info: dict
 
 
-def _capture_votes(
-    cfg, g: Gaussians, backend, veg, ground, images: str | Path, capture_cams: Sequence[Camera] | None, info: dict
-) -> tuple[list[Camera], list[np.ndarray]]:
+def _capture_votes(cfg, g: Gaussians, backend, veg, ground, images: str | Path,
+                   capture_cams: Sequence[Camera] | None, info: dict) -> tuple[list[Camera], list[np.ndarray]]:
     """The capture photos segmented too: (their cameras, their dynamic masks) for the lifting."""
     from anigs.masks.capture import capture_frames
 
@@ -50,25 +48,14 @@ def _capture_votes(
     cap_frames = capture_frames(images, capture_cams, g)
     cap_masks = [r["dynamic"] for r in compute_masks(capture_backend(cfg, backend, veg, ground), cap_frames)]
     info["capture"] = {"images": len(cap_frames), "fraction": float(np.mean([m.mean() for m in cap_masks]))}
-    log.info(
-        "masks: %d capture photos segmented (dynamic %.1f%%), lifting over them too",
-        len(cap_frames),
-        100 * info["capture"]["fraction"],
-    )
+    log.info("masks: %d capture photos segmented (dynamic %.1f%%), lifting over them too",
+             len(cap_frames), 100 * info["capture"]["fraction"])
     return [f.camera for f in cap_frames], cap_masks
 
 
-def segment_views(
-    cfg,
-    g: Gaussians,
-    frames: Sequence[Frame],
-    up: np.ndarray,
-    effects: EffectSets | None = None,
-    effects_source: str = "",
-    truth: GroundTruth | None = None,
-    capture_cams: Sequence[Camera] | None = None,
-    images: str | Path | None = None,
-) -> MasksResult:
+def segment_views(cfg, g: Gaussians, frames: Sequence[Frame], up: np.ndarray, effects: EffectSets | None = None,
+                  effects_source: str = "", truth: GroundTruth | None = None,
+                  capture_cams: Sequence[Camera] | None = None, images: str | Path | None = None) -> MasksResult:
     """The masks of ``frames`` and the dynamic set of ``g`` (``cfg``: the ``masks`` section; ``up``
     [3] the scene's up; ``effects``: the effects stage's sets, ``effects_source`` naming them;
     ``capture_cams``/``images``: the capture photos, segmented too and voting in the lifting)."""
@@ -98,13 +85,11 @@ def segment_views(
         from anigs.masks.contain import contain_dynamic
 
         before = dyn
-        kept = contain_dynamic(
-            g, dyn, cams, [r["dynamic"] for r in results], cfg.contain_margin_px, cfg.contain_max_outside_px
-        )
+        kept = contain_dynamic(g, dyn, cams, [r["dynamic"] for r in results], cfg.contain_margin_px,
+                               cfg.contain_max_outside_px)
         dyn = kept.dynamic
-        info["containment"] = kept.info(
-            before, [fr.name for fr in frames], cfg.contain_margin_px, cfg.contain_max_outside_px
-        )
+        info["containment"] = kept.info(before, [fr.name for fr in frames], cfg.contain_margin_px,
+                                        cfg.contain_max_outside_px)
     labels = None
     if effects is not None:  # which effect each dynamic Gaussian belongs to; per-effect masks for every backend
         from anigs.masks.per_effect import add_effect_masks, label_dynamic

@@ -1,6 +1,5 @@
 """Ground truth for the masks stage (synthetic scenes): the labelled Gaussians that move, their
 label masks per view, and the yardsticks the masks and the lifted set are measured against."""
-
 from __future__ import annotations
 
 import logging
@@ -54,15 +53,13 @@ class GroundTruth:
             log.info("masks: camera frame -> ground-truth frame: scale %.4g, centre RMS %.3g", sim.scale, rms)
         return LabelsBackend(load_ply(self.gaussians), labels, effects, to_gaussians_frame=sim, **opts)
 
-    def appearance(
-        self, g: Gaussians, capture_cams: Sequence[Camera], frames: Sequence[Frame], opts: dict
-    ) -> tuple[np.ndarray, list[np.ndarray]]:
+    def appearance(self, g: Gaussians, capture_cams: Sequence[Camera], frames: Sequence[Frame],
+                   opts: dict) -> tuple[np.ndarray, list[np.ndarray]]:
         """(dynamic flag [N] of the appearance labels, their label masks [H,W] per frame)."""
         effects = self.effects()
         sim, _ = align_cameras(capture_cams, load_cameras(self.cameras))
-        app, _, _ = appearance_labels(
-            g, load_ply(self.gaussians), np.load(self.labels), capture_cams, to_labels_frame=sim
-        )
+        app, _, _ = appearance_labels(g, load_ply(self.gaussians), np.load(self.labels), capture_cams,
+                                      to_labels_frame=sim)
         masks = [r["dynamic"] for r in compute_masks(LabelsBackend(g, app, effects, **opts), frames)]
         return np.isin(app, dynamic_label_ids(effects)), masks
 
@@ -71,17 +68,9 @@ class GroundTruth:
         return roi_from_labels(g, self.labels, self.motion, None, self.gaussians, self.cameras, list(cameras))
 
 
-def compare(
-    info: dict,
-    g: Gaussians,
-    frames: Sequence[Frame],
-    results: Sequence[dict],
-    dyn: np.ndarray,
-    truth: GroundTruth,
-    label_masks: Sequence[dict],
-    appearance: tuple | None,
-    cameras: Sequence[Camera],
-) -> None:
+def compare(info: dict, g: Gaussians, frames: Sequence[Frame], results: Sequence[dict], dyn: np.ndarray,
+            truth: GroundTruth, label_masks: Sequence[dict], appearance: tuple | None,
+            cameras: Sequence[Camera]) -> None:
     """Add to ``info`` (``masks.json``) each view's IoU against the label masks (and the appearance
     labels' masks), their mean and min, and the lifted set's precision/recall against the labels."""
     for k, (entry, res) in enumerate(zip(info["views"], results)):
@@ -90,35 +79,18 @@ def compare(
         entry["labels_fraction"] = float(label_masks[k]["dynamic"].mean())
         if appearance is not None:
             entry["iou_appearance"] = mask_iou(m, appearance[1][k])
-        log.info(
-            "masks: %s IoU vs labels %.3f%s",
-            frames[k].name,
-            entry["iou_vs_labels"],
-            f" vs appearance {entry['iou_appearance']:.3f}" if appearance is not None else "",
-        )
+        log.info("masks: %s IoU vs labels %.3f%s", frames[k].name, entry["iou_vs_labels"],
+                 f" vs appearance {entry['iou_appearance']:.3f}" if appearance is not None else "")
     for key, on in (("iou_vs_labels", True), ("iou_appearance", appearance is not None)):
         if on:
             vals = [v[key] for v in info["views"]]
             info[key] = {"mean": float(np.mean(vals)), "min": float(np.min(vals))}
     gt = truth.roi(g, cameras)
-    info["lift_vs_labels"] = {
-        **precision_recall(dyn, gt),
-        "num_gt_dynamic": int(gt.sum()),
-        "num_lifted": int(dyn.sum()),
-    }
-    log.info(
-        "masks: lifted Gaussians vs labels: precision %.3f recall %.3f",
-        info["lift_vs_labels"]["precision"],
-        info["lift_vs_labels"]["recall"],
-    )
+    info["lift_vs_labels"] = {**precision_recall(dyn, gt), "num_gt_dynamic": int(gt.sum()), "num_lifted": int(dyn.sum())}
+    log.info("masks: lifted Gaussians vs labels: precision %.3f recall %.3f",
+             info["lift_vs_labels"]["precision"], info["lift_vs_labels"]["recall"])
     if appearance is not None:
-        info["lift_appearance"] = {
-            **precision_recall(dyn, appearance[0]),
-            "num_appearance_dynamic": int(appearance[0].sum()),
-            "num_lifted": int(dyn.sum()),
-        }
-        log.info(
-            "masks: lifted Gaussians vs appearance labels: precision %.3f recall %.3f",
-            info["lift_appearance"]["precision"],
-            info["lift_appearance"]["recall"],
-        )
+        info["lift_appearance"] = {**precision_recall(dyn, appearance[0]),
+                                   "num_appearance_dynamic": int(appearance[0].sum()), "num_lifted": int(dyn.sum())}
+        log.info("masks: lifted Gaussians vs appearance labels: precision %.3f recall %.3f",
+                 info["lift_appearance"]["precision"], info["lift_appearance"]["recall"])

@@ -39,7 +39,6 @@ the ground plane of a Gaussian scene (densest low layer along ``up``), scales ``
 cameras' height above it, so the cue works in any reconstruction frame and scale, and
 measures how thick the reconstructed ground layer is.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -57,39 +56,37 @@ from anigs.pixels import check_image, fill_small_holes, remove_small, saturation
 class VegetationConfig:
     """Parameters of the vegetation-index masks (config section ``masks.vegetation``)."""
 
-    index: str = "exgr"  # exgr (ExG - ExR) | exg
-    otsu: bool = True  # Otsu threshold (else min_threshold)
+    index: str = "exgr"          # exgr (ExG - ExR) | exg
+    otsu: bool = True            # Otsu threshold (else min_threshold)
     min_threshold: float = 0.05  # lower clip of the index threshold
     max_threshold: float = 0.35  # upper clip of the index threshold
-    min_saturation: float = 0.15  # below: grey (wall, road, cloud) -> excluded
-    min_brightness: float = 0.06  # R+G+B below (of 3): too dark -> excluded
-    min_alpha: float = 0.3  # with a rendered alpha: less = sky / empty (and no un-compositing)
+    min_saturation: float = 0.15 # below: grey (wall, road, cloud) -> excluded
+    min_brightness: float = 0.06 # R+G+B below (of 3): too dark -> excluded
+    min_alpha: float = 0.3       # with a rendered alpha: less = sky / empty (and no un-compositing)
     texture_weight: float = 0.0  # weight of the local luminance std added to the index
-    texture_window: int = 5  # window (px) of the local std
-    flowers: bool = True  # add saturated non-green blobs next to vegetation
+    texture_window: int = 5      # window (px) of the local std
+    flowers: bool = True         # add saturated non-green blobs next to vegetation
     flower_saturation: float = 0.45  # minimum HSV saturation for a colourful (flower) pixel to count as vegetation
-    flower_radius: int = 3  # px: how close to vegetation a flower pixel must be
+    flower_radius: int = 3       # px: how close to vegetation a flower pixel must be
     flower_min_value: float = 0.6  # brightest channel of a blossom (darker saturated = soil, bark)
     flowers_in_ground: bool = True  # blossoms count inside the ground layer too (next to green)
-    flower_bed_radius: int = 3  # px: close the blossoms into beds (with the green between them), 0 = off
-    open_radius: int = 0  # morphological opening radius (px), 0 = off (thin blades survive)
-    close_radius: int = 0  # morphological closing radius (px), 0 = off
-    min_area: float = 0.0005  # remove components smaller than this fraction of the frame
-    max_hole: float = 0.002  # fill holes smaller than this fraction of the frame
-    ground: bool = True  # use the ground cue when depth, camera and plane are available
+    flower_bed_radius: int = 3   # px: close the blossoms into beds (with the green between them), 0 = off
+    open_radius: int = 0         # morphological opening radius (px), 0 = off (thin blades survive)
+    close_radius: int = 0        # morphological closing radius (px), 0 = off
+    min_area: float = 0.0005     # remove components smaller than this fraction of the frame
+    max_hole: float = 0.002      # fill holes smaller than this fraction of the frame
+    ground: bool = True          # use the ground cue when depth, camera and plane are available
     ground_margin: float = 0.03  # min height above ground, as a fraction of the camera height above it
     ground_depth_tol: float = 0.01  # plus this fraction of the pixel's depth (splat depth is coarse)
-    ground_layer: float = 1.0  # times the ground layer's thickness measured by estimate_ground (0 = margin only)
+    ground_layer: float = 1.0    # times the ground layer's thickness measured by estimate_ground (0 = margin only)
     ground_max_margin: float = 0.3  # cap of the ground cut, as a fraction of the camera height
 
     def __post_init__(self) -> None:
         if self.index not in ("exgr", "exg"):
             raise ValueError(f"vegetation.index must be 'exgr' or 'exg', got {self.index!r}")
         if self.ground_layer < 0 or self.ground_max_margin < 0:
-            raise ValueError(
-                f"vegetation: ground_layer ({self.ground_layer}) and ground_max_margin "
-                f"({self.ground_max_margin}) must be >= 0"
-            )
+            raise ValueError(f"vegetation: ground_layer ({self.ground_layer}) and ground_max_margin "
+                             f"({self.ground_max_margin}) must be >= 0")
         if self.min_threshold > self.max_threshold:
             raise ValueError(f"vegetation: min_threshold {self.min_threshold} > max_threshold {self.max_threshold}")
 
@@ -131,13 +128,8 @@ def vegetation_index(img: np.ndarray, index: str = "exgr") -> np.ndarray:
     return exg if index == "exg" else exg - (1.4 * r - g)
 
 
-def vegetation_mask(
-    image: np.ndarray,
-    cfg: VegetationConfig | None = None,
-    name: str = "",
-    frame: Frame | None = None,
-    ground: GroundPlane | None = None,
-) -> np.ndarray:
+def vegetation_mask(image: np.ndarray, cfg: VegetationConfig | None = None, name: str = "",
+                    frame: Frame | None = None, ground: GroundPlane | None = None) -> np.ndarray:
     """Vegetation mask bool [H,W] of an RGB frame (see module docstring).
 
     ``frame`` (with ``depth`` and ``camera``) and ``ground`` enable the ground cue.
@@ -222,9 +214,8 @@ class VegetationBackend:
         return {"dynamic": vegetation_mask(frame.image, self.cfg, frame.name, frame, self.ground)}
 
 
-def build(
-    config: dict | VegetationConfig | None = None, ground: GroundPlane | None = None, **kwargs
-) -> VegetationBackend:
+def build(config: dict | VegetationConfig | None = None, ground: GroundPlane | None = None,
+          **kwargs) -> VegetationBackend:
     """Registry entry: a config dict / dataclass (or its fields as keywords), optional ground plane."""
     if isinstance(config, VegetationConfig):
         cfg = config

@@ -14,7 +14,6 @@ is exact for any n, m (no square root of a singular D x D matrix, no diagonal of
 costs an n x m SVD instead of a D x D ``sqrtm``. :func:`frechet_lowrank` equals
 :func:`anigs.metrics.frechet.frechet_distance` where the latter needs no offset (tested).
 """
-
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
@@ -72,9 +71,8 @@ def resample_groups(num_groups: int, resamples: int, seed: int) -> np.ndarray:
     return np.random.default_rng(int(seed)).integers(0, num_groups, size=(int(resamples), int(num_groups)))
 
 
-def bootstrap_frechet(
-    f1: np.ndarray, f2: np.ndarray, groups: Sequence[int], resamples: int = 200, seed: int = 0, level: float = 0.90
-) -> BootstrapSpread:
+def bootstrap_frechet(f1: np.ndarray, f2: np.ndarray, groups: Sequence[int], resamples: int = 200,
+                      seed: int = 0, level: float = 0.90) -> BootstrapSpread:
     """Spread of FD(f1, f2) over paired resamples of the groups.
 
     ``f1`` [n,D] and ``f2`` [n,D] are paired row by row (clip i of the method and clip i of the
@@ -84,50 +82,27 @@ def bootstrap_frechet(
     b = np.asarray(f2, dtype=np.float64)
     g = np.asarray(groups)
     if a.shape != b.shape or g.shape != (a.shape[0],):
-        raise ValueError(
-            f"bootstrap_frechet: paired features and groups must agree, got {a.shape}, {b.shape}, {g.shape}"
-        )
-    return _over_group_resamples(
-        g,
-        lambda rows: frechet_lowrank(a[rows], b[rows]),
-        resamples,
-        seed,
-        level,
-        "views (all windows of a drawn view, both sides)",
-    )
+        raise ValueError(f"bootstrap_frechet: paired features and groups must agree, got {a.shape}, {b.shape}, {g.shape}")
+    return _over_group_resamples(g, lambda rows: frechet_lowrank(a[rows], b[rows]), resamples, seed, level,
+                                 "views (all windows of a drawn view, both sides)")
 
 
-def bootstrap_gap(
-    f_a: np.ndarray,
-    f_b: np.ndarray,
-    f_ref: np.ndarray,
-    groups: Sequence[int],
-    resamples: int = 200,
-    seed: int = 0,
-    level: float = 0.90,
-) -> BootstrapSpread:
+def bootstrap_gap(f_a: np.ndarray, f_b: np.ndarray, f_ref: np.ndarray, groups: Sequence[int], resamples: int = 200,
+                  seed: int = 0, level: float = 0.90) -> BootstrapSpread:
     """Spread of ``FD(f_a, f_ref) - FD(f_b, f_ref)`` over paired resamples of the groups: the same
     drawn views for both (paired rows, as :func:`bootstrap_frechet`). An interval that excludes 0
     tells a real gap between two methods from the noise of the views drawn."""
     a, b, r = (np.asarray(x, dtype=np.float64) for x in (f_a, f_b, f_ref))
     g = np.asarray(groups)
     if not (a.shape == b.shape == r.shape) or g.shape != (a.shape[0],):
-        raise ValueError(
-            f"bootstrap_gap: paired features and groups must agree, got {a.shape}, {b.shape}, {r.shape}, {g.shape}"
-        )
-    return _over_group_resamples(
-        g,
-        lambda rows: frechet_lowrank(a[rows], r[rows]) - frechet_lowrank(b[rows], r[rows]),
-        resamples,
-        seed,
-        level,
-        "views (paired: the same drawn views for both sets)",
-    )
+        raise ValueError(f"bootstrap_gap: paired features and groups must agree, got {a.shape}, {b.shape}, "
+                         f"{r.shape}, {g.shape}")
+    return _over_group_resamples(g, lambda rows: frechet_lowrank(a[rows], r[rows]) - frechet_lowrank(b[rows], r[rows]),
+                                 resamples, seed, level, "views (paired: the same drawn views for both sets)")
 
 
-def _over_group_resamples(
-    groups: np.ndarray, stat, resamples: int, seed: int, level: float, unit: str
-) -> BootstrapSpread:
+def _over_group_resamples(groups: np.ndarray, stat, resamples: int, seed: int, level: float,
+                          unit: str) -> BootstrapSpread:
     """``stat(rows)`` over resamples of whole groups (every row of a drawn group; :func:`resample_groups`)."""
     names, inverse = np.unique(groups, return_inverse=True)
     rows_of = [np.flatnonzero(inverse == i) for i in range(len(names))]
@@ -136,13 +111,5 @@ def _over_group_resamples(
     for k, pick in enumerate(draws):
         vals[k] = stat(np.concatenate([rows_of[i] for i in pick]))
     lo, hi = np.percentile(vals, [50 * (1 - level), 50 * (1 + level)])
-    return BootstrapSpread(
-        int(resamples),
-        int(seed),
-        unit,
-        len(names),
-        float(vals.mean()),
-        float(vals.std(ddof=1)),
-        (float(lo), float(hi)),
-        float(level),
-    )
+    return BootstrapSpread(int(resamples), int(seed), unit, len(names),
+                           float(vals.mean()), float(vals.std(ddof=1)), (float(lo), float(hi)), float(level))

@@ -12,7 +12,6 @@ visible as the motion inside it. A caption under each row gives the numbers.
     rows = load_rows("results/S/full/final/clips", "results/S/masks")
     save_contact_sheet("contact.png", rows)
 """
-
 from __future__ import annotations
 
 import re
@@ -39,8 +38,8 @@ class ContactRow:
     """One view of the sheet: its clip and masks at the clip's size (bool [H,W])."""
 
     name: str
-    clip: np.ndarray  # [T,H,W,3] in [0,1]
-    dynamic: np.ndarray | None = None  # the view's dynamic mask (None: no mask)
+    clip: np.ndarray                       # [T,H,W,3] in [0,1]
+    dynamic: np.ndarray | None = None      # the view's dynamic mask (None: no mask)
     effects: dict[str, np.ndarray] = field(default_factory=dict)  # per-effect masks
 
 
@@ -88,21 +87,18 @@ def row_stats(row: ContactRow, margin_px: int = 5, tolerance: float = 1 / 255) -
     mask (as eval's ``static_outside_mask_still``), the largest change there and the share of the
     mask that moves at all."""
     change = max_change(row.clip)
-    st: dict[str, Any] = {"view": row.name, "frames": int(row.clip.shape[0]), "max_change": float(change.max())}
+    st: dict[str, Any] = {"view": row.name, "frames": int(row.clip.shape[0]),
+                          "max_change": float(change.max())}
     if row.dynamic is None:
         return st
     dyn = np.asarray(row.dynamic, bool)
     outside = ~dilate(dyn, margin_px)
     moving = change > tolerance + 1e-6
-    st.update(
-        {
-            "mask_fraction": float(dyn.mean()),
-            "effects": {e: float(np.asarray(m, bool).mean()) for e, m in row.effects.items()},
-            "outside_still": outside_mask_still(row.clip, dyn, margin_px, tolerance),
-            "outside_max_change": float(change[outside].max()) if outside.any() else float("nan"),
-            "mask_moving": float(moving[dyn].mean()) if dyn.any() else float("nan"),
-        }
-    )
+    st.update({"mask_fraction": float(dyn.mean()),
+               "effects": {e: float(np.asarray(m, bool).mean()) for e, m in row.effects.items()},
+               "outside_still": outside_mask_still(row.clip, dyn, margin_px, tolerance),
+               "outside_max_change": float(change[outside].max()) if outside.any() else float("nan"),
+               "mask_moving": float(moving[dyn].mean()) if dyn.any() else float("nan")})
     return st
 
 
@@ -129,36 +125,21 @@ def _colour_bar(width: int, tolerance: float, vmax: float) -> np.ndarray:
     xs = np.geomspace(tolerance, vmax, max(width - 2 * pad, 2))
     ramp = heat_colours(np.tile(xs * 1.0001, (bar_h, 1)), tolerance, vmax)
     block = np.full((bar_h + 40, width, 3), 255, np.uint8)
-    block[4 : 4 + bar_h, pad : width - pad] = _fit(ramp, width - 2 * pad, bar_h)
+    block[4:4 + bar_h, pad:width - pad] = _fit(ramp, width - 2 * pad, bar_h)
     for v in (tolerance, 0.01, 0.03, 0.1, 0.3, vmax):
         if not tolerance <= v <= vmax:
             continue
-        x = pad + int(
-            round((np.log(v) - np.log(tolerance)) / (np.log(vmax) - np.log(tolerance)) * (width - 2 * pad - 1))
-        )
+        x = pad + int(round((np.log(v) - np.log(tolerance)) / (np.log(vmax) - np.log(tolerance)) * (width - 2 * pad - 1)))
         label = "1/255" if abs(v - 1 / 255) < 1e-9 else f"{v:g}"
         cv2.line(block, (x, 4 + bar_h), (x, 8 + bar_h), (0, 0, 0), 1)
         cv2.putText(block, label, (max(x - 12, 0), bar_h + 20), FONT, 0.35, (0, 0, 0), 1, cv2.LINE_AA)
-    cv2.putText(
-        block,
-        "max |I_t - I_0| (log); black: still; white line: dilated mask",
-        (pad, bar_h + 36),
-        FONT,
-        0.35,
-        (0, 0, 0),
-        1,
-        cv2.LINE_AA,
-    )
+    cv2.putText(block, "max |I_t - I_0| (log); black: still; white line: dilated mask", (pad, bar_h + 36),
+                FONT, 0.35, (0, 0, 0), 1, cv2.LINE_AA)
     return block
 
 
-def contact_sheet(
-    rows: Sequence[ContactRow],
-    margin_px: int = 5,
-    tolerance: float = 1 / 255,
-    vmax: float = 0.5,
-    panel_width: int = 256,
-) -> tuple[np.ndarray, list[dict[str, Any]]]:
+def contact_sheet(rows: Sequence[ContactRow], margin_px: int = 5, tolerance: float = 1 / 255,
+                  vmax: float = 0.5, panel_width: int = 256) -> tuple[np.ndarray, list[dict[str, Any]]]:
     """Draw the sheet: (uint8 RGB [H,W,3], the per-row numbers of :func:`row_stats`).
 
     Columns: first frame, dynamic mask, one per effect seen in any row (a grey panel where a row
@@ -167,7 +148,8 @@ def contact_sheet(
     if not rows:
         raise ValueError("contact_sheet: no rows")
     effects = sorted({e for r in rows for e in r.effects})
-    titles = ["first frame", "mask: dynamic", *[f"mask: {e}" for e in effects], f"max change (mask +{margin_px} px)"]
+    titles = ["first frame", "mask: dynamic", *[f"mask: {e}" for e in effects],
+              f"max change (mask +{margin_px} px)"]
     h0, w0 = rows[0].clip.shape[1:3]
     pw = int(panel_width)
     ph = max(int(round(pw * h0 / w0)), 1)
@@ -190,10 +172,8 @@ def contact_sheet(
         H, W = clip.shape[1:3]
         for what, m in [("dynamic", row.dynamic), *row.effects.items()]:
             if m is not None and np.asarray(m).shape != (H, W):
-                raise ValueError(
-                    f"contact_sheet: view {row.name}: {what} mask {np.asarray(m).shape} "
-                    f"does not match the clip's frames {(H, W)}"
-                )
+                raise ValueError(f"contact_sheet: view {row.name}: {what} mask {np.asarray(m).shape} "
+                                 f"does not match the clip's frames {(H, W)}")
         st = row_stats(row, margin_px, tolerance)
         stats.append(st)
         first = clip[0]
@@ -202,9 +182,7 @@ def contact_sheet(
         panels.append(_fit(tint(first, row.dynamic, MASK_COLOURS[0]), pw, ph) if row.dynamic is not None else grey)
         for k, e in enumerate(effects):
             m = row.effects.get(e)
-            panels.append(
-                grey if m is None else _fit(tint(first, m, MASK_COLOURS[(k + 1) % len(MASK_COLOURS)]), pw, ph)
-            )
+            panels.append(grey if m is None else _fit(tint(first, m, MASK_COLOURS[(k + 1) % len(MASK_COLOURS)]), pw, ph))
         heat = heat_colours(max_change(clip), tolerance, vmax)
         if row.dynamic is not None:
             heat[outline(dilate(np.asarray(row.dynamic, bool), margin_px))] = OUTLINE
@@ -215,13 +193,9 @@ def contact_sheet(
             lines = [cap + "; no mask"]
         else:
             eff = ", ".join(f"{e} {100 * v:.1f}%" for e, v in st["effects"].items())
-            lines = [
-                cap + f"; mask {100 * st['mask_fraction']:.1f}%" + (f" ({eff})" if eff else ""),
-                (
-                    f"outside the dilated mask: still {st['outside_still']:.3f}, largest change "
-                    f"{st['outside_max_change']:.3f}; inside the mask {100 * st['mask_moving']:.0f}% of pixels move"
-                ),
-            ]
+            lines = [cap + f"; mask {100 * st['mask_fraction']:.1f}%" + (f" ({eff})" if eff else ""),
+                     (f"outside the dilated mask: still {st['outside_still']:.3f}, largest change "
+                      f"{st['outside_max_change']:.3f}; inside the mask {100 * st['mask_moving']:.0f}% of pixels move")]
         parts.append(_text(lines, sheet_w))
     parts.append(np.concatenate([np.full((54, sheet_w - pw, 3), 255, np.uint8), _colour_bar(pw, tolerance, vmax)], 1))
     return np.concatenate(parts, 0), stats
@@ -231,9 +205,8 @@ def _view_key(name: str) -> tuple:
     return tuple(int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name))
 
 
-def load_rows(
-    clips_dir: str | Path, masks_dir: str | Path | None, threshold: float = 0.5, views: Sequence[str] | None = None
-) -> list[ContactRow]:
+def load_rows(clips_dir: str | Path, masks_dir: str | Path | None, threshold: float = 0.5,
+              views: Sequence[str] | None = None) -> list[ContactRow]:
     """Rows from the workflow's folders: ``clips_dir/{view}.npz`` (:func:`anigs.video.load_clip`) and
     the masks stage's folder ``masks_dir``: each view's mask and per-effect masks, resized to each
     clip as eval resizes them (``threshold``: eval's ``mask_threshold``)."""

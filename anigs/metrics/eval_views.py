@@ -17,7 +17,6 @@ the ground-truth cameras to the reconstruction's (:func:`anigs.sfm.align.align_c
 matched by image name); the ground truth is the ground-truth Gaussians displaced by
 :func:`anigs.synth.motion.gt_offsets` at the same fraction of the loop.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -57,14 +56,14 @@ def moving_labels(motion: dict[str, Any]) -> list[int]:
     return dynamic_label_ids(effects_from_motion(motion))
 
 
-def place_eval_views(
-    gt: Gaussians, labels: np.ndarray, moving: Sequence[int], capture: Sequence[Camera], spec: Placement
-) -> tuple[list[Camera], dict[str, Any]]:
+def place_eval_views(gt: Gaussians, labels: np.ndarray, moving: Sequence[int], capture: Sequence[Camera],
+                     spec: Placement) -> tuple[list[Camera], dict[str, Any]]:
     """``spec.num_views`` cameras named ``e00``.. in the ground-truth frame, and the placement report.
 
     Raises ValueError when the scene has no moving Gaussian or too few tries pass.
     """
     from scipy.spatial import cKDTree
+
 
     labels = np.asarray(labels)
     if labels.shape != (gt.num,):
@@ -72,9 +71,8 @@ def place_eval_views(
     means = gt.means.detach().cpu().double().numpy()
     present = [int(k) for k in moving if np.any(labels == k)]
     if not present or not capture:
-        raise ValueError(
-            f"eval views: nothing to look at (moving labels present: {present}, capture cameras: {len(capture)})"
-        )
+        raise ValueError(f"eval views: nothing to look at (moving labels present: {present}, "
+                         f"capture cameras: {len(capture)})")
     members = {k: np.flatnonzero(labels == k) for k in present}
     tree = cKDTree(means)
     K = intrinsics_from_fov(spec.fov_deg, spec.width, spec.height)
@@ -105,18 +103,11 @@ def place_eval_views(
         cams.append(cam)
         fractions.append(frac)
     if len(cams) < spec.num_views:
-        raise ValueError(
-            f"eval views: only {len(cams)} of {spec.num_views} views passed in {tries} tries "
-            f"(rejected: {rejected}); lower fvd_gt.min_dynamic_fraction or raise max_tries_per_view"
-        )
-    report = {
-        "tries": tries,
-        "rejected": rejected,
-        "dynamic_fraction": {c.name: f for c, f in zip(cams, fractions)},
-        "dynamic_fraction_min": float(min(fractions)),
-        "dynamic_fraction_mean": float(np.mean(fractions)),
-        "moving_labels": present,
-    }
+        raise ValueError(f"eval views: only {len(cams)} of {spec.num_views} views passed in {tries} tries "
+                         f"(rejected: {rejected}); lower fvd_gt.min_dynamic_fraction or raise max_tries_per_view")
+    report = {"tries": tries, "rejected": rejected, "dynamic_fraction": {c.name: f for c, f in zip(cams, fractions)},
+              "dynamic_fraction_min": float(min(fractions)), "dynamic_fraction_mean": float(np.mean(fractions)),
+              "moving_labels": present}
     return cams, report
 
 
@@ -144,9 +135,8 @@ def gt_clip(gt: Gaussians, offsets: torch.Tensor, cam: Camera, background: Seque
     return np.stack(frames)
 
 
-def gt_offsets_at(
-    gt: Gaussians, labels: np.ndarray, anchors: np.ndarray, motion: dict[str, Any], num_frames: int
-) -> torch.Tensor:
+def gt_offsets_at(gt: Gaussians, labels: np.ndarray, anchors: np.ndarray, motion: dict[str, Any],
+                  num_frames: int) -> torch.Tensor:
     """Ground-truth offsets [T,N,3] at frames 0..T-1 of a T-frame model, as the same fractions of the
     ground-truth loop (``t_gt = t * loop / T``; the identity when the model's T is the loop's)."""
     params = MotionParams.from_dict(motion["params"])
@@ -154,9 +144,8 @@ def gt_offsets_at(
     return gt_offsets(params, gt.means, torch.as_tensor(anchors), torch.as_tensor(labels).long(), times, params.frames)
 
 
-def model_clip(
-    canonical: Gaussians, deformation, cam: Camera, num_frames: int, background: Sequence[float]
-) -> np.ndarray:
+def model_clip(canonical: Gaussians, deformation, cam: Camera, num_frames: int,
+               background: Sequence[float]) -> np.ndarray:
     """A method's clip [T,H,W,3] at frames 0..T-1 (:func:`anigs.animate.frames.render_clip`, as the final stage)."""
     bg = torch.tensor(list(background), dtype=torch.float32, device=canonical.device)
     return render_clip(canonical, deformation, cam, num_frames, bg).clamp(0, 1).cpu().numpy()
@@ -168,14 +157,8 @@ def contact_sheet(rows: Sequence[Sequence[np.ndarray]], thumb_width: int = 128) 
 
     thumbs = []
     for row in rows:
-        th = [
-            cv2.resize(
-                np.asarray(f, np.float32),
-                (thumb_width, max(1, round(f.shape[0] * thumb_width / f.shape[1]))),
-                interpolation=cv2.INTER_AREA,
-            )
-            for f in row
-        ]
+        th = [cv2.resize(np.asarray(f, np.float32), (thumb_width, max(1, round(f.shape[0] * thumb_width / f.shape[1]))),
+                         interpolation=cv2.INTER_AREA) for f in row]
         h = max(t.shape[0] for t in th)
         gap = np.ones((h, 2, 3), np.float32)
         thumbs.append(np.concatenate([x for t in th for x in (t, gap)][:-1], axis=1))

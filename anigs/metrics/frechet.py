@@ -15,7 +15,6 @@ Guards (the usual ones of FID/FVD code):
   biased upward: the result carries ``n1``, ``n2``, ``dim`` and ``undersampled = True``, and
   the value must never be reported without the sample counts.
 """
-
 from __future__ import annotations
 
 import warnings
@@ -76,17 +75,9 @@ def _trace_sqrt_product(s1: np.ndarray, s2: np.ndarray, imag_tol: float) -> floa
     return float(np.trace(root))
 
 
-def frechet_distance_from_stats(
-    mu1: np.ndarray,
-    sigma1: np.ndarray,
-    mu2: np.ndarray,
-    sigma2: np.ndarray,
-    n1: int = 0,
-    n2: int = 0,
-    eps: float = 1e-6,
-    max_eps: float = 1e-2,
-    imag_tol: float = 1e-3,
-) -> FrechetResult:
+def frechet_distance_from_stats(mu1: np.ndarray, sigma1: np.ndarray, mu2: np.ndarray, sigma2: np.ndarray,
+                                n1: int = 0, n2: int = 0, eps: float = 1e-6, max_eps: float = 1e-2,
+                                imag_tol: float = 1e-3) -> FrechetResult:
     """Fréchet distance between N(mu1, sigma1) and N(mu2, sigma2) (float64, guarded).
 
     ``n1``/``n2`` are the sample counts behind the statistics (reported, used for the
@@ -99,9 +90,8 @@ def frechet_distance_from_stats(
     s2 = np.atleast_2d(np.asarray(sigma2, dtype=np.float64))
     d = mu1.shape[0]
     if mu2.shape != (d,) or s1.shape != (d, d) or s2.shape != (d, d):
-        raise ValueError(
-            f"frechet: inconsistent shapes mu1 {mu1.shape}, mu2 {mu2.shape}, sigma1 {s1.shape}, sigma2 {s2.shape}"
-        )
+        raise ValueError(f"frechet: inconsistent shapes mu1 {mu1.shape}, mu2 {mu2.shape}, "
+                         f"sigma1 {s1.shape}, sigma2 {s2.shape}")
     for name, arr in (("mu1", mu1), ("mu2", mu2), ("sigma1", s1), ("sigma2", s2)):
         if not np.isfinite(arr).all():
             raise ValueError(f"frechet: {name} contains NaN or Inf")
@@ -119,23 +109,18 @@ def frechet_distance_from_stats(
                 break
             e *= 10.0
         if tr_sqrt is None:
-            raise RuntimeError(
-                f"frechet: matrix square root failed even with a diagonal offset of {max_eps:g} "
-                f"(dim {d}, samples {n1}/{n2})"
-            )
+            raise RuntimeError(f"frechet: matrix square root failed even with a diagonal offset of {max_eps:g} "
+                               f"(dim {d}, samples {n1}/{n2})")
         notes.append(f"sqrtm(S1 S2) was singular or complex; retried with {eps_used:g} * I added to both covariances")
     value = float(diff @ diff + np.trace(s1) + np.trace(s2) - 2.0 * tr_sqrt)
     if value < 0 and value > -1e-6 * max(1.0, float(np.trace(s1) + np.trace(s2))):
         value = 0.0  # round-off around identical distributions
     undersampled = bool(n1 and n2 and min(n1, n2) < d)
     if undersampled:
-        notes.append(
-            f"fewer samples ({min(n1, n2)}) than feature dimensions ({d}): covariance is rank-deficient "
-            "and the distance is biased upward; compare only values with the same sample counts"
-        )
-    return FrechetResult(
-        value=value, n1=int(n1), n2=int(n2), dim=int(d), undersampled=undersampled, eps_used=eps_used, warnings=notes
-    )
+        notes.append(f"fewer samples ({min(n1, n2)}) than feature dimensions ({d}): covariance is rank-deficient "
+                     "and the distance is biased upward; compare only values with the same sample counts")
+    return FrechetResult(value=value, n1=int(n1), n2=int(n2), dim=int(d), undersampled=undersampled,
+                         eps_used=eps_used, warnings=notes)
 
 
 def frechet_distance(features1: np.ndarray, features2: np.ndarray, **kwargs: Any) -> FrechetResult:

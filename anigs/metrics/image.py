@@ -4,7 +4,6 @@ SSIM here is the evaluation metric (Wang et al. 2004 settings, as scikit-image d
 them): Gaussian window sigma 1.5, population covariance, explicit ``data_range``, mean over
 the valid interior of every channel. The training loss SSIM lives in :mod:`anigs.ssim`.
 """
-
 from __future__ import annotations
 
 import math
@@ -36,17 +35,9 @@ def ssim(a, b, data_range: float = 1.0) -> float:
     a, b = _pair(a, b, "ssim")
     if min(a.shape[:2]) < 7:
         raise ValueError(f"ssim: images of {a.shape[:2]} are smaller than the 7x7 minimum")
-    return float(
-        structural_similarity(
-            a,
-            b,
-            data_range=data_range,
-            gaussian_weights=True,
-            sigma=1.5,
-            use_sample_covariance=False,
-            channel_axis=-1 if a.ndim == 3 else None,
-        )
-    )
+    return float(structural_similarity(a, b, data_range=data_range, gaussian_weights=True, sigma=1.5,
+                                       use_sample_covariance=False,
+                                       channel_axis=-1 if a.ndim == 3 else None))
 
 
 def mean_finite(values: list[float]) -> float:

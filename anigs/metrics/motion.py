@@ -29,7 +29,6 @@ Gaussians come from an SfM-initialised fit), so distributions are compared:
   units of scene extent), ``frequency_w1`` (same for the frequency distributions, cycles per
   frame), ``dominant_freq_learned`` / ``dominant_freq_gt`` (median per-Gaussian frequency).
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -80,11 +79,8 @@ def optical_flow_magnitudes(clip: np.ndarray, preset: str = "medium") -> np.ndar
         raise ValueError(f"flow preset {preset!r} unknown; choose one of {FLOW_PRESETS}")
     clip, _ = _check(clip, None)
     grey = _grey_u8(clip)
-    code = {
-        "ultrafast": cv2.DISOpticalFlow_PRESET_ULTRAFAST,
-        "fast": cv2.DISOpticalFlow_PRESET_FAST,
-        "medium": cv2.DISOpticalFlow_PRESET_MEDIUM,
-    }[preset]
+    code = {"ultrafast": cv2.DISOpticalFlow_PRESET_ULTRAFAST, "fast": cv2.DISOpticalFlow_PRESET_FAST,
+            "medium": cv2.DISOpticalFlow_PRESET_MEDIUM}[preset]
     dis = cv2.DISOpticalFlow_create(code)
     out = np.zeros((max(0, len(grey) - 1),) + grey.shape[1:], np.float32)
     for t in range(len(grey) - 1):
@@ -142,9 +138,8 @@ def _masked_mean(values: np.ndarray, mask: np.ndarray) -> float:
     return float(values[:, mask].mean())
 
 
-def clip_motion_metrics(
-    clip: np.ndarray, dynamic_mask: np.ndarray, margin: int = 2, flow_preset: str = "medium", with_flow: bool = True
-) -> ClipMotion:
+def clip_motion_metrics(clip: np.ndarray, dynamic_mask: np.ndarray, margin: int = 2,
+                        flow_preset: str = "medium", with_flow: bool = True) -> ClipMotion:
     """Weight-free metrics of a clip [T,H,W,3] given its dynamic mask [H,W] (see module doc)."""
     clip, dyn = _check(clip, dynamic_mask)
     static = ~dilate(dyn, margin)
@@ -157,23 +152,13 @@ def clip_motion_metrics(
         s_flow = d_flow = float("nan")
     freqs, power = temporal_spectrum(clip, dyn)
     peak, centroid = dominant_frequency(freqs, power)
-    return ClipMotion(
-        static_abs_diff=_masked_mean(diff, static),
-        static_drift=_masked_mean(drift, static),
-        static_flow=s_flow,
-        dynamic_abs_diff=_masked_mean(diff, dyn),
-        dynamic_flow=d_flow,
-        dominant_freq=peak,
-        spectral_centroid=centroid,
-        static_pixels=int(static.sum()),
-        dynamic_pixels=int(dyn.sum()),
-        frames=int(clip.shape[0]),
-    )
+    return ClipMotion(static_abs_diff=_masked_mean(diff, static), static_drift=_masked_mean(drift, static),
+                      static_flow=s_flow, dynamic_abs_diff=_masked_mean(diff, dyn), dynamic_flow=d_flow,
+                      dominant_freq=peak, spectral_centroid=centroid, static_pixels=int(static.sum()),
+                      dynamic_pixels=int(dyn.sum()), frames=int(clip.shape[0]))
 
 
-def outside_mask_still(
-    clip: np.ndarray, dynamic_mask: np.ndarray, margin: int = 5, tolerance: float = 1 / 255
-) -> float:
+def outside_mask_still(clip: np.ndarray, dynamic_mask: np.ndarray, margin: int = 5, tolerance: float = 1 / 255) -> float:
     """Fraction of the pixels outside the dynamic mask (dilated by ``margin`` px) whose value never
     changes from frame 0 by more than ``tolerance`` (any channel, any frame) over the clip
     [T,H,W,3] in [0,1]: 1.0 when everything that should stand still does; NaN without such pixels."""
@@ -186,7 +171,6 @@ def outside_mask_still(
 
 
 # ----------------------------------------------------------------- ground-truth motion statistics
-
 
 def trajectory_stats(positions: np.ndarray, extent: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Per-Gaussian (RMS amplitude / extent [N], dominant frequency in cycles/frame [N]) of positions [N,T,3]."""
@@ -209,9 +193,8 @@ def trajectory_stats(positions: np.ndarray, extent: float = 1.0) -> tuple[np.nda
     return amp, peak
 
 
-def gt_motion_distances(
-    learned: np.ndarray, gt: np.ndarray, learned_extent: float = 1.0, gt_extent: float = 1.0
-) -> dict[str, float]:
+def gt_motion_distances(learned: np.ndarray, gt: np.ndarray, learned_extent: float = 1.0,
+                        gt_extent: float = 1.0) -> dict[str, float]:
     """Distances between learned [N,T,3] and ground-truth [M,T',3] motion statistics (see module doc)."""
     from scipy.stats import wasserstein_distance
 

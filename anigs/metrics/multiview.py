@@ -14,7 +14,6 @@ in [0,1], numpy), e.g. ``anigs.static.fit.fit_static`` wrapped with its config
 (:func:`static_fit_fn`, configured by :class:`MultiviewFitConfig`); it is passed in so that
 tests can pass a cheap stand-in.
 """
-
 from __future__ import annotations
 
 import time
@@ -54,7 +53,6 @@ class MultiviewFitConfig(FitConfig):
         cfg.validate()
         return cfg
 
-
 PAPER_T_NOVEL = 21
 PAPER_NUM_FRAMES = 121
 
@@ -70,9 +68,7 @@ def novel_timestep(num_frames: int, t: int | None = None) -> int:
     return int(t)
 
 
-def split_cameras(
-    n: int, train_fraction: float = 0.5, mode: str = "alternate", seed: int = 0
-) -> tuple[list[int], list[int]]:
+def split_cameras(n: int, train_fraction: float = 0.5, mode: str = "alternate", seed: int = 0) -> tuple[list[int], list[int]]:
     """Indices (train, eval) of ``n`` cameras.
 
     ``alternate``: for fraction 0.5 even indices train and odd evaluate (neighbouring views
@@ -85,11 +81,8 @@ def split_cameras(
         raise ValueError(f"split_cameras: train_fraction must be in (0,1), got {train_fraction}")
     n_train = min(n - 1, max(1, int(round(n * train_fraction))))
     if mode == "alternate":
-        train = (
-            sorted(set(np.linspace(0, n - 1, n_train).round().astype(int).tolist()))
-            if train_fraction != 0.5
+        train = sorted(set(np.linspace(0, n - 1, n_train).round().astype(int).tolist())) if train_fraction != 0.5 \
             else list(range(0, n, 2))[:n_train]
-        )
     elif mode == "random":
         perm = np.random.default_rng(seed).permutation(n)
         train = sorted(perm[:n_train].tolist())
@@ -120,17 +113,10 @@ def _render(gaussians, camera: Camera, background) -> np.ndarray:
     return rgb.detach().float().cpu().numpy().clip(0, 1)
 
 
-def multiview_consistency(
-    images: Sequence[np.ndarray],
-    cameras: Sequence[Camera],
-    fit_fn: FitFn,
-    init_points: np.ndarray,
-    init_colors: np.ndarray,
-    train_fraction: float = 0.5,
-    split: str = "alternate",
-    seed: int = 0,
-    background: Sequence[float] | None = None,
-) -> MultiviewResult:
+def multiview_consistency(images: Sequence[np.ndarray], cameras: Sequence[Camera], fit_fn: FitFn,
+                          init_points: np.ndarray, init_colors: np.ndarray, train_fraction: float = 0.5,
+                          split: str = "alternate", seed: int = 0,
+                          background: Sequence[float] | None = None) -> MultiviewResult:
     """Fit a static 3DGS on a camera half of ``images`` and score it on the other half.
 
     ``images[i]`` float [H,W,3] in [0,1] is the view of ``cameras[i]`` (same size as the
@@ -142,38 +128,26 @@ def multiview_consistency(
     for img, cam in zip(images, cameras):
         a = np.asarray(img, dtype=np.float32)
         if a.shape != (cam.height, cam.width, 3):
-            raise ValueError(
-                f"multiview: image for camera {cam.name!r} has shape {a.shape}, "
-                f"camera expects {(cam.height, cam.width, 3)}"
-            )
+            raise ValueError(f"multiview: image for camera {cam.name!r} has shape {a.shape}, "
+                             f"camera expects {(cam.height, cam.width, 3)}")
         imgs.append(a)
     train, held = split_cameras(len(cameras), train_fraction, split, seed)
     t0 = time.perf_counter()
-    gaussians = fit_fn(
-        [imgs[i] for i in train],
-        [cameras[i] for i in train],
-        np.asarray(init_points, dtype=np.float32),
-        np.asarray(init_colors, dtype=np.float32),
-    )
+    gaussians = fit_fn([imgs[i] for i in train], [cameras[i] for i in train],
+                       np.asarray(init_points, dtype=np.float32), np.asarray(init_colors, dtype=np.float32))
     fit_s = time.perf_counter() - t0
     per_view = []
     for i in held:
         pred = _render(gaussians, cameras[i], background)
         per_view.append({"camera": cameras[i].name or str(i), "psnr": psnr(pred, imgs[i]), "ssim": ssim(pred, imgs[i])})
-    return MultiviewResult(
-        psnr=mean_finite([v["psnr"] for v in per_view]),
-        ssim=float(np.mean([v["ssim"] for v in per_view])),
-        n_train=len(train),
-        n_eval=len(held),
-        per_view=per_view,
-        fit_seconds=fit_s,
-        num_gaussians=int(getattr(gaussians, "num", 0)),
-    )
+    return MultiviewResult(psnr=mean_finite([v["psnr"] for v in per_view]),
+                           ssim=float(np.mean([v["ssim"] for v in per_view])),
+                           n_train=len(train), n_eval=len(held), per_view=per_view, fit_seconds=fit_s,
+                           num_gaussians=int(getattr(gaussians, "num", 0)))
 
 
-def static_fit_fn(
-    fit_params: MultiviewFitConfig | dict[str, Any] | None = None,
-) -> tuple[FitFn, tuple[float, float, float]]:
+def static_fit_fn(fit_params: MultiviewFitConfig | dict[str, Any] | None = None
+                  ) -> tuple[FitFn, tuple[float, float, float]]:
     """``anigs.static.fit.fit_static`` as a :data:`FitFn` (no internal hold-out: this protocol splits).
 
     Returns (fit_fn, background used by the fit). Raises ModuleNotFoundError naming

@@ -7,7 +7,6 @@ the SfM cameras to the ground-truth cameras; farther than ``max_dist`` x the sce
 label, left out). A Gaussian moves when its largest displacement over the loop exceeds
 ``min_motion`` x the scene extent. Lower is better; 0 = nothing labelled still moves.
 """
-
 from __future__ import annotations
 
 from pathlib import Path
@@ -23,21 +22,13 @@ from anigs.sfm.align import align_cameras
 from anigs.synth.motion import LABEL_EFFECTS, WATER_LABEL_EFFECTS
 
 KEY = "gt/moving_labelled_still"
-PROTOCOL = {
-    "moving": "largest displacement over the loop > 1e-4 x scene extent",
-    "label": "nearest ground-truth Gaussian (aligned cameras) within 0.05 x scene extent",
-    "still": "labels without an effect (ground, building, clutter, trunk)",
-}
+PROTOCOL = {"moving": "largest displacement over the loop > 1e-4 x scene extent",
+            "label": "nearest ground-truth Gaussian (aligned cameras) within 0.05 x scene extent",
+            "still": "labels without an effect (ground, building, clutter, trunk)"}
 
 
-def moving_labelled_still(
-    model: Path | None,
-    canonical: Path | None,
-    gt_dir: Path | None,
-    cameras: Path | None,
-    min_motion: float = 1e-4,
-    max_dist: float = 0.05,
-) -> dict[str, Any]:
+def moving_labelled_still(model: Path | None, canonical: Path | None, gt_dir: Path | None, cameras: Path | None,
+                          min_motion: float = 1e-4, max_dist: float = 0.05) -> dict[str, Any]:
     """``{KEY: record}`` on a synthetic scene (``gt_dir``), ``{}`` otherwise."""
     if gt_dir is None:
         return {}
@@ -72,10 +63,6 @@ def moving_labelled_still(
     still = known & np.isin(labels[idx], still_ids)
     n_moving = int((moving & known).sum())
     value = (still & moving).sum() / n_moving if n_moving else 0.0
-    samples = {
-        "moving_gaussians": n_moving,
-        "moving_labelled_still": int((still & moving).sum()),
-        "moving_unlabelled": int((moving & ~known).sum()),
-        "gaussians": int(canon.num),
-    }
+    samples = {"moving_gaussians": n_moving, "moving_labelled_still": int((still & moving).sum()),
+               "moving_unlabelled": int((moving & ~known).sum()), "gaussians": int(canon.num)}
     return {KEY: metric_record(value, False, "fraction", PROTOCOL, samples)}

@@ -17,7 +17,6 @@ available with the reason):
 
 The schema of the output is documented in :mod:`anigs.tables`.
 """
-
 from __future__ import annotations
 
 import logging
@@ -30,17 +29,8 @@ import numpy as np
 
 from anigs.device import get_device, seed_everything
 from anigs.metrics import metric_record, not_available
-from anigs.metrics.features import (
-    INCEPTION_HINT,
-    Unavailable,
-    describe_i3d,
-    i3d_features,
-    inception_features,
-    load_detector,
-    load_i3d_detector,
-    pool_frames,
-    sample_windows,
-)
+from anigs.metrics.features import (INCEPTION_HINT, Unavailable, describe_i3d, i3d_features, inception_features,
+                                    load_detector, load_i3d_detector, pool_frames, sample_windows)
 from anigs.metrics.frechet import frechet_distance
 from anigs.metrics.model_metrics import gt_metrics, multiview_metrics
 from anigs.metrics.multiview import MultiviewFitConfig
@@ -96,14 +86,8 @@ class EvalConfig(Section):
         for k in ("fvd_crop_size", "fid_size", "batch_size", "fvd_window_stride"):
             if getattr(self, k) < 1:
                 raise ValueError(f"eval.{k} must be >= 1, got {getattr(self, k)}")
-        for k in (
-            "fvd_clip_frames",
-            "fvd_max_clips",
-            "fvd_min_frames",
-            "fid_max_frames",
-            "mask_margin_px",
-            "multiview_max_cameras",
-        ):
+        for k in ("fvd_clip_frames", "fvd_max_clips", "fvd_min_frames", "fid_max_frames", "mask_margin_px",
+                  "multiview_max_cameras"):
             if getattr(self, k) < 0:
                 raise ValueError(f"eval.{k} must be >= 0, got {getattr(self, k)}")
         if not 0 < self.multiview_train_fraction < 1:
@@ -117,7 +101,6 @@ class EvalConfig(Section):
 
 
 # ----------------------------------------------------------------------------- inputs
-
 
 def find_clip_files(paths: list[str | Path]) -> list[Path]:
     """Clip files from files and directories (recursive): ``.npz`` clips (with ``frames``), and
@@ -146,10 +129,8 @@ def find_clips(paths: list[str | Path]) -> dict[str, Path]:
     found: dict[str, Path] = {}
     for f in find_clip_files(paths):
         if f.stem in found:
-            raise ValueError(
-                f"two clips for view {f.stem!r}: {found[f.stem]} and {f}; "
-                "pass the folders of one method's camera-fixed clips only"
-            )
+            raise ValueError(f"two clips for view {f.stem!r}: {found[f.stem]} and {f}; "
+                             "pass the folders of one method's camera-fixed clips only")
         found[f.stem] = f
     return dict(sorted(found.items()))
 
@@ -183,32 +164,19 @@ def load_mask_for(view: str, mask_dir: Path | None, height: int, width: int, thr
 
 # ----------------------------------------------------------------------------- metric groups
 
-
 def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg: EvalConfig) -> dict[str, Any]:
     """Per-view weight-free metrics, averaged over views with a mask."""
-    names = {
-        "static_abs_diff": (False, "intensity/frame"),
-        "static_drift": (False, "intensity"),
-        "static_flow": (False, "px/frame"),
-        "dynamic_abs_diff": (True, "intensity/frame"),
-        "dynamic_flow": (True, "px/frame"),
-        "dominant_freq": (True, "cycles/frame"),
-        "spectral_centroid": (True, "cycles/frame"),
-        "static_outside_mask_still": (True, "fraction"),
-    }
-    protocol = {
-        "flow": f"OpenCV DIS {cfg.flow_preset}, grey, consecutive frames",
-        "mask_margin_px": cfg.mask_margin_px,
-        "spectrum": "Hann window, per-pixel mean removed, DC excluded, mean power over dynamic pixels",
-        "still": f"pixels outside the mask dilated by {cfg.still_margin_px} px whose change from frame 0 "
-        f"stays <= {cfg.still_tolerance:.5f} over the clip",
-        "aggregate": "mean over views",
-    }
+    names = {"static_abs_diff": (False, "intensity/frame"), "static_drift": (False, "intensity"),
+             "static_flow": (False, "px/frame"), "dynamic_abs_diff": (True, "intensity/frame"),
+             "dynamic_flow": (True, "px/frame"), "dominant_freq": (True, "cycles/frame"),
+             "spectral_centroid": (True, "cycles/frame"), "static_outside_mask_still": (True, "fraction")}
+    protocol = {"flow": f"OpenCV DIS {cfg.flow_preset}, grey, consecutive frames", "mask_margin_px": cfg.mask_margin_px,
+                "spectrum": "Hann window, per-pixel mean removed, DC excluded, mean power over dynamic pixels",
+                "still": f"pixels outside the mask dilated by {cfg.still_margin_px} px whose change from frame 0 "
+                         f"stays <= {cfg.still_tolerance:.5f} over the clip", "aggregate": "mean over views"}
     if not clips:
-        return {
-            k: not_available("no rendered clips given (--final-dir / --clips)", hib, u, protocol)
-            for k, (hib, u) in names.items()
-        }
+        return {k: not_available("no rendered clips given (--final-dir / --clips)", hib, u, protocol)
+                for k, (hib, u) in names.items()}
     if mask_dir is None:
         return {k: not_available("no dynamic masks given (--masks)", hib, u, protocol) for k, (hib, u) in names.items()}
     per_view: dict[str, dict[str, Any]] = {}
@@ -219,9 +187,8 @@ def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg:
             missing.append(view)
             continue
         per_view[view] = clip_motion_metrics(clip, mask, cfg.mask_margin_px, cfg.flow_preset).to_dict()
-        per_view[view]["static_outside_mask_still"] = outside_mask_still(
-            clip, mask, cfg.still_margin_px, cfg.still_tolerance
-        )
+        per_view[view]["static_outside_mask_still"] = outside_mask_still(clip, mask, cfg.still_margin_px,
+                                                                         cfg.still_tolerance)
     out = {}
     warn = [f"no mask for views {missing} in {mask_dir}"] if missing else []
     for k, (hib, unit) in names.items():
@@ -232,42 +199,26 @@ def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg:
         elif not vals:
             out[k] = not_available("region empty or clips too short in every view", hib, unit, protocol, samples)
         else:
-            out[k] = metric_record(
-                float(np.mean(vals)),
-                hib,
-                unit,
-                protocol,
-                samples,
-                warn,
-                per_view={v: d[k] for v, d in per_view.items()},
-            )
+            out[k] = metric_record(float(np.mean(vals)), hib, unit, protocol, samples, warn,
+                                   per_view={v: d[k] for v, d in per_view.items()})
     return out
 
 
-def frechet_metrics(
-    kind: str, clips: dict[str, np.ndarray], references: dict[str, list[np.ndarray]], cfg: EvalConfig, device
-) -> dict[str, Any]:
+def frechet_metrics(kind: str, clips: dict[str, np.ndarray], references: dict[str, list[np.ndarray]],
+                    cfg: EvalConfig, device) -> dict[str, Any]:
     """FVD-<prior> or FID-<prior> records for every reference prior."""
     if kind == "fvd":
         path, hint, what = cfg.i3d_path, "", "FVD (I3D)"
-        protocol = {
-            "network": "I3D (Kinetics-400), return_features=True, rescale=False",
-            "input": f"short side resized to {cfg.fvd_crop_size}, centre crop {cfg.fvd_crop_size}^2, [-1,1]",
-            "detector_resize": cfg.fvd_detector_resize,
-            "window_frames": cfg.fvd_clip_frames,
-            "window_stride": cfg.fvd_window_stride,
-            "max_clips": cfg.fvd_max_clips,
-            "min_frames": cfg.fvd_min_frames,
-            "weights": str(path),
-        }
+        protocol = {"network": "I3D (Kinetics-400), return_features=True, rescale=False",
+                    "input": f"short side resized to {cfg.fvd_crop_size}, centre crop {cfg.fvd_crop_size}^2, [-1,1]",
+                    "detector_resize": cfg.fvd_detector_resize, "window_frames": cfg.fvd_clip_frames,
+                    "window_stride": cfg.fvd_window_stride, "max_clips": cfg.fvd_max_clips,
+                    "min_frames": cfg.fvd_min_frames, "weights": str(path)}
     else:
         path, hint, what = cfg.inception_path, INCEPTION_HINT, "FID (Inception)"
-        protocol = {
-            "network": "Inception-v3 TorchScript pool features, return_features=True",
-            "input": f"frames resized to {cfg.fid_size}^2 (bicubic), [0,255]",
-            "max_frames": cfg.fid_max_frames,
-            "weights": str(path),
-        }
+        protocol = {"network": "Inception-v3 TorchScript pool features, return_features=True",
+                    "input": f"frames resized to {cfg.fid_size}^2 (bicubic), [0,255]", "max_frames": cfg.fid_max_frames,
+                    "weights": str(path)}
     if not references:
         return {}
     out: dict[str, Any] = {}
@@ -277,17 +228,14 @@ def frechet_metrics(
     if kind == "fvd" and not isinstance(det, Unavailable):
         protocol.update({k: v for k, v in describe_i3d(det).items() if v})
     if isinstance(det, Unavailable):
-        return {
-            f"{kind}/{p}": not_available(det.reason, False, "", protocol, expected_path=det.expected_path)
-            for p in references
-        }
+        return {f"{kind}/{p}": not_available(det.reason, False, "", protocol, expected_path=det.expected_path)
+                for p in references}
 
     def feats(cl: list[np.ndarray]) -> np.ndarray:
         if kind == "fvd":
             wins = sample_windows(cl, cfg.fvd_clip_frames, cfg.fvd_window_stride, cfg.fvd_max_clips)
-            f, _ = i3d_features(
-                det, wins, cfg.fvd_crop_size, cfg.fvd_min_frames, cfg.fvd_detector_resize, cfg.batch_size, device
-            )
+            f, _ = i3d_features(det, wins, cfg.fvd_crop_size, cfg.fvd_min_frames, cfg.fvd_detector_resize,
+                                cfg.batch_size, device)
             return f
         return inception_features(det, pool_frames(cl, cfg.fid_max_frames), cfg.fid_size, cfg.batch_size * 4, device)
 
@@ -299,20 +247,13 @@ def frechet_metrics(
             ref = feats(ref_clips)
             res = frechet_distance(test, ref)
         except ValueError as exc:  # e.g. fewer than 2 samples on a side
-            out[f"{kind}/{prior}"] = not_available(
-                str(exc), False, "", protocol, {"test": len(test), "reference": len(ref_clips)}
-            )
+            out[f"{kind}/{prior}"] = not_available(str(exc), False, "", protocol,
+                                                   {"test": len(test), "reference": len(ref_clips)})
             continue
         out[f"{kind}/{prior}"] = metric_record(
-            res.value,
-            False,
-            "",
-            dict(protocol, eps_used=res.eps_used, seconds=round(time.perf_counter() - t1 + (t1 - t0), 3)),
-            {"test": res.n1, "reference": res.n2},
-            res.warnings,
-            feature_dim=res.dim,
-            undersampled=res.undersampled,
-        )
+            res.value, False, "", dict(protocol, eps_used=res.eps_used,
+                                       seconds=round(time.perf_counter() - t1 + (t1 - t0), 3)),
+            {"test": res.n1, "reference": res.n2}, res.warnings, feature_dim=res.dim, undersampled=res.undersampled)
     return out
 
 
@@ -330,20 +271,12 @@ def _load_references(references: dict[str, list[str | Path]] | None) -> dict[str
 EVAL_PARTS = ("all", "clips", "model")
 
 
-def evaluate(
-    cfg: EvalConfig,
-    clip_paths: list[str | Path],
-    mask_dir: str | Path | None = None,
-    references: dict[str, list[str | Path]] | None = None,
-    model: str | Path | None = None,
-    canonical: str | Path | None = None,
-    cameras: str | Path | None = None,
-    images: str | Path | None = None,
-    points: str | Path | None = None,
-    gt_dir: str | Path | None = None,
-    fid_references: dict[str, list[str | Path]] | None = None,
-    part: str = "all",
-) -> dict[str, Any]:
+def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path | None = None,
+             references: dict[str, list[str | Path]] | None = None, model: str | Path | None = None,
+             canonical: str | Path | None = None, cameras: str | Path | None = None,
+             images: str | Path | None = None, points: str | Path | None = None,
+             gt_dir: str | Path | None = None,
+             fid_references: dict[str, list[str | Path]] | None = None, part: str = "all") -> dict[str, Any]:
     """Compute every metric whose inputs are given; returns the ``metrics`` mapping of metrics.json.
 
     ``references``: prior -> clip files/folders (FVD-prior, and FID-prior unless
@@ -359,7 +292,7 @@ def evaluate(
         raise ValueError(f"eval: part must be one of {EVAL_PARTS}, got {part!r}")
     seed_everything(cfg.seed)
     device = get_device(cfg.device)
-    P = lambda p: None if p in (None, "") else Path(p)
+    P = (lambda p: None if p in (None, "") else Path(p))
     metrics: dict[str, Any] = {}
     if part in ("all", "clips"):
         clip_files = find_clips(clip_paths) if clip_paths else {}
@@ -370,7 +303,8 @@ def evaluate(
         fid_refs.update(_load_references(fid_references))
         t0 = time.perf_counter()
         metrics.update(weightfree_metrics(clips, P(mask_dir), cfg))
-        metrics.update(vbench_metrics(clips, {v: clip_fps(p) for v, p in clip_files.items()}, cfg.flow_preset))
+        metrics.update(vbench_metrics(clips, {v: clip_fps(p) for v, p in clip_files.items()},
+                                      cfg.flow_preset))
         log.info("eval: weight-free metrics %.1f s", time.perf_counter() - t0)
         for kind, r in (("fvd", refs), ("fid", fid_refs)):
             t0 = time.perf_counter()
@@ -380,9 +314,7 @@ def evaluate(
         t0 = time.perf_counter()
         seed_everything(cfg.seed)  # the same draws whether or not the clips' half ran first
         metrics.update(gt_metrics(P(model), P(canonical), P(gt_dir), P(cameras)))
-        metrics.update(
-            moving_labelled_still(P(model), P(canonical), P(gt_dir), P(cameras))
-        )  # anigs/metrics/still_labels.py
+        metrics.update(moving_labelled_still(P(model), P(canonical), P(gt_dir), P(cameras)))  # anigs/metrics/still_labels.py
         metrics.update(multiview_metrics(cfg, P(model), P(canonical), P(cameras), P(images), P(points), device))
         log.info("eval: model-based metrics %.1f s", time.perf_counter() - t0)
     return metrics

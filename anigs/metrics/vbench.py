@@ -16,7 +16,6 @@ Dynamic degree, proxy (VBench's rule with OpenCV DIS flow instead of RAFT)
     ``max(1, 8 / fps) * 6 * min(H, W) / 256`` pixels. The dimension is the share of dynamic clips.
     RAFT is replaced by OpenCV DIS (``preset``): a proxy, labelled as such wherever it is written.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -39,9 +38,8 @@ def check_finite_clip(clip: np.ndarray, name: str) -> np.ndarray:
         raise ValueError(f"clip {name!r}: expected [T,H,W,3], got {c.shape}")
     bad = np.flatnonzero(~np.isfinite(c).reshape(c.shape[0], -1).all(axis=1))
     if bad.size:
-        raise ValueError(
-            f"clip {name!r}: frames {bad[:10].tolist()} contain NaN or Inf ({bad.size} of {c.shape[0]} frames)"
-        )
+        raise ValueError(f"clip {name!r}: frames {bad[:10].tolist()} contain NaN or Inf "
+                         f"({bad.size} of {c.shape[0]} frames)")
     return c
 
 
@@ -69,14 +67,9 @@ class DynamicDegree:
     interval: int
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "dynamic": self.dynamic,
-            "pair_scores": [round(s, 4) for s in self.pair_scores],
-            "threshold_px": self.threshold_px,
-            "count_needed": self.count_needed,
-            "interval": self.interval,
-            "pairs_over": int(sum(s > self.threshold_px for s in self.pair_scores)),
-        }
+        return {"dynamic": self.dynamic, "pair_scores": [round(s, 4) for s in self.pair_scores],
+                "threshold_px": self.threshold_px, "count_needed": self.count_needed, "interval": self.interval,
+                "pairs_over": int(sum(s > self.threshold_px for s in self.pair_scores))}
 
 
 def top_flow_magnitude(flow: np.ndarray) -> float:
@@ -85,7 +78,7 @@ def top_flow_magnitude(flow: np.ndarray) -> float:
     k = int(rad.size * TOP_FRACTION)
     if k < 1:
         raise ValueError(f"top_flow_magnitude: {rad.size} pixels are too few for the top {TOP_FRACTION:.0%}")
-    return float(np.partition(rad, rad.size - k)[rad.size - k :].mean())
+    return float(np.partition(rad, rad.size - k)[rad.size - k:].mean())
 
 
 def dynamic_degree_proxy(clip: np.ndarray, fps: float, preset: str = "medium", name: str = "clip") -> DynamicDegree:
@@ -108,51 +101,31 @@ def dynamic_degree_proxy(clip: np.ndarray, fps: float, preset: str = "medium", n
 def vbench_metrics(clips: Mapping[str, np.ndarray], fps: Mapping[str, float], preset: str = "medium") -> dict[str, Any]:
     """``vbench/temporal_flickering``, ``vbench/dynamic_degree_proxy`` and its continuous score
     ``vbench/top5_flow_px`` over camera-fixed clips."""
-    p_flick = {
-        "definition": "VBench temporal flickering: per clip (255 - mean over consecutive frame pairs of the "
-        "mean |I_t+1 - I_t| over pixels and channels, uint8) / 255; mean over clips",
-        "input": "camera-fixed clips (static camera, as VBench requires)",
-    }
-    p_dyn = {
-        "definition": "PROXY of VBench dynamic degree: share of clips where at least round(4 n/16) of the pairs "
-        "of frames sampled every max(1, round(fps/8)) frames have a top-5% mean flow magnitude "
-        "above max(1, 8/fps) * 6 * min(H,W)/256 px",
-        "flow": f"OpenCV DIS {preset} (VBench uses RAFT: this is a proxy, not VBench's score)",
-    }
-    p_top = dict(
-        p_dyn,
-        definition="the proxy's per-pair score (mean of the largest 5% flow magnitudes between frames "
-        "sampled every max(1, round(fps/8)) frames), averaged over pairs and clips: the "
-        "continuous quantity the dynamic-degree threshold cuts",
-    )
+    p_flick = {"definition": "VBench temporal flickering: per clip (255 - mean over consecutive frame pairs of the "
+                             "mean |I_t+1 - I_t| over pixels and channels, uint8) / 255; mean over clips",
+               "input": "camera-fixed clips (static camera, as VBench requires)"}
+    p_dyn = {"definition": "PROXY of VBench dynamic degree: share of clips where at least round(4 n/16) of the pairs "
+                           "of frames sampled every max(1, round(fps/8)) frames have a top-5% mean flow magnitude "
+                           "above max(1, 8/fps) * 6 * min(H,W)/256 px",
+             "flow": f"OpenCV DIS {preset} (VBench uses RAFT: this is a proxy, not VBench's score)"}
+    p_top = dict(p_dyn, definition="the proxy's per-pair score (mean of the largest 5% flow magnitudes between frames "
+                                   "sampled every max(1, round(fps/8)) frames), averaged over pairs and clips: the "
+                                   "continuous quantity the dynamic-degree threshold cuts")
     if not clips:
         reason = "no rendered clips given (--final-dir / --clips)"
-        return {
-            "vbench/temporal_flickering": not_available(reason, True, "score", p_flick),
-            "vbench/dynamic_degree_proxy": not_available(reason, True, "share of clips", p_dyn),
-            "vbench/top5_flow_px": not_available(reason, True, "px per sampled pair", p_top),
-        }
+        return {"vbench/temporal_flickering": not_available(reason, True, "score", p_flick),
+                "vbench/dynamic_degree_proxy": not_available(reason, True, "share of clips", p_dyn),
+                "vbench/top5_flow_px": not_available(reason, True, "px per sampled pair", p_top)}
     flick = {v: temporal_flickering(c, v) for v, c in clips.items()}
     dyn = {v: dynamic_degree_proxy(c, fps[v], preset, v) for v, c in clips.items()}
     samples = {"clips": len(clips), "frames": int(sum(c.shape[0] for c in clips.values()))}
     return {
-        "vbench/temporal_flickering": metric_record(
-            float(np.mean(list(flick.values()))), True, "score", p_flick, samples, per_view=flick
-        ),
-        "vbench/dynamic_degree_proxy": metric_record(
-            float(np.mean([d.dynamic for d in dyn.values()])),
-            True,
-            "share of clips",
-            p_dyn,
-            samples,
-            per_view={v: d.to_dict() for v, d in dyn.items()},
-        ),
-        "vbench/top5_flow_px": metric_record(
-            float(np.mean([np.mean(d.pair_scores) for d in dyn.values()])),
-            True,
-            "px per sampled pair",
-            p_top,
-            samples,
-            threshold_px={v: d.threshold_px for v, d in dyn.items()},
-        ),
+        "vbench/temporal_flickering": metric_record(float(np.mean(list(flick.values()))), True, "score", p_flick,
+                                                    samples, per_view=flick),
+        "vbench/dynamic_degree_proxy": metric_record(float(np.mean([d.dynamic for d in dyn.values()])), True,
+                                                     "share of clips", p_dyn, samples,
+                                                     per_view={v: d.to_dict() for v, d in dyn.items()}),
+        "vbench/top5_flow_px": metric_record(float(np.mean([np.mean(d.pair_scores) for d in dyn.values()])), True,
+                                             "px per sampled pair", p_top, samples,
+                                             threshold_px={v: d.threshold_px for v, d in dyn.items()}),
     }

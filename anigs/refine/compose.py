@@ -20,7 +20,6 @@ An empty mask skips refinement: the clip passes through unchanged (logged), noth
 simulated where the scene calls for nothing. ``compose=False`` is the paper's
 "w/o ComposedV2V" ablation: the raw rendered clip is refined, nothing is pasted.
 """
-
 from __future__ import annotations
 
 import logging
@@ -41,10 +40,10 @@ log = logging.getLogger(__name__)
 class ComposeConfig:
     """ComposedV2V options."""
 
-    compose: bool = True  # False = "w/o ComposedV2V" ablation (refine the raw clip)
-    feather_px: float = 0.0  # inward feathering of the mask edge, pixels (0 = hard mask, the paper)
-    dilate_px: int = 0  # grow the mask(s) by this many pixels before composing (0 = as given)
-    repaste_static: bool = True  # paste the static region of R_0 back after refinement
+    compose: bool = True          # False = "w/o ComposedV2V" ablation (refine the raw clip)
+    feather_px: float = 0.0       # inward feathering of the mask edge, pixels (0 = hard mask, the paper)
+    dilate_px: int = 0            # grow the mask(s) by this many pixels before composing (0 = as given)
+    repaste_static: bool = True   # paste the static region of R_0 back after refinement
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "ComposeConfig":
@@ -58,7 +57,7 @@ class ComposeConfig:
 
 def soft_mask(mask: np.ndarray, feather_px: float = 0.0) -> np.ndarray:
     """Binary mask (> 0.5) feathered inwards: [H,W] float32, exactly 0 outside the mask."""
-    hard = np.asarray(mask) > 0.5
+    hard = (np.asarray(mask) > 0.5)
     if feather_px <= 0 or not hard.any():
         return hard.astype(np.float32)
     padded = np.pad(hard.astype(np.uint8), 1, mode="edge")  # the image border is not a mask edge
@@ -91,15 +90,8 @@ def compose(clip: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return (1.0 - m) * clip[:1] + m * clip
 
 
-def composed_v2v(
-    prior: VideoPrior,
-    clip: np.ndarray,
-    mask: MaskLike,
-    prompt: str,
-    seed: int,
-    strength: float,
-    cfg: ComposeConfig | None = None,
-) -> tuple[np.ndarray, dict[str, Any]]:
+def composed_v2v(prior: VideoPrior, clip: np.ndarray, mask: MaskLike, prompt: str, seed: int,
+                 strength: float, cfg: ComposeConfig | None = None) -> tuple[np.ndarray, dict[str, Any]]:
     """ComposedV2V refinement of a rendered clip [T,H,W,3] -> (target clip [T,H,W,3], info).
 
     ``mask``: [H,W] or {effect: [H,W]} (the union is the compose mask; the prior gets the
@@ -112,18 +104,10 @@ def composed_v2v(
     union_mask(mask, H, W)  # validates sizes before anything else
     mask = dilate_masks(mask, int(cfg.dilate_px))
     m = soft_mask(union_mask(mask, H, W), cfg.feather_px)
-    info: dict[str, Any] = {
-        "prior": prior.name,
-        "compose": cfg.compose,
-        "feather_px": cfg.feather_px,
-        "dilate_px": int(cfg.dilate_px),
-        "repaste_static": cfg.repaste_static,
-        "mask_fraction": float((m > 0).mean()),
-        "strength": float(strength),
-        "seed": int(seed),
-        "prompt": prompt,
-        "frames": T,
-    }
+    info: dict[str, Any] = {"prior": prior.name, "compose": cfg.compose, "feather_px": cfg.feather_px,
+                            "dilate_px": int(cfg.dilate_px),
+                            "repaste_static": cfg.repaste_static, "mask_fraction": float((m > 0).mean()),
+                            "strength": float(strength), "seed": int(seed), "prompt": prompt, "frames": T}
     if not (m > 0).any():
         log.info("ComposedV2V: empty dynamic mask: refinement skipped, clip passes through unchanged")
         info["skipped"] = "empty mask"

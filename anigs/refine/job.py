@@ -3,7 +3,6 @@
 The noise seed of a job combines the global seed, the round and the view (:func:`view_seed`), so
 every view and round draws independent noise; the refine and round stages call :func:`refine_clip`.
 """
-
 from __future__ import annotations
 
 import json
@@ -46,15 +45,8 @@ def parse_masks(values: list[str]) -> np.ndarray | dict[str, np.ndarray]:
     return out
 
 
-def refine_clip(
-    clip_path: str | Path,
-    masks: np.ndarray | dict[str, np.ndarray],
-    out: str | Path,
-    cfg,
-    round_: int | None = None,
-    view: str | None = None,
-    priors: dict | None = None,
-) -> dict:
+def refine_clip(clip_path: str | Path, masks: np.ndarray | dict[str, np.ndarray], out: str | Path, cfg,
+                round_: int | None = None, view: str | None = None, priors: dict | None = None) -> dict:
     """ComposedV2V refinement of the clip at ``clip_path`` (``masks``: one [H,W] mask or one per
     effect) into ``out`` with ``cfg`` (the refine stage's config); returns what was done (seed, sigmas, seconds). ``priors``: a dict kept
     across calls, so that a process refining several clips builds (loads) each prior once."""
@@ -79,36 +71,14 @@ def refine_clip(
         if priors is not None:
             priors[key] = prior
     t0 = time.perf_counter()
-    refined, info = composed_v2v(
-        prior,
-        clip,
-        masks,
-        cfg.prompt,
-        seed,
-        cfg.strength,
-        ComposeConfig(
-            compose=cfg.compose, feather_px=cfg.feather_px, dilate_px=cfg.dilate_px, repaste_static=cfg.repaste_static
-        ),
-    )
-    info.update(
-        {
-            "seconds": round(time.perf_counter() - t0, 3),
-            "view": view,
-            "round": round_,
-            "global_seed": cfg.seed,
-            **{k: v for k, v in getattr(prior, "last_info", {}).items() if isinstance(v, (int, float, str, list))},
-        }
-    )
-    log.info(
-        "refined %s (round %d, view %s, seed %d) with %s in %.2fs -> %s",
-        clip_path,
-        round_,
-        view,
-        seed,
-        cfg.prior,
-        info["seconds"],
-        out,
-    )
+    refined, info = composed_v2v(prior, clip, masks, cfg.prompt, seed, cfg.strength,
+                                 ComposeConfig(compose=cfg.compose, feather_px=cfg.feather_px,
+                                               dilate_px=cfg.dilate_px, repaste_static=cfg.repaste_static))
+    info.update({"seconds": round(time.perf_counter() - t0, 3), "view": view, "round": round_,
+                 "global_seed": cfg.seed, **{k: v for k, v in getattr(prior, "last_info", {}).items()
+                                             if isinstance(v, (int, float, str, list))}})
+    log.info("refined %s (round %d, view %s, seed %d) with %s in %.2fs -> %s", clip_path, round_, view, seed,
+             cfg.prior, info["seconds"], out)
     # wall time goes to the log, not into the artifact: the same inputs give the same file
     stored = {k: v for k, v in info.items() if k != "seconds"}
     save_clip(out, refined, {**meta, "refine": stored})

@@ -12,7 +12,6 @@ On x86-64 Linux the kernel targets the best instruction-set level the CPU report
 so machines sharing a home directory each get a library their CPU can run;
 ``ANIGS_KERNEL_ARCH`` overrides the choice (e.g. ``x86-64-v3``; ``none`` for the baseline).
 """
-
 from __future__ import annotations
 
 import ctypes
@@ -50,8 +49,7 @@ def _compiler() -> str:
             return cand
     raise KernelBuildError(
         "no C++ compiler found for the cpu rasterizer (set $CXX, or install g++: "
-        "'apt-get install g++'); meanwhile backend='torch' works without one"
-    )
+        "'apt-get install g++'); meanwhile backend='torch' works without one")
 
 
 def arch_flags() -> list[str]:

@@ -1,5 +1,4 @@
 """Input checks shared by the rasterizer front and its backends: shapes, finite values, ranges."""
-
 from __future__ import annotations
 
 import torch
@@ -22,9 +21,8 @@ def validate(named: dict[str, torch.Tensor]) -> None:
         raise ValueError("rasterize: scales must be >= 0 and opacities in [0,1] (pass activated values)")
 
 
-def check_inputs(
-    what: str, means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor, width, height
-) -> tuple[int, int, int]:
+def check_inputs(what: str, means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,
+                 opacities: torch.Tensor, width, height) -> tuple[int, int, int]:
     """Check the image size and the shapes of a splat set (means [N,3], quats [N,4], scales [N,3],
     opacities [N]); returns (width, height, N). ``what`` names the caller in the error."""
     width, height = int(width), int(height)
@@ -32,8 +30,6 @@ def check_inputs(
         raise ValueError(f"{what}: image size must be >= 1x1, got {width}x{height}")
     n = means.shape[0]
     if means.shape != (n, 3) or quats.shape != (n, 4) or scales.shape != (n, 3) or opacities.shape != (n,):
-        raise ValueError(
-            f"{what}: shape mismatch: means {tuple(means.shape)}, quats {tuple(quats.shape)}, "
-            f"scales {tuple(scales.shape)}, opacities {tuple(opacities.shape)} (N={n})"
-        )
+        raise ValueError(f"{what}: shape mismatch: means {tuple(means.shape)}, quats {tuple(quats.shape)}, "
+                         f"scales {tuple(scales.shape)}, opacities {tuple(opacities.shape)} (N={n})")
     return width, height, n

@@ -9,7 +9,6 @@ nearest neighbour (:func:`transfer_labels`, :func:`labels_for`) and by appearanc
 (:func:`appearance_labels`: each fitted Gaussian takes the label of what it depicts in the
 training views, which a fitted model's floaters and thick ground layer need).
 """
-
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Sequence
@@ -37,9 +36,8 @@ def effect_indicators(labels: np.ndarray, effects: dict[str, Sequence[int]]) -> 
     return np.stack([np.isin(labels, list(ids)) for ids in effects.values()], 1).astype(np.float32)
 
 
-def render_effect_weights(
-    g: Gaussians, labels: np.ndarray, effects: dict[str, Sequence[int]], cam: Camera
-) -> tuple[dict[str, np.ndarray], np.ndarray]:
+def render_effect_weights(g: Gaussians, labels: np.ndarray, effects: dict[str, Sequence[int]],
+                          cam: Camera) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """Per-effect blending weight [H,W] and alpha [H,W] of ``g`` seen from ``cam``."""
     if len(labels) != g.num:
         raise ValueError(f"labels backend: {len(labels)} labels for {g.num} Gaussians")
@@ -53,8 +51,8 @@ def render_effect_weights(
     with torch.no_grad():
         for s in range(0, len(names), 3):
             cols = torch.zeros(len(idx), 3)
-            chunk = ind[:, s : s + 3]
-            cols[:, : chunk.shape[1]] = chunk
+            chunk = ind[:, s:s + 3]
+            cols[:, :chunk.shape[1]] = chunk
             rgb, a, _ = rasterize(*args, cols, cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height)
             alpha = a.numpy()
             for j in range(chunk.shape[1]):
@@ -62,14 +60,8 @@ def render_effect_weights(
     return out, alpha
 
 
-def label_masks(
-    g: Gaussians,
-    labels: np.ndarray,
-    effects: dict[str, Sequence[int]],
-    cam: Camera,
-    threshold: float = 0.5,
-    min_alpha: float = 0.3,
-) -> dict[str, np.ndarray]:
+def label_masks(g: Gaussians, labels: np.ndarray, effects: dict[str, Sequence[int]], cam: Camera,
+                threshold: float = 0.5, min_alpha: float = 0.3) -> dict[str, np.ndarray]:
     """Masks bool [H,W] per effect of the pixels its labels dominate (effect weight >= ``threshold``
     of the pixel's alpha, alpha >= ``min_alpha``), and ``dynamic``, their union by the same rule."""
     weights, alpha = render_effect_weights(g, labels, effects, cam)
@@ -81,9 +73,8 @@ def label_masks(
     return masks
 
 
-def dynamic_masks(
-    g: Gaussians, dynamic: np.ndarray, cameras: Sequence[Camera], threshold: float = 0.5, min_alpha: float = 0.3
-) -> list[np.ndarray]:
+def dynamic_masks(g: Gaussians, dynamic: np.ndarray, cameras: Sequence[Camera], threshold: float = 0.5,
+                  min_alpha: float = 0.3) -> list[np.ndarray]:
     """Masks bool [H,W] per camera of the pixels that the Gaussians flagged in ``dynamic`` [N] dominate.
 
     The render of a 3D dynamic set: a pixel is in the mask when the flagged Gaussians carry
@@ -114,15 +105,9 @@ def render_label_map(g: Gaussians, labels: np.ndarray, cam: Camera, min_alpha: f
     return out
 
 
-def appearance_labels(
-    g: Gaussians,
-    label_gaussians: Gaussians,
-    labels: np.ndarray,
-    cameras: Sequence[Camera],
-    to_labels_frame: Similarity | None = None,
-    min_alpha: float = 0.3,
-    min_weight: float = 0.05,
-) -> tuple[np.ndarray, np.ndarray, list[int]]:
+def appearance_labels(g: Gaussians, label_gaussians: Gaussians, labels: np.ndarray, cameras: Sequence[Camera],
+                      to_labels_frame: Similarity | None = None, min_alpha: float = 0.3,
+                      min_weight: float = 0.05) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """Label per Gaussian of ``g`` by what it depicts in ``cameras`` (e.g. the training views).
 
     Each camera (in the frame of ``g``; moved by ``to_labels_frame`` into the frame of
@@ -154,7 +139,7 @@ def appearance_labels(
             continue
         args = render_inputs(g, idx)
         for s in range(0, len(classes), 3):
-            chunk = classes[s : s + 3]
+            chunk = classes[s:s + 3]
             colors = torch.zeros(len(idx), 3, requires_grad=True)
             rgb, _, _ = rasterize(*args, colors, cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height)
             gout = torch.zeros_like(rgb)
@@ -162,7 +147,7 @@ def appearance_labels(
                 gout[..., j] = (lmap == c).float()
             rgb.backward(gout)
             if colors.grad is not None:
-                acc[idx.numpy(), s : s + len(chunk)] += colors.grad[:, : len(chunk)].double().numpy()
+                acc[idx.numpy(), s:s + len(chunk)] += colors.grad[:, :len(chunk)].double().numpy()
     out = np.asarray(classes, np.int64)[np.argmax(acc, 1)]
     unseen = acc.sum(1) < min_weight
     if unseen.any():
@@ -179,12 +164,8 @@ def transfer_labels(src_means: np.ndarray, src_labels: np.ndarray, dst_means: np
     return np.asarray(src_labels)[idx]
 
 
-def labels_for(
-    means: np.ndarray,
-    labels: np.ndarray,
-    label_means: np.ndarray | None = None,
-    to_means_frame: Similarity | None = None,
-) -> np.ndarray:
+def labels_for(means: np.ndarray, labels: np.ndarray, label_means: np.ndarray | None = None,
+               to_means_frame: Similarity | None = None) -> np.ndarray:
     """Labels [N] for Gaussians at ``means`` [N,3].
 
     When ``labels`` already has N entries and no ``label_means`` is given they are used as
@@ -194,10 +175,8 @@ def labels_for(
     labels = np.asarray(labels)
     if label_means is None:
         if len(labels) != len(means):
-            raise ValueError(
-                f"{len(labels)} labels for {len(means)} Gaussians: give the Gaussians the labels "
-                "belong to (e.g. --gt-gaussians gt/gaussians.ply) to transfer them"
-            )
+            raise ValueError(f"{len(labels)} labels for {len(means)} Gaussians: give the Gaussians the labels "
+                             "belong to (e.g. --gt-gaussians gt/gaussians.ply) to transfer them")
         return labels
     if len(label_means) != len(labels):
         raise ValueError(f"{len(labels)} labels for {len(label_means)} labelled Gaussians")

@@ -3,7 +3,6 @@
 Shared by the ``torch`` and ``cpu`` backends, so they differ only in compositing.
 Conventions: OpenCV camera (x right, y down, z forward), pixel centres at +0.5.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -43,17 +42,9 @@ class Projected:
 
 
 def project_gaussians(
-    means: torch.Tensor,
-    quats: torch.Tensor,
-    scales: torch.Tensor,
-    opacities: torch.Tensor,
-    viewmat: torch.Tensor,
-    K: torch.Tensor,
-    width: int,
-    height: int,
-    near: float = 0.01,
-    far: float = 1e10,
-    eps2d: float = EPS_2D,
+    means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor,
+    viewmat: torch.Tensor, K: torch.Tensor, width: int, height: int,
+    near: float = 0.01, far: float = 1e10, eps2d: float = EPS_2D,
 ) -> Projected:
     """Project Gaussians [N] with a pinhole camera (viewmat [4,4] world->camera, K [3,3])."""
     R, t = viewmat[:3, :3], viewmat[:3, 3]

@@ -10,7 +10,6 @@ for CPU tensors, else torch. The torch path below is the readable reference: pro
 compositing (:mod:`anigs.render.torch_backend`). The cpu backend
 (:mod:`anigs.render.cpu_backend`) computes the same thing in fused C++ kernels.
 """
-
 from __future__ import annotations
 
 import warnings
@@ -37,11 +36,8 @@ def select_backend(backend: str, device: torch.device) -> str:
     if device.type == "cuda":
         if gsplat_backend.available():
             return "gsplat"
-        warnings.warn(
-            "gsplat is not installed: rendering CUDA tensors with the torch backend "
-            "(install the 'gsplat' extra for speed)",
-            stacklevel=3,
-        )
+        warnings.warn("gsplat is not installed: rendering CUDA tensors with the torch backend "
+                      "(install the 'gsplat' extra for speed)", stacklevel=3)
         return "torch"
     if device.type == "cpu":
         if _build.available():
@@ -51,20 +47,10 @@ def select_backend(backend: str, device: torch.device) -> str:
 
 
 def rasterize(
-    means: torch.Tensor,
-    quats: torch.Tensor,
-    scales: torch.Tensor,
-    opacities: torch.Tensor,
-    colors: torch.Tensor,
-    viewmat: torch.Tensor,
-    K: torch.Tensor,
-    width: int,
-    height: int,
-    sh_degree: int | None = None,
-    background: torch.Tensor | None = None,
-    backend: str = "auto",
-    near: float = 0.01,
-    far: float = 1e10,
+    means: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor,
+    colors: torch.Tensor, viewmat: torch.Tensor, K: torch.Tensor, width: int, height: int,
+    sh_degree: int | None = None, background: torch.Tensor | None = None, backend: str = "auto",
+    near: float = 0.01, far: float = 1e10,
 ) -> tuple[torch.Tensor, torch.Tensor, dict[str, Any]]:
     """Render N Gaussians with one pinhole camera.
 
@@ -82,20 +68,12 @@ def rasterize(
         if colors.shape != (n, 3):
             raise ValueError(f"rasterize: colors must be [N,3] without sh_degree, got {tuple(colors.shape)}")
     elif colors.ndim != 3 or colors.shape[0] != n or colors.shape[1] < (sh_degree + 1) ** 2 or colors.shape[2] != 3:
-        raise ValueError(
-            f"rasterize: SH must be [N,>={(sh_degree + 1) ** 2},3] for degree {sh_degree}, got {tuple(colors.shape)}"
-        )
+        raise ValueError(f"rasterize: SH must be [N,>={(sh_degree + 1) ** 2},3] for degree {sh_degree}, "
+                         f"got {tuple(colors.shape)}")
     if viewmat.shape != (4, 4) or K.shape != (3, 3):
         raise ValueError(f"rasterize: viewmat must be [4,4] and K [3,3], got {tuple(viewmat.shape)}, {tuple(K.shape)}")
-    named = {
-        "means": means,
-        "quats": quats,
-        "scales": scales,
-        "opacities": opacities,
-        "colors": colors,
-        "viewmat": viewmat,
-        "K": K,
-    }
+    named = {"means": means, "quats": quats, "scales": scales, "opacities": opacities,
+             "colors": colors, "viewmat": viewmat, "K": K}
     for name, t in named.items():
         if not torch.is_tensor(t):
             raise TypeError(f"rasterize: {name} must be a tensor, got {type(t).__name__}")
@@ -109,38 +87,18 @@ def rasterize(
             raise ValueError("rasterize: inputs are not finite in float32, or scales/opacities out of range")
 
         rgb, alpha, depth, means2d, radii, valid, num_visible = render_cpu(
-            means,
-            quats,
-            scales,
-            opacities,
-            colors,
-            viewmat,
-            K,
-            width,
-            height,
-            sh_degree,
-            None if background is None else background.to(means),
-            near,
-            far,
-            on_invalid,
-        )
-        meta = {
-            "depth": depth,
-            "radii": radii,
-            "means2d": means2d,
-            "visible": valid,
-            "backend": backend,
-            "num_visible": num_visible,
-        }
+            means, quats, scales, opacities, colors, viewmat, K, width, height, sh_degree,
+            None if background is None else background.to(means), near, far, on_invalid)
+        meta = {"depth": depth, "radii": radii, "means2d": means2d, "visible": valid,
+                "backend": backend, "num_visible": num_visible}
         return rgb, alpha, meta
 
     validate(named)
     bg = torch.zeros(3, dtype=means.dtype, device=device) if background is None else background.to(means)
 
     if backend == "gsplat":
-        rgb, alpha, meta = gsplat_backend.render(
-            means, quats, scales, opacities, colors, viewmat, K, width, height, sh_degree, bg, near, far
-        )
+        rgb, alpha, meta = gsplat_backend.render(means, quats, scales, opacities, colors, viewmat, K,
+                                                 width, height, sh_degree, bg, near, far)
         meta["backend"] = "gsplat"
         return rgb, alpha, meta
 
@@ -159,14 +117,8 @@ def rasterize(
     alpha = 1 - T
     rgb = acc[..., :3] + T[..., None] * bg
     depth = torch.where(alpha > 0, acc[..., 3] / alpha.clamp_min(1e-10), torch.zeros_like(alpha))
-    meta = {
-        "depth": depth,
-        "radii": radii,
-        "means2d": means2d,
-        "visible": valid,
-        "backend": backend,
-        "num_visible": int(idx.numel()),
-    }
+    meta = {"depth": depth, "radii": radii, "means2d": means2d, "visible": valid,
+            "backend": backend, "num_visible": int(idx.numel())}
     return rgb, alpha, meta
 
 
@@ -174,17 +126,6 @@ def render_gaussians(gaussians, camera, background=None, backend: str = "auto", 
     """Convenience: render a :class:`anigs.gaussians.Gaussians` with a :class:`anigs.cameras.Camera`."""
     dev = gaussians.device
     deg = gaussians.sh_degree if sh_degree is None else min(sh_degree, gaussians.sh_degree)
-    return rasterize(
-        gaussians.means,
-        gaussians.quats,
-        gaussians.scales,
-        gaussians.opacities,
-        gaussians.sh,
-        camera.torch_viewmat(dev),
-        camera.torch_K(dev),
-        camera.width,
-        camera.height,
-        sh_degree=deg,
-        background=background,
-        backend=backend,
-    )
+    return rasterize(gaussians.means, gaussians.quats, gaussians.scales, gaussians.opacities, gaussians.sh,
+                     camera.torch_viewmat(dev), camera.torch_K(dev), camera.width, camera.height,
+                     sh_degree=deg, background=background, backend=backend)

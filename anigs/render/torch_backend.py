@@ -6,7 +6,6 @@ Gaussian touches the pixels whose centres lie in its box ``rect``; per pixel
 alpha < 1/255 is skipped; compositing stops before the splat that would push the
 transmittance to <= 1e-4.
 """
-
 from __future__ import annotations
 
 import torch
@@ -15,13 +14,8 @@ from anigs.render.projection import ALPHA_MAX, ALPHA_MIN, T_MIN
 
 
 def composite_torch(
-    means2d: torch.Tensor,
-    conics: torch.Tensor,
-    feats: torch.Tensor,
-    opacities: torch.Tensor,
-    rects: torch.Tensor,
-    width: int,
-    height: int,
+    means2d: torch.Tensor, conics: torch.Tensor, feats: torch.Tensor, opacities: torch.Tensor,
+    rects: torch.Tensor, width: int, height: int,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Front-to-back alpha compositing of M depth-sorted splats.
 

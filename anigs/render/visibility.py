@@ -17,7 +17,6 @@ Two visibility tests, both for a Gaussian set seen from one :class:`~anigs.camer
 ``frustum`` only keeps the centres that project into the image. The 2D-to-3D mask lifting
 (:mod:`anigs.masks.lift`) votes with these tests.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -83,12 +82,8 @@ def frustum_subset(g: Gaussians, cam: Camera, near: float = 0.01, sigmas: float 
 
 def render_inputs(g: Gaussians, idx: torch.Tensor) -> tuple[torch.Tensor, ...]:
     """(means, quats, scales, opacities) of the Gaussians ``idx``, detached float32 CPU tensors."""
-    return (
-        g.means.detach().float().cpu()[idx],
-        g.quats.detach().float().cpu()[idx],
-        g.scales.detach().float().cpu()[idx],
-        g.opacities.detach().float().cpu()[idx],
-    )
+    return (g.means.detach().float().cpu()[idx], g.quats.detach().float().cpu()[idx],
+            g.scales.detach().float().cpu()[idx], g.opacities.detach().float().cpu()[idx])
 
 
 def render_depth(g: Gaussians, cam: Camera) -> tuple[np.ndarray, np.ndarray]:
@@ -96,15 +91,13 @@ def render_depth(g: Gaussians, cam: Camera) -> tuple[np.ndarray, np.ndarray]:
     idx = frustum_subset(g, cam)
     with torch.no_grad():
         colors = torch.zeros(len(idx), 3)
-        _, alpha, meta = rasterize(
-            *render_inputs(g, idx), colors, cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height
-        )
+        _, alpha, meta = rasterize(*render_inputs(g, idx), colors, cam.torch_viewmat(), cam.torch_K(),
+                                   cam.width, cam.height)
     return meta["depth"].numpy(), alpha.numpy()
 
 
-def project_to_pixels(
-    means: np.ndarray, cam: Camera, near: float = 0.01
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def project_to_pixels(means: np.ndarray, cam: Camera,
+                      near: float = 0.01) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Pixel indices of Gaussian centres.
 
     Returns (inside [N] bool, px [N] int, py [N] int, z [N]); px/py are 0 where not inside.
@@ -120,23 +113,16 @@ def project_to_pixels(
     return inside, px, py, z
 
 
-def visible_depth(
-    means: np.ndarray,
-    cam: Camera,
-    depth: np.ndarray | None,
-    alpha: np.ndarray | None,
-    max_scale: np.ndarray | float = 0.0,
-    cfg: VisibilityConfig | None = None,
-) -> np.ndarray:
+def visible_depth(means: np.ndarray, cam: Camera, depth: np.ndarray | None, alpha: np.ndarray | None,
+                  max_scale: np.ndarray | float = 0.0, cfg: VisibilityConfig | None = None) -> np.ndarray:
     """Depth-test visibility bool [N] (frustum test only when ``depth`` is None)."""
     cfg = cfg or VisibilityConfig()
     inside, px, py, z = project_to_pixels(means, cam, cfg.near)
     if depth is None:
         return inside
     if depth.shape != (cam.height, cam.width):
-        raise ValueError(
-            f"depth map is {depth.shape[1]}x{depth.shape[0]}, camera {cam.name!r} is {cam.width}x{cam.height}"
-        )
+        raise ValueError(f"depth map is {depth.shape[1]}x{depth.shape[0]}, "
+                         f"camera {cam.name!r} is {cam.width}x{cam.height}")
     d = depth[py, px]
     a = alpha[py, px] if alpha is not None else np.ones_like(d)
     tol = cfg.rel_tol * d + cfg.scale_tol * np.asarray(max_scale)
@@ -165,25 +151,18 @@ def blend_weights(g: Gaussians, cam: Camera, mask: np.ndarray | None = None) -> 
     if len(idx) == 0:
         return total, inside
     ones = torch.ones(cam.height, cam.width, 1)
-    factors = (
-        ones
-        if mask is None
-        else torch.cat(
-            [ones, torch.from_numpy(np.asarray(mask, dtype=np.float32)).reshape(cam.height, cam.width, 1)], 2
-        )
-    )
-    w = composite_weights_cpu(
-        *render_inputs(g, idx), cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height, factors
-    ).numpy()
+    factors = ones if mask is None else torch.cat(
+        [ones, torch.from_numpy(np.asarray(mask, dtype=np.float32)).reshape(cam.height, cam.width, 1)], 2)
+    w = composite_weights_cpu(*render_inputs(g, idx), cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height,
+                              factors).numpy()
     total[idx.numpy()] = w[:, 0]
     if mask is not None:
         inside[idx.numpy()] = w[:, 1]
     return total, inside
 
 
-def blend_weights_backward(
-    g: Gaussians, cam: Camera, mask: np.ndarray | None = None, backend: str = "auto"
-) -> tuple[np.ndarray, np.ndarray]:
+def blend_weights_backward(g: Gaussians, cam: Camera, mask: np.ndarray | None = None,
+                           backend: str = "auto") -> tuple[np.ndarray, np.ndarray]:
     """:func:`blend_weights` via one backward pass of the rasterizer ``backend`` with zero
     colours (``d(sum_p rgb_0(p)) / d colour_i0``; channel 1 weighted by the mask); the path of
     the torch and gsplat backends, and the reference of the forward-only one."""
@@ -193,9 +172,8 @@ def blend_weights_backward(
     if len(idx) == 0:
         return total, inside
     colors = torch.zeros(len(idx), 3, requires_grad=True)
-    rgb, _, _ = rasterize(
-        *render_inputs(g, idx), colors, cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height, backend=backend
-    )
+    rgb, _, _ = rasterize(*render_inputs(g, idx), colors, cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height,
+                          backend=backend)
     gout = torch.zeros_like(rgb)
     gout[..., 0] = 1.0
     if mask is not None:
@@ -207,13 +185,8 @@ def blend_weights_backward(
     return total, inside
 
 
-def visibility(
-    g: Gaussians | torch.Tensor | np.ndarray,
-    cam: Camera,
-    cfg: VisibilityConfig | None = None,
-    depth: np.ndarray | None = None,
-    alpha: np.ndarray | None = None,
-) -> np.ndarray:
+def visibility(g: Gaussians | torch.Tensor | np.ndarray, cam: Camera, cfg: VisibilityConfig | None = None,
+               depth: np.ndarray | None = None, alpha: np.ndarray | None = None) -> np.ndarray:
     """Visible Gaussians bool [N] of ``g`` from ``cam`` with the configured test."""
     cfg = cfg or VisibilityConfig()
     means, gs = as_means(g)
@@ -236,8 +209,6 @@ def check_mask(mask: np.ndarray, cam: Camera, what: str = "mask") -> np.ndarray:
     if mask.ndim != 2:
         raise ValueError(f"{what} for camera {cam.name!r} must be 2D [H,W], got shape {mask.shape}")
     if mask.shape != (cam.height, cam.width):
-        raise ValueError(
-            f"{what} for camera {cam.name!r} is {mask.shape[1]}x{mask.shape[0]} (WxH) "
-            f"but the camera is {cam.width}x{cam.height}"
-        )
+        raise ValueError(f"{what} for camera {cam.name!r} is {mask.shape[1]}x{mask.shape[0]} (WxH) "
+                         f"but the camera is {cam.width}x{cam.height}")
     return mask.astype(bool)

@@ -4,7 +4,6 @@ A similarity maps old world points to new ones as ``x_new = s * R @ x_old + t``
 (``s`` > 0 scalar, ``R`` [3,3] rotation, ``t`` [3]). Cameras follow the project convention
 (:class:`anigs.cameras.Camera`, OpenCV, world-to-camera ``viewmat``).
 """
-
 from __future__ import annotations
 
 import logging
@@ -75,7 +74,7 @@ def umeyama(src: np.ndarray, dst: np.ndarray, with_scale: bool = True) -> Simila
         raise ValueError(f"umeyama: need at least 3 correspondences, got {src.shape[0]}")
     mu_s, mu_d = src.mean(0), dst.mean(0)
     xs, xd = src - mu_s, dst - mu_d
-    var_s = (xs**2).sum() / len(src)
+    var_s = (xs ** 2).sum() / len(src)
     if var_s < 1e-20:
         raise ValueError("umeyama: source points coincide")
     cov = xd.T @ xs / len(src)
@@ -155,7 +154,6 @@ def pose_errors(est: Sequence[Camera], gt: Sequence[Camera]) -> dict:
 
 # ---- z-up frame for reconstructions without ground truth ------------------------------------
 
-
 def estimate_up(cams: list[Camera], points: np.ndarray | None = None) -> np.ndarray:
     """World up direction [3] of a reconstruction (:func:`anigs.geometry.estimate_up`).
 
@@ -167,9 +165,8 @@ def estimate_up(cams: list[Camera], points: np.ndarray | None = None) -> np.ndar
     return geometry.estimate_up(cams, points).up
 
 
-def upright_similarity(
-    cams: list[Camera], xyz: np.ndarray, ground_percentile: float, camera_height: float | None = None
-) -> tuple[Similarity, dict]:
+def upright_similarity(cams: list[Camera], xyz: np.ndarray, ground_percentile: float,
+                       camera_height: float | None = None) -> tuple[Similarity, dict]:
     """Rotation putting the estimated up on +z, camera centroid at x=y=0, ground at z=0.
 
     With ``camera_height`` the world is also scaled so the cameras' mean height above that
@@ -180,11 +177,8 @@ def upright_similarity(
     est = geometry.estimate_up(cams, xyz if len(xyz) >= 50 else None)
     up = est.up
     a, _ = geometry.roll_axes(cams)
-    img_up = (
-        a[np.arange(len(cams)), np.asarray(est.rolls_deg, int) // 90]
-        if est.rolls_deg
-        else -np.stack([c.R[1] for c in cams])
-    )
+    img_up = a[np.arange(len(cams)), np.asarray(est.rolls_deg, int) // 90] if est.rolls_deg else -np.stack(
+        [c.R[1] for c in cams])
     tilt = np.degrees(np.arccos(np.clip(img_up @ up, -1, 1)))
     R = rotation_between(up, np.array([0.0, 0.0, 1.0]))
     centers = np.stack([c.center for c in cams]) @ R.T
@@ -193,17 +187,11 @@ def upright_similarity(
     ground_mode = "percentile"
     if len(xyz) >= 10 and np.median(centers[:, 2]) <= ground_z:
         # cameras not above the low percentile (looking up at a building): the ground below them
-        gr = geometry.estimate_ground(
-            xyz @ R.T,
-            np.array([0.0, 0.0, 1.0]),
-            [Camera(c.K, np.c_[np.c_[c.R @ R.T, c.t].T, [0, 0, 0, 1]].T, c.width, c.height) for c in cams],
-        )
+        gr = geometry.estimate_ground(xyz @ R.T, np.array([0.0, 0.0, 1.0]), [
+            Camera(c.K, np.c_[np.c_[c.R @ R.T, c.t].T, [0, 0, 0, 1]].T, c.width, c.height) for c in cams])
         ground_z, ground_mode = gr.offset, f"ground-{gr.method}"
-        log.warning(
-            "upright frame: the cameras are not above the %g-th percentile of the point heights; ground from %s",
-            ground_percentile,
-            gr.method,
-        )
+        log.warning("upright frame: the cameras are not above the %g-th percentile of the point heights; "
+                    "ground from %s", ground_percentile, gr.method)
     t = np.array([-centers[:, 0].mean(), -centers[:, 1].mean(), -ground_z])
     mean_height = float((centers[:, 2] + t[2]).mean())
     extent = float(np.ptp(centers, axis=0).max()) if len(cams) > 1 else 0.0
@@ -212,17 +200,13 @@ def upright_similarity(
         if mean_height > 1e-3 * max(extent, 1e-12):
             scale = camera_height / mean_height
         else:
-            log.warning(
-                "cameras are not above the estimated ground (mean height %.3g): keeping COLMAP's scale", mean_height
-            )
-    return Similarity(scale, R, scale * t), {
-        "mode": "upright",
-        "up_in_colmap_frame": up,
-        "up_estimate": est.to_dict(),
-        "ground": ground_mode,
-        "mean_camera_height_before_scaling": mean_height,
-        "camera_tilt_from_up_deg": {"mean": float(tilt.mean()), "max": float(tilt.max())},
-    }
+            log.warning("cameras are not above the estimated ground (mean height %.3g): keeping COLMAP's scale",
+                        mean_height)
+    return Similarity(scale, R, scale * t), {"mode": "upright", "up_in_colmap_frame": up,
+                                   "up_estimate": est.to_dict(), "ground": ground_mode,
+                                   "mean_camera_height_before_scaling": mean_height,
+                                   "camera_tilt_from_up_deg": {"mean": float(tilt.mean()),
+                                                               "max": float(tilt.max())}}
 
 
 def align_cameras(src: Sequence[Camera], dst: Sequence[Camera]) -> tuple[Similarity, float]:
@@ -230,10 +214,8 @@ def align_cameras(src: Sequence[Camera], dst: Sequence[Camera]) -> tuple[Similar
     by_name = {c.name: c for c in dst}
     pairs = [(c, by_name[c.name]) for c in src if c.name in by_name]
     if len(pairs) < 3:
-        raise ValueError(
-            f"align_cameras: only {len(pairs)} camera names in common (need >= 3); "
-            f"e.g. {[c.name for c in src[:3]]} vs {[c.name for c in dst[:3]]}"
-        )
+        raise ValueError(f"align_cameras: only {len(pairs)} camera names in common (need >= 3); "
+                         f"e.g. {[c.name for c in src[:3]]} vs {[c.name for c in dst[:3]]}")
     a = np.stack([p[0].center for p in pairs])
     b = np.stack([p[1].center for p in pairs])
     sim = umeyama(a, b)

@@ -27,7 +27,6 @@ Everything is deterministic for ``num_threads=1``. The camera adjustment of step
 Ceres' default (no convergence on the flower capture) while moving the cameras by under 0.01
 degrees after the 30th.
 """
-
 from __future__ import annotations
 
 import logging
@@ -56,9 +55,8 @@ def keypoint_scales(database: Path, rec, max_image_size: int = -1) -> dict[int, 
             im = rec.images[image_id]
             kp = np.asarray(db.read_keypoints(image_id), dtype=np.float64)
             if len(kp) != im.num_points2D():
-                raise ValueError(
-                    f"image {im.name}: {len(kp)} keypoints in the database, {im.num_points2D()} points2D in the model"
-                )
+                raise ValueError(f"image {im.name}: {len(kp)} keypoints in the database, "
+                                 f"{im.num_points2D()} points2D in the model")
             if kp.shape[1] >= 6:  # affine shape [a11 a12; a21 a22]: scale = sqrt(|det|)
                 s = np.sqrt(np.abs(kp[:, 2] * kp[:, 5] - kp[:, 3] * kp[:, 4]))
             elif kp.shape[1] == 4:  # x, y, scale, orientation
@@ -92,9 +90,8 @@ def observation_residuals(rec) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     return out
 
 
-def prune_coarse_observations(
-    rec, scales: dict[int, np.ndarray], max_scale: float, min_observations: int
-) -> dict[str, Any]:
+def prune_coarse_observations(rec, scales: dict[int, np.ndarray], max_scale: float,
+                              min_observations: int) -> dict[str, Any]:
     """Delete (in place) observations coarser than each image's scale threshold; see module doc."""
     keep: dict[int, set[int]] = {}
     thresholds = []
@@ -122,14 +119,10 @@ def prune_coarse_observations(
             rec.delete_observation(i, j)
         n_del_obs += len(drop)
     per_image = [rec.images[i].num_points3D for i in rec.reg_image_ids()]
-    return {
-        "observations_kept": n_obs - n_del_obs,
-        "observations_total": n_obs,
-        "points_kept": int(rec.num_points3D()),
-        "points_total": int(n_pts),
-        "min_observations_per_image": int(min(per_image)) if per_image else 0,
-        "images_with_raised_threshold": int(sum(t > max_scale for t in thresholds)),
-    }
+    return {"observations_kept": n_obs - n_del_obs, "observations_total": n_obs,
+            "points_kept": int(rec.num_points3D()), "points_total": int(n_pts),
+            "min_observations_per_image": int(min(per_image)) if per_image else 0,
+            "images_with_raised_threshold": int(sum(t > max_scale for t in thresholds))}
 
 
 def _ba_options(num_threads: int, loss_scale: float | None, cameras: bool, max_iterations: int | None = None):
@@ -151,17 +144,9 @@ def _ba_options(num_threads: int, loss_scale: float | None, cameras: bool, max_i
     return opts
 
 
-def refine_fine_scale(
-    rec,
-    database: Path,
-    *,
-    max_keypoint_scale: float,
-    min_observations: int,
-    loss_scale: float,
-    num_threads: int = 1,
-    max_image_size: int = -1,
-    max_iterations: int | None = None,
-) -> dict[str, Any]:
+def refine_fine_scale(rec, database: Path, *, max_keypoint_scale: float, min_observations: int,
+                      loss_scale: float, num_threads: int = 1, max_image_size: int = -1,
+                      max_iterations: int | None = None) -> dict[str, Any]:
     """Refine ``rec`` (a ``pycolmap.Reconstruction``, in place) as in the module docstring.
 
     ``max_iterations`` caps the camera adjustment (step 2; Ceres' default 100 when None): it
@@ -188,22 +173,13 @@ def refine_fine_scale(
         rec.cameras[camera_id].params = cam.params
     pycolmap.bundle_adjustment(rec, _ba_options(num_threads, None, cameras=False))
     rec.update_point_3d_errors()
-    report.update(
-        median_reprojection_error_fine_px=median,
-        cauchy_loss_scale_px=cauchy,
-        mean_reprojection_error_before_px=before,
-        mean_reprojection_error_after_px=float(rec.compute_mean_reprojection_error()),
-        seconds=time.perf_counter() - t0,
-    )
-    log.info(
-        "fine-scale refinement: %d/%d observations, %d/%d points kept; reprojection error %.3f -> %.3f px",
-        report["observations_kept"],
-        report["observations_total"],
-        report["points_kept"],
-        report["points_total"],
-        before,
-        report["mean_reprojection_error_after_px"],
-    )
+    report.update(median_reprojection_error_fine_px=median, cauchy_loss_scale_px=cauchy,
+                  mean_reprojection_error_before_px=before,
+                  mean_reprojection_error_after_px=float(rec.compute_mean_reprojection_error()),
+                  seconds=time.perf_counter() - t0)
+    log.info("fine-scale refinement: %d/%d observations, %d/%d points kept; reprojection error %.3f -> %.3f px",
+             report["observations_kept"], report["observations_total"], report["points_kept"],
+             report["points_total"], before, report["mean_reprojection_error_after_px"])
     return report
 
 
@@ -216,8 +192,6 @@ def adjust_intrinsics(rec, num_threads: int = 1) -> dict[str, Any]:
     before = float(rec.compute_mean_reprojection_error())
     pycolmap.bundle_adjustment(rec, _ba_options(num_threads, None, cameras=True))
     rec.update_point_3d_errors()
-    return {
-        "mean_reprojection_error_before_px": before,
-        "mean_reprojection_error_after_px": float(rec.compute_mean_reprojection_error()),
-        "seconds": time.perf_counter() - t0,
-    }
+    return {"mean_reprojection_error_before_px": before,
+            "mean_reprojection_error_after_px": float(rec.compute_mean_reprojection_error()),
+            "seconds": time.perf_counter() - t0}

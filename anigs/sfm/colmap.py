@@ -43,7 +43,6 @@ undistortion), ``images/`` (the images the cameras describe: undistorted, or cop
 name), ``points.npz`` (``xyz`` [P,3] float32, ``rgb`` [P,3] float32 in [0,1], ``error``
 [P] float32 reprojection error in px, ``track_length`` [P] int32), ``report.json``.
 """
-
 from __future__ import annotations
 
 import dataclasses
@@ -64,39 +63,16 @@ from anigs.io import write_json, write_npz
 from anigs.photos import check_images, image_headers, list_images, report_unreadable, require_min_images
 from anigs.sfm.config import MAPPERS, MATCHERS, UNDISTORTED_MODELS, SfmConfig
 from anigs.sfm.escalate import Source, SfmError, map_escalating, rescale_model
-from anigs.sfm.model import find_model_dir, reconstruction_cameras, reconstruction_points, replace_dir, to_sim3d
+from anigs.sfm.model import (find_model_dir, reconstruction_cameras, reconstruction_points, replace_dir,
+                             to_sim3d)
 from anigs.sfm.bundle import adjust_intrinsics
 from anigs.sfm.plan import resolve_threads
-from anigs.sfm.steps import (
-    _device,
-    camera_mode,
-    cpu_seconds,
-    extract_and_match,
-    larger_originals,
-    refine_model,
-    run_mapper,
-    select_model,
-)
+from anigs.sfm.steps import (_device, camera_mode, cpu_seconds, extract_and_match, larger_originals, refine_model,
+                             run_mapper, select_model)
 
-__all__ = [
-    "MAPPERS",
-    "MATCHERS",
-    "UNDISTORTED_MODELS",
-    "SfmConfig",
-    "SfmError",
-    "SfmResult",
-    "camera_mode",
-    "cpu_seconds",
-    "extract_and_match",
-    "larger_originals",
-    "reconstruction_cameras",
-    "reconstruction_points",
-    "refine_model",
-    "resolve_config",
-    "run_mapper",
-    "run_sfm",
-    "select_model",
-]
+__all__ = ["MAPPERS", "MATCHERS", "UNDISTORTED_MODELS", "SfmConfig", "SfmError", "SfmResult", "camera_mode",
+           "cpu_seconds", "extract_and_match", "larger_originals", "reconstruction_cameras", "reconstruction_points",
+           "refine_model", "resolve_config", "run_mapper", "run_sfm", "select_model"]
 
 log = logging.getLogger(__name__)
 
@@ -120,25 +96,15 @@ def resolve_config(cfg: SfmConfig, cli_threads: int | None = None) -> tuple[SfmC
     """
     threads = resolve_threads(cfg.num_threads, cli_threads)
     mapper_threads = threads if cfg.mapper_num_threads == -1 else cfg.mapper_num_threads
-    return (
-        dataclasses.replace(cfg, num_threads=threads, mapper_num_threads=mapper_threads),
-        {"num_threads": threads, "mapper_num_threads": mapper_threads},
-    )
+    return (dataclasses.replace(cfg, num_threads=threads, mapper_num_threads=mapper_threads),
+            {"num_threads": threads, "mapper_num_threads": mapper_threads})
 
 
 # ---- the stage -----------------------------------------------------------------------------------
 
-
-def run_sfm(
-    image_dir: str | Path,
-    out_dir: str | Path,
-    cfg: SfmConfig | None = None,
-    gt_cameras: str | Path | None = None,
-    model_dir: str | Path | None = None,
-    keep_work: bool = False,
-    threads: int | None = None,
-    originals: str | Path | None = None,
-) -> SfmResult:
+def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = None,
+            gt_cameras: str | Path | None = None, model_dir: str | Path | None = None,
+            keep_work: bool = False, threads: int | None = None, originals: str | Path | None = None) -> SfmResult:
     """Run the whole stage; see the module docstring for steps, failures and outputs.
 
     Args:
@@ -167,14 +133,8 @@ def run_sfm(
     if keep_work and work.exists():
         shutil.rmtree(work)
     work.mkdir(parents=True, exist_ok=True)
-    report: dict[str, Any] = {
-        "images": total,
-        "skipped_unreadable": bad,
-        "config": dataclasses.asdict(cfg),
-        "pycolmap_version": pycolmap.__version__,
-        "timings_s": {},
-        "cpu_s": {},
-    }
+    report: dict[str, Any] = {"images": total, "skipped_unreadable": bad, "config": dataclasses.asdict(cfg),
+                              "pycolmap_version": pycolmap.__version__, "timings_s": {}, "cpu_s": {}}
     cfg, report["auto"] = resolve_config(cfg, threads)
     try:
         if model_dir is not None:
@@ -206,20 +166,14 @@ def run_sfm(
         for pattern in (".images.*", ".sparse.*"):
             for leftover in out_dir.glob(pattern):
                 shutil.rmtree(leftover, ignore_errors=True)
-    log.info(
-        "sfm: registered %d/%d images, %d points, %.1f s%s",
-        report["registered"],
-        total,
-        report["num_points"],
-        report["timings_s"]["total"],
-        f"; PARTIAL, left out: {', '.join(report['unregistered_images'])}" if report["partial"] else "",
-    )
+    log.info("sfm: registered %d/%d images, %d points, %.1f s%s", report["registered"], total,
+             report["num_points"], report["timings_s"]["total"],
+             f"; PARTIAL, left out: {', '.join(report['unregistered_images'])}" if report["partial"] else "")
     return SfmResult(cams, pts["xyz"], pts["rgb"], report)
 
 
-def _check_capture(
-    image_dir: Path, cfg: SfmConfig, model_dir: str | Path | None
-) -> tuple[list[str], list, dict, str | None]:
+def _check_capture(image_dir: Path, cfg: SfmConfig, model_dir: str | Path | None
+                   ) -> tuple[list[str], list, dict, str | None]:
     """(readable image names, unreadable ones, headers {name: (w, h, EXIF orientation)}, camera
     mode): the images checked before COLMAP runs (unreadable, fewer than 3, EXIF rotations, sizes)."""
     files = list_images(image_dir)
@@ -230,12 +184,8 @@ def _check_capture(
     headers = image_headers(good)
     rotated = sorted(n for n, (_, _, o) in headers.items() if o != 1)
     if rotated:
-        log.warning(
-            "%d image(s) carry an EXIF rotation that COLMAP ignores (import them with "
-            "`anigs capture --source photos` to make them upright): %s",
-            len(rotated),
-            ", ".join(rotated[:10]),
-        )
+        log.warning("%d image(s) carry an EXIF rotation that COLMAP ignores (import them with "
+                    "`anigs capture --source photos` to make them upright): %s", len(rotated), ", ".join(rotated[:10]))
     sizes = sorted({(w, h) for w, h, _ in headers.values()})
     try:
         mode = camera_mode(cfg, sizes) if model_dir is None else None
@@ -256,26 +206,16 @@ def _existing_model(model_dir: Path, image_dir: Path, names: list[str], cfg: Sfm
         raise ValueError(f"COLMAP model {model_dir} registers images missing from {image_dir}: {unknown[:5]}")
     reg = rec.num_reg_images()
     if reg < cfg.min_registered_fraction * total:
-        raise SfmError(
-            f"COLMAP model {model_dir} registers {reg}/{total} images, below "
-            f"min_registered_fraction={cfg.min_registered_fraction}"
-        )
+        raise SfmError(f"COLMAP model {model_dir} registers {reg}/{total} images, below "
+                       f"min_registered_fraction={cfg.min_registered_fraction}")
     report["mapping"] = {"source": str(model_dir), "models_found": [reg], "other_models": [], "retries": 0}
     report["status"] = "complete"
     report["refine"] = {"applied": False, "reason": "existing model (no feature database)"}
     return rec
 
 
-def _map(
-    work: Path,
-    image_dir: Path,
-    names: list[str],
-    cfg: SfmConfig,
-    mode: str | None,
-    headers: dict,
-    originals: str | Path | None,
-    report: dict,
-):
+def _map(work: Path, image_dir: Path, names: list[str], cfg: SfmConfig, mode: str | None, headers: dict,
+         originals: str | Path | None, report: dict):
     """Extraction, matching, mapping with escalation (:mod:`anigs.sfm.escalate`) and refinement;
     fills ``report`` (timings, features, mapping, status, refine); returns the model."""
     stats = extract_and_match(work / "database.db", image_dir, names, cfg, mode)
@@ -287,15 +227,8 @@ def _map(
     report["features"] = stats
     t0, c0 = time.perf_counter(), cpu_seconds()
     first = Source(work / "database.db", image_dir, "capture", report["auto"]["matcher"])
-    outcome = map_escalating(
-        first,
-        work,
-        cfg,
-        names,
-        _device(cfg) if first.database.exists() else None,
-        originals=larger_originals(originals, headers),
-        mode=mode,
-    )
+    outcome = map_escalating(first, work, cfg, names, _device(cfg) if first.database.exists() else None,
+                             originals=larger_originals(originals, headers), mode=mode)
     rec, report["mapping"], report["status"] = outcome.rec, outcome.report, outcome.status
     report["timings_s"]["mapping"], report["cpu_s"]["mapping"] = time.perf_counter() - t0, cpu_seconds() - c0
     t0, c0 = time.perf_counter(), cpu_seconds()
@@ -304,15 +237,13 @@ def _map(
         report["refine"]["intrinsics_adjustment"] = adjust_intrinsics(rec, cfg.mapper_num_threads)
     if outcome.source.resolution == "original":
         report["mapping"]["rescaled_from_original"] = rescale_model(
-            rec, {n: (w, h) for n, (w, h, _) in headers.items()}
-        )
+            rec, {n: (w, h) for n, (w, h, _) in headers.items()})
     report["timings_s"]["refine"], report["cpu_s"]["refine"] = time.perf_counter() - t0, cpu_seconds() - c0
     return rec
 
 
-def _undistort(
-    rec, work: Path, out_dir: Path, image_dir: Path, registered: list[str], cfg: SfmConfig, report: dict
-) -> tuple[Any, Path]:
+def _undistort(rec, work: Path, out_dir: Path, image_dir: Path, registered: list[str], cfg: SfmConfig,
+               report: dict) -> tuple[Any, Path]:
     """(model, temporary images folder): every camera the stage writes is PINHOLE / SIMPLE_PINHOLE
     (undistorted images, or copies when the model has no distortion)."""
     import pycolmap
@@ -325,14 +256,11 @@ def _undistort(
     images_tmp = Path(tempfile.mkdtemp(prefix=".images.", dir=out_dir))
     if not models <= set(UNDISTORTED_MODELS):
         if not cfg.undistort:
-            raise ValueError(
-                f"camera model(s) {sorted(models)} have distortion and sfm.undistort is false; "
-                "the project's cameras are pinhole: enable undistort or use PINHOLE/SIMPLE_PINHOLE"
-            )
+            raise ValueError(f"camera model(s) {sorted(models)} have distortion and sfm.undistort is false; "
+                             "the project's cameras are pinhole: enable undistort or use PINHOLE/SIMPLE_PINHOLE")
         und = work / "undistorted"
-        pycolmap.undistort_images(
-            und, raw_dir, image_dir, image_names=registered, output_type="COLMAP", num_threads=cfg.num_threads
-        )
+        pycolmap.undistort_images(und, raw_dir, image_dir, image_names=registered, output_type="COLMAP",
+                                  num_threads=cfg.num_threads)
         rec = pycolmap.Reconstruction(und / "sparse")
         for n in registered:
             shutil.copy2(und / "images" / n, images_tmp / n)
@@ -346,9 +274,8 @@ def _undistort(
     return rec, images_tmp
 
 
-def _normalise_frame(
-    rec, gt: list[Camera] | None, gt_cameras: str | Path | None, cfg: SfmConfig, report: dict
-) -> tuple[list[Camera], dict[str, np.ndarray]]:
+def _normalise_frame(rec, gt: list[Camera] | None, gt_cameras: str | Path | None, cfg: SfmConfig,
+                     report: dict) -> tuple[list[Camera], dict[str, np.ndarray]]:
     """Frame normalisation of ``rec`` in place (module docstring); returns its cameras and points."""
     cams = reconstruction_cameras(rec)
     pts = reconstruction_points(rec)
@@ -371,13 +298,6 @@ def _normalise_frame(
     report["num_points"] = int(len(pts["xyz"]))
     report["mean_reprojection_error_px"] = float(rec.compute_mean_reprojection_error())
     c0 = cams[0]
-    report["intrinsics_first_camera"] = {
-        "name": c0.name,
-        "fx": c0.K[0, 0],
-        "fy": c0.K[1, 1],
-        "cx": c0.K[0, 2],
-        "cy": c0.K[1, 2],
-        "width": c0.width,
-        "height": c0.height,
-    }
+    report["intrinsics_first_camera"] = {"name": c0.name, "fx": c0.K[0, 0], "fy": c0.K[1, 1], "cx": c0.K[0, 2],
+                                         "cy": c0.K[1, 2], "width": c0.width, "height": c0.height}
     return cams, pts

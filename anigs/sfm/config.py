@@ -1,5 +1,4 @@
 """Parameters of the ``sfm`` stage (:class:`SfmConfig`, config section ``sfm``) and their checks."""
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -108,10 +107,8 @@ class SfmConfig(Section):
         import pycolmap
 
         if self.camera_model not in pycolmap.CameraModelId.__members__:
-            raise ValueError(
-                f"sfm.camera_model {self.camera_model!r} is not a COLMAP camera model; "
-                f"choose one of {sorted(pycolmap.CameraModelId.__members__)}"
-            )
+            raise ValueError(f"sfm.camera_model {self.camera_model!r} is not a COLMAP camera model; "
+                             f"choose one of {sorted(pycolmap.CameraModelId.__members__)}")
         if self.matcher not in MATCHERS:
             raise ValueError(f"sfm.matcher {self.matcher!r} not in {MATCHERS}")
         if self.mapper not in MAPPERS:
@@ -130,20 +127,15 @@ class SfmConfig(Section):
             v = getattr(self, key)
             if isinstance(v, bool) or not isinstance(v, int) or v == 0 or v < -1:
                 raise ValueError(f"sfm.{key} must be -1 (all cores) or >= 1, got {v!r}")
-        if (
-            isinstance(self.exhaustive_max_images, bool)
-            or not isinstance(self.exhaustive_max_images, int)
-            or self.exhaustive_max_images < 2
-        ):
+        if isinstance(self.exhaustive_max_images, bool) or not isinstance(self.exhaustive_max_images, int) \
+                or self.exhaustive_max_images < 2:
             raise ValueError(f"sfm.exhaustive_max_images must be an integer >= 2, got {self.exhaustive_max_images!r}")
         if not self.exhaustive_max_comparisons > 0:
             raise ValueError(f"sfm.exhaustive_max_comparisons must be > 0, got {self.exhaustive_max_comparisons}")
         if self.sequential_similar < 0:
             raise ValueError(f"sfm.sequential_similar must be >= 0, got {self.sequential_similar}")
         if self.mapper_refine_distortion not in (True, False, "auto"):
-            raise ValueError(
-                f"sfm.mapper_refine_distortion must be true, false or 'auto', got {self.mapper_refine_distortion!r}"
-            )
+            raise ValueError(f"sfm.mapper_refine_distortion must be true, false or 'auto', got {self.mapper_refine_distortion!r}")
         if self.refine_max_iterations < 1:
             raise ValueError(f"sfm.refine_max_iterations must be >= 1, got {self.refine_max_iterations}")
         if not self.ba_global_growth > 1:
@@ -162,14 +154,10 @@ class SfmConfig(Section):
         if self.camera_params is not None:
             probe = pycolmap.Camera.create_from_model_name(0, self.camera_model, 1.0, 2, 2)
             if len(self.camera_params) != len(probe.params):
-                raise ValueError(
-                    f"sfm.camera_params has {len(self.camera_params)} values; camera model "
-                    f"{self.camera_model} takes {len(probe.params)} ({probe.params_info})"
-                )
+                raise ValueError(f"sfm.camera_params has {len(self.camera_params)} values; camera model "
+                                 f"{self.camera_model} takes {len(probe.params)} ({probe.params_info})")
         if isinstance(self.init_min_tri_angle, str) and self.init_min_tri_angle != "auto":
-            raise ValueError(
-                f"sfm.init_min_tri_angle must be 'auto' or an angle in degrees, got {self.init_min_tri_angle!r}"
-            )
+            raise ValueError(f"sfm.init_min_tri_angle must be 'auto' or an angle in degrees, got {self.init_min_tri_angle!r}")
         for key in ("init_min_tri_angle", "retry_init_min_tri_angle"):
             v = getattr(self, key)
             if v is not None and v != "auto" and not 0 < v < 90:

@@ -11,7 +11,6 @@ which) and the attempts' figures (features per image, verified pairs, models):
   fine, but the one shared camera of ``single_camera: true`` does not fit them: another camera,
   or a zoom).
 """
-
 from __future__ import annotations
 
 from pathlib import Path
@@ -60,18 +59,14 @@ def groups(adjacent: np.ndarray) -> list[list[int]]:
     return sorted(out, key=len, reverse=True)
 
 
-def likely_causes(
-    database: Path | None, attempts: list[dict], registered: list[str], single_camera: bool
-) -> tuple[list[str], list[str], dict]:
+def likely_causes(database: Path | None, attempts: list[dict], registered: list[str],
+                  single_camera: bool) -> tuple[list[str], list[str], dict]:
     """Causes (most likely first), settings to try, and the figures behind them."""
     best = max(attempts, key=lambda a: a.get("registered", 0)) if attempts else {}
     kpi = best.get("keypoints_per_image")
     causes, settings = [], []
-    facts: dict = {
-        "keypoints_per_image": kpi,
-        "verified_pairs": best.get("verified_pairs"),
-        "models": best.get("models", []),
-    }
+    facts: dict = {"keypoints_per_image": kpi, "verified_pairs": best.get("verified_pairs"),
+                   "models": best.get("models", [])}
     if kpi is not None and kpi < FEW_FEATURES:
         causes.append(f"too few features ({kpi:.0f} SIFT keypoints per photo; small, blurred or textureless photos)")
         settings.append("sfm.sift_peak_threshold: 0.002 (finds fainter features)")
@@ -84,30 +79,21 @@ def likely_causes(
         isolated = [names[k] for k in np.flatnonzero(neighbours < MIN_NEIGHBOURS)]
         reg = set(registered)
         left_out = [k for k, n in enumerate(names) if n not in reg]
-        matched_left_out = [
-            names[k] for k in left_out if any(adjacent[k, j] and names[j] in reg for j in range(len(names)))
-        ]
-        facts.update(
-            match_groups=[len(c) for c in comps],
-            weakly_matched=isolated,
-            left_out_but_matched=matched_left_out,
-            median_verified_neighbours=float(np.median(neighbours)) if len(neighbours) else 0.0,
-        )
+        matched_left_out = [names[k] for k in left_out
+                            if any(adjacent[k, j] and names[j] in reg for j in range(len(names)))]
+        facts.update(match_groups=[len(c) for c in comps], weakly_matched=isolated,
+                     left_out_but_matched=matched_left_out,
+                     median_verified_neighbours=float(np.median(neighbours)) if len(neighbours) else 0.0)
         if len(comps) > 1 or isolated:
-            causes.append(
-                f"too little overlap: the verified pairs split the {len(names)} photos into groups of "
-                f"{[len(c) for c in comps][:6]}; {len(isolated)} photo(s) verified with fewer than "
-                f"{MIN_NEIGHBOURS} others"
-            )
+            causes.append(f"too little overlap: the verified pairs split the {len(names)} photos into groups of "
+                          f"{[len(c) for c in comps][:6]}; {len(isolated)} photo(s) verified with fewer than "
+                          f"{MIN_NEIGHBOURS} others")
             settings.append("sfm.matcher: exhaustive (match every pair)")
-            settings.append(
-                "take photos between the groups (each view should share most of its content with two others)"
-            )
+            settings.append("take photos between the groups (each view should share most of its content "
+                            "with two others)")
         if single_camera and len(matched_left_out) >= max(1, len(left_out) // 2):
-            causes.append(
-                f"mixed cameras or zoom: {len(matched_left_out)} photo(s) left out although they "
-                "verified with registered photos (one shared camera does not fit them)"
-            )
+            causes.append(f"mixed cameras or zoom: {len(matched_left_out)} photo(s) left out although they "
+                          "verified with registered photos (one shared camera does not fit them)")
             settings.append("sfm.single_camera: false (one camera per photo)")
     if len(best.get("models", [])) > 1 and not any(c.startswith("too little overlap") for c in causes):
         causes.append(f"too little overlap: mapping found {len(best['models'])} separate models {best['models']}")

@@ -19,7 +19,6 @@ Each mapping is an :class:`Attempt` (registered/total, models, seconds) in ``rep
 with the largest model and is marked partial (the photos left out are listed); below that,
 :class:`SfmError` names the likely cause and the settings to try (:mod:`anigs.sfm.diagnose`).
 """
-
 from __future__ import annotations
 
 import dataclasses
@@ -100,29 +99,12 @@ def _stats(database: Path) -> dict:
     return database_stats(database) if Path(database).exists() else {}
 
 
-def _map(
-    src: Source,
-    step: str,
-    work: Path,
-    cfg: SfmConfig,
-    names: list[str],
-    mapper: str,
-    angle: float,
-    k: int,
-    match_s: float,
-) -> tuple[Attempt, Any]:
+def _map(src: Source, step: str, work: Path, cfg: SfmConfig, names: list[str], mapper: str,
+         angle: float, k: int, match_s: float) -> tuple[Attempt, Any]:
     c = _colmap()
     t0, c0 = time.perf_counter(), c.cpu_seconds()
-    a = Attempt(
-        step,
-        src.matcher,
-        src.resolution,
-        mapper,
-        angle if mapper == "incremental" else None,
-        len(names),
-        match_seconds=match_s,
-        **{k_: v for k_, v in _stats(src.database).items()},
-    )
+    a = Attempt(step, src.matcher, src.resolution, mapper, angle if mapper == "incremental" else None, len(names),
+                match_seconds=match_s, **{k_: v for k_, v in _stats(src.database).items()})
     try:
         models, error = c.run_mapper(src.database, src.image_dir, work / f"mapping{k}", cfg, names, mapper, angle), None
     except Exception as exc:  # COLMAP raises RuntimeError / ValueError on failures
@@ -133,17 +115,8 @@ def _map(
     a.seconds = match_s + time.perf_counter() - t0
     a.cpu_seconds = c.cpu_seconds() - c0
     a.result = error or ("no model" if not sizes else f"registered {a.registered}/{len(names)}")
-    log.info(
-        "sfm attempt %d (%s: %s matches, %s resolution, init_min_tri_angle=%s): %s, models %s, %.1f s",
-        k + 1,
-        step,
-        a.matcher,
-        a.resolution,
-        a.init_min_tri_angle,
-        a.result,
-        sizes,
-        a.seconds,
-    )
+    log.info("sfm attempt %d (%s: %s matches, %s resolution, init_min_tri_angle=%s): %s, models %s, %.1f s",
+             k + 1, step, a.matcher, a.resolution, a.init_min_tri_angle, a.result, sizes, a.seconds)
     return a, chosen
 
 
@@ -165,15 +138,8 @@ def _angle(src: Source, cfg: SfmConfig) -> tuple[float, Optional[dict]]:
     return initial_pair_angle(src.database)
 
 
-def map_escalating(
-    first: Source,
-    work: Path,
-    cfg: SfmConfig,
-    names: list[str],
-    device=None,
-    originals: Optional[Path] = None,
-    mode: Optional[str] = None,
-) -> Outcome:
+def map_escalating(first: Source, work: Path, cfg: SfmConfig, names: list[str], device=None,
+                   originals: Optional[Path] = None, mode: Optional[str] = None) -> Outcome:
     """Run the ladder of the module docstring from the database ``first`` (already matched).
 
     ``originals``: folder of the full-size photos of a downscaled capture (same names), or None.
@@ -204,12 +170,8 @@ def map_escalating(
             info = rematch.match_loops(first.database, first.image_dir, names, cfg, device, work)
             first.matcher = "sequential+loops"
             done = run(first, "loops", cfg.mapper, _angle(first, cfg)[0], info["match_s"])
-        if (
-            not done
-            and first.matcher in ("sequential+loops", "spatial")
-            and first.database.exists()
-            and total <= cfg.exhaustive_max_images
-        ):
+        if not done and first.matcher in ("sequential+loops", "spatial") and first.database.exists() \
+                and total <= cfg.exhaustive_max_images:
             log.warning("sfm: %s; matching every pair", tried[-1].result)
             info = rematch.match_every_pair(first.database, cfg, device)
             first.matcher = "exhaustive"
@@ -226,12 +188,8 @@ def map_escalating(
             log.warning("retrying mapping with init_min_tri_angle=%g degrees (was %s)", retry, tried[-1].result)
             run(base, "lower_angle", "incremental", retry)
 
-    report: dict[str, Any] = {
-        "attempts": [a.as_dict() for a in tried],
-        "retries": len(tried) - 1,
-        "init_min_tri_angle_auto": auto_info,
-        "escalate": cfg.escalate,
-    }
+    report: dict[str, Any] = {"attempts": [a.as_dict() for a in tried], "retries": len(tried) - 1,
+                              "init_min_tri_angle_auto": auto_info, "escalate": cfg.escalate}
     best = tried[best_k] if best_k >= 0 else None
     reg = best.registered if best else 0
     report["best_attempt"] = best_k if best_k >= 0 else None
@@ -242,26 +200,14 @@ def map_escalating(
     status = "complete" if reg >= need else "partial"
     report.update(models_found=best.models, other_models=best.models[1:], status=status)
     if len(best.models) > 1:
-        log.warning(
-            "mapping produced %d models with %s registered images; keeping the largest (%d/%d)",
-            len(best.models),
-            best.models,
-            reg,
-            total,
-        )
+        log.warning("mapping produced %d models with %s registered images; keeping the largest (%d/%d)",
+                    len(best.models), best.models, reg, total)
     if status == "partial":
         left_out = sorted(set(names) - set(registered))
-        log.warning(
-            "sfm: PARTIAL reconstruction: the best model registers %d/%d photos (below "
-            "min_registered_fraction=%g, at least partial_min_fraction=%g); continuing with it. "
-            "Photos left out (%d): %s",
-            reg,
-            total,
-            cfg.min_registered_fraction,
-            cfg.partial_min_fraction,
-            len(left_out),
-            ", ".join(left_out),
-        )
+        log.warning("sfm: PARTIAL reconstruction: the best model registers %d/%d photos (below "
+                    "min_registered_fraction=%g, at least partial_min_fraction=%g); continuing with it. "
+                    "Photos left out (%d): %s", reg, total, cfg.min_registered_fraction, cfg.partial_min_fraction,
+                    len(left_out), ", ".join(left_out))
     return Outcome(rec, src, status, report)
 
 
@@ -271,18 +217,13 @@ def failure_message(reg: int, total: int, cfg: SfmConfig, tried: list[Attempt], 
     rec, src = rec_src
     registered = sorted(rec.images[i].name for i in rec.reg_image_ids()) if rec is not None else []
     causes, settings, _ = likely_causes(src.database, [a.as_dict() for a in tried], registered, cfg.single_camera)
-    detail = "; ".join(
-        f"attempt {k + 1} ({a.step}: {a.matcher}, {a.resolution} resolution, init_min_tri_angle="
-        f"{a.init_min_tri_angle}): {a.result} (models {a.models})"
-        for k, a in enumerate(tried)
-    )
-    return (
-        f"structure from motion registered {reg}/{total} images, below min_registered_fraction="
-        f"{cfg.min_registered_fraction} (need {int(np.ceil(cfg.min_registered_fraction * total))}) and below "
-        f"partial_min_fraction={cfg.partial_min_fraction} (a partial run needs "
-        f"{int(np.ceil(cfg.partial_min_fraction * total))}). Likely cause: {'; '.join(causes)}. "
-        f"Settings to try: {'; '.join(settings)}. Attempts: {detail}"
-    )
+    detail = "; ".join(f"attempt {k + 1} ({a.step}: {a.matcher}, {a.resolution} resolution, init_min_tri_angle="
+                       f"{a.init_min_tri_angle}): {a.result} (models {a.models})" for k, a in enumerate(tried))
+    return (f"structure from motion registered {reg}/{total} images, below min_registered_fraction="
+            f"{cfg.min_registered_fraction} (need {int(np.ceil(cfg.min_registered_fraction * total))}) and below "
+            f"partial_min_fraction={cfg.partial_min_fraction} (a partial run needs "
+            f"{int(np.ceil(cfg.partial_min_fraction * total))}). Likely cause: {'; '.join(causes)}. "
+            f"Settings to try: {'; '.join(settings)}. Attempts: {detail}")
 
 
 def original_source(originals: Path, names: list[str], work: Path, cfg: SfmConfig, mode: Optional[str]) -> Source:

@@ -1,5 +1,4 @@
 """COLMAP models <-> project data: cameras, sparse points, similarity transforms, model folders."""
-
 from __future__ import annotations
 
 import logging
@@ -21,10 +20,8 @@ def reconstruction_cameras(rec) -> list[Camera]:
         im = rec.images[image_id]
         cam = rec.cameras[im.camera_id]
         if cam.model.name not in UNDISTORTED_MODELS:
-            raise ValueError(
-                f"image {im.name}: camera model {cam.model.name} has distortion; "
-                "undistort before converting (sfm.undistort)"
-            )
+            raise ValueError(f"image {im.name}: camera model {cam.model.name} has distortion; "
+                             "undistort before converting (sfm.undistort)")
         V = np.eye(4)
         V[:3, :] = im.cam_from_world().matrix()
         cams.append(Camera(cam.calibration_matrix(), V, cam.width, cam.height, im.name))
@@ -35,18 +32,12 @@ def reconstruction_points(rec) -> dict[str, np.ndarray]:
     """Sparse points: xyz [P,3] float32, rgb [P,3] float32 in [0,1], error [P], track_length [P]."""
     pts = list(rec.points3D.values())
     if not pts:
-        return {
-            "xyz": np.zeros((0, 3), np.float32),
-            "rgb": np.zeros((0, 3), np.float32),
-            "error": np.zeros(0, np.float32),
-            "track_length": np.zeros(0, np.int32),
-        }
-    return {
-        "xyz": np.array([p.xyz for p in pts], np.float32),
-        "rgb": np.array([p.color for p in pts], np.float32) / 255.0,
-        "error": np.array([p.error for p in pts], np.float32),
-        "track_length": np.array([p.track.length() for p in pts], np.int32),
-    }
+        return {"xyz": np.zeros((0, 3), np.float32), "rgb": np.zeros((0, 3), np.float32),
+                "error": np.zeros(0, np.float32), "track_length": np.zeros(0, np.int32)}
+    return {"xyz": np.array([p.xyz for p in pts], np.float32),
+            "rgb": np.array([p.color for p in pts], np.float32) / 255.0,
+            "error": np.array([p.error for p in pts], np.float32),
+            "track_length": np.array([p.track.length() for p in pts], np.int32)}
 
 
 def to_sim3d(s: Similarity):
@@ -98,9 +89,6 @@ def load_points(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"{path}: '{pk}' must be [P,3], got {pts.shape}")
     if cols.shape != pts.shape:
         raise ValueError(f"{path}: colours {cols.shape} do not match points {pts.shape}")
-    cols = (
-        cols.astype(np.float64) / 255.0
-        if np.issubdtype(cols.dtype, np.integer) or cols.max(initial=0) > 1.5
+    cols = cols.astype(np.float64) / 255.0 if np.issubdtype(cols.dtype, np.integer) or cols.max(initial=0) > 1.5 \
         else cols.astype(np.float64)
-    )
     return pts, np.clip(cols, 0, 1)

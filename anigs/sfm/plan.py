@@ -18,7 +18,6 @@
   and searching all pairs again; on a forward-facing capture that costs several full searches
   (36 of 81 CPU seconds of mapping on the 34-photo flower capture) for the same result.
 """
-
 from __future__ import annotations
 
 import functools
@@ -111,7 +110,7 @@ def similar_pairs(paths: Sequence[Path], k: int, overlap: int) -> list[tuple[int
     if k <= 0 or n < 3:
         return []
     D = thumbnail_distances(paths)
-    nearest = np.argsort(D, axis=1, kind="stable")[:, : min(k, n - 1)]
+    nearest = np.argsort(D, axis=1, kind="stable")[:, :min(k, n - 1)]
     pairs = {(min(i, int(j)), max(i, int(j))) for i in range(n) for j in nearest[i]}
     return sorted(pairs - sequential_offsets(n, overlap))
 
@@ -130,11 +129,8 @@ def ordering(paths: Sequence[Path]) -> dict[str, Any]:
     D = thumbnail_distances(paths)
     ranks = np.array([int((D[i] < D[i, i + 1]).sum()) for i in range(n - 1)])
     frac = float((ranks < ORDER_RANK).mean())
-    return {
-        "ordered": frac >= ORDER_MIN_FRACTION,
-        "successor_near_fraction": round(frac, 3),
-        "successor_median_rank": float(np.median(ranks)),
-    }
+    return {"ordered": frac >= ORDER_MIN_FRACTION, "successor_near_fraction": round(frac, 3),
+            "successor_median_rank": float(np.median(ranks))}
 
 
 def exhaustive_comparisons(num_images: int, keypoints_per_image: float) -> float:
@@ -144,13 +140,8 @@ def exhaustive_comparisons(num_images: int, keypoints_per_image: float) -> float
     return num_images * (num_images - 1) / 2 * float(keypoints_per_image) ** 2
 
 
-def choose_matcher(
-    matcher: str,
-    paths: Sequence[Path],
-    exhaustive_max_images: int,
-    exhaustive_max_comparisons: float,
-    keypoints_per_image: float,
-) -> tuple[str, dict[str, Any]]:
+def choose_matcher(matcher: str, paths: Sequence[Path], exhaustive_max_images: int,
+                   exhaustive_max_comparisons: float, keypoints_per_image: float) -> tuple[str, dict[str, Any]]:
     """The matcher to run and why (a report entry); ``matcher`` other than ``auto`` is kept.
 
     ``auto``: sequential when there are more than ``exhaustive_max_images`` photos, or when the
@@ -168,26 +159,17 @@ def choose_matcher(
     info.update(ordering(paths))
     if n > exhaustive_max_images:
         if not info["ordered"]:
-            log.warning(
-                "sfm: %d photos (more than exhaustive_max_images=%d) do not look ordered; matching them "
-                "sequentially may miss pairs (set sfm.matcher: exhaustive to match every pair)",
-                n,
-                exhaustive_max_images,
-            )
+            log.warning("sfm: %d photos (more than exhaustive_max_images=%d) do not look ordered; matching them "
+                        "sequentially may miss pairs (set sfm.matcher: exhaustive to match every pair)",
+                        n, exhaustive_max_images)
         return "sequential", {**info, "reason": f"more than exhaustive_max_images={exhaustive_max_images} images"}
     if not info["ordered"]:
         return "exhaustive", {**info, "reason": "unordered photos"}
     if comparisons > exhaustive_max_comparisons:
-        return "sequential", {
-            **info,
-            "reason": f"ordered photos and exhaustive matching would make {comparisons:.2g} "
-            f"comparisons (> exhaustive_max_comparisons={exhaustive_max_comparisons:g})",
-        }
-    return "exhaustive", {
-        **info,
-        "reason": f"ordered photos but exhaustive matching is cheap ({comparisons:.2g} "
-        f"comparisons <= exhaustive_max_comparisons={exhaustive_max_comparisons:g})",
-    }
+        return "sequential", {**info, "reason": f"ordered photos and exhaustive matching would make {comparisons:.2g} "
+                                                f"comparisons (> exhaustive_max_comparisons={exhaustive_max_comparisons:g})"}
+    return "exhaustive", {**info, "reason": f"ordered photos but exhaustive matching is cheap ({comparisons:.2g} "
+                                            f"comparisons <= exhaustive_max_comparisons={exhaustive_max_comparisons:g})"}
 
 
 def pair_triangulation_angles(database: Path, max_pairs: int = AUTO_INIT_MAX_PAIRS) -> tuple[np.ndarray, np.ndarray]:
@@ -244,11 +226,6 @@ def initial_pair_angle(database: Path, fallback: float = 16.0) -> tuple[float, d
     pool = strong if len(strong) else angles
     best = float(pool.max())
     angle = next((a for a in AUTO_INIT_ANGLES if best >= a), AUTO_INIT_ANGLES[-1])
-    info = {
-        "angle": angle,
-        "pairs": int(len(angles)),
-        "pairs_with_enough_inliers": int(len(strong)),
-        "largest_pair_angle_deg": round(best, 3),
-        "median_pair_angle_deg": round(float(np.median(pool)), 3),
-    }
+    info = {"angle": angle, "pairs": int(len(angles)), "pairs_with_enough_inliers": int(len(strong)),
+            "largest_pair_angle_deg": round(best, 3), "median_pair_angle_deg": round(float(np.median(pool)), 3)}
     return angle, info

@@ -9,7 +9,6 @@ COLMAP skips the pairs already there, so each step pays only for the new ones.
   ``LOOK_ALIKE`` most similar photos by grey thumbnail (:func:`anigs.sfm.plan.similar_pairs`).
 - :func:`match_every_pair`: exhaustive matching.
 """
-
 from __future__ import annotations
 
 import logging
@@ -48,11 +47,8 @@ def database_stats(database: Path) -> dict:
 
     db = pycolmap.Database.open(str(database))
     try:
-        return {
-            "keypoints_per_image": db.num_keypoints() / max(db.num_images(), 1),
-            "verified_pairs": int(db.num_verified_image_pairs()),
-            "inlier_matches": int(db.num_inlier_matches()),
-        }
+        return {"keypoints_per_image": db.num_keypoints() / max(db.num_images(), 1),
+                "verified_pairs": int(db.num_verified_image_pairs()), "inlier_matches": int(db.num_inlier_matches())}
     finally:
         db.close()
 
@@ -102,11 +98,8 @@ def match_loops(database: Path, image_dir: Path, names: list[str], cfg: SfmConfi
         imported = pycolmap.ImportedPairingOptions()
         imported.match_list_path = str(pairs_file)
         pycolmap.match_image_pairs(database, pairing_options=imported, **kw)
-    return {
-        "look_alike_pairs": len(extra),
-        "loop_images": pairing.loop_detection_num_images,
-        "match_s": time.perf_counter() - t0,
-    }
+    return {"look_alike_pairs": len(extra), "loop_images": pairing.loop_detection_num_images,
+            "match_s": time.perf_counter() - t0}
 
 
 def match_every_pair(database: Path, cfg: SfmConfig, device) -> dict:

@@ -5,7 +5,6 @@ Tests replace :func:`extract_and_match` and :func:`run_mapper` on :mod:`anigs.sf
 re-exports them; :mod:`anigs.sfm.escalate` calls them through it). ``cfg.num_threads`` must be a
 count (:func:`anigs.sfm.colmap.resolve_config`).
 """
-
 from __future__ import annotations
 
 import logging
@@ -48,19 +47,15 @@ def camera_mode(cfg: SfmConfig, sizes: list[tuple[int, int]]) -> str:
     if len(sizes) <= 1:
         return "SINGLE"
     if len(sizes) == 2 and sizes[0] == sizes[1][::-1]:
-        log.info(
-            "sfm: portrait and landscape photos (%dx%d and %dx%d): one camera per orientation", *sizes[0], *sizes[1]
-        )
+        log.info("sfm: portrait and landscape photos (%dx%d and %dx%d): one camera per orientation",
+                 *sizes[0], *sizes[1])
         return "AUTO"
-    raise ValueError(
-        f"sfm.single_camera is true but the images have {len(sizes)} sizes {sizes[:5]} that are "
-        "not one size turned by 90 degrees; set single_camera to false or import them at one size"
-    )
+    raise ValueError(f"sfm.single_camera is true but the images have {len(sizes)} sizes {sizes[:5]} that are "
+                     "not one size turned by 90 degrees; set single_camera to false or import them at one size")
 
 
-def extract_and_match(
-    database: Path, image_dir: Path, names: list[str], cfg: SfmConfig, mode: str | None = None
-) -> dict:
+def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: SfmConfig,
+                      mode: str | None = None) -> dict:
     """SIFT extraction and matching into ``database`` (``mode``: a :func:`camera_mode`); returns
     statistics and timings (wall ``*_s``, CPU ``*_cpu_s``), the matcher run and why
     (``matcher: auto`` is chosen here, from the keypoints found: :func:`anigs.sfm.plan.choose_matcher`).
@@ -86,28 +81,16 @@ def extract_and_match(
     # otherwise number them in the order they finish, and the mapper's choices follow the numbers
     pycolmap.Database.open(str(database)).close()
     pycolmap.import_images(database, image_dir, camera_mode=mode, image_names=names, options=reader)
-    pycolmap.extract_features(
-        database,
-        image_dir,
-        image_names=names,
-        camera_mode=mode,
-        reader_options=reader,
-        extraction_options=ext,
-        device=device,
-    )
+    pycolmap.extract_features(database, image_dir, image_names=names, camera_mode=mode,
+                              reader_options=reader, extraction_options=ext, device=device)
     t1, c1 = time.perf_counter(), cpu_seconds()
     db = pycolmap.Database.open(database)
     try:
         keypoints_per_image = db.num_keypoints() / max(db.num_images(), 1)
     finally:
         db.close()
-    matcher, why = choose_matcher(
-        cfg.matcher,
-        [Path(image_dir) / n for n in names],
-        cfg.exhaustive_max_images,
-        cfg.exhaustive_max_comparisons,
-        keypoints_per_image,
-    )
+    matcher, why = choose_matcher(cfg.matcher, [Path(image_dir) / n for n in names], cfg.exhaustive_max_images,
+                                  cfg.exhaustive_max_comparisons, keypoints_per_image)
     if cfg.matcher == "auto":
         log.info("sfm: matcher %s (%s)", matcher, why["reason"])
     kw = matching_kwargs(cfg, device)
@@ -135,45 +118,25 @@ def extract_and_match(
         finally:
             db.close()
         if n_priors == 0:
-            raise ValueError(
-                "sfm.matcher 'spatial' needs location priors (EXIF GPS), but none of the "
-                f"{len(names)} images has one; use 'sequential' or 'exhaustive'"
-            )
+            raise ValueError("sfm.matcher 'spatial' needs location priors (EXIF GPS), but none of the "
+                             f"{len(names)} images has one; use 'sequential' or 'exhaustive'")
         pairing = pycolmap.SpatialPairingOptions()
         pairing.max_num_neighbors = cfg.spatial_max_neighbors
         pycolmap.match_spatial(database, pairing_options=pairing, **kw)
     t2, c2 = time.perf_counter(), cpu_seconds()
     db = pycolmap.Database.open(database)
     try:
-        stats = {
-            "keypoints_per_image": db.num_keypoints() / max(db.num_images(), 1),
-            "verified_pairs": db.num_verified_image_pairs(),
-            "inlier_matches": db.num_inlier_matches(),
-        }
+        stats = {"keypoints_per_image": db.num_keypoints() / max(db.num_images(), 1),
+                 "verified_pairs": db.num_verified_image_pairs(), "inlier_matches": db.num_inlier_matches()}
     finally:
         db.close()
-    stats.update(
-        extract_s=t1 - t0,
-        match_s=t2 - t1,
-        extract_cpu_s=c1 - c0,
-        match_cpu_s=c2 - c1,
-        device=str(device).split(".")[-1],
-        matcher=matcher,
-        matcher_choice=why,
-        similar_pairs=extra_pairs,
-    )
+    stats.update(extract_s=t1 - t0, match_s=t2 - t1, extract_cpu_s=c1 - c0, match_cpu_s=c2 - c1,
+                 device=str(device).split(".")[-1], matcher=matcher, matcher_choice=why, similar_pairs=extra_pairs)
     return stats
 
 
-def run_mapper(
-    database: Path,
-    image_dir: Path,
-    out_dir: Path,
-    cfg: SfmConfig,
-    names: list[str],
-    mapper: str,
-    init_min_tri_angle: float,
-) -> dict:
+def run_mapper(database: Path, image_dir: Path, out_dir: Path, cfg: SfmConfig, names: list[str],
+               mapper: str, init_min_tri_angle: float) -> dict:
     """One COLMAP mapping run -> ``{model index: pycolmap.Reconstruction}`` (may be empty)."""
     import pycolmap
 
@@ -206,7 +169,6 @@ def run_mapper(
 
 # ---- model selection -----------------------------------------------------------------------
 
-
 def select_model(models: dict) -> tuple[Any, list[int]]:
     """Pick the model with most registered images; returns it and all models' sizes (descending)."""
     if not models:
@@ -216,7 +178,6 @@ def select_model(models: dict) -> tuple[Any, list[int]]:
 
 
 # ---- refinement ------------------------------------------------------------------------------
-
 
 def refine_model(rec, database: Path, cfg: SfmConfig) -> dict:
     """Fine-scale refinement of the mapped model in place (:mod:`anigs.sfm.bundle`); returns its report.
@@ -229,16 +190,10 @@ def refine_model(rec, database: Path, cfg: SfmConfig) -> dict:
     if not database.exists():
         return {"applied": False, "reason": "no feature database (model not mapped here)"}
     try:
-        report = refine_fine_scale(
-            rec,
-            database,
-            max_keypoint_scale=cfg.refine_max_keypoint_scale,
-            min_observations=cfg.refine_min_observations,
-            loss_scale=cfg.refine_loss_scale,
-            num_threads=cfg.mapper_num_threads,
-            max_image_size=cfg.max_image_size,
-            max_iterations=cfg.refine_max_iterations,
-        )
+        report = refine_fine_scale(rec, database, max_keypoint_scale=cfg.refine_max_keypoint_scale,
+                                   min_observations=cfg.refine_min_observations, loss_scale=cfg.refine_loss_scale,
+                                   num_threads=cfg.mapper_num_threads, max_image_size=cfg.max_image_size,
+                                   max_iterations=cfg.refine_max_iterations)
     except ValueError as exc:
         log.warning("fine-scale refinement skipped: %s", exc)
         return {"applied": False, "reason": str(exc)}
@@ -261,3 +216,5 @@ def larger_originals(originals: str | Path | None, headers: dict) -> Path | None
         if max(ow, oh) <= max(w, h):
             return None
     return Path(originals)
+
+

@@ -10,7 +10,6 @@
 
 The evaluation metric (valid window, explicit data range) is :mod:`anigs.metrics.image`'s.
 """
-
 from anigs.ssim.fused import fused_ssim
 from anigs.ssim.reference import psnr, ssim
 

@@ -17,7 +17,6 @@ filtering, ``C1 = 0.01^2``, ``C2 = 0.03^2``, mean over pixels and channels), com
 Only the prediction gets a gradient (the target is data); a target that requires grad falls back
 to the reference implementation. The reference stays the oracle in the tests.
 """
-
 from __future__ import annotations
 
 from functools import lru_cache
@@ -40,7 +39,7 @@ def _band(dtype: torch.dtype, device: str) -> torch.Tensor:
     g = g / g.sum()
     T = torch.zeros(_BLOCK + 2 * _R, _BLOCK, dtype=dtype)
     for j in range(_BLOCK):
-        T[j : j + WINDOW, j] = g
+        T[j:j + WINDOW, j] = g
     return T.to(device)
 
 
@@ -70,9 +69,8 @@ def _planes(t: torch.Tensor) -> torch.Tensor:
     return t.permute(0, 3, 1, 2).reshape(B * C, H, W)
 
 
-def _ssim_terms(
-    mx: torch.Tensor, my: torch.Tensor, exx: torch.Tensor, eyy: torch.Tensor, exy: torch.Tensor, grad: bool
-) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None]:
+def _ssim_terms(mx: torch.Tensor, my: torch.Tensor, exx: torch.Tensor, eyy: torch.Tensor, exy: torch.Tensor,
+                grad: bool) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None]:
     """SSIM map [P,H,W] from the blurred moments G*x, G*y, G*x^2, G*y^2, G*xy (each [P,H,W]) and,
     with ``grad``, the partials (A, B, C) of the map (each [P,H,W])."""
     mx2, my2, mxy = mx * mx, my * my, mx * my

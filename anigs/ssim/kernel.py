@@ -5,7 +5,6 @@ level and cache folder; its own library ``anigs_ssim_<hash>.so``, keyed by the s
 flags, written atomically) on first use. When it cannot be built, :func:`available` is False
 and :func:`anigs.ssim.fused.fused_ssim` takes its torch path.
 """
-
 from __future__ import annotations
 
 import ctypes
@@ -98,21 +97,8 @@ class _SSIMCpu(torch.autograd.Function):
         need = ctx.needs_input_grad[0]
         parts = torch.empty((3, *x.shape)) if need else None
         ptr = (lambda i: parts[i].data_ptr()) if need else (lambda i: None)
-        total = lib.anigs_ssim_forward(
-            B,
-            H,
-            W,
-            C,
-            x.data_ptr(),
-            y.data_ptr(),
-            _TAPS.data_ptr(),
-            C1,
-            C2,
-            ptr(0),
-            ptr(1),
-            ptr(2),
-            max(1, torch.get_num_threads()),
-        )
+        total = lib.anigs_ssim_forward(B, H, W, C, x.data_ptr(), y.data_ptr(), _TAPS.data_ptr(), C1, C2,
+                                       ptr(0), ptr(1), ptr(2), max(1, torch.get_num_threads()))
         if need:
             ctx.save_for_backward(x, y, parts)
         return torch.tensor(total / x.numel(), dtype=torch.float32)
@@ -123,21 +109,9 @@ class _SSIMCpu(torch.autograd.Function):
         x, y, parts = ctx.saved_tensors
         B, H, W, C = x.shape
         gx = torch.empty_like(x)
-        lib.anigs_ssim_backward(
-            B,
-            H,
-            W,
-            C,
-            x.data_ptr(),
-            y.data_ptr(),
-            _TAPS.data_ptr(),
-            parts[0].data_ptr(),
-            parts[1].data_ptr(),
-            parts[2].data_ptr(),
-            float(g) / x.numel(),
-            gx.data_ptr(),
-            max(1, torch.get_num_threads()),
-        )
+        lib.anigs_ssim_backward(B, H, W, C, x.data_ptr(), y.data_ptr(), _TAPS.data_ptr(), parts[0].data_ptr(),
+                                parts[1].data_ptr(), parts[2].data_ptr(), float(g) / x.numel(), gx.data_ptr(),
+                                max(1, torch.get_num_threads()))
         return gx, None
 
 

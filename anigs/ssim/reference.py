@@ -1,7 +1,6 @@
 """The reference SSIM (Gaussian window, sigma 1.5, size 11) for images [...,H,W,C] in [0,1], and PSNR.
 
 Readable and differentiable through autograd; the oracle of the fused SSIM in the tests."""
-
 from __future__ import annotations
 
 import torch
@@ -19,14 +18,8 @@ def _window(size: int, sigma: float, channels: int, dtype, device) -> torch.Tens
     return (g[:, None] * g[None, :]).expand(channels, 1, size, size).contiguous()
 
 
-def ssim(
-    a: torch.Tensor,
-    b: torch.Tensor,
-    window: int = WINDOW,
-    sigma: float = SIGMA,
-    data_range: float = 1.0,
-    reduce: bool = True,
-) -> torch.Tensor:
+def ssim(a: torch.Tensor, b: torch.Tensor, window: int = WINDOW, sigma: float = SIGMA, data_range: float = 1.0,
+         reduce: bool = True) -> torch.Tensor:
     """SSIM between images a, b of shape [H,W,C] or [B,H,W,C] (channels last).
 
     Uses zero-padded 'same' convolution (the 3DGS training loss convention). For the

@@ -14,7 +14,6 @@ To add a stage: write ``anigs/stages/<name>.py`` (``Config``, ``run``, ``add_arg
 ``main``), add one :class:`Stage` line here in pipeline order, add its rule ``<name>`` in
 ``workflow/rules/``, and regenerate the schema.
 """
-
 from __future__ import annotations
 
 import importlib
@@ -66,9 +65,8 @@ STAGES: tuple[Stage, ...] = (
     Stage("animate", "the dataset-model loop unrolled into rounds", "variant", command=False),
     Stage("render_clip", "render a camera-fixed clip of one view with a round's model", "variant"),
     Stage("refine", "ComposedV2V refinement of one rendered clip with the video prior", "variant"),
-    Stage(
-        "round", "render and refine every view of a round in one process (round_jobs: round)", "variant", section=False
-    ),
+    Stage("round", "render and refine every view of a round in one process (round_jobs: round)", "variant",
+          section=False),
     Stage("update", "model update: train the deformation field on a round's targets", "variant"),
     Stage("final", "final videos, moving-camera video and space-time slices", "variant"),
     Stage("export", "export the animated scene (compact .anigs file, DCT PLY + JSON, optional PLY frames)", "variant"),
@@ -84,7 +82,7 @@ BY_NAME: dict[str, Stage] = {s.name: s for s in STAGES}
 # Names a stage had before it got its one name: a config key, rule or command under the old
 # name fails with a message naming the new one.
 RENAMED: dict[str, str] = {
-    "render": "final",  # old CLI name of the final stage (and its rule final_render)
+    "render": "final",          # old CLI name of the final stage (and its rule final_render)
     "render-clip": "render_clip",
     "final_render": "final",
     "static_fit": "static",

@@ -4,7 +4,6 @@ It has a config section and a Snakemake target (``snakemake animate``) but no co
 own: its jobs are the ``render_clip``, ``refine`` and ``update`` stages of every round, in the
 order :class:`anigs.animate.plan.RoundPlan` gives.
 """
-
 from __future__ import annotations
 
 from anigs.animate.plan import AnimateConfig, RoundPlan

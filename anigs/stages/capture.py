@@ -6,7 +6,6 @@
 Synthetic mode writes ``OUT/images/*.png`` and the ground truth in ``OUT/gt/``
 (see :mod:`anigs.synth.capture`); photos mode writes ``OUT/images/*.png`` only.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -53,11 +52,8 @@ class Outputs(contract.Outputs):
     FOLDER = "{scene}/capture"
     LAYOUT = {
         "images": File("images/", "the photos (PNG; synthetic: img_000.png, ...; photos: {stem}.png)"),
-        "summary": File(
-            "capture.json",
-            "source (synthetic|photos), image names and count; synthetic: "
-            "Gaussian and label counts, image size, seconds",
-        ),
+        "summary": File("capture.json", "source (synthetic|photos), image names and count; synthetic: "
+                                        "Gaussian and label counts, image size, seconds"),
         "gt": File("gt/", "synthetic only: the ground truth", optional=True),
         "gt_cameras": File("gt/cameras.json", "ground-truth cameras (+ background, time)", optional=True),
         "gt_gaussians": File("gt/gaussians.ply", "ground-truth Gaussians (standard 3DGS layout, SH 0)", optional=True),
@@ -128,10 +124,8 @@ class Inputs(contract.Inputs):
     """What the capture stage reads: nothing upstream; the source and, for photos, their folder."""
 
     out: Outputs = field(metadata={"help": "capture folder: writes OUT/images (and OUT/gt), OUT/capture.json"})
-    source: str = field(
-        default="synthetic",
-        metadata={"help": "synthetic: render the embedded demo scene; photos: import a folder of photos"},
-    )
+    source: str = field(default="synthetic", metadata={
+        "help": "synthetic: render the embedded demo scene; photos: import a folder of photos"})
     photos: Path | None = field(default=None, metadata={"help": "folder of JPEG/PNG photos (photos mode)"})
 
 
@@ -146,9 +140,8 @@ def run(inputs: Inputs, cfg) -> Outputs:
 
         names = import_photos(photos, out.path("images"), cfg.max_side or None, cfg.skip_unreadable)
         log.info("imported %d photos from %s into %s", len(names), photos, out.path("images"))
-        write_json(
-            out.path("summary"), {"source": "photos", "photos": str(photos), "images": names, "num_images": len(names)}
-        )
+        write_json(out.path("summary"), {"source": "photos", "photos": str(photos), "images": names,
+                                         "num_images": len(names)})
         return out
     if source != "synthetic":
         raise ValueError(f"capture: source must be 'synthetic' or 'photos', got {source!r}")
@@ -158,15 +151,9 @@ def run(inputs: Inputs, cfg) -> Outputs:
 
     summary = write_capture(cfg, out.root)
     write_json(out.path("summary"), {"source": "synthetic", **summary})
-    log.info(
-        "synthetic capture: %d Gaussians %s, %d images %dx%d in %.1f s -> %s",
-        summary["num_gaussians"],
-        summary["label_counts"],
-        summary["num_images"],
-        *summary["image_size"],
-        summary["seconds"]["total"],
-        out,
-    )
+    log.info("synthetic capture: %d Gaussians %s, %d images %dx%d in %.1f s -> %s",
+             summary["num_gaussians"], summary["label_counts"], summary["num_images"],
+             *summary["image_size"], summary["seconds"]["total"], out)
     return out
 
 
@@ -181,14 +168,10 @@ def config(source: str, params: dict | None):
 
 # ---- command line: anigs capture ----
 
-
 def add_arguments(p: argparse.ArgumentParser) -> None:
     Inputs.add_arguments(p)
-    p.add_argument(
-        "--params",
-        default=None,
-        help="JSON (or @file.json/.yaml): the scene's `synthetic` section, or the photo import options",
-    )
+    p.add_argument("--params", default=None,
+                   help="JSON (or @file.json/.yaml): the scene's `synthetic` section, or the photo import options")
 
 
 def main(args: argparse.Namespace) -> int:

@@ -22,7 +22,6 @@ several folders lists its ``Outputs`` types in the module's ``OUTPUTS`` (:func:`
 folder may hold several stages' files (``round{r}/``: render_clip, refine, update), but a file
 belongs to exactly one ``Outputs``.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -60,7 +59,7 @@ class Outputs:
     """A stage's output folder. Subclasses set ``LAYOUT`` (key -> :class:`File`) and add loaders."""
 
     LAYOUT: ClassVar[dict[str, File]] = {}
-    STAGE: ClassVar[str] = ""  # the stage's name (anigs.stages.STAGES)
+    STAGE: ClassVar[str] = ""   # the stage's name (anigs.stages.STAGES)
     FOLDER: ClassVar[str] = ""  # the folder under the results root, with {scene}/{variant}/{round} fields
 
     def __init__(self, root: str | Path):
@@ -117,9 +116,8 @@ class Outputs:
         except ValueError as e:
             raise ValueError(f"{p}: not valid JSON ({e}); re-run the {self.STAGE or 'upstream'} stage") from None
 
-    def array(
-        self, key: str, dtype: str | None = None, shape: tuple[int | None, ...] | None = None, **fields: Any
-    ) -> np.ndarray:
+    def array(self, key: str, dtype: str | None = None, shape: tuple[int | None, ...] | None = None,
+              **fields: Any) -> np.ndarray:
         """The ``.npy`` file ``key``, checked: ``dtype`` a numpy kind (``"b"`` bool, ``"i"`` signed int,
         ``"f"`` float, ...) or kinds string, ``shape`` with None for any extent."""
         p = self.path(key, **fields)
@@ -137,9 +135,8 @@ def outputs_of(module: types.ModuleType) -> tuple[type[Outputs], ...]:
     return (module.Outputs,) if hasattr(module, "Outputs") else ()
 
 
-def check_array(
-    a: np.ndarray, where: str, dtype: str | None = None, shape: tuple[int | None, ...] | None = None
-) -> np.ndarray:
+def check_array(a: np.ndarray, where: str, dtype: str | None = None,
+                shape: tuple[int | None, ...] | None = None) -> np.ndarray:
     """``a`` unchanged when its dtype kind is in ``dtype`` and its shape matches ``shape`` (None: any
     extent); otherwise a ValueError naming ``where``, the expected and the found dtype/shape."""
     if dtype is not None and a.dtype.kind not in dtype:
@@ -151,7 +148,6 @@ def check_array(
 
 
 # ---- inputs: flags derived from fields ----
-
 
 def _flag(name: str) -> str:
     return "--" + name.replace("_", "-")
@@ -187,24 +183,12 @@ class Inputs:
             elif tp is bool:
                 p.add_argument(_flag(f.name), dest=f.name, action="store_true", help=help_)
             elif typing.get_origin(tp) is list:
-                p.add_argument(
-                    _flag(f.name),
-                    dest=f.name,
-                    nargs="*",
-                    required=required,
-                    default=None if required else f.default,
-                    help=help_,
-                )
+                p.add_argument(_flag(f.name), dest=f.name, nargs="*", required=required,
+                               default=None if required else f.default, help=help_)
             else:
                 conv = tp if tp in (int, float) else str
-                p.add_argument(
-                    _flag(f.name),
-                    dest=f.name,
-                    type=conv,
-                    required=required,
-                    default=None if required else f.default,
-                    help=help_,
-                )
+                p.add_argument(_flag(f.name), dest=f.name, type=conv, required=required,
+                               default=None if required else f.default, help=help_)
 
     @classmethod
     def from_args(cls, args: argparse.Namespace):

@@ -14,7 +14,6 @@ that the views stage places the views around.
 
 Writes the files of :class:`Outputs`.
 """
-
 from __future__ import annotations
 
 import logging
@@ -38,16 +37,11 @@ class Outputs(contract.Outputs):
     STAGE = "effects"
     FOLDER = "{scene}/effects"
     LAYOUT = {
-        "effects": File(
-            "effects.json",
-            "per effect: detected, pixel_fraction, gaussian_fraction, confidence, "
-            "reason; requested, chosen, requested_not_found, prompt, corrections, "
-            "num_dynamic, dynamic_fraction, config",
-        ),
-        "regions": File(
-            "regions.npy",
-            "int8 [N]: region of each canonical Gaussian (index into anigs.effects.config.REGIONS), -1 none",
-        ),
+        "effects": File("effects.json", "per effect: detected, pixel_fraction, gaussian_fraction, confidence, "
+                                        "reason; requested, chosen, requested_not_found, prompt, corrections, "
+                                        "num_dynamic, dynamic_fraction, config"),
+        "regions": File("regions.npy", "int8 [N]: region of each canonical Gaussian (index into "
+                                       "anigs.effects.config.REGIONS), -1 none"),
         "dynamic": File("dynamic.npy", "bool [N]: the chosen effects' Gaussians, the region of interest"),
         "overview": File("overview.png", "uint8 RGB: the numbered candidates over the photos"),
     }
@@ -77,12 +71,8 @@ class Inputs(contract.Inputs):
     cameras: Path = field(metadata={"help": "cameras of the photos (sfm/cameras.json)"})
     images: Path = field(metadata={"help": "the undistorted photos the cameras describe (sfm/images)"})
     out: Outputs = field(metadata={"help": "output folder (effects.json, regions.npy, dynamic.npy, overview.png)"})
-    requested: list[str] | None = field(
-        default=None,
-        metadata={
-            "help": "effects to simulate, instead of the section's `requested` ('auto': the detected kinds the prompt names)"
-        },
-    )
+    requested: list[str] | None = field(default=None, metadata={
+        "help": "effects to simulate, instead of the section's `requested` ('auto': the detected kinds the prompt names)"})
     prompt: str | None = field(default=None, metadata={"help": "the scene's prompt, instead of the section's `prompt`"})
 
 

@@ -11,7 +11,6 @@ protocol, which need the model but not the final clips) in a job beside the fina
 ``--part clips`` in the final job after the videos; ``anigs eval --merge --out eval/`` (or
 :func:`merge_parts` inside Snakemake) joins the two records into the one a ``--part all`` run writes.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -44,15 +43,10 @@ class Outputs(contract.Outputs):
 
     STAGE = "eval"
     FOLDER = "{scene}/{variant}/eval"
-    LAYOUT = {
-        "metrics": File(
-            "metrics.json",
-            "the record of every metric: schema, scene, dataset, method, variant, "
-            "config, inputs, metrics {name: {value, available, reason, ...}}",
-        ),
-        "clip_metrics": File("clip_metrics.json", "the record of the final clips' metrics (--part clips)"),
-        "model_metrics": File("model_metrics.json", "the record of the model's metrics (--part model)"),
-    }
+    LAYOUT = {"metrics": File("metrics.json", "the record of every metric: schema, scene, dataset, method, variant, "
+                                              "config, inputs, metrics {name: {value, available, reason, ...}}"),
+              "clip_metrics": File("clip_metrics.json", "the record of the final clips' metrics (--part clips)"),
+              "model_metrics": File("model_metrics.json", "the record of the model's metrics (--part model)")}
 
     def record(self, key: str = "metrics") -> dict[str, Any]:
         """A metrics record, checked to have the ``metrics.json`` schema."""
@@ -71,24 +65,17 @@ class Inputs(contract.Inputs):
     final: FinalOutputs | None = field(default=None, metadata={"help": "the final stage's folder (its clips)"})
     clips: list[str] | None = field(default=None, metadata={"help": "more clip files or folders (.npz/.mp4)"})
     masks: MasksOutputs | None = None
-    reference: list[str] | None = field(
-        default=None,
-        metadata={"help": "PRIOR=PATH: reference clips of a prior's generate (FVD-/FID-PRIOR; repeated priors pool)"},
-    )
-    fid_reference: list[str] | None = field(
-        default=None, metadata={"help": "PRIOR=PATH: FID reference clips instead of --reference for that prior"}
-    )
-    model: UpdateOutputs | None = field(
-        default=None, metadata={"help": "the model's folder (multiview protocol, GT motion comparison)"}
-    )
+    reference: list[str] | None = field(default=None, metadata={"help": "PRIOR=PATH: reference clips of a prior's "
+                                                                        "generate (FVD-/FID-PRIOR; repeated priors pool)"})
+    fid_reference: list[str] | None = field(default=None, metadata={"help": "PRIOR=PATH: FID reference clips instead "
+                                                                            "of --reference for that prior"})
+    model: UpdateOutputs | None = field(default=None, metadata={"help": "the model's folder (multiview protocol, "
+                                                                        "GT motion comparison)"})
     static: StaticOutputs | None = None
-    sfm: SfmOutputs | None = field(
-        default=None,
-        metadata={"help": "the sfm stage's folder: training cameras, undistorted images, points (multiview protocol)"},
-    )
-    capture: CaptureOutputs | None = field(
-        default=None, metadata={"help": "the capture stage's folder: synthetic ground truth"}
-    )
+    sfm: SfmOutputs | None = field(default=None, metadata={"help": "the sfm stage's folder: training cameras, "
+                                                                   "undistorted images, points (multiview protocol)"})
+    capture: CaptureOutputs | None = field(default=None, metadata={"help": "the capture stage's folder: synthetic "
+                                                                           "ground truth"})
     method: str = field(default="Ours", metadata={"help": "method name (table row)"})
     variant: str = field(default="full", metadata={"help": "ablation variant id (Table 5)"})
     dataset: str = field(default="anigs", metadata={"help": "scene group (one FVD table per dataset)"})
@@ -119,18 +106,13 @@ def _record_inputs(inputs: Inputs) -> dict[str, Any]:
     """The paths an evaluation reads, as ``metrics.json`` records them (the clips half reads no images or points)."""
     s = lambda o, key: str(o.path(key)) if o is not None else None  # noqa: E731
     whole = inputs.part != "clips"
-    return {
-        "clips": ([str(inputs.final.path("clips"))] if inputs.final else []) + list(inputs.clips or []),
-        "masks": str(inputs.masks.root) if inputs.masks else None,
-        "reference": _pairs(inputs.reference, "--reference"),
-        "fid_reference": _pairs(inputs.fid_reference, "--fid-reference"),
-        "model": s(inputs.model, "model"),
-        "canonical": s(inputs.static, "canonical"),
-        "cameras": s(inputs.sfm, "cameras"),
-        "images": s(inputs.sfm, "images") if whole else None,
-        "points": s(inputs.sfm, "points") if whole else None,
-        "gt_dir": s(inputs.capture, "gt"),
-    }
+    return {"clips": ([str(inputs.final.path("clips"))] if inputs.final else []) + list(inputs.clips or []),
+            "masks": str(inputs.masks.root) if inputs.masks else None,
+            "reference": _pairs(inputs.reference, "--reference"),
+            "fid_reference": _pairs(inputs.fid_reference, "--fid-reference"),
+            "model": s(inputs.model, "model"), "canonical": s(inputs.static, "canonical"),
+            "cameras": s(inputs.sfm, "cameras"), "images": s(inputs.sfm, "images") if whole else None,
+            "points": s(inputs.sfm, "points") if whole else None, "gt_dir": s(inputs.capture, "gt")}
 
 
 def run(inputs: Inputs, cfg: EvalConfig) -> Outputs:
@@ -146,33 +128,12 @@ def run(inputs: Inputs, cfg: EvalConfig) -> Outputs:
         raise ValueError("eval: --scene is required (the table column)")
     t0 = time.perf_counter()
     i = _record_inputs(inputs)
-    metrics = evaluate(
-        cfg,
-        i["clips"],
-        i["masks"],
-        i["reference"],
-        i["model"],
-        i["canonical"],
-        i["cameras"],
-        i["images"],
-        i["points"],
-        i["gt_dir"],
-        i["fid_reference"],
-        part=inputs.part,
-    )
-    record = {
-        "schema": SCHEMA,
-        "scene": inputs.scene,
-        "dataset": inputs.dataset,
-        "method": inputs.method,
-        "variant": inputs.variant,
-        "part": inputs.part,
-        "anigs_version": __version__,
-        "config": dataclasses.asdict(cfg),
-        "inputs": i,
-        "seconds": round(time.perf_counter() - t0, 2),
-        "metrics": metrics,
-    }
+    metrics = evaluate(cfg, i["clips"], i["masks"], i["reference"], i["model"], i["canonical"], i["cameras"],
+                       i["images"], i["points"], i["gt_dir"], i["fid_reference"], part=inputs.part)
+    record = {"schema": SCHEMA, "scene": inputs.scene, "dataset": inputs.dataset, "method": inputs.method,
+              "variant": inputs.variant, "part": inputs.part, "anigs_version": __version__,
+              "config": dataclasses.asdict(cfg), "inputs": i,
+              "seconds": round(time.perf_counter() - t0, 2), "metrics": metrics}
     out = Outputs(inputs.out)
     write_json(out.path(PART_FILE[inputs.part]), record)
     n_ok = sum(1 for m in metrics.values() if m["available"])
@@ -190,7 +151,6 @@ def merge_parts(out: Outputs, extra: list[str | Path] | None = None) -> dict:
 
 
 # ---- command line: anigs eval ----
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from anigs.cli import add_params

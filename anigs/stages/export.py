@@ -7,7 +7,6 @@ DCT motion coefficients of the moving ones only; ``load_compact(path).frame(t)``
 library's frame t exactly), ``animated.ply`` (the standard 3DGS PLY plus per-Gaussian DCT
 properties) with its JSON sidecar, and with ``frames: true`` the per-frame PLY sequence.
 """
-
 from __future__ import annotations
 
 import logging
@@ -29,15 +28,11 @@ class Outputs(contract.Outputs):
 
     STAGE = "export"
     FOLDER = "{scene}/{variant}/export"
-    LAYOUT = {
-        "compact": File(
-            "scene.anigs",
-            "compact animated scene (anigs.viewer.compact): canonical once, DCT motion of the moving Gaussians",
-        ),
-        "ply": File("animated.ply", "standard 3DGS PLY + per-Gaussian DCT properties"),
-        "sidecar": File("animated.json", "the PLY's sidecar: K, T, fps, dynamic count, frames, compact"),
-        "frames": File("frames/", "with export.frames: one 3DGS PLY per frame", optional=True),
-    }
+    LAYOUT = {"compact": File("scene.anigs", "compact animated scene (anigs.viewer.compact): canonical once, "
+                                            "DCT motion of the moving Gaussians"),
+              "ply": File("animated.ply", "standard 3DGS PLY + per-Gaussian DCT properties"),
+              "sidecar": File("animated.json", "the PLY's sidecar: K, T, fps, dynamic count, frames, compact"),
+              "frames": File("frames/", "with export.frames: one 3DGS PLY per frame", optional=True)}
 
 
 @dataclass
@@ -81,13 +76,6 @@ def run(inputs: Inputs, cfg: ExportConfig) -> Outputs:
     meta["frames"] = names
     meta["compact"] = Outputs.LAYOUT["compact"].name
     write_json(out.path("sidecar"), meta)
-    log.info(
-        "export: %d frame PLYs and animated.ply (%d dynamic of %d Gaussians, K=%d, T=%d) -> %s",
-        len(names),
-        deformation.num_dynamic,
-        canonical.num,
-        deformation.num_bases,
-        deformation.num_frames,
-        out.root,
-    )
+    log.info("export: %d frame PLYs and animated.ply (%d dynamic of %d Gaussians, K=%d, T=%d) -> %s",
+             len(names), deformation.num_dynamic, canonical.num, deformation.num_bases, deformation.num_frames, out.root)
     return out

@@ -7,7 +7,6 @@ y-t space-time slices of the most animated patch (the paper's figures;
     anigs final --static static/ --model round4/ --views views/ [--sfm sfm/] [--masks masks/] \\
         --out final/ --params '{...final section...}'
 """
-
 from __future__ import annotations
 
 import dataclasses
@@ -58,20 +57,16 @@ class Outputs(contract.Outputs):
 
     STAGE = "final"
     FOLDER = "{scene}/{variant}/final"
-    LAYOUT = {
-        "summary": File(
-            "final.json",
-            "per view: row, col, peak_temporal_std, static_max_change, dynamic_fraction; frames, config, path",
-        ),
-        "video": File("{view}.mp4", "camera-fixed video of a view (H.264)"),
-        "clips": File("clips/", "the videos' frames as clips (the eval stage reads them)"),
-        "clip": File("clips/{view}.npz", "float [T,H,W,3] in [0,1] + metadata (camera, fps)"),
-        "slices": File("slices/", "space-time slices"),
-        "slice_xt": File("slices/{view}_xt.png", "x-t slice of the most animated row"),
-        "slice_yt": File("slices/{view}_yt.png", "y-t slice of the most animated column"),
-        "slice_frame": File("slices/{view}_frame.png", "frame 0 with that row and column marked"),
-        "path": File("path.mp4", "moving-camera video with time running", optional=True),
-    }
+    LAYOUT = {"summary": File("final.json", "per view: row, col, peak_temporal_std, static_max_change, "
+                                            "dynamic_fraction; frames, config, path"),
+              "video": File("{view}.mp4", "camera-fixed video of a view (H.264)"),
+              "clips": File("clips/", "the videos' frames as clips (the eval stage reads them)"),
+              "clip": File("clips/{view}.npz", "float [T,H,W,3] in [0,1] + metadata (camera, fps)"),
+              "slices": File("slices/", "space-time slices"),
+              "slice_xt": File("slices/{view}_xt.png", "x-t slice of the most animated row"),
+              "slice_yt": File("slices/{view}_yt.png", "y-t slice of the most animated column"),
+              "slice_frame": File("slices/{view}_frame.png", "frame 0 with that row and column marked"),
+              "path": File("path.mp4", "moving-camera video with time running", optional=True)}
 
     def videos(self) -> dict[str, Path]:
         """{view: its camera-fixed video} in the folder (the moving-camera video is no view's)."""
@@ -94,12 +89,10 @@ class Inputs(contract.Inputs):
     views: ViewsOutputs
     out: Path = field(metadata={"help": "the final folder"})
     model: UpdateOutputs | None = field(default=None, metadata={"help": "the model's folder (omit: the static scene)"})
-    sfm: SfmOutputs | None = field(
-        default=None, metadata={"help": "the sfm stage's folder: its cameras for the moving-camera path"}
-    )
-    masks: MasksOutputs | None = field(
-        default=None, metadata={"help": "the masks stage's folder: slices inside, stillness outside"}
-    )
+    sfm: SfmOutputs | None = field(default=None, metadata={"help": "the sfm stage's folder: its cameras for the "
+                                                                   "moving-camera path"})
+    masks: MasksOutputs | None = field(default=None, metadata={"help": "the masks stage's folder: slices inside, "
+                                                                       "stillness outside"})
 
 
 def run(inputs: Inputs, cfg: FinalConfig) -> Outputs:
@@ -141,20 +134,13 @@ def run(inputs: Inputs, cfg: FinalConfig) -> Outputs:
         if cfg.scale != 1.0:
             cam = cam.scaled(max(1, round(cam.width * cfg.scale)), max(1, round(cam.height * cfg.scale)))
         mask = masks.view_mask(cam.name) >= 0.5 if masks is not None and masks.exists("mask", view=cam.name) else None
-        summary["views"][cam.name] = view_video(
-            canonical, deformation, cam, times, bg, mask, out, cfg.fps, cfg.slice_upsample
-        )
+        summary["views"][cam.name] = view_video(canonical, deformation, cam, times, bg, mask, out, cfg.fps,
+                                                cfg.slice_upsample)
     if inputs.sfm is not None:
-        summary["path"] = path_video(
-            canonical, deformation, load_cameras(inputs.sfm.path("cameras")), period, bg, out.path("path"), cfg
-        )
+        summary["path"] = path_video(canonical, deformation, load_cameras(inputs.sfm.path("cameras")), period, bg,
+                                     out.path("path"), cfg)
     summary["seconds"] = time.perf_counter() - t0
     write_json(out.path("summary"), summary)
-    log.info(
-        "final: wrote %d view videos%s in %.1f s to %s",
-        len(summary["views"]),
-        " and path.mp4" if inputs.sfm is not None else "",
-        summary["seconds"],
-        out.root,
-    )
+    log.info("final: wrote %d view videos%s in %.1f s to %s", len(summary["views"]),
+             " and path.mp4" if inputs.sfm is not None else "", summary["seconds"], out.root)
     return out

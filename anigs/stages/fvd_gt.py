@@ -12,7 +12,6 @@ the no-motion control) and, per (scene, variant), the method's ``fvd/gt`` record
 The record has the schema of ``metrics.json`` with ``part: fvd_gt``; ``anigs tables`` joins it to
 the variant's ``metrics.json`` (and ``eval`` merges it there with ``fvd_gt.when: always``).
 """
-
 from __future__ import annotations
 
 import dataclasses
@@ -78,19 +77,9 @@ class FvdGtConfig(Section):
     def placement(self):
         from anigs.metrics.eval_views import Placement
 
-        return Placement(
-            self.num_views,
-            self.width,
-            self.height,
-            self.fov_deg,
-            self.seed,
-            self.jitter_m,
-            self.min_distance,
-            self.max_distance,
-            self.clearance,
-            self.min_dynamic_fraction,
-            self.max_tries_per_view,
-        )
+        return Placement(self.num_views, self.width, self.height, self.fov_deg, self.seed, self.jitter_m,
+                         self.min_distance, self.max_distance, self.clearance, self.min_dynamic_fraction,
+                         self.max_tries_per_view)
 
 
 Config = FvdGtConfig  # the `fvd_gt` config section
@@ -101,24 +90,14 @@ class ReferenceOutputs(contract.Outputs):
 
     STAGE = "fvd_gt"
     FOLDER = "{scene}/fvd_gt"
-    LAYOUT = {
-        "reference": File(
-            "reference.json",
-            "config, frames, window_starts, protocol, available, clips, still_control record, gt_vbench",
-        ),
-        "features": File(
-            "features.npz",
-            "features float [n,D] of the ground truth's windows, views str [n] (when the I3D network is available)",
-            optional=True,
-        ),
-        "still_features": File("still_features.npz", "the same of the static canonical scene", optional=True),
-        "views": File("views.json", "the evaluation views (ground-truth frame)"),
-        "sheet": File(
-            "views.png",
-            "contact sheet of the views (ground truth, static rows; when the I3D network is available)",
-            optional=True,
-        ),
-    }
+    LAYOUT = {"reference": File("reference.json", "config, frames, window_starts, protocol, available, clips, "
+                                                  "still_control record, gt_vbench"),
+              "features": File("features.npz", "features float [n,D] of the ground truth's windows, views str [n] "
+                                               "(when the I3D network is available)", optional=True),
+              "still_features": File("still_features.npz", "the same of the static canonical scene", optional=True),
+              "views": File("views.json", "the evaluation views (ground-truth frame)"),
+              "sheet": File("views.png", "contact sheet of the views (ground truth, static rows; when the I3D "
+                                         "network is available)", optional=True)}
 
 
 class Outputs(contract.Outputs):
@@ -126,13 +105,10 @@ class Outputs(contract.Outputs):
 
     STAGE = "fvd_gt"
     FOLDER = "{scene}/{variant}/eval"
-    LAYOUT = {
-        "record": File("fvd_gt.json", "metrics.json schema, part fvd_gt: the fvd/gt metric"),
-        "features": File(
-            "fvd_gt_features.npz", "the method's I3D features float [n,D] (paired comparisons)", optional=True
-        ),
-        "sheet": File("fvd_gt.png", "contact sheet of the method's views", optional=True),
-    }
+    LAYOUT = {"record": File("fvd_gt.json", "metrics.json schema, part fvd_gt: the fvd/gt metric"),
+              "features": File("fvd_gt_features.npz", "the method's I3D features float [n,D] (paired comparisons)",
+                               optional=True),
+              "sheet": File("fvd_gt.png", "contact sheet of the method's views", optional=True)}
 
 
 OUTPUTS = (ReferenceOutputs, Outputs)  # the scene's reference folder and the variant's record in eval/
@@ -170,11 +146,8 @@ def run(inputs: Inputs, cfg: FvdGtConfig) -> contract.Outputs:
         out = ReferenceOutputs(inputs.out)
         run_reference(inputs.capture, cameras, canonical, inputs.frames, out, cfg, ecfg)
         return out
-    missing = [
-        o
-        for o, v in (("--reference-dir", inputs.reference_dir), ("--model", inputs.model), ("--scene", inputs.scene))
-        if not v
-    ]
+    missing = [o for o, v in (("--reference-dir", inputs.reference_dir), ("--model", inputs.model),
+                              ("--scene", inputs.scene)) if not v]
     if missing:
         raise ValueError(f"fvd_gt: the per-variant command needs {', '.join(missing)}")
     return write_record(inputs, cfg, ecfg)
@@ -197,35 +170,17 @@ def write_record(inputs: Inputs, cfg: FvdGtConfig, ecfg) -> Outputs:
     feats = metrics[METRIC].pop("_features", None)
     if feats is not None:  # the method's I3D features: paired comparisons between methods (benchmarks/fvd_gt.py)
         write_npz(out.path("features"), features=feats)
-    record = {
-        "schema": SCHEMA,
-        "scene": inputs.scene,
-        "dataset": inputs.dataset,
-        "method": inputs.method,
-        "variant": inputs.variant,
-        "part": "fvd_gt",
-        "anigs_version": __version__,
-        "config": {"fvd_gt": dataclasses.asdict(cfg), "eval": dataclasses.asdict(ecfg)},
-        "inputs": {
-            "reference_dir": str(inputs.reference_dir.root),
-            "model": str(model),
-            "canonical": str(canonical),
-            "cameras": str(cameras),
-            "gt_dir": str(gt),
-        },
-        "seconds": round(time.perf_counter() - t0, 2),
-        "metrics": metrics,
-    }
+    record = {"schema": SCHEMA, "scene": inputs.scene, "dataset": inputs.dataset, "method": inputs.method,
+              "variant": inputs.variant, "part": "fvd_gt", "anigs_version": __version__,
+              "config": {"fvd_gt": dataclasses.asdict(cfg), "eval": dataclasses.asdict(ecfg)},
+              "inputs": {"reference_dir": str(inputs.reference_dir.root), "model": str(model),
+                         "canonical": str(canonical), "cameras": str(cameras), "gt_dir": str(gt)},
+              "seconds": round(time.perf_counter() - t0, 2), "metrics": metrics}
     write_json(out.path("record"), record)
     if firsts:
-        save_png(out.path("sheet"), contact_sheet([firsts[i : i + 8] for i in range(0, len(firsts), 8)]))
+        save_png(out.path("sheet"), contact_sheet([firsts[i:i + 8] for i in range(0, len(firsts), 8)]))
     m = metrics[METRIC]
-    log.info(
-        "fvd_gt: %s %s: %s",
-        inputs.method,
-        inputs.variant,
-        f"{m['value']:.2f} ± {m['bootstrap']['std']:.2f} ({m['samples']['test']} clips)"
-        if m["available"]
-        else f"n/a ({m['reason']})",
-    )
+    log.info("fvd_gt: %s %s: %s", inputs.method, inputs.variant,
+             f"{m['value']:.2f} ± {m['bootstrap']['std']:.2f} ({m['samples']['test']} clips)" if m["available"]
+             else f"n/a ({m['reason']})")
     return out

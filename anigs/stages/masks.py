@@ -10,7 +10,6 @@ the masks and the set are compared with the ground truth (:mod:`anigs.masks.trut
 ``--gt-gaussians``, ``--gt-cameras``, ``--cameras`` and ``appearance`` also with the appearance
 labels). What it writes: :class:`Outputs`.
 """
-
 from __future__ import annotations
 
 import dataclasses
@@ -49,25 +48,15 @@ class Outputs(contract.Outputs):
     FOLDER = "{scene}/masks"
     LAYOUT = {
         "mask": File("{view}.png", "uint8 [H, W] 0/255: the view's dynamic mask (its first frame)"),
-        "effect_mask": File(
-            "{view}_{effect}.png",
-            "uint8 [H, W] 0/255: the part of the mask one effect moves (when the backend gives several effects)",
-            optional=True,
-        ),
+        "effect_mask": File("{view}_{effect}.png", "uint8 [H, W] 0/255: the part of the mask one effect "
+                                                   "moves (when the backend gives several effects)", optional=True),
         "overlay": File("{view}_overlay.png", "uint8 RGB [H, W, 3]: the mask over the first frame"),
         "dynamic": File("dynamic.npy", "bool [N]: the canonical Gaussians that move"),
-        "effect_labels": File(
-            "effect_labels.npy",
-            "int8 [N]: which effect each dynamic Gaussian belongs to "
-            "(0 static, 1 + region index; anigs.effects.labels); "
-            "with the effects stage's folder",
-            optional=True,
-        ),
-        "report": File(
-            "masks.json",
-            "per-view fractions, the lifting, completion and containment; with "
-            "ground truth the IoU and precision/recall against it; the config",
-        ),
+        "effect_labels": File("effect_labels.npy", "int8 [N]: which effect each dynamic Gaussian belongs to "
+                                                   "(0 static, 1 + region index; anigs.effects.labels); "
+                                                   "with the effects stage's folder", optional=True),
+        "report": File("masks.json", "per-view fractions, the lifting, completion and containment; with "
+                                     "ground truth the IoU and precision/recall against it; the config"),
     }
 
     def report(self) -> dict:
@@ -87,7 +76,7 @@ class Outputs(contract.Outputs):
         prefix = self.path("effect_mask", view=view, effect="").name[: -len(".png")]
         overlay = self.path("overlay", view=view)
         found = sorted(p for p in self.root.glob(f"{prefix}*.png") if p != overlay)
-        return {p.stem[len(prefix) :]: self._read_mask(p) for p in found}
+        return {p.stem[len(prefix):]: self._read_mask(p) for p in found}
 
     def _read_mask(self, p: Path) -> np.ndarray:
         from anigs.images import read_mask
@@ -109,19 +98,19 @@ class Outputs(contract.Outputs):
 class MasksConfig:
     """Config section ``masks``."""
 
-    backend: str = "effects"  # effects (the effects stage's regions) | vegetation | labels | sam2
+    backend: str = "effects"                   # effects (the effects stage's regions) | vegetation | labels | sam2
     background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # render background (RGB)
     vegetation: VegetationConfig = field(default_factory=VegetationConfig)  # the vegetation backend
     labels: LabelsConfig = field(default_factory=LabelsConfig)  # the labels backend (and the effects backend's renders)
-    sam2: Sam2Config = field(default_factory=Sam2Config)  # the SAM2 backend
-    lift: LiftConfig = field(default_factory=LiftConfig)  # lifting the 2D masks to the Gaussians
-    per_effect: bool = True  # write one mask per effect type when there are several
-    compare: bool = True  # with --labels: IoU / precision / recall vs ground truth
+    sam2: Sam2Config = field(default_factory=Sam2Config)        # the SAM2 backend
+    lift: LiftConfig = field(default_factory=LiftConfig)        # lifting the 2D masks to the Gaussians
+    per_effect: bool = True                    # write one mask per effect type when there are several
+    compare: bool = True                       # with --labels: IoU / precision / recall vs ground truth
     #: with --labels, --gt-*, --cameras: also vs appearance labels (a diagnostic: 0.25 s per photo, 12 s of the demo's
     #: 24 s masks job; benchmarks/masks.py reports it too)
     appearance: bool = False
-    capture_ground_layer: float = 0.5  # with --images: vegetation ground_layer on the capture photos
-    complete_masks: bool = True  # add the pixels the lifted dynamic Gaussians dominate to each mask
+    capture_ground_layer: float = 0.5          # with --images: vegetation ground_layer on the capture photos
+    complete_masks: bool = True                # add the pixels the lifted dynamic Gaussians dominate to each mask
     #: move only the Gaussians whose footprint stays inside every view's dilated mask; halos and floaters stay still
     #: (anigs.masks.contain)
     contain: bool = True
@@ -142,10 +131,8 @@ class MasksConfig:
         if cfg.capture_ground_layer < 0:
             raise ValueError(f"masks.capture_ground_layer must be >= 0, got {cfg.capture_ground_layer}")
         if cfg.contain_margin_px < 0 or not cfg.contain_max_outside_px >= 0:
-            raise ValueError(
-                "masks.contain_margin_px and masks.contain_max_outside_px must be >= 0, got "
-                f"{cfg.contain_margin_px} and {cfg.contain_max_outside_px}"
-            )
+            raise ValueError("masks.contain_margin_px and masks.contain_max_outside_px must be >= 0, got "
+                             f"{cfg.contain_margin_px} and {cfg.contain_max_outside_px}")
         return cfg
 
 
@@ -159,41 +146,21 @@ class Inputs(contract.Inputs):
     canonical: Path = field(metadata={"help": "canonical 3DGS PLY (static/canonical.ply)"})
     views: Path = field(metadata={"help": "views.json of the views stage"})
     out: Outputs = field(metadata={"help": "output folder"})
-    frames: Path | None = field(
-        default=None,
-        metadata={
-            "help": "folder with the first frames ({id}.png or {id}.npz clips); default: render the canonical model"
-        },
-    )
-    labels: Path | None = field(
-        default=None, metadata={"help": "per-Gaussian labels .npy: labels backend and/or ground-truth comparison"}
-    )
-    motion: Path | None = field(
-        default=None, metadata={"help": "motion.json: which labels move, per effect type (with --labels)"}
-    )
-    gt_gaussians: Path | None = field(
-        default=None, metadata={"help": "PLY the labels belong to when it is not the canonical set"}
-    )
-    gt_cameras: Path | None = field(
-        default=None, metadata={"help": "cameras in the frame of --gt-gaussians (matched by name to --cameras)"}
-    )
-    cameras: Path | None = field(
-        default=None,
-        metadata={
-            "help": "the reconstruction's cameras (sfm/cameras.json), to align with --gt-cameras and to place the --images"
-        },
-    )
-    images: Path | None = field(
-        default=None,
-        metadata={
-            "help": "the capture photos (sfm/images, named after the --cameras): segmented too, and the lifting votes "
-            "over them and the queued views"
-        },
-    )
-    effects: EffectsOutputs | None = field(
-        default=None,
-        metadata={"help": "the effects stage's folder: the effects backend renders its chosen effects' Gaussian sets"},
-    )
+    frames: Path | None = field(default=None, metadata={
+        "help": "folder with the first frames ({id}.png or {id}.npz clips); default: render the canonical model"})
+    labels: Path | None = field(default=None, metadata={
+        "help": "per-Gaussian labels .npy: labels backend and/or ground-truth comparison"})
+    motion: Path | None = field(default=None, metadata={"help": "motion.json: which labels move, per effect type (with --labels)"})
+    gt_gaussians: Path | None = field(default=None, metadata={"help": "PLY the labels belong to when it is not the canonical set"})
+    gt_cameras: Path | None = field(default=None, metadata={
+        "help": "cameras in the frame of --gt-gaussians (matched by name to --cameras)"})
+    cameras: Path | None = field(default=None, metadata={
+        "help": "the reconstruction's cameras (sfm/cameras.json), to align with --gt-cameras and to place the --images"})
+    images: Path | None = field(default=None, metadata={
+        "help": "the capture photos (sfm/images, named after the --cameras): segmented too, and the lifting votes "
+                "over them and the queued views"})
+    effects: EffectsOutputs | None = field(default=None, metadata={
+        "help": "the effects stage's folder: the effects backend renders its chosen effects' Gaussian sets"})
 
 
 def run(inputs: Inputs, cfg: MasksConfig) -> Outputs:
@@ -212,17 +179,9 @@ def run(inputs: Inputs, cfg: MasksConfig) -> Outputs:
         effects = EffectSets(e.chosen(), e.regions(g.num).astype(np.int64), e.dynamic(g.num))
     frames = first_frames(inputs.frames, g, cams, cfg.background)
     capture_cams = load_cameras(inputs.cameras) if inputs.cameras else None
-    res = segment_views(
-        cfg,
-        g,
-        frames,
-        np.asarray(data.get("up", [0.0, 0.0, 1.0]), float),
-        effects,
-        f"effects:{inputs.effects.root}" if effects is not None else "",
-        truth,
-        capture_cams,
-        inputs.images,
-    )
+    res = segment_views(cfg, g, frames, np.asarray(data.get("up", [0.0, 0.0, 1.0]), float), effects,
+                        f"effects:{inputs.effects.root}" if effects is not None else "", truth, capture_cams,
+                        inputs.images)
     out, info = inputs.out, res.info
     for fr, masks in zip(frames, res.masks):
         m = masks["dynamic"]
@@ -232,38 +191,23 @@ def run(inputs: Inputs, cfg: MasksConfig) -> Outputs:
             for e, v in per_effect.items():
                 write_mask_png(out.path("effect_mask", view=fr.name, effect=e), v)
         write_rgb_png(out.path("overlay", view=fr.name), overlay(fr.image, m))
-        info["views"].append(
-            {"id": fr.name, "fraction": float(m.mean()), "effects": {e: float(v.mean()) for e, v in per_effect.items()}}
-        )
+        info["views"].append({"id": fr.name, "fraction": float(m.mean()),
+                              "effects": {e: float(v.mean()) for e, v in per_effect.items()}})
         log.info("masks: %s dynamic %.1f%%", fr.name, 100 * m.mean())
     if truth is not None and cfg.compare:
-        label_masks = (
-            res.masks
-            if cfg.backend == "labels"
-            else compute_masks(truth.backend(g, capture_cams, dataclasses.asdict(cfg.labels)), frames)
-        )
+        label_masks = res.masks if cfg.backend == "labels" else compute_masks(truth.backend(g, capture_cams, dataclasses.asdict(cfg.labels)), frames)
         appearance = None
         if cfg.appearance and inputs.gt_gaussians and inputs.gt_cameras and capture_cams is not None:
             appearance = truth.appearance(g, capture_cams, frames, dataclasses.asdict(cfg.labels))
-        compare(
-            info,
-            g,
-            frames,
-            res.masks,
-            res.dynamic,
-            truth,
-            label_masks,
-            appearance,
-            capture_cams if capture_cams is not None else cams,
-        )
+        compare(info, g, frames, res.masks, res.dynamic, truth, label_masks, appearance,
+                capture_cams if capture_cams is not None else cams)
     _save_npy(out.path("dynamic"), res.dynamic)
     if res.effect_labels is not None:
         _save_npy(out.path("effect_labels"), res.effect_labels)
     info["config"] = dataclasses.asdict(cfg)
     write_json(out.path("report"), info)
-    log.info(
-        "masks: wrote %d masks, dynamic.npy (%d of %d Gaussians) to %s", len(frames), int(res.dynamic.sum()), g.num, out
-    )
+    log.info("masks: wrote %d masks, dynamic.npy (%d of %d Gaussians) to %s", len(frames), int(res.dynamic.sum()),
+             g.num, out)
     return out
 
 

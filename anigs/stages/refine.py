@@ -9,7 +9,6 @@ effect). ``--effects``: synthesise the effects stage's chosen effects instead of
 ones. The noise seed combines the config's ``seed``, the round (``--round``, else parsed from the
 ``round{R}`` folder) and the view, so every view and round draws independent noise.
 """
-
 from __future__ import annotations
 
 import logging
@@ -36,17 +35,17 @@ log = logging.getLogger("anigs.refine")
 class RefineConfig:
     """The ``refine`` stage's config section."""
 
-    prior: str = "procedural"  # procedural (offline, CPU) | ltx (LTX-Video, local weights, GPU)
-    strength: float = 0.5  # 0 = keep the clip's motion, 1 = new motion (LTX: starting sigma)
-    steps: int = 8  # LTX Euler steps (procedural: unused)
-    compose: bool = True  # False = "w/o ComposedV2V" ablation
-    feather_px: float = 0.0  # inward mask feathering for the composition, pixels
-    dilate_px: int = 0  # grow the masks by this many pixels (room for silhouettes to move)
-    repaste_static: bool = True  # static pixels of frame 0 pasted back after refinement
-    prompt: str = ""  # text prompt (LTX; procedural: keywords pick effects / intensity)
+    prior: str = "procedural"        # procedural (offline, CPU) | ltx (LTX-Video, local weights, GPU)
+    strength: float = 0.5            # 0 = keep the clip's motion, 1 = new motion (LTX: starting sigma)
+    steps: int = 8                   # LTX Euler steps (procedural: unused)
+    compose: bool = True             # False = "w/o ComposedV2V" ablation
+    feather_px: float = 0.0          # inward mask feathering for the composition, pixels
+    dilate_px: int = 0               # grow the masks by this many pixels (room for silhouettes to move)
+    repaste_static: bool = True      # static pixels of frame 0 pasted back after refinement
+    prompt: str = ""                 # text prompt (LTX; procedural: keywords pick effects / intensity)
     #: effect types to synthesise (the workflow passes the scene's effects)
     effects: list[str] = field(default_factory=lambda: ["foliage_sway", "leaf_flutter"])
-    seed: int = 0  # global seed (combined with round and view)
+    seed: int = 0                    # global seed (combined with round and view)
     #: the procedural prior (its effects: this section's)
     procedural: ProceduralConfig = field(default_factory=ProceduralConfig)
     ltx: LTXConfig = field(default_factory=LTXConfig)  # the LTX-Video prior (its steps: this section's)
@@ -84,13 +83,9 @@ class Outputs(contract.Outputs):
 
     STAGE = "refine"
     FOLDER = "{scene}/{variant}/round{round}"
-    LAYOUT = {
-        "targets": File("target/", "the round's target clips"),
-        "target": File(
-            "target/{view}.npz",
-            "refined clip float [T,H,W,3] in [0,1]; metadata: the rendered clip's + refine (seed, sigmas, view, round)",
-        ),
-    }
+    LAYOUT = {"targets": File("target/", "the round's target clips"),
+              "target": File("target/{view}.npz", "refined clip float [T,H,W,3] in [0,1]; metadata: the rendered "
+                                                  "clip's + refine (seed, sigmas, view, round)")}
 
     def target(self, view: str) -> tuple[np.ndarray, dict]:
         """(frames float32 [T,H,W,3], metadata) of ``view``'s target clip."""
@@ -108,12 +103,10 @@ class Inputs(contract.Inputs):
     view: str = field(metadata={"help": "view id"})
     out: Path = field(metadata={"help": "the round's folder (the target goes to target/{view}.npz)"})
     masks: MasksOutputs | None = None
-    mask: list[str] | None = field(
-        default=None, metadata={"help": "[EFFECT=]PATH mask files instead of --masks' (several: one per effect)"}
-    )
-    effects: EffectsOutputs | None = field(
-        default=None, metadata={"help": "the effects stage's folder: synthesise its chosen effects"}
-    )
+    mask: list[str] | None = field(default=None, metadata={"help": "[EFFECT=]PATH mask files instead of --masks' "
+                                                                   "(several: one per effect)"})
+    effects: EffectsOutputs | None = field(default=None, metadata={"help": "the effects stage's folder: synthesise its "
+                                                                           "chosen effects"})
     round: int | None = field(default=None, metadata={"help": "round number (default: from the round{R} folder)"})
     info: Path | None = field(default=None, metadata={"help": "JSON file of what was done (sigmas, seed, timing)"})
 
@@ -136,15 +129,8 @@ def run(inputs: Inputs, cfg: RefineConfig, priors: dict | None = None) -> Output
     else:
         raise ValueError("refine: give --masks DIR (the masks stage's folder) or --mask PATH")
     out = Outputs(inputs.out)
-    info = refine_clip(
-        inputs.render_clip.path("clip", view=inputs.view),
-        masks,
-        out.path("target", view=inputs.view),
-        cfg.with_effects(inputs.effects),
-        inputs.round,
-        inputs.view,
-        priors,
-    )
+    info = refine_clip(inputs.render_clip.path("clip", view=inputs.view), masks, out.path("target", view=inputs.view),
+                       cfg.with_effects(inputs.effects), inputs.round, inputs.view, priors)
     if inputs.info:
         from anigs.io import write_json
 

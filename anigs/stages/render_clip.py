@@ -7,7 +7,6 @@ Without ``--model`` (round 0) every frame is the static canonical render. Output
 ``round{r}/render/{view}.npz`` (:func:`anigs.video.save_clip`) whose metadata holds the camera,
 view id, model path, number of frames and background.
 """
-
 from __future__ import annotations
 
 import logging
@@ -56,13 +55,9 @@ class Outputs(contract.Outputs):
 
     STAGE = "render_clip"
     FOLDER = "{scene}/{variant}/round{round}"
-    LAYOUT = {
-        "clips": File("render/", "the round's rendered clips"),
-        "clip": File(
-            "render/{view}.npz",
-            "camera-fixed clip float [T,H,W,3] in [0,1] + metadata (camera, view_id, model, num_frames, background)",
-        ),
-    }
+    LAYOUT = {"clips": File("render/", "the round's rendered clips"),
+              "clip": File("render/{view}.npz", "camera-fixed clip float [T,H,W,3] in [0,1] + metadata "
+                                                "(camera, view_id, model, num_frames, background)")}
 
     def clip(self, view: str) -> tuple[np.ndarray, dict]:
         """(frames float32 [T,H,W,3], metadata) of ``view``'s rendered clip."""
@@ -78,9 +73,8 @@ class Outputs(contract.Outputs):
 class Inputs(contract.Inputs):
     static: StaticOutputs
     out: Path = field(metadata={"help": "the round's folder (the clip goes to render/{view}.npz)"})
-    model: UpdateOutputs | None = field(
-        default=None, metadata={"help": "the folder of the model that renders (omit for round 0: static)"}
-    )
+    model: UpdateOutputs | None = field(default=None, metadata={"help": "the folder of the model that renders "
+                                                                        "(omit for round 0: static)"})
     views: ViewsOutputs | None = None
     view_id: str | None = field(default=None, metadata={"help": "id of the view in --views"})
     camera_json: Path | None = field(default=None, metadata={"help": "one camera JSON instead of --views/--view-id"})
@@ -98,10 +92,8 @@ def load_scene(canonical_path: str | Path, cfg: RenderClipConfig, model_path: st
     if model_path:
         canonical, deformation, _ = load_model(model_path, canonical)
         if deformation.num_frames != cfg.num_frames:
-            raise ValueError(
-                f"render_clip: model {model_path} has T={deformation.num_frames} frames but "
-                f"render_clip.num_frames={cfg.num_frames}; use the same frame count in every round"
-            )
+            raise ValueError(f"render_clip: model {model_path} has T={deformation.num_frames} frames but "
+                             f"render_clip.num_frames={cfg.num_frames}; use the same frame count in every round")
     dev = get_device(cfg.device)
     canonical = canonical.to(dev)
     if deformation is not None:
@@ -109,15 +101,8 @@ def load_scene(canonical_path: str | Path, cfg: RenderClipConfig, model_path: st
     return canonical, deformation, torch.tensor(cfg.background, dtype=torch.float32, device=dev)
 
 
-def render_view(
-    scene: tuple,
-    camera: Camera,
-    out: str | Path,
-    cfg: RenderClipConfig,
-    canonical_path: str | Path,
-    model_path: str | Path | None = None,
-    view_id: str | None = None,
-) -> dict:
+def render_view(scene: tuple, camera: Camera, out: str | Path, cfg: RenderClipConfig, canonical_path: str | Path,
+                model_path: str | Path | None = None, view_id: str | None = None) -> dict:
     """Render ``camera``'s clip of a :func:`load_scene` scene to ``out``; returns the clip's metadata
     (the paths are recorded as given)."""
     from anigs.animate.frames import render_clip
@@ -126,15 +111,9 @@ def render_view(
     canonical, deformation, bg = scene
     T = cfg.num_frames
     clip = render_clip(canonical, deformation, camera, T, bg, cfg.backend)
-    meta = {
-        "camera": camera.to_dict(),
-        "view_id": view_id if view_id is not None else camera.name,
-        "num_frames": T,
-        "model": str(model_path) if model_path else None,
-        "canonical": str(canonical_path),
-        "background": list(cfg.background),
-        "config": asdict(cfg),
-    }
+    meta = {"camera": camera.to_dict(), "view_id": view_id if view_id is not None else camera.name,
+            "num_frames": T, "model": str(model_path) if model_path else None, "canonical": str(canonical_path),
+            "background": list(cfg.background), "config": asdict(cfg)}
     save_clip(out, clip.cpu(), meta)
     log.info("rendered %d frames %dx%d of view %s -> %s", T, camera.width, camera.height, meta["view_id"], out)
     return meta
@@ -155,7 +134,6 @@ def run(inputs: Inputs, cfg: RenderClipConfig, scene: tuple | None = None) -> Ou
     model = inputs.model.path("model") if inputs.model is not None else None
     canonical = inputs.static.path("canonical")
     scene = scene if scene is not None else load_scene(canonical, cfg, model)
-    render_view(
-        scene, camera, out.path("clip", view=inputs.view_id or camera.name), cfg, canonical, model, inputs.view_id
-    )
+    render_view(scene, camera, out.path("clip", view=inputs.view_id or camera.name), cfg, canonical, model,
+                inputs.view_id)
     return out

@@ -10,7 +10,6 @@ byte-identical to the per-view jobs' (same functions, same seeds, same metadata)
 runs rounds this way locally (``round_jobs: round``, the default there); a cluster runs one job
 per view (``round_jobs: view``), so that the views of a round run on separate GPUs.
 """
-
 from __future__ import annotations
 
 import logging
@@ -55,12 +54,10 @@ class Inputs(contract.Inputs):
     view_ids: list[str] = field(metadata={"help": "the round's view ids, e.g. v00 v01"})
     round: int = field(metadata={"help": "round number (seeds the refinement noise)"})
     out: Path = field(metadata={"help": "the round's folder (render/ and target/)"})
-    model: UpdateOutputs | None = field(
-        default=None, metadata={"help": "the folder of the model that renders (omit for round 0: static)"}
-    )
-    effects: EffectsOutputs | None = field(
-        default=None, metadata={"help": "the effects stage's folder: synthesise its chosen effects"}
-    )
+    model: UpdateOutputs | None = field(default=None, metadata={"help": "the folder of the model that renders "
+                                                                        "(omit for round 0: static)"})
+    effects: EffectsOutputs | None = field(default=None, metadata={"help": "the effects stage's folder: synthesise "
+                                                                           "its chosen effects"})
     render_params: str = field(default="{}", metadata={"help": "render_clip params as JSON"})
     refine_params: str = field(default="{}", metadata={"help": "refine params as JSON"})
     timings_json: Path | None = field(default=None, metadata={"help": "JSON file of seconds per view and phase"})
@@ -92,31 +89,19 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
     priors: dict = {}
     for v in view_ids:
         t1 = time.perf_counter()
-        render_clip.run(
-            render_clip.Inputs(inputs.static, out.root, inputs.model, inputs.views, v), render_cfg, scene=scene
-        )
+        render_clip.run(render_clip.Inputs(inputs.static, out.root, inputs.model, inputs.views, v), render_cfg,
+                        scene=scene)
         t2 = time.perf_counter()
-        refine.run(
-            refine.Inputs(out.renders, v, out.root, inputs.masks, effects=inputs.effects, round=inputs.round),
-            refine_cfg,
-            priors=priors,
-        )
+        refine.run(refine.Inputs(out.renders, v, out.root, inputs.masks, effects=inputs.effects, round=inputs.round),
+                   refine_cfg, priors=priors)
         timings["views"][v] = {"render_s": round(t2 - t1, 3), "refine_s": round(time.perf_counter() - t2, 3)}
     timings["load_s"] = round(timings["load_s"], 3)
     timings["total_s"] = round(time.perf_counter() - t0, 3)
     timings["startup_cpu_s"] = round(startup_cpu, 3)
     timings["process_cpu_s"] = round(time.process_time(), 3)
-    log.info(
-        "round %d: %d views in %.2fs (scene and model load %.2fs; per view: %s)",
-        inputs.round,
-        len(view_ids),
-        timings["total_s"],
-        timings["load_s"],
-        timings["views"],
-    )
-    log.info(
-        "round %d: start-up %.2f s of the process's %.2f s CPU", inputs.round, startup_cpu, timings["process_cpu_s"]
-    )
+    log.info("round %d: %d views in %.2fs (scene and model load %.2fs; per view: %s)", inputs.round, len(view_ids),
+             timings["total_s"], timings["load_s"], timings["views"])
+    log.info("round %d: start-up %.2f s of the process's %.2f s CPU", inputs.round, startup_cpu, timings["process_cpu_s"])
     if inputs.timings_json:
         write_json(inputs.timings_json, timings)
     return out

@@ -6,7 +6,6 @@
 Writes ``sparse/0/``, ``images/``, ``cameras.json``, ``points.npz`` and ``report.json`` into ``--out``
 (see :mod:`anigs.sfm.colmap`).
 """
-
 from __future__ import annotations
 
 import argparse
@@ -31,11 +30,8 @@ class Outputs(contract.Outputs):
         "images": File("images/", "the images the cameras describe (undistorted, or copies), named as the cameras"),
         "sparse": File("sparse/", "sparse/0/: COLMAP binary model in the output frame (PINHOLE after undistortion)"),
         "cameras": File("cameras.json", "one camera per registered image (anigs convention, name = file name)"),
-        "points": File(
-            "points.npz",
-            "xyz [P,3] float32, rgb [P,3] float32 in [0,1], error [P] float32 "
-            "(reprojection px), track_length [P] int32",
-        ),
+        "points": File("points.npz", "xyz [P,3] float32, rgb [P,3] float32 in [0,1], error [P] float32 "
+                                     "(reprojection px), track_length [P] int32"),
         "report": File("report.json", "registered images, points, mapping, escalation, ground-truth pose errors"),
         "work": File("work/", "COLMAP database and raw models (--keep-work only)", optional=True),
     }
@@ -64,14 +60,10 @@ class Inputs(contract.Inputs):
 
     images: Path = field(metadata={"help": "folder of JPEG/PNG images (the capture stage's images/)"})
     out: Outputs = field(metadata={"help": "output folder"})
-    gt_cameras: Path | None = field(
-        default=None,
-        metadata={"help": "ground-truth cameras JSON (synthetic capture): align to them and report pose errors"},
-    )
-    model: Path | None = field(
-        default=None,
-        metadata={"help": "existing COLMAP sparse model of these images (skips extraction, matching, mapping)"},
-    )
+    gt_cameras: Path | None = field(default=None, metadata={
+        "help": "ground-truth cameras JSON (synthetic capture): align to them and report pose errors"})
+    model: Path | None = field(default=None, metadata={
+        "help": "existing COLMAP sparse model of these images (skips extraction, matching, mapping)"})
     keep_work: bool = field(default=False, metadata={"help": "keep the COLMAP database and raw models in OUT/work"})
 
 
@@ -85,21 +77,12 @@ def run(inputs: Inputs, cfg: SfmConfig, threads: int | None = None) -> Outputs:
     from anigs.stages.capture import Outputs as CaptureOutputs
 
     originals = CaptureOutputs(Path(inputs.images).parent).original_photos()
-    run_sfm(
-        inputs.images,
-        inputs.out.root,
-        cfg,
-        gt_cameras=inputs.gt_cameras,
-        model_dir=inputs.model,
-        keep_work=inputs.keep_work,
-        threads=threads,
-        originals=originals,
-    )
+    run_sfm(inputs.images, inputs.out.root, cfg, gt_cameras=inputs.gt_cameras, model_dir=inputs.model,
+            keep_work=inputs.keep_work, threads=threads, originals=originals)
     return inputs.out
 
 
 # ---- command line: anigs sfm ----
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from anigs.cli import add_params
@@ -111,19 +94,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from anigs.cli import parse_params
 
-    out = run(
-        Inputs.from_args(args), SfmConfig.from_dict(parse_params(args.params)), threads=getattr(args, "threads", None)
-    )
+    out = run(Inputs.from_args(args), SfmConfig.from_dict(parse_params(args.params)), threads=getattr(args, "threads", None))
     r = out.report()
     line = f"registered {r['registered']}/{r['images']} images, {r['num_points']} points"
     if r.get("partial"):
         line += f" (PARTIAL: left out {', '.join(r['unregistered_images'])})"
     if "gt_errors" in r:
         e = r["gt_errors"]
-        line += (
-            f"; rotation error mean {e['rotation_error_deg']['mean']:.3f} max "
-            f"{e['rotation_error_deg']['max']:.3f} deg; centre error mean "
-            f"{e['center_error_pct_extent']['mean']:.3f}% max {e['center_error_pct_extent']['max']:.3f}% of extent"
-        )
+        line += (f"; rotation error mean {e['rotation_error_deg']['mean']:.3f} max "
+                 f"{e['rotation_error_deg']['max']:.3f} deg; centre error mean "
+                 f"{e['center_error_pct_extent']['mean']:.3f}% max {e['center_error_pct_extent']['max']:.3f}% of extent")
     print(line)
     return 0

@@ -7,7 +7,6 @@ Writes ``OUT/canonical.ply`` (standard 3DGS layout) and ``OUT/metrics.json``. Wh
 ``OUT/checkpoint.ply`` holds the last good state; it is removed on success and kept when the
 fit diverges.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -32,11 +31,8 @@ class Outputs(contract.Outputs):
     LAYOUT = {
         "canonical": File("canonical.ply", "the canonical 3DGS, standard 3DGS PLY layout (any 3DGS viewer opens it)"),
         "metrics": File("metrics.json", "held-out and train PSNR/SSIM, Gaussian count, seconds, inputs, config"),
-        "checkpoint": File(
-            "checkpoint.ply",
-            "the last good state while the fit runs; removed on success, kept when the fit diverges",
-            optional=True,
-        ),
+        "checkpoint": File("checkpoint.ply", "the last good state while the fit runs; removed on success, "
+                                             "kept when the fit diverges", optional=True),
     }
 
     def canonical(self):
@@ -51,7 +47,6 @@ class Outputs(contract.Outputs):
     def metrics(self) -> dict:
         """``metrics.json``."""
         return self.json("metrics")
-
 
 @dataclass
 class Inputs(contract.Inputs):
@@ -79,18 +74,15 @@ def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
     pts, cols = load_points(points)
     out.root.mkdir(parents=True, exist_ok=True)
     ckpt = out.path("checkpoint")
-    gaussians, metrics = fit_static(imgs, cams, pts, cols, cfg, progress=not inputs.no_progress, checkpoint_path=ckpt)
+    gaussians, metrics = fit_static(imgs, cams, pts, cols, cfg, progress=not inputs.no_progress,
+                                    checkpoint_path=ckpt)
     ply = out.path("canonical")
     gaussians.save_ply(ply)
     back = load_ply(ply)  # the artifact must round-trip
     if back.num != gaussians.num:
         raise RuntimeError(f"{ply}: wrote {gaussians.num} Gaussians but read back {back.num}")
-    metrics["inputs"] = {
-        "images": str(images),
-        "cameras": str(cameras),
-        "points": str(points),
-        "num_points": int(len(pts)),
-    }
+    metrics["inputs"] = {"images": str(images), "cameras": str(cameras), "points": str(points),
+                         "num_points": int(len(pts))}
     metrics["config"] = _config_dict(cfg)
     write_json(out.path("metrics"), metrics)
     if ckpt.exists():
@@ -109,7 +101,6 @@ def _config_dict(cfg) -> dict:
 
 # ---- command line: anigs static ----
 
-
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from anigs.cli import add_params
 
@@ -122,9 +113,7 @@ def main(args: argparse.Namespace) -> int:
 
     out = run(Inputs.from_args(args), FitConfig.from_dict(parse_params(args.params)))
     metrics = out.metrics()
-    print(
-        f"static fit: {metrics['num_gaussians']} Gaussians, held-out PSNR {metrics['test_psnr']:.2f} dB "
-        f"(SSIM {metrics['test_ssim']:.3f}), train PSNR {metrics['train_psnr']:.2f} dB, "
-        f"{metrics['seconds']:.0f} s -> {out.path('canonical')}"
-    )
+    print(f"static fit: {metrics['num_gaussians']} Gaussians, held-out PSNR {metrics['test_psnr']:.2f} dB "
+          f"(SSIM {metrics['test_ssim']:.3f}), train PSNR {metrics['train_psnr']:.2f} dB, "
+          f"{metrics['seconds']:.0f} s -> {out.path('canonical')}")
     return 0

@@ -1,8 +1,7 @@
 """Stage ``tables``: the paper's tables (CSV, Markdown, LaTeX) from metrics.json files.
 
-anigs tables --metrics results/demo/full/eval/metrics.json ... --out results/tables
+    anigs tables --metrics results/demo/full/eval/metrics.json ... --out results/tables
 """
-
 from __future__ import annotations
 
 import logging
@@ -23,12 +22,9 @@ class Outputs(contract.Outputs):
 
     STAGE = "tables"
     FOLDER = "tables"
-    LAYOUT = {
-        "index": File("tables.json", "records read, the metrics files, the files written"),
-        "table": File(
-            "{name}.{ext}", "one table (anigs.tables: main, fvd, ablation, weightfree, fvd_gt, ...) as csv, md or tex"
-        ),
-    }
+    LAYOUT = {"index": File("tables.json", "records read, the metrics files, the files written"),
+              "table": File("{name}.{ext}", "one table (anigs.tables: main, fvd, ablation, weightfree, fvd_gt, ...) "
+                                            "as csv, md or tex")}
 
 
 @dataclass
@@ -45,9 +41,7 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
     out = Outputs(inputs.out)
     records = load_metrics(inputs.metrics)
     paths = write_tables(records, out.root)
-    write_json(
-        out.path("index"),
-        {"records": len(records), "metrics": list(map(str, inputs.metrics)), "files": sorted(str(p) for p in paths)},
-    )
+    write_json(out.path("index"), {"records": len(records), "metrics": list(map(str, inputs.metrics)),
+                                   "files": sorted(str(p) for p in paths)})
     log.info("tables: %d records -> %d files in %s", len(records), len(paths), out.root)
     return out

@@ -11,7 +11,6 @@ metrics.json record) runs over every point of the scene, whatever its knob: the 
 names the metrics on whose front a point lies, the plots draw it, and "On the front" (in the
 Markdown and the log) lists its settings fastest first.
 """
-
 from __future__ import annotations
 
 import logging
@@ -30,19 +29,16 @@ class Outputs(contract.Outputs):
 
     STAGE = "tradeoff"
     FOLDER = "tradeoff"
-    LAYOUT = {
-        "csv": File("{scene}.csv", "scene, knob, value, variant, seconds, variant_seconds, jobs, every metric, front"),
-        "md": File("{scene}.md", "the table and the settings on the front"),
-        "plot": File("{scene}_{knob}.png", "the plotted metrics against seconds, one knob"),
-    }
+    LAYOUT = {"csv": File("{scene}.csv", "scene, knob, value, variant, seconds, variant_seconds, jobs, every metric, "
+                                         "front"),
+              "md": File("{scene}.md", "the table and the settings on the front"),
+              "plot": File("{scene}_{knob}.png", "the plotted metrics against seconds, one knob")}
 
 
 @dataclass
 class Inputs(contract.Inputs):
     results: Path = field(metadata={"help": "results folder (holds {scene}/{variant}/...)"})
-    points: str = field(
-        metadata={"help": "sweep points as JSON or @file: {scene: [{variant, knob, value, scene_tag}]}"}
-    )
+    points: str = field(metadata={"help": "sweep points as JSON or @file: {scene: [{variant, knob, value, scene_tag}]}"})
     out: Path = field(metadata={"help": "report folder (results/tradeoff)"})
     plot_metrics: list[str] | None = field(default=None, metadata={"help": "metrics plotted against seconds"})
 
@@ -66,17 +62,8 @@ def report(scene: str, points: list, results: str | Path, out: Outputs, plot_met
     """Write the report of one scene's sweep ``points`` (:class:`anigs.tradeoff.SweepPoint`) into ``out``;
     returns the CSV."""
     from anigs.io import atomic_path, read_json
-    from anigs.tradeoff import (
-        front_section,
-        knob_filename,
-        mark_fronts,
-        markdown_report,
-        metric_directions,
-        plot_knob,
-        report_fronts,
-        report_rows,
-        write_csv,
-    )
+    from anigs.tradeoff import (front_section, knob_filename, mark_fronts, markdown_report, metric_directions,
+                                plot_knob, report_fronts, report_rows, write_csv)
 
     if not points:
         raise ValueError(f"tradeoff: scene {scene!r} has no sweep points")
@@ -95,10 +82,8 @@ def report(scene: str, points: list, results: str | Path, out: Outputs, plot_met
     log.info("tradeoff: wrote %s (%d points)", csv, len(rows))
     md = out.path("md", scene=scene)
     with atomic_path(md) as tmp:
-        Path(tmp).write_text(
-            markdown_report(rows, plot_metrics, fronts, directions, title=f"Accuracy versus time: {scene}"),
-            encoding="utf-8",
-        )
+        Path(tmp).write_text(markdown_report(rows, plot_metrics, fronts, directions,
+                                             title=f"Accuracy versus time: {scene}"), encoding="utf-8")
     log.info("tradeoff: wrote %s", md)
     for knob in dict.fromkeys(p.knob for p in points):
         png = out.path("plot", scene=scene, knob=knob_filename(knob))

@@ -12,7 +12,6 @@ masks the motion is contained in (:mod:`anigs.animate.containment`) in the round
 instead; ``--still REASON`` writes a model in which nothing moves. If the update diverges, the last
 good state is written to ``model.last_good.pt``.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -38,15 +37,10 @@ class Outputs(contract.Outputs):
 
     STAGE = "update"
     FOLDER = "{scene}/{variant}/round{round}"
-    LAYOUT = {
-        "model": File(
-            "model.pt",
-            "deformation (DCT coefficients [M,K,3]/[M,K,4], dynamic index [M]) + "
-            "canonical positions [N,3] (anigs.animate.deform.save_model)",
-        ),
-        "log": File("update.json", "loss history, timing, containment counts", optional=True),
-        "last_good": File("model.last_good.pt", "the last good state when the update diverged", optional=True),
-    }
+    LAYOUT = {"model": File("model.pt", "deformation (DCT coefficients [M,K,3]/[M,K,4], dynamic index [M]) + "
+                                        "canonical positions [N,3] (anigs.animate.deform.save_model)"),
+              "log": File("update.json", "loss history, timing, containment counts", optional=True),
+              "last_good": File("model.last_good.pt", "the last good state when the update diverged", optional=True)}
 
     def load(self, canonical=None):
         """(canonical Gaussians with the model's positions, or None; deformation; payload) of ``model.pt``."""
@@ -73,9 +67,8 @@ class Inputs(contract.Inputs):
     prompt: str | None = field(default=None, metadata={"help": "text prompt of the SDS term"})
     method: str | None = field(default=None, metadata={"help": "lifting | physics: fit that baseline instead"})
     method_params: str | None = field(default=None, metadata={"help": "the baseline's config as JSON"})
-    still: str | None = field(
-        default=None, metadata={"help": "nothing to animate: a model in which nothing moves (the reason is stored)"}
-    )
+    still: str | None = field(default=None, metadata={"help": "nothing to animate: a model in which nothing moves "
+                                                              "(the reason is stored)"})
     frames: int | None = field(default=None, metadata={"help": "with --still: frames T (animate.frames)"})
 
 
@@ -99,10 +92,8 @@ def baseline_params(animate: dict[str, Any], update: dict[str, Any]) -> dict[str
 def still_reason(effects: dict[str, Any]) -> str:
     """Why nothing moves, from the effects stage's report (``effects.json``) when it chose no effect."""
     req = effects.get("requested")
-    return (
-        f"the effects stage chose no effect (requested: {req if isinstance(req, str) else ', '.join(req) or 'none'}; "
-        f"detected: {', '.join(effects.get('detected') or []) or 'none'}), so nothing moves and no round ran"
-    )
+    return (f"the effects stage chose no effect (requested: {req if isinstance(req, str) else ', '.join(req) or 'none'}; "
+            f"detected: {', '.join(effects.get('detected') or []) or 'none'}), so nothing moves and no round ran")
 
 
 def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
@@ -121,17 +112,11 @@ def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
         raise ValueError("update: --targets and --masks are required (or --still REASON when nothing moves)")
     canonical_ply = Gaussians.load_ply(canonical_path)
     has_labels = masks.exists("effect_labels")
-    dynamic = dynamic_set(
-        masks.array("dynamic", shape=(None,)),
-        canonical_ply.num,
-        str(masks.path("dynamic")),
-        masks.array("effect_labels", "iu") if has_labels else None,
-        str(masks.path("effect_labels")),
-    )
+    dynamic = dynamic_set(masks.array("dynamic", shape=(None,)), canonical_ply.num, str(masks.path("dynamic")),
+                          masks.array("effect_labels", "iu") if has_labels else None, str(masks.path("effect_labels")))
     views_json = inputs.views.path("views") if inputs.views else None
-    views = training_views(
-        canonical_ply, inputs.targets, views_json, inputs.view_ids, inputs.camera_json, inputs.static_refs, cfg
-    )
+    views = training_views(canonical_ply, inputs.targets, views_json, inputs.view_ids, inputs.camera_json,
+                           inputs.static_refs, cfg)
     cams = [v.camera for v in views]
     canonical, init = canonical_ply, None
     if inputs.init is not None:
@@ -143,9 +128,8 @@ def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
         from anigs.cli import parse_params
         from anigs.refine.prior import get_prior
 
-        sds = prior_sds_hook(
-            get_prior(inputs.prior, parse_params(inputs.prior_params)), inputs.prompt or "", cfg.sds_frames
-        )
+        sds = prior_sds_hook(get_prior(inputs.prior, parse_params(inputs.prior_params)), inputs.prompt or "",
+                             cfg.sds_frames)
     result = run_update(canonical, dynamic, views, cfg, init=init, sds_fn=sds, failure_path=out.path("last_good"))
     contained = None
     if contains(cfg, inputs.round, inputs.rounds) and result.deformation.num_dynamic:
@@ -153,30 +137,16 @@ def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
         from anigs.views import cameras_from_views
 
         all_cams = cameras_from_views(read_json(views_json)) if views_json else cams
-        contained = contain_result(
-            result, canonical_ply, all_cams, [masks.view_mask(c.name) >= 0.5 for c in all_cams], cfg
-        )
+        contained = contain_result(result, canonical_ply, all_cams, [masks.view_mask(c.name) >= 0.5 for c in all_cams],
+                                   cfg)
     init_model = str(inputs.init.path("model")) if inputs.init is not None else None
-    save_model(
-        out.path("model"),
-        result.deformation,
-        result.canonical,
-        cfg.to_dict(),
-        store_all_attributes=cfg.param_groups == "all",
-        extra={"targets": [str(t) for t in inputs.targets], "init_model": init_model, "skipped": result.skipped},
-    )
+    save_model(out.path("model"), result.deformation, result.canonical, cfg.to_dict(),
+               store_all_attributes=cfg.param_groups == "all",
+               extra={"targets": [str(t) for t in inputs.targets], "init_model": init_model, "skipped": result.skipped})
     d = result.deformation
     log.info("wrote %s (%d dynamic Gaussians, K=%d, T=%d)", out.path("model"), d.num_dynamic, d.num_bases, d.num_frames)
-    info = {
-        "steps": result.steps,
-        "seconds": result.seconds,
-        "skipped": result.skipped,
-        "num_dynamic": d.num_dynamic,
-        "num_bases": d.num_bases,
-        "num_frames": d.num_frames,
-        "history": result.history,
-        "config": cfg.to_dict(),
-    }
+    info = {"steps": result.steps, "seconds": result.seconds, "skipped": result.skipped, "num_dynamic": d.num_dynamic,
+            "num_bases": d.num_bases, "num_frames": d.num_frames, "history": result.history, "config": cfg.to_dict()}
     if contained is not None:
         info["containment"] = contained
     write_json(out.path("log"), info)
@@ -196,31 +166,21 @@ def run_other(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
         if not inputs.frames:
             raise ValueError("update --still: give --frames T (animate.frames)")
         K = resolve_num_bases(cfg.num_bases, inputs.frames, log)
-        write_json(
-            out.path("log"),
-            write_still_model(inputs.static.path("canonical"), out.path("model"), inputs.frames, K, inputs.still),
-        )
+        write_json(out.path("log"), write_still_model(inputs.static.path("canonical"), out.path("model"),
+                                                      inputs.frames, K, inputs.still))
         return out
     from anigs.baselines import run_baseline
 
     if not inputs.targets or inputs.masks is None:
         raise ValueError("update: --targets and --masks are required")
-    run_baseline(
-        inputs.method,
-        inputs.static.path("canonical"),
-        inputs.masks.path("dynamic"),
-        inputs.targets,
-        out.path("model"),
-        parse_params(inputs.method_params),
-        view_json=inputs.views.path("views") if inputs.views else None,
-        view_ids=inputs.view_ids,
-        log_json=out.path("log"),
-    )
+    run_baseline(inputs.method, inputs.static.path("canonical"), inputs.masks.path("dynamic"), inputs.targets,
+                 out.path("model"), parse_params(inputs.method_params),
+                 view_json=inputs.views.path("views") if inputs.views else None, view_ids=inputs.view_ids,
+                 log_json=out.path("log"))
     return out
 
 
 # ---- command line: anigs update ----
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from anigs.cli import add_params

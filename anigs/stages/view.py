@@ -6,7 +6,6 @@ the animation in any browser, offline, from the file system or served on 127.0.0
     anigs view --model results/demo/full/round4 --static results/demo/static \\
                --views results/demo/views --out results/demo/full/viewer [--serve]
 """
-
 from __future__ import annotations
 
 import argparse
@@ -48,12 +47,10 @@ class Outputs(contract.Outputs):
 
     STAGE = "view"
     FOLDER = "{scene}/{variant}/viewer"
-    LAYOUT = {
-        "index": File("index.html", "the viewer page (with its .js and .css beside it)"),
-        "scene": File("scene.anigs", "the compact animated scene the page loads"),
-        "embed": File("scene.js", "the scene as base64, for file:// (view.embed)", optional=True),
-        "config": File("config.js", "start camera, view list, background, fps, title"),
-    }
+    LAYOUT = {"index": File("index.html", "the viewer page (with its .js and .css beside it)"),
+              "scene": File("scene.anigs", "the compact animated scene the page loads"),
+              "embed": File("scene.js", "the scene as base64, for file:// (view.embed)", optional=True),
+              "config": File("config.js", "start camera, view list, background, fps, title")}
 
 
 @dataclass
@@ -61,12 +58,10 @@ class Inputs(contract.Inputs):
     out: Path = field(metadata={"help": "viewer folder to write"})
     model: UpdateOutputs | None = field(default=None, metadata={"help": "the model's folder (model.pt)"})
     compact: Path | None = field(default=None, metadata={"help": "a compact .anigs file instead of --model"})
-    static: StaticOutputs | None = field(
-        default=None, metadata={"help": "the static stage's folder (the canonical scene the model was trained on)"}
-    )
-    views: ViewsOutputs | None = field(
-        default=None, metadata={"help": "the views stage's folder (start camera, view list)"}
-    )
+    static: StaticOutputs | None = field(default=None, metadata={"help": "the static stage's folder (the canonical "
+                                                                         "scene the model was trained on)"})
+    views: ViewsOutputs | None = field(default=None, metadata={"help": "the views stage's folder (start camera, "
+                                                                       "view list)"})
     serve: bool = field(default=False, metadata={"help": "then serve the folder on 127.0.0.1 until Ctrl-C"})
     port: int = field(default=8000, metadata={"help": "port for --serve (0: any free port)"})
     serve_seconds: float | None = field(default=None, metadata={"help": "stop serving after this many seconds"})
@@ -79,16 +74,9 @@ def build(inputs: Inputs, cfg: ViewConfig) -> dict[str, Any]:
     if (inputs.model is None) == (inputs.compact is None):
         raise ValueError("view: give --model DIR (a model's folder) or --compact FILE (.anigs)")
     model = inputs.model.path("model") if inputs.model is not None else inputs.compact
-    summary = build_viewer(
-        model,
-        inputs.out,
-        views_json=inputs.views.path("views") if inputs.views else None,
-        canonical=inputs.static.path("canonical") if inputs.static else None,
-        background=cfg.background,
-        fps=cfg.fps,
-        embed=cfg.embed,
-        title=cfg.title,
-    )
+    summary = build_viewer(model, inputs.out, views_json=inputs.views.path("views") if inputs.views else None,
+                           canonical=inputs.static.path("canonical") if inputs.static else None,
+                           background=cfg.background, fps=cfg.fps, embed=cfg.embed, title=cfg.title)
     summary = {k: v for k, v in summary.items() if k != "files"}
     log.info("view: %s", summary)
     return summary
@@ -101,7 +89,6 @@ def run(inputs: Inputs, cfg: ViewConfig) -> Outputs:
 
 
 # ---- command line: anigs view ----
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from anigs.cli import add_params

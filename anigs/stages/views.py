@@ -14,7 +14,6 @@ are not queued: ``views.json`` lists them under ``dynamic_fraction.dropped`` and
 queued ones v00, v01, ... (:func:`anigs.views.queued_view_count` counts them). Under the
 whole-scene fallback (no ROI) nothing is dropped.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -43,12 +42,9 @@ class Outputs(contract.Outputs):
     STAGE = "views"
     FOLDER = "{scene}/views"
     LAYOUT = {
-        "views": File(
-            "views.json",
-            "the queue: per view id (v00, v01, ...), camera (OpenCV, the view's "
-            "intrinsics and size), location, coverage, content; the dropped views, "
-            "up, roi_centroid, the ROI's source, config",
-        ),
+        "views": File("views.json", "the queue: per view id (v00, v01, ...), camera (OpenCV, the view's "
+                                    "intrinsics and size), location, coverage, content; the dropped views, "
+                                    "up, roi_centroid, the ROI's source, config"),
         "topdown": File("topdown.png", "uint8 RGB: top-down map of the ROI, the candidates and the queue"),
     }
 
@@ -73,6 +69,7 @@ class Outputs(contract.Outputs):
         return [f"v{i:02d}" for i in range(self.count())]
 
 
+
 @dataclass
 class Inputs(contract.Inputs):
     """What the views stage reads: the canonical model, the candidate cameras, and the region of
@@ -81,27 +78,18 @@ class Inputs(contract.Inputs):
     canonical: Path = field(metadata={"help": "canonical 3DGS PLY (static/canonical.ply)"})
     cameras: Path = field(metadata={"help": "candidate cameras JSON (sfm/cameras.json)"})
     out: Outputs = field(metadata={"help": "output folder (views.json, topdown.png)"})
-    effects: EffectsOutputs | None = field(
-        default=None, metadata={"help": "the effects stage's folder: its dynamic set is the region of interest"}
-    )
-    labels: Path | None = field(
-        default=None,
-        metadata={"help": "per-Gaussian labels .npy (synthetic scenes, capture/gt/labels.npy), with --motion"},
-    )
+    effects: EffectsOutputs | None = field(default=None, metadata={
+        "help": "the effects stage's folder: its dynamic set is the region of interest"})
+    labels: Path | None = field(default=None, metadata={
+        "help": "per-Gaussian labels .npy (synthetic scenes, capture/gt/labels.npy), with --motion"})
     motion: Path | None = field(default=None, metadata={"help": "motion.json naming the moving labels (with --labels)"})
-    gt_gaussians: Path | None = field(
-        default=None, metadata={"help": "PLY the --labels belong to when it is not the canonical set"}
-    )
-    gt_cameras: Path | None = field(
-        default=None,
-        metadata={
-            "help": "cameras in the frame of --gt-gaussians, matched by name to --cameras to align the frames "
-            "(default: same frame)"
-        },
-    )
-    points: Path | None = field(
-        default=None, metadata={"help": "SfM points.npz (xyz): a sharp Gaussian lies near them (views.near_points)"}
-    )
+    gt_gaussians: Path | None = field(default=None, metadata={
+        "help": "PLY the --labels belong to when it is not the canonical set"})
+    gt_cameras: Path | None = field(default=None, metadata={
+        "help": "cameras in the frame of --gt-gaussians, matched by name to --cameras to align the frames "
+                "(default: same frame)"})
+    points: Path | None = field(default=None, metadata={
+        "help": "SfM points.npz (xyz): a sharp Gaussian lies near them (views.near_points)"})
 
 
 def region_of_interest(inputs: Inputs, g: Gaussians, cameras: list[Camera]) -> tuple[np.ndarray, str]:
@@ -127,49 +115,30 @@ def run(inputs: Inputs, cfg: ViewsConfig) -> Outputs:
     log.info("views: %d of %d canonical Gaussians are regions of interest (%s)", int(roi.sum()), g.num, source)
     fallback = None
     if not roi.any():  # nothing moves: the views (for the still final renders) look at the whole scene
-        fallback = (
-            f"no region of interest ({source} marks none of the {g.num} Gaussians dynamic): "
-            "the views look at the whole scene, and nothing will move"
-        )
+        fallback = (f"no region of interest ({source} marks none of the {g.num} Gaussians dynamic): "
+                    "the views look at the whole scene, and nothing will move")
         log.warning("views: %s", fallback)
     points = None
     if inputs.points:
         from anigs.sfm.model import load_points
 
         points = load_points(inputs.points)[0]
-    plan = plan_views(
-        g,
-        roi if roi.any() else np.ones_like(roi),
-        cameras,
-        cfg,
-        keep_all=None if fallback is None else "roi_fallback: the ROI is the whole scene",
-        points=points,
-    )
+    plan = plan_views(g, roi if roi.any() else np.ones_like(roi), cameras, cfg,
+                      keep_all=None if fallback is None else "roi_fallback: the ROI is the whole scene",
+                      points=points)
     out = inputs.out
     out.root.mkdir(parents=True, exist_ok=True)
     payload = plan.to_json()
-    payload.update(
-        {
-            "roi_source": source,
-            "num_gaussians": g.num,
-            "num_roi": int(roi.sum()),
-            "roi_fallback": fallback,
-            "config": {**cfg.__dict__},
-        }
-    )
+    payload.update({"roi_source": source, "num_gaussians": g.num, "num_roi": int(roi.sum()),
+                    "roi_fallback": fallback, "config": {**cfg.__dict__}})
     save_topdown(out.path("topdown"), plan, g.means.detach().double().numpy(), roi, size=cfg.topdown_size)
     write_json(out.path("views"), payload)
-    log.info(
-        "views: wrote %s (%d views queued%s), topdown.png",
-        out.path("views"),
-        len(plan.views),
-        f", {len(plan.dropped)} dropped as negligible" if plan.dropped else "",
-    )
+    log.info("views: wrote %s (%d views queued%s), topdown.png", out.path("views"), len(plan.views),
+             f", {len(plan.dropped)} dropped as negligible" if plan.dropped else "")
     return out
 
 
 # ---- command line: anigs views ----
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from anigs.cli import add_params

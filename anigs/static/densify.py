@@ -24,7 +24,6 @@ parameter's own.
 Gradient threshold units follow the original 3DGS: the screen-space gradient is measured in
 NDC units, i.e. the pixel-space gradient of ``means2d`` times ``(width/2, height/2)``.
 """
-
 from __future__ import annotations
 
 import logging
@@ -98,7 +97,8 @@ class DensifyState:
 
     @staticmethod
     def empty(n: int, device: torch.device | str = "cpu") -> "DensifyState":
-        return DensifyState(torch.zeros(n, device=device), torch.zeros(n, device=device), torch.zeros(n, device=device))
+        return DensifyState(torch.zeros(n, device=device), torch.zeros(n, device=device),
+                            torch.zeros(n, device=device))
 
     @property
     def num(self) -> int:
@@ -122,10 +122,8 @@ def update_state(state: DensifyState, meta: dict[str, Any], width: int, height: 
     means2d = meta["means2d"]
     grad = means2d.grad if (means2d.is_leaf or means2d.retains_grad) else None
     if grad is None:
-        raise RuntimeError(
-            "densify.update_state: meta['means2d'].grad is None; call "
-            "meta['means2d'].retain_grad() before loss.backward()"
-        )
+        raise RuntimeError("densify.update_state: meta['means2d'].grad is None; call "
+                           "meta['means2d'].retain_grad() before loss.backward()")
     radii = meta["radii"]
     n = grad.shape[0]
     if n != state.num:
@@ -160,13 +158,9 @@ def refine_due(cfg: DensifyConfig, step: int) -> bool:
     return _densify_due(cfg, step) or _reset_due(cfg, step)
 
 
-def _replace_rows(
-    params: dict[str, torch.Tensor],
-    optimizer: torch.optim.Optimizer,
-    new_values: dict[str, torch.Tensor],
-    src: torch.Tensor,
-    is_new: torch.Tensor,
-) -> dict[str, torch.Tensor]:
+def _replace_rows(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimizer,
+                  new_values: dict[str, torch.Tensor], src: torch.Tensor,
+                  is_new: torch.Tensor) -> dict[str, torch.Tensor]:
     """Swap every parameter for its new rows and carry Adam moments: row i of the result takes
     the moments of old row ``src[i]``, or zeros where ``is_new[i]``."""
     out = {}
@@ -215,15 +209,9 @@ def schedule_for(cfg: DensifyConfig, iterations: int) -> DensifyConfig:
 
 
 @torch.no_grad()
-def refine(
-    params: dict[str, torch.Tensor],
-    optimizer: torch.optim.Optimizer,
-    state: DensifyState,
-    step: int,
-    cfg: DensifyConfig,
-    scene_extent: float,
-    generator: torch.Generator | None = None,
-) -> dict[str, torch.Tensor]:
+def refine(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimizer, state: DensifyState, step: int,
+           cfg: DensifyConfig, scene_extent: float,
+           generator: torch.Generator | None = None) -> dict[str, torch.Tensor]:
     """Clone, split, prune and reset opacity as scheduled for ``step``; return the (new) params.
 
     Call after ``optimizer.step()``. New rows start with zero Adam moments; pruned rows lose
@@ -241,15 +229,8 @@ def refine(
     return params
 
 
-def _densify_and_prune(
-    params,
-    optimizer,
-    state: DensifyState,
-    step: int,
-    cfg: DensifyConfig,
-    extent: float,
-    generator: torch.Generator | None,
-) -> dict[str, torch.Tensor]:
+def _densify_and_prune(params, optimizer, state: DensifyState, step: int, cfg: DensifyConfig, extent: float,
+                       generator: torch.Generator | None) -> dict[str, torch.Tensor]:
     means = params["means"].detach()
     n = means.shape[0]
     dev = means.device
@@ -290,8 +271,7 @@ def _densify_and_prune(
         raise AllPrunedError(
             f"densify: all {n} Gaussians would be pruned at step {step} ({int(low.sum())} with opacity < "
             f"{cfg.prune_opacity}, {int(too_big.sum())} too large on screen or in the world); the fit cannot "
-            "continue. Check the images/cameras, or lower densify.prune_opacity"
-        )
+            "continue. Check the images/cameras, or lower densify.prune_opacity")
 
     src = torch.cat([keep_idx, clone_idx, split_idx, split_idx])
     new_vals = _gather(params, src)
@@ -309,12 +289,7 @@ def _densify_and_prune(
     is_new[n_keep:] = True
     new_params = _replace_rows(params, optimizer, new_vals, src, is_new)
     state.reset(src.shape[0])
-    state.last = {
-        "step": step,
-        "cloned": n_clone,
-        "split": n_split,
-        "pruned": int(prune.sum()),
-        "num": int(src.shape[0]),
-    }
+    state.last = {"step": step, "cloned": n_clone, "split": n_split, "pruned": int(prune.sum()),
+                  "num": int(src.shape[0])}
     log.debug("densify step %d: %s", step, state.last)
     return new_params

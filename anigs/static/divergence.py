@@ -1,6 +1,5 @@
 """Divergence of the static fit: a non-finite loss or gradient, found without a host read per
 step (:class:`DivergenceGuard`), reported with its iteration and the last good checkpoint."""
-
 from __future__ import annotations
 
 from typing import Any, Callable, Sequence
@@ -23,13 +22,8 @@ class DivergenceGuard:
     other optimizer :meth:`record` checks at once (a host read per step).
     """
 
-    def __init__(
-        self,
-        optimizer: torch.optim.Optimizer,
-        names: Sequence[str],
-        device: torch.device,
-        on_failure: Callable[[int, str], None] | None = None,
-    ):
+    def __init__(self, optimizer: torch.optim.Optimizer, names: Sequence[str], device: torch.device,
+                 on_failure: Callable[[int, str], None] | None = None):
         self.names = list(names)
         self.on_failure = on_failure  # (iteration, what) -> raises; default FitDivergedError
         self.deferred = bool(optimizer.defaults.get("fused"))
@@ -43,10 +37,8 @@ class DivergenceGuard:
     def record(self, step: int, loss: torch.Tensor, params: dict[str, torch.Tensor]) -> None:
         """Record step ``step`` (loss scalar, gradients of ``params`` in ``names`` order)."""
         sums = [loss.detach().reshape(())]
-        sums += [
-            p.grad.sum() if p.grad is not None else torch.zeros((), device=loss.device)
-            for p in (params[k] for k in self.names)
-        ]
+        sums += [p.grad.sum() if p.grad is not None else torch.zeros((), device=loss.device)
+                 for p in (params[k] for k in self.names)]
         bad = ~torch.isfinite(torch.stack(sums))
         any_bad = bad.any()
         self.found_inf.copy_(any_bad)
@@ -85,7 +77,5 @@ def raise_diverged(what: str, step: int, last_good: dict[str, Any], bar) -> None
         where = f"last good checkpoint (iteration {last_good['iteration']}) kept at {last_good['path']}"
     else:
         where = "no checkpoint was written (pass checkpoint_path to keep one)"
-    raise FitDivergedError(
-        f"static fit diverged at iteration {step}: {what}; {where}. "
-        "Lower the learning rates or check the input images for invalid values"
-    )
+    raise FitDivergedError(f"static fit diverged at iteration {step}: {what}; {where}. "
+                           "Lower the learning rates or check the input images for invalid values")

@@ -1,5 +1,4 @@
 """Render the static fit's parameter dict and evaluate it (PSNR, SSIM) on posed images."""
-
 from __future__ import annotations
 
 from typing import Sequence
@@ -13,34 +12,17 @@ from anigs.render import rasterize
 from anigs.ssim import psnr
 
 
-def _render(
-    params: dict[str, torch.Tensor],
-    cam: Camera,
-    sh_degree: int,
-    bg: torch.Tensor,
-    backend: str,
-    mats: tuple[torch.Tensor, torch.Tensor] | None = None,
-):
+def _render(params: dict[str, torch.Tensor], cam: Camera, sh_degree: int, bg: torch.Tensor, backend: str,
+            mats: tuple[torch.Tensor, torch.Tensor] | None = None):
     """Render the parameter dict; only the SH bands up to ``sh_degree`` are passed on (the others
     get zero gradients, as when the rasterizer ignores them). ``mats``: cached (viewmat, K)."""
     dev = params["means"].device
     k = (sh_degree + 1) ** 2
-    sh = torch.cat([params["sh_dc"], params["sh_rest"][:, : k - 1]], 1)
+    sh = torch.cat([params["sh_dc"], params["sh_rest"][:, :k - 1]], 1)
     viewmat, K = mats if mats is not None else (cam.torch_viewmat(dev), cam.torch_K(dev))
-    return rasterize(
-        params["means"],
-        params["quats"],
-        params["log_scales"].exp(),
-        torch.sigmoid(params["opacity_logits"]),
-        sh,
-        viewmat,
-        K,
-        cam.width,
-        cam.height,
-        sh_degree=sh_degree,
-        background=bg,
-        backend=backend,
-    )
+    return rasterize(params["means"], params["quats"], params["log_scales"].exp(),
+                     torch.sigmoid(params["opacity_logits"]), sh, viewmat, K,
+                     cam.width, cam.height, sh_degree=sh_degree, background=bg, backend=backend)
 
 
 @torch.no_grad()
@@ -57,14 +39,8 @@ def pixels(img: torch.Tensor) -> torch.Tensor:
     return img.float() / 255.0 if img.dtype == torch.uint8 else img
 
 
-def evaluate(
-    params: dict[str, torch.Tensor],
-    images: Sequence[torch.Tensor],
-    cameras: Sequence[Camera],
-    sh_degree: int,
-    bg: torch.Tensor,
-    backend: str,
-) -> dict[str, float]:
+def evaluate(params: dict[str, torch.Tensor], images: Sequence[torch.Tensor], cameras: Sequence[Camera],
+             sh_degree: int, bg: torch.Tensor, backend: str) -> dict[str, float]:
     """Mean PSNR (dB) and SSIM over the given views (NaN when there are none)."""
     if not images:
         return {"psnr": float("nan"), "ssim": float("nan"), "views": 0}

@@ -1,7 +1,6 @@
 """The static fit's starting state: the held-out split, Gaussians initialised from the SfM
 points, the training parameter dict (and back to :class:`~anigs.gaussians.Gaussians`) and its
 Adam optimizer."""
-
 from __future__ import annotations
 
 import logging
@@ -24,9 +23,8 @@ def split_holdout(n: int, every: int) -> tuple[list[int], list[int]]:
     return train, test
 
 
-def init_gaussians(
-    points: np.ndarray, colors: np.ndarray, extent: float, sh_degree: int = 3, opacity: float = 0.1
-) -> Gaussians:
+def init_gaussians(points: np.ndarray, colors: np.ndarray, extent: float, sh_degree: int = 3,
+                   opacity: float = 0.1) -> Gaussians:
     """Isotropic Gaussians at SfM ``points`` [P,3] with ``colors`` [P,3] in [0,1].
 
     Exact duplicate points are merged (colours averaged). Scale = root mean square distance to
@@ -61,25 +59,14 @@ def init_gaussians(
         d, _ = cKDTree(points).query(points, k=k + 1)
         dist = np.sqrt((d[:, 1:] ** 2).mean(1))
     dist = np.clip(dist, 1e-4 * extent, extent)
-    return Gaussians.from_points(
-        torch.from_numpy(points).float(),
-        torch.from_numpy(np.clip(colors, 0, 1)).float(),
-        torch.from_numpy(dist).float(),
-        opacity=opacity,
-        sh_degree=sh_degree,
-    )
+    return Gaussians.from_points(torch.from_numpy(points).float(), torch.from_numpy(np.clip(colors, 0, 1)).float(),
+                                 torch.from_numpy(dist).float(), opacity=opacity, sh_degree=sh_degree)
 
 
 def _to_params(g: Gaussians, device: torch.device) -> dict[str, torch.nn.Parameter]:
     P = lambda t: torch.nn.Parameter(t.detach().to(device).contiguous())
-    return {
-        "means": P(g.means),
-        "quats": P(g.quats),
-        "log_scales": P(g.log_scales),
-        "opacity_logits": P(g.opacity_logits),
-        "sh_dc": P(g.sh[:, :1]),
-        "sh_rest": P(g.sh[:, 1:]),
-    }
+    return {"means": P(g.means), "quats": P(g.quats), "log_scales": P(g.log_scales),
+            "opacity_logits": P(g.opacity_logits), "sh_dc": P(g.sh[:, :1]), "sh_rest": P(g.sh[:, 1:])}
 
 
 def params_to_gaussians(params: dict[str, torch.Tensor]) -> Gaussians:

@@ -30,7 +30,6 @@ Two mechanisms, both cheap enough for every step (:class:`NeedleRegularizer`):
 All sizes are tensors on the fit's device; nothing reads back to the host except counts logged
 at the densification steps.
 """
-
 from __future__ import annotations
 
 import logging
@@ -50,12 +49,12 @@ log = logging.getLogger(__name__)
 class RegularizeConfig(Section):
     """Needle / unresolved-Gaussian control (config ``static.regularize``)."""
 
-    enabled: bool = True  # bound needles and decay, then prune, Gaussians no photo resolves
-    max_needle_ratio: float = 10.0  # largest scale <= this x the middle scale (0: no limit)
+    enabled: bool = True               # bound needles and decay, then prune, Gaussians no photo resolves
+    max_needle_ratio: float = 10.0     # largest scale <= this x the middle scale (0: no limit)
     max_screen_fraction: float = 0.08  # unresolved: largest std dev > this x image width in every photo it is in
-    max_world_fraction: float = 0.0  # ... or largest std dev > this x the scene extent (0: no world limit; 3DGS: 0.1)
-    decay: float = 0.5  # opacity factor of unresolved Gaussians at each densification step
-    final_prune: bool = True  # prune the Gaussians still unresolved at the last densification step
+    max_world_fraction: float = 0.0    # ... or largest std dev > this x the scene extent (0: no world limit; 3DGS: 0.1)
+    decay: float = 0.5                 # opacity factor of unresolved Gaussians at each densification step
+    final_prune: bool = True           # prune the Gaussians still unresolved at the last densification step
     #: at most this share of the Gaussians is decayed / pruned at a step, least resolved first
     max_share: float = 0.02
 
@@ -82,9 +81,8 @@ def limit_needles(log_scales: torch.Tensor, ratio: float) -> None:
         log_scales.copy_(torch.minimum(log_scales, mid + math.log(ratio)))
 
 
-def prune_rows(
-    params: dict[str, torch.Tensor], optimizer: torch.optim.Optimizer, keep: torch.Tensor
-) -> dict[str, torch.Tensor]:
+def prune_rows(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimizer,
+               keep: torch.Tensor) -> dict[str, torch.Tensor]:
     """The parameters restricted to the rows ``keep`` (bool [N]), Adam moments carried along."""
     from anigs.static.densify import _gather, _replace_rows
 
@@ -100,12 +98,8 @@ def last_densify_step(start: int, stop: int, every: int, iterations: int) -> int
     return last if last >= max(start, 1) else None
 
 
-def min_screen_sigma(
-    means: torch.Tensor,
-    log_scales: torch.Tensor,
-    cameras: Sequence[Camera],
-    mats: Sequence[tuple[torch.Tensor, torch.Tensor]],
-) -> torch.Tensor:
+def min_screen_sigma(means: torch.Tensor, log_scales: torch.Tensor, cameras: Sequence[Camera],
+                     mats: Sequence[tuple[torch.Tensor, torch.Tensor]]) -> torch.Tensor:
     """float [N]: the smallest, over the ``cameras`` whose image holds the centre (in front of
     it), of the largest std dev projected at the centre's depth, as a share of the image width
     (inf where no camera holds it). ``mats``: (viewmat [4,4], K [3,3]) per camera."""
@@ -127,13 +121,8 @@ def min_screen_sigma(
 class NeedleRegularizer:
     """The per-step needle limit and the unresolved decay/prune of :mod:`anigs.static.regularize`."""
 
-    def __init__(
-        self,
-        cfg: RegularizeConfig,
-        extent: float,
-        cameras: Sequence[Camera],
-        mats: Sequence[tuple[torch.Tensor, torch.Tensor]],
-    ):
+    def __init__(self, cfg: RegularizeConfig, extent: float, cameras: Sequence[Camera],
+                 mats: Sequence[tuple[torch.Tensor, torch.Tensor]]):
         self.cfg, self.extent, self.cameras, self.mats = cfg, float(extent), list(cameras), list(mats)
         self.stats: dict[str, Any] = {"decayed": [], "final_pruned": 0}
         self.pruned_at_densify = False
@@ -149,11 +138,8 @@ class NeedleRegularizer:
         ls = params["log_scales"].detach()
         best = min_screen_sigma(params["means"], ls, self.cameras, self.mats)
         if self.cfg.max_world_fraction > 0:
-            best = torch.where(
-                ls.exp().max(1).values > self.cfg.max_world_fraction * self.extent,
-                torch.full_like(best, float("inf")),
-                best,
-            )
+            best = torch.where(ls.exp().max(1).values > self.cfg.max_world_fraction * self.extent,
+                               torch.full_like(best, float("inf")), best)
         bad = best > self.cfg.max_screen_fraction
         cap = int(self.cfg.max_share * bad.numel())
         if int(bad.sum()) > cap:  # a coarse fit: every splat is large; keep to its worst outliers
@@ -180,15 +166,10 @@ class NeedleRegularizer:
             self.stats["final_pruned"] = n
             self.pruned_at_densify = True
         if n:
-            log.info(
-                "static fit: iteration %d: %d unresolved Gaussians (no photo sees them at <= %.0f%% of its "
-                "width%s): %s",
-                step,
-                n,
-                100 * self.cfg.max_screen_fraction,
-                f", or larger than {self.cfg.max_world_fraction:g} x extent" if self.cfg.max_world_fraction else "",
-                "pruned (the last densification step)" if prune else f"opacity x {self.cfg.decay:g}",
-            )
+            log.info("static fit: iteration %d: %d unresolved Gaussians (no photo sees them at <= %.0f%% of its "
+                     "width%s): %s", step, n, 100 * self.cfg.max_screen_fraction,
+                     f", or larger than {self.cfg.max_world_fraction:g} x extent" if self.cfg.max_world_fraction else "",
+                     "pruned (the last densification step)" if prune else f"opacity x {self.cfg.decay:g}")
         return n
 
     def final_keep(self, params: dict[str, torch.Tensor]) -> torch.Tensor | None:
@@ -208,8 +189,5 @@ class NeedleRegularizer:
         ls = params["log_scales"].detach()
         srt = ls.sort(dim=1).values
         ratio = (srt[:, 2] - srt[:, 1]).exp()
-        return {
-            **self.cfg.__dict__,
-            **self.stats,
-            "max_needle_ratio_after": float(ratio.max()) if ratio.numel() else None,
-        }
+        return {**self.cfg.__dict__, **self.stats,
+                "max_needle_ratio_after": float(ratio.max()) if ratio.numel() else None}

@@ -13,7 +13,6 @@ Each trial pairs ours (variant ``full`` by default) with one other variant on th
 view; the page shuffles the trials and counterbalances left/right per participant from a seed
 derived from the study seed and the participant id.
 """
-
 from __future__ import annotations
 
 import hashlib
@@ -48,9 +47,8 @@ class StudyOptions:
     labels: dict[str, str] = field(default_factory=dict)  # variant -> label in Table 4
 
 
-def find_final_videos(
-    results: str | Path, scenes: Sequence[str], variants: Sequence[str] | None = None
-) -> dict[tuple[str, str], dict[str, Path]]:
+def find_final_videos(results: str | Path, scenes: Sequence[str],
+                      variants: Sequence[str] | None = None) -> dict[tuple[str, str], dict[str, Path]]:
     """Camera-fixed videos of the final stage's folders ``results/{scene}/{variant}/final``
     (:meth:`anigs.stages.final.Outputs.videos`) -> {(scene, variant): {view: path}}.
 
@@ -69,10 +67,8 @@ def find_final_videos(
             fdir = sdir / v / "final"
             videos = FinalOutputs(fdir).videos()
             if not videos:
-                raise FileNotFoundError(
-                    f"study: no camera-fixed videos in {fdir} (run the final stage of "
-                    f"scene {scene!r}, variant {v!r} first)"
-                )
+                raise FileNotFoundError(f"study: no camera-fixed videos in {fdir} (run the final stage of "
+                                        f"scene {scene!r}, variant {v!r} first)")
             found[(scene, v)] = videos
     return found
 
@@ -88,12 +84,8 @@ def video_info(path: Path) -> dict[str, Any]:
         raise ValueError(f"study: cannot read video {path}: {exc}") from exc
     finally:
         gen.close()
-    return {
-        "size": list(meta["size"]),
-        "fps": float(meta["fps"]),
-        "duration": float(meta["duration"]),
-        "codec": meta.get("codec"),
-    }
+    return {"size": list(meta["size"]), "fps": float(meta["fps"]), "duration": float(meta["duration"]),
+            "codec": meta.get("codec")}
 
 
 def _sha(data: bytes, n: int = 12) -> str:
@@ -126,27 +118,17 @@ def plan_trials(videos: Mapping[tuple[str, str], Mapping[str, Path]], opts: Stud
             if opts.max_views and len(shared) > opts.max_views:
                 shared = sorted(rng.sample(shared, opts.max_views))
             for view in shared:
-                trials.append(
-                    {"id": f"{scene}/{view}/{other}", "scene": scene, "view": view, "ours": opts.ours, "other": other}
-                )
+                trials.append({"id": f"{scene}/{view}/{other}", "scene": scene, "view": view,
+                               "ours": opts.ours, "other": other})
     pool = [(s, v) for s in scenes for v in sorted(videos[(s, opts.ours)])]
     for scene, view in sorted(rng.sample(pool, min(opts.catch_trials, len(pool)))):
-        trials.append(
-            {
-                "id": f"{scene}/{view}/{CATCH}",
-                "scene": scene,
-                "view": view,
-                "ours": opts.ours,
-                "other": CATCH,
-                "catch": True,
-            }
-        )
+        trials.append({"id": f"{scene}/{view}/{CATCH}", "scene": scene, "view": view, "ours": opts.ours,
+                       "other": CATCH, "catch": True})
     return trials
 
 
-def _copy_videos(
-    trials: list[dict[str, Any]], vids: Mapping[tuple[str, str], Mapping[str, Path]], out: Path
-) -> dict[str, dict[str, Any]]:
+def _copy_videos(trials: list[dict[str, Any]], vids: Mapping[tuple[str, str], Mapping[str, Path]],
+                 out: Path) -> dict[str, dict[str, Any]]:
     """Copy each distinct video once as videos/<content hash>; fill the trials' videos, size, fps."""
     copied: dict[Path, str] = {}
     infos: dict[str, dict[str, Any]] = {}
@@ -166,18 +148,15 @@ def _copy_videos(
             t["videos"][variant] = copied[src]
         a, b = (infos[t["videos"][v]] for v in (t["ours"], t["other"]))
         if a["size"] != b["size"]:
-            raise ValueError(
-                f"study: pair {t['id']}: {t['ours']} is {a['size']} pixels but {t['other']} is "
-                f"{b['size']}; render both at the same size"
-            )
+            raise ValueError(f"study: pair {t['id']}: {t['ours']} is {a['size']} pixels but {t['other']} is "
+                             f"{b['size']}; render both at the same size")
         t["size"], t["fps"] = a["size"], a["fps"]
         t["duration"] = max(a["duration"], b["duration"])
     return infos
 
 
-def build_study(
-    videos: Mapping[tuple[str, str], Mapping[str, str | Path]], out: str | Path, opts: StudyOptions | None = None
-) -> dict[str, Any]:
+def build_study(videos: Mapping[tuple[str, str], Mapping[str, str | Path]], out: str | Path,
+                opts: StudyOptions | None = None) -> dict[str, Any]:
     """Write the study folder ``out`` (see the module doc) and return its manifest.
 
     ``videos``: {(scene, variant): {view: mp4 path}}, e.g. from :func:`find_final_videos`.
@@ -207,19 +186,12 @@ def build_study(
         if f"videos/{stale.name}" not in infos:
             stale.unlink()
     variants = list(dict.fromkeys([opts.ours] + [t["other"] for t in trials if not t.get("catch")]))
-    core = {
-        "ours": opts.ours,
-        "seed": opts.seed,
-        "questions": list(QUESTIONS),
-        "trials": [{k: t[k] for k in ("id", "scene", "view", "ours", "other", "videos")} for t in trials],
-    }
+    core = {"ours": opts.ours, "seed": opts.seed, "questions": list(QUESTIONS),
+            "trials": [{k: t[k] for k in ("id", "scene", "view", "ours", "other", "videos")} for t in trials]}
     manifest = {
         "schema": MANIFEST_SCHEMA,
         "study_id": _sha(json.dumps(core, sort_keys=True).encode()),
-        "title": opts.title,
-        "ours": opts.ours,
-        "seed": opts.seed,
-        "min_plays": opts.min_plays,
+        "title": opts.title, "ours": opts.ours, "seed": opts.seed, "min_plays": opts.min_plays,
         "post_url": opts.post_url,
         "questions": [{"id": q, "text": text, "section": section} for q, (text, section) in QUESTIONS.items()],
         "labels": {v: opts.labels.get(v) or default_label(v) for v in variants},

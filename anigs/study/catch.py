@@ -4,7 +4,6 @@ The blurred copy has the same motion, so only the visual-quality answer is score
 who prefers the blurred copy was not looking. The tally excludes participants who fail more
 catch trials than allowed, and never counts catch answers in Table 4.
 """
-
 from __future__ import annotations
 
 from pathlib import Path
@@ -23,6 +22,7 @@ def blur_sigma(width: int, height: int) -> float:
 def make_catch_video(src: str | Path, dst: str | Path, fps: float) -> float:
     """Write a blurred copy of ``src`` to ``dst``; return the blur sigma used."""
     from scipy.ndimage import gaussian_filter
+
 
     clip = read_mp4(src)
     sigma = blur_sigma(clip.shape[2], clip.shape[1])

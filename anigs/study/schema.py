@@ -20,7 +20,6 @@ One answer is one question about one pair, as the study page stores, exports and
       #           "received_at" (added by the server)
     }
 """
-
 from __future__ import annotations
 
 import math
@@ -34,15 +33,13 @@ MANIFEST_SCHEMA = "anigs-study-manifest/1"
 # question id -> (text on the page, section title of Table 4); Table 4 lists motion first
 QUESTIONS: dict[str, tuple[str, str]] = {
     "motion": ("Which video shows more realistic motion?", "Motion realism"),
-    "quality": (
-        "Which video has better visual quality, with the scene kept more consistent "
-        "(no blur, flicker, or drift of parts that should stay still)?",
-        "Visual quality",
-    ),
+    "quality": ("Which video has better visual quality, with the scene kept more consistent "
+                "(no blur, flicker, or drift of parts that should stay still)?", "Visual quality"),
 }
 
 PARTICIPANT_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
-_STR_FIELDS = ("study_id", "participant", "pair", "scene", "view", "ours", "other", "left", "chosen", "answered_at")
+_STR_FIELDS = ("study_id", "participant", "pair", "scene", "view", "ours", "other", "left", "chosen",
+               "answered_at")
 REQUIRED = frozenset(_STR_FIELDS) | {"schema", "question", "side", "time_ms", "trial", "n_trials"}
 OPTIONAL = frozenset({"seed", "plays", "reloaded", "received_at"})
 MAX_STR = 200

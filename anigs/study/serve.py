@@ -10,7 +10,6 @@ already stored verbatim is not stored twice (re-sent answers after a lost reply 
 Bounded: requests of at most ``MAX_BODY`` bytes, ``MAX_CONNECTIONS`` at a time, 30 s to send
 one, ``MAX_ANSWERS`` per file; :class:`StudyServer` binds 127.0.0.1 (by default) and stops on ``stop()``.
 """
-
 from __future__ import annotations
 
 import fcntl
@@ -91,7 +90,7 @@ class AnswerStore:
                     fcntl.flock(fd, fcntl.LOCK_EX)  # other processes appending to the same file wait
                     view = memoryview(data)
                     while view:
-                        view = view[os.write(fd, view) :]
+                        view = view[os.write(fd, view):]
                     os.fsync(fd)
                 finally:
                     os.close(fd)
@@ -119,7 +118,7 @@ def parse_post(body: bytes) -> list[Any]:
         return data
     if isinstance(data, dict):
         return [data]
-    raise ValueError(f'expected an answer object or {{"answers": [...]}}, got {type(data).__name__}')
+    raise ValueError(f"expected an answer object or {{\"answers\": [...]}}, got {type(data).__name__}")
 
 
 def _public(url_path: str) -> bool:

@@ -1,5 +1,4 @@
 """Binomial statistics of a preference rate: Wilson and Clopper-Pearson intervals, exact test."""
-
 from __future__ import annotations
 
 import math
@@ -55,9 +54,8 @@ def binomial_p(k: int, n: int) -> float:
     return float(binomtest(k, n, 0.5).pvalue)
 
 
-def cluster_bootstrap(
-    k: Sequence[int], n: Sequence[int], level: float = 0.95, reps: int = 4000, seed: int = 0
-) -> tuple[float, float]:
+def cluster_bootstrap(k: Sequence[int], n: Sequence[int], level: float = 0.95, reps: int = 4000,
+                      seed: int = 0) -> tuple[float, float]:
     """Percentile interval of the pooled rate sum(k)/sum(n) when whole participants are resampled.
 
     ``k[i]`` of ``n[i]`` answers of participant i prefer ours. Answers of one participant are

@@ -1,5 +1,4 @@
 """The synthetic scene as Gaussians: the garden (with an optional pond) or the bare courtyard."""
-
 from __future__ import annotations
 
 from typing import Any

@@ -24,7 +24,6 @@ sideways (a portrait photo stored without its EXIF rotation): ``portrait`` rolls
 by 90 degrees about its optical axis, ``mixed`` every other one (the image keeps its size).
 The scene, labels and wind motion are the same for every layout.
 """
-
 from __future__ import annotations
 
 import logging
@@ -115,12 +114,8 @@ class SynthConfig:
         seed = d.get("seed", 0)
         if not isinstance(seed, int) or isinstance(seed, bool):
             raise ValueError(f"synthetic.seed: expected an int, got {seed!r}")
-        return SynthConfig(
-            seed,
-            SceneConfig.from_dict(d.get("scene")),
-            CaptureConfig.from_dict(d.get("capture")),
-            MotionParams.from_dict(d.get("motion")),
-        )
+        return SynthConfig(seed, SceneConfig.from_dict(d.get("scene")), CaptureConfig.from_dict(d.get("capture")),
+                           MotionParams.from_dict(d.get("motion")))
 
     def to_dict(self) -> dict:
         cap = asdict(self.capture)
@@ -131,9 +126,8 @@ class SynthConfig:
         return {"seed": self.seed, "scene": asdict(self.scene), "capture": cap, "motion": self.motion.to_dict()}
 
 
-def _camera(
-    eye: np.ndarray, yaw: float, pitch: float, roll: float, K: np.ndarray, cfg: CaptureConfig, name: str
-) -> Camera:
+def _camera(eye: np.ndarray, yaw: float, pitch: float, roll: float, K: np.ndarray, cfg: CaptureConfig,
+            name: str) -> Camera:
     fwd = np.array([math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw), math.sin(pitch)])
     V = look_at(eye, eye + fwd)
     c, s = math.cos(roll), math.sin(roll)
@@ -166,9 +160,8 @@ def roll_camera(cam: Camera, deg: float) -> Camera:
     return Camera(cam.K.copy(), V, cam.width, cam.height, cam.name)
 
 
-def _jittered(
-    rng: np.random.Generator, cfg: CaptureConfig, eye: np.ndarray, target: np.ndarray, K: np.ndarray, name: str
-) -> Camera:
+def _jittered(rng: np.random.Generator, cfg: CaptureConfig, eye: np.ndarray, target: np.ndarray, K: np.ndarray,
+              name: str) -> Camera:
     """Hand-held camera at ``eye`` (+ position noise) looking at ``target`` (+ orientation noise)."""
     eye = eye + rng.normal(0, 1, 3) * np.array([cfg.pos_jitter, cfg.pos_jitter, 0.5 * cfg.pos_jitter])
     d = np.asarray(target, float) - eye
@@ -224,9 +217,8 @@ def facade_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
         head = math.pi / 2 + math.radians(30.0) * math.sin(2 * math.pi * s + 0.4)
         pitch = math.radians(25.0 + 20.0 * rng.uniform())
         dist = 3.0
-        target = eye + dist * np.array(
-            [math.cos(pitch) * math.cos(head), math.cos(pitch) * math.sin(head), math.sin(pitch)]
-        )
+        target = eye + dist * np.array([math.cos(pitch) * math.cos(head), math.cos(pitch) * math.sin(head),
+                                        math.sin(pitch)])
         cams.append(_jittered(rng, cfg, eye, target, K, f"img_{i:03d}.png"))
     return cams
 
@@ -244,7 +236,8 @@ def walk_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
         th = -math.pi / 2 + 2 * math.pi * (i + rng.uniform(-0.25, 0.25)) / n_loop
         rx = LOOP_RADII[0] * (1 + 0.06 * math.sin(2 * th + 0.4))
         ry = LOOP_RADII[1] * (1 + 0.06 * math.sin(3 * th + 1.0))
-        eye = np.array([cx + rx * math.cos(th), cy + ry * math.sin(th), cfg.eye_height + 0.05 * math.sin(5 * th)])
+        eye = np.array([cx + rx * math.cos(th), cy + ry * math.sin(th),
+                        cfg.eye_height + 0.05 * math.sin(5 * th)])
         eye += rng.normal(0, 1, 3) * np.array([cfg.pos_jitter, cfg.pos_jitter, 0.5 * cfg.pos_jitter])
         inward = math.atan2(cy - eye[1], cx - eye[0])
         yaw = inward + 0.45 * math.sin(2 * th + 0.5) + rng.normal(0, jr)
@@ -302,15 +295,10 @@ def write_capture(cfg: SynthConfig | None, out_dir: str | Path) -> dict:
     _save_npy(gt_dir / "anchors.npy", g.extras["anchor"].numpy().astype(np.float32))
     write_json(gt_dir / "motion.json", {"params": cfg.motion.to_dict(), **motion_tables()})
     summary = {
-        "num_gaussians": g.num,
-        "label_counts": counts,
-        "num_images": len(cams),
+        "num_gaussians": g.num, "label_counts": counts, "num_images": len(cams),
         "image_size": [cfg.capture.width, cfg.capture.height],
-        "seconds": {
-            "build": round(t_build, 3),
-            "render": round(t_render, 3),
-            "total": round(time.perf_counter() - t0, 3),
-        },
+        "seconds": {"build": round(t_build, 3), "render": round(t_render, 3),
+                    "total": round(time.perf_counter() - t0, 3)},
         "images": [c.name for c in cams],
     }
     write_json(gt_dir / "scene.json", {"config": cfg.to_dict(), **summary})

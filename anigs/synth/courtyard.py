@@ -6,7 +6,6 @@ floor paved with stone slabs in a running bond, two benches and an empty stone p
 ``ground`` (paving), ``building`` (facade, walls) and ``clutter`` (benches, planter); nothing
 moves, so the effects stage must find nothing here.
 """
-
 from __future__ import annotations
 
 import math
@@ -35,7 +34,6 @@ def _paving(rng: np.random.Generator):
         joint = ((xy[:, 1] - row * SLAB[1]) < 0.02) | ((u - col) * SLAB[0] < 0.02)
         c[joint] = [0.3, 0.29, 0.27]
         return c
-
     return f
 
 
@@ -46,17 +44,8 @@ def build_courtyard(B: "_Builder", num_gaussians: int) -> None:
     # paving over the whole floor
     s = math.sqrt((X1 - X0) * (Y1 - Y0) / n["ground"])
     pave = _paving(rng)
-    B.surface(
-        (X0, Y0, 0.0),
-        (1, 0, 0),
-        (0, 1, 0),
-        (X1 - X0, Y1 - Y0),
-        (s, s),
-        lambda ab: pave(ab + np.array([X0, Y0])),
-        "ground",
-        thin=0.003,
-        scale_frac=0.8,
-    )
+    B.surface((X0, Y0, 0.0), (1, 0, 0), (0, 1, 0), (X1 - X0, Y1 - Y0), (s, s),
+              lambda ab: pave(ab + np.array([X0, Y0])), "ground", thin=0.003, scale_frac=0.8)
     # facade (north) and three brick walls with a coping
     area = (X1 - X0) * FACADE_H + (2 * (Y1 - Y0) + (X1 - X0)) * COURT_WALL_H
     s = math.sqrt(area / n["building"])
@@ -70,11 +59,5 @@ def build_courtyard(B: "_Builder", num_gaussians: int) -> None:
     step = math.sqrt(2.6 / (0.35 * n["clutter"]))
     _bench(B, BENCH, step)
     _bench(B, BENCH_2, step)
-    B.box(
-        (PLANTER[0], PLANTER[1], 0.0),
-        (0.8, 0.8, 0.55),
-        0.35,
-        math.sqrt(2.4 / (0.3 * n["clutter"])),
-        _stone(rng, (PLANTER[0], PLANTER[1], 0.3), 0.7, cell=0.12),
-        "clutter",
-    )
+    B.box((PLANTER[0], PLANTER[1], 0.0), (0.8, 0.8, 0.55), 0.35, math.sqrt(2.4 / (0.3 * n["clutter"])),
+          _stone(rng, (PLANTER[0], PLANTER[1], 0.3), 0.7, cell=0.12), "clutter")

@@ -8,7 +8,6 @@ resolves anything.
 - :func:`sparse_capture_config`: the synthetic capture of 11 photos walking along the facade
   (``synthetic.capture.layout: facade``), sky above it.
 """
-
 from __future__ import annotations
 
 import math
@@ -38,15 +37,8 @@ def _quat_from_axis(axis: np.ndarray) -> np.ndarray:
     return out
 
 
-def sky_needles(
-    n: int,
-    center: np.ndarray,
-    radius: float,
-    height: float,
-    length: float,
-    rng: np.random.Generator,
-    colour=(0.85, 0.55, 0.3),
-) -> Gaussians:
+def sky_needles(n: int, center: np.ndarray, radius: float, height: float, length: float,
+                rng: np.random.Generator, colour=(0.85, 0.55, 0.3)) -> Gaussians:
     """``n`` needles: centres in a disc of ``radius`` at ``height`` above ``center`` [3] (+z up),
     largest std dev ``length``, the other two ``length / 60``, random horizontal-ish axes,
     opacity 0.6, colour ``colour`` (SH degree 0)."""
@@ -55,40 +47,24 @@ def sky_needles(
     pos = np.asarray(center, float) + np.stack([r * np.cos(a), r * np.sin(a), np.full(n, height)], 1)
     az, el = rng.uniform(0, 2 * np.pi, n), rng.uniform(-0.3, 0.3, n)
     axis = np.stack([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)], 1)
-    g = Gaussians.from_points(
-        torch.from_numpy(pos).float(),
-        torch.tensor([colour] * n, dtype=torch.float32),
-        torch.full((n,), float(length)),
-        opacity=0.6,
-    )
+    g = Gaussians.from_points(torch.from_numpy(pos).float(), torch.tensor([colour] * n, dtype=torch.float32),
+                              torch.full((n,), float(length)), opacity=0.6)
     g.log_scales[:, 1:] -= math.log(60.0)
     g.quats = torch.from_numpy(_quat_from_axis(axis)).float()
     return g
 
 
-def sky_blobs(
-    n: int,
-    center: np.ndarray,
-    radius: float,
-    height: float,
-    size: float,
-    rng: np.random.Generator,
-    colour=(0.7, 0.75, 0.8),
-) -> Gaussians:
+def sky_blobs(n: int, center: np.ndarray, radius: float, height: float, size: float,
+              rng: np.random.Generator, colour=(0.7, 0.75, 0.8)) -> Gaussians:
     """``n`` huge isotropic blobs of std dev ``size`` on a ring of ``radius`` at ``height``."""
     a = rng.uniform(0, 2 * np.pi, n)
     pos = np.asarray(center, float) + np.stack([radius * np.cos(a), radius * np.sin(a), np.full(n, height)], 1)
-    return Gaussians.from_points(
-        torch.from_numpy(pos).float(),
-        torch.tensor([colour] * n, dtype=torch.float32),
-        torch.full((n,), float(size)),
-        opacity=0.7,
-    )
+    return Gaussians.from_points(torch.from_numpy(pos).float(), torch.tensor([colour] * n, dtype=torch.float32),
+                                 torch.full((n,), float(size)), opacity=0.7)
 
 
-def with_floaters(
-    g: Gaussians, seed: int = 0, needles: int = 60, blobs: int = 12, height: float = 6.0
-) -> tuple[Gaussians, np.ndarray]:
+def with_floaters(g: Gaussians, seed: int = 0, needles: int = 60, blobs: int = 12,
+                  height: float = 6.0) -> tuple[Gaussians, np.ndarray]:
     """``g`` plus sky needles and blobs above its centre (+z up, scaled to its horizontal size);
     returns (Gaussians, bool [N] True on the added floaters)."""
     rng = np.random.default_rng(seed)
@@ -103,20 +79,15 @@ def with_floaters(
         parts.append(sky_blobs(blobs, center, 0.8 * size, 0.6 * height, 0.12 * size, rng))
     out = Gaussians.concat(parts)
     flags = np.zeros(out.num, bool)
-    flags[g.num :] = True
+    flags[g.num:] = True
     return out, flags
 
 
-def sparse_capture_config(
-    seed: int = 0, num_images: int = 11, num_gaussians: int = 12000, width: int = 160, height: int = 120
-):
+def sparse_capture_config(seed: int = 0, num_images: int = 11, num_gaussians: int = 12000,
+                          width: int = 160, height: int = 120):
     """:class:`anigs.synth.SynthConfig` of a sparse facade walk: ``num_images`` photos along the
     facade of the bare courtyard (walls and paving, sky above)."""
 
-    return SynthConfig(
-        seed=seed,
-        scene=SceneConfig(num_gaussians=num_gaussians, layout="courtyard"),
-        capture=CaptureConfig(
-            num_images=num_images, width=width, height=height, layout="facade", pos_jitter=0.03, rot_jitter_deg=1.0
-        ),
-    )
+    return SynthConfig(seed=seed, scene=SceneConfig(num_gaussians=num_gaussians, layout="courtyard"),
+                       capture=CaptureConfig(num_images=num_images, width=width, height=height, layout="facade",
+                                             pos_jitter=0.03, rot_jitter_deg=1.0))

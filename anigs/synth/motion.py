@@ -25,7 +25,6 @@ Effect types (``EFFECT_TYPES``) and which labels carry them (``LABEL_EFFECTS``):
 A bending offset also drops the point on an arc (``dz = -|d_xy|^2 / 2(h + 5 cm)``), so
 swaying parts do not stretch. Static labels get exactly zero.
 """
-
 from __future__ import annotations
 
 import dataclasses
@@ -39,13 +38,8 @@ from anigs.synth.scene import LABEL_IDS, LABELS, WATER_LABEL
 
 EFFECT_TYPES: tuple[str, ...] = ("foliage_sway", "leaf_flutter", "grass_wave", "flower_bob")
 LABEL_EFFECTS: dict[str, tuple[str, ...]] = {
-    "ground": (),
-    "building": (),
-    "clutter": (),
-    "trunk": (),
-    "foliage": ("foliage_sway", "leaf_flutter"),
-    "grass": ("grass_wave",),
-    "flowers": ("flower_bob",),
+    "ground": (), "building": (), "clutter": (), "trunk": (),
+    "foliage": ("foliage_sway", "leaf_flutter"), "grass": ("grass_wave",), "flowers": ("flower_bob",),
 }
 
 
@@ -115,11 +109,8 @@ class MotionParams:
         for name, val in self.effects.items():
             if name not in ALL_EFFECT_TYPES:
                 raise ValueError(f"synthetic.motion.effects: unknown effect {name!r}; known: {list(ALL_EFFECT_TYPES)}")
-            eff[name] = (
-                val
-                if isinstance(val, EffectParams)
-                else from_dict(EffectParams, val, f"synthetic.motion.effects.{name}", check_types=True)
-            )
+            eff[name] = val if isinstance(val, EffectParams) else from_dict(
+                EffectParams, val, f"synthetic.motion.effects.{name}", check_types=True)
         self.effects = eff
 
     @staticmethod
@@ -130,17 +121,12 @@ class MotionParams:
         return MotionParams(p.wind_dir_deg, p.frames, p.fps, effects)
 
     def to_dict(self) -> dict:
-        return {
-            "wind_dir_deg": self.wind_dir_deg,
-            "frames": self.frames,
-            "fps": self.fps,
-            "effects": {k: asdict(v) for k, v in self.effects.items()},
-        }
+        return {"wind_dir_deg": self.wind_dir_deg, "frames": self.frames, "fps": self.fps,
+                "effects": {k: asdict(v) for k, v in self.effects.items()}}
 
 
-def _wave(
-    p: EffectParams, t: torch.Tensor, T: int, phase: torch.Tensor, harmonic: int = 1, shift: float = 0.0
-) -> torch.Tensor:
+def _wave(p: EffectParams, t: torch.Tensor, T: int, phase: torch.Tensor, harmonic: int = 1,
+          shift: float = 0.0) -> torch.Tensor:
     """sin(w t - phase + shift) - sin(-phase + shift), w = 2 pi cycles harmonic / T: [F,1] x [M] -> [F,M]."""
     w = 2 * math.pi * p.cycles * harmonic / T
     return torch.sin(w * t - phase + shift) - torch.sin(-phase + shift)
@@ -183,14 +169,8 @@ def _ripple(p: EffectParams, means: torch.Tensor, t: torch.Tensor, T: int, wind:
     return out
 
 
-def gt_offsets(
-    params: MotionParams,
-    means: torch.Tensor,
-    anchors: torch.Tensor,
-    labels: torch.Tensor,
-    t: float | torch.Tensor,
-    T: int | None = None,
-) -> torch.Tensor:
+def gt_offsets(params: MotionParams, means: torch.Tensor, anchors: torch.Tensor, labels: torch.Tensor,
+               t: float | torch.Tensor, T: int | None = None) -> torch.Tensor:
     """Ground-truth displacement of every Gaussian at time ``t`` (frames).
 
     Args:
@@ -207,10 +187,8 @@ def gt_offsets(
     labels = torch.as_tensor(labels)
     n = means.shape[0]
     if means.shape != (n, 3) or anchors.shape != (n, 3) or labels.shape != (n,):
-        raise ValueError(
-            f"gt_offsets: expected means [N,3], anchors [N,3], labels [N]; got "
-            f"{tuple(means.shape)}, {tuple(anchors.shape)}, {tuple(labels.shape)}"
-        )
+        raise ValueError(f"gt_offsets: expected means [N,3], anchors [N,3], labels [N]; got "
+                         f"{tuple(means.shape)}, {tuple(anchors.shape)}, {tuple(labels.shape)}")
     tt = torch.as_tensor(t, dtype=torch.float32)
     scalar = tt.ndim == 0
     tt = tt.reshape(-1, 1)
@@ -222,9 +200,8 @@ def gt_offsets(
         if not effects or idx.numel() == 0:
             continue
         for eff in effects:
-            out[:, idx] += _sway(
-                params.effects[eff], means[idx], anchors[idx], tt, T, wind, flutter=(eff == "leaf_flutter")
-            )
+            out[:, idx] += _sway(params.effects[eff], means[idx], anchors[idx], tt, T, wind,
+                                 flutter=(eff == "leaf_flutter"))
     water = torch.nonzero(labels == WATER_LABEL).squeeze(1)
     if water.numel():
         p = params.effects.get(WATER_EFFECT) or water_default()

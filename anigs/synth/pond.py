@@ -5,7 +5,6 @@ surface (label ``water``, effect ``water_ripple``) a centimetre below the lawn, 
 of flat stones (label ``clutter``). The lawn and its specks inside the rim are removed; the
 grass tufts and rocks keep out of it (``POND_KEEP_OUT``). Water Gaussians are their own anchors.
 """
-
 from __future__ import annotations
 
 import math
@@ -55,15 +54,8 @@ def add_pond(B: "_Builder", n: int) -> None:
     cols = cols + rng.normal(0, 0.008 * B.texture, (m, 3))
     R = frame_from_normal(np.tile(up, (m, 1)), rng.uniform(0, math.pi, m))
     means = np.column_stack([grid, np.full(m, WATER_Z)])
-    B.add(
-        means,
-        np.column_stack([np.full(m, 0.8 * s), np.full(m, 0.7 * s), np.full(m, 0.002)]),
-        quat_from_matrix(R),
-        cols * _shade(np.tile(up, (m, 1)))[:, None],
-        SURFACE_OPACITY,
-        "water",
-        means.copy(),
-    )
+    B.add(means, np.column_stack([np.full(m, 0.8 * s), np.full(m, 0.7 * s), np.full(m, 0.002)]),
+          quat_from_matrix(R), cols * _shade(np.tile(up, (m, 1)))[:, None], SURFACE_OPACITY, "water", means.copy())
     # rim: flat stones on a ring between the water's edge and RIM outside it
     n_rim = max(n - n_water, 16)
     th = np.sort(rng.uniform(0, 2 * math.pi, n_rim))
@@ -74,11 +66,6 @@ def add_pond(B: "_Builder", n: int) -> None:
     stone = _stone(rng, (cx, cy, 0.0), max(rx, ry) + RIM + 0.1, (0.6, 0.58, 0.55), cell=0.1)
     pts = np.column_stack([xy, rng.uniform(0.006, 0.02, n_rim)])
     R = frame_from_normal(np.tile(up, (n_rim, 1)), rng.uniform(0, math.pi, n_rim))
-    B.add(
-        pts,
-        np.column_stack([np.full(n_rim, 0.9 * step), np.full(n_rim, 0.75 * step), np.full(n_rim, 0.003)]),
-        quat_from_matrix(R),
-        B.jitter(stone(pts)) * _shade(np.tile(up, (n_rim, 1)))[:, None],
-        SURFACE_OPACITY,
-        "clutter",
-    )
+    B.add(pts, np.column_stack([np.full(n_rim, 0.9 * step), np.full(n_rim, 0.75 * step), np.full(n_rim, 0.003)]),
+          quat_from_matrix(R), B.jitter(stone(pts)) * _shade(np.tile(up, (n_rim, 1)))[:, None], SURFACE_OPACITY,
+          "clutter")

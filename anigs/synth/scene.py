@@ -14,7 +14,6 @@ and an anchor in ``extras["anchor"]`` [N,3]: the point it sways about (tree: tru
 bush: base centre, grass: tuft root, flower: stem base; static Gaussians: their own mean).
 Everything is deterministic for a given seed (numpy ``default_rng``).
 """
-
 from __future__ import annotations
 
 import math
@@ -51,15 +50,8 @@ SUN = np.array([0.45, -0.55, 0.70]) / np.linalg.norm([0.45, -0.55, 0.70])
 
 # share of the Gaussian budget per label
 POND_BUDGET = 0.04  # extra share for the optional pond (water surface and its stone rim)
-BUDGET = {
-    "ground": 0.33,
-    "building": 0.22,
-    "clutter": 0.07,
-    "trunk": 0.02,
-    "foliage": 0.19,
-    "grass": 0.11,
-    "flowers": 0.06,
-}
+BUDGET = {"ground": 0.33, "building": 0.22, "clutter": 0.07, "trunk": 0.02, "foliage": 0.19,
+          "grass": 0.11, "flowers": 0.06}
 
 
 def path_x(y: np.ndarray) -> np.ndarray:
@@ -165,28 +157,16 @@ class _Builder:
         op = np.broadcast_to(np.asarray(opacity, np.float64), (n,)).copy()
         self.parts.append(_Part(means, scales, quats, np.clip(colors, 0.02, 0.97), op, LABEL_IDS[label], anchors))
 
-    def surface(
-        self,
-        origin,
-        u,
-        v,
-        size,
-        step,
-        color_fn: Callable,
-        label: str,
-        thin: float = 0.004,
-        opacity: float | None = None,
-        scale_frac: float = 0.75,
-    ) -> None:
+    def surface(self, origin, u, v, size, step, color_fn: Callable, label: str, thin: float = 0.004,
+                opacity: float | None = None, scale_frac: float = 0.75) -> None:
         """Flat Gaussians on the rectangle origin + a*u + b*v, (a,b) in [0,size]; colour_fn(ab[M,2]) -> [M,3]."""
         u, v = np.asarray(u, float), np.asarray(v, float)
         ab = _jittered_grid(self.rng, (0, 0), size, step)
         n = np.cross(u, v)
         R = np.broadcast_to(np.stack([u, v, n], 1), (len(ab), 3, 3))
         means = np.asarray(origin, float) + ab[:, :1] * u + ab[:, 1:] * v
-        scales = np.column_stack(
-            [np.full(len(ab), scale_frac * step[0]), np.full(len(ab), scale_frac * step[1]), np.full(len(ab), thin)]
-        )
+        scales = np.column_stack([np.full(len(ab), scale_frac * step[0]), np.full(len(ab), scale_frac * step[1]),
+                                  np.full(len(ab), thin)])
         colors = self.jitter(color_fn(ab)) * _shade(np.broadcast_to(n, means.shape))[:, None]
         self.add(means, scales, quat_from_matrix(R), colors, SURFACE_OPACITY if opacity is None else opacity, label)
 
@@ -198,26 +178,15 @@ class _Builder:
         base = np.asarray(center, float) - ex * sx / 2 - ey * sy / 2
         faces = [  # (origin, u, v, extent u, extent v)
             (base + ez * sz, ex, ey, sx, sy),
-            (base, ex, ez, sx, sz),
-            (base + ey * sy + ex * sx, -ex, ez, sx, sz),
-            (base + ex * sx, ey, ez, sy, sz),
-            (base + ey * sy, -ey, ez, sy, sz),
+            (base, ex, ez, sx, sz), (base + ey * sy + ex * sx, -ex, ez, sx, sz),
+            (base + ex * sx, ey, ez, sy, sz), (base + ey * sy, -ey, ez, sy, sz),
         ]
         for origin, u, v, a, b in faces:
             if a < 1e-6 or b < 1e-6:
                 continue
             stp = (min(step, a / 1.5), min(step, b / 1.5))
-            self.surface(
-                origin,
-                u,
-                v,
-                (a, b),
-                stp,
-                lambda ab, o=origin, u=u, v=v: color_fn(o + ab[:, :1] * u + ab[:, 1:] * v),
-                label,
-                thin=0.002,
-                scale_frac=0.72,
-            )
+            self.surface(origin, u, v, (a, b), stp, lambda ab, o=origin, u=u, v=v: color_fn(o + ab[:, :1] * u + ab[:, 1:] * v),
+                         label, thin=0.002, scale_frac=0.72)
 
     def blob(self, spheres: list, count: int, base_color, label: str, anchor, leaf: float) -> None:
         """Foliage: ``count`` leaves in the shells of overlapping ellipsoids ``spheres`` [(centre, radii)],
@@ -237,9 +206,8 @@ class _Builder:
         keep = np.sort(rng.permutation(keep)[:count])
         means, d, which = means[keep], d[keep], which[keep]
         count = len(keep)
-        scales = np.column_stack(
-            [rng.uniform(0.8, 1.3, count) * leaf, rng.uniform(0.5, 0.9, count) * leaf, np.full(count, 0.12 * leaf)]
-        )
+        scales = np.column_stack([rng.uniform(0.8, 1.3, count) * leaf, rng.uniform(0.5, 0.9, count) * leaf,
+                                  np.full(count, 0.12 * leaf)])
         q = rng.normal(size=(count, 4))
         light = 0.5 + 0.55 * (d[:, 2] + 1) / 2 * (0.75 + 0.45 * np.clip(d @ SUN, 0, 1))
         cols = np.asarray(base_color) * light[:, None] * rng.uniform(0.72, 1.28, (count, 1))
@@ -255,15 +223,8 @@ class _Builder:
         cm = centers[wc] + dc * rng.uniform(0.15, 0.55, (m, 1)) * radii[wc]
         cm[:, 2] = np.maximum(cm[:, 2], anchor[2] + 0.1)
         sc = radii[wc] * 0.3
-        self.add(
-            cm,
-            sc,
-            np.tile([1.0, 0, 0, 0], (m, 1)),
-            np.tile(np.asarray(base_color) * 0.4, (m, 1)),
-            0.95,
-            label,
-            np.broadcast_to(np.asarray(anchor, float), (m, 3)).copy(),
-        )
+        self.add(cm, sc, np.tile([1.0, 0, 0, 0], (m, 1)), np.tile(np.asarray(base_color) * 0.4, (m, 1)),
+                 0.95, label, np.broadcast_to(np.asarray(anchor, float), (m, 3)).copy())
 
     def cylinder(self, p0, p1, r0: float, r1: float, step: float, color_fn: Callable, label: str) -> None:
         """Bark-like surface of a tapered cylinder from p0 to p1 (flat Gaussians, long along the axis)."""
@@ -284,9 +245,8 @@ class _Builder:
         means = p0 + tv[:, 1:2] * axis + r[:, None] * radial
         tang = np.cross(axis, radial)
         R = np.stack([tang, np.broadcast_to(axis, tang.shape), radial], axis=2)
-        scales = np.column_stack(
-            [0.62 * ts * np.maximum(r / max(r0, r1), 0.3), np.full(len(s), 0.6 * step), np.full(len(s), 0.003)]
-        )
+        scales = np.column_stack([0.62 * ts * np.maximum(r / max(r0, r1), 0.3), np.full(len(s), 0.6 * step),
+                                  np.full(len(s), 0.003)])
         cols = self.jitter(color_fn(np.column_stack([th * max(r0, r1), tv[:, 1]])), 0.08) * _shade(radial)[:, None]
         self.add(means, scales, quat_from_matrix(R), cols, SURFACE_OPACITY, label)
 
@@ -299,9 +259,7 @@ def _assemble(parts: list[_Part]) -> Gaussians:
     g = Gaussians(
         means=torch.from_numpy(means.astype(np.float32)),
         quats=torch.from_numpy(np.concatenate([p.quats for p in parts]).astype(np.float32)),
-        log_scales=torch.from_numpy(
-            np.log(np.clip(np.concatenate([p.scales for p in parts]), 1e-4, None)).astype(np.float32)
-        ),
+        log_scales=torch.from_numpy(np.log(np.clip(np.concatenate([p.scales for p in parts]), 1e-4, None)).astype(np.float32)),
         opacity_logits=torch.logit(torch.from_numpy(np.concatenate([p.opacity for p in parts]).astype(np.float32))),
         sh=rgb_to_sh0(torch.from_numpy(colors.astype(np.float32)))[:, None, :].contiguous(),
         extras={"label": torch.from_numpy(labels), "anchor": torch.from_numpy(anchors.astype(np.float32))},

@@ -1,5 +1,4 @@
 """The ground truth of a synthetic capture as the other stages read it: which labels move with which effect."""
-
 from __future__ import annotations
 
 from typing import Sequence

@@ -6,23 +6,8 @@
 * :mod:`anigs.viewer.serve`: serve a folder on 127.0.0.1;
 * :mod:`anigs.viewer.cli`: the ``anigs view`` subcommand.
 """
+from anigs.viewer.compact import (CompactFormatError, CompactScene, decode_compact, encode_compact, load_compact,
+                                  save_compact, write_frame_plys)
 
-from anigs.viewer.compact import (
-    CompactFormatError,
-    CompactScene,
-    decode_compact,
-    encode_compact,
-    load_compact,
-    save_compact,
-    write_frame_plys,
-)
-
-__all__ = [
-    "CompactFormatError",
-    "CompactScene",
-    "decode_compact",
-    "encode_compact",
-    "load_compact",
-    "save_compact",
-    "write_frame_plys",
-]
+__all__ = ["CompactFormatError", "CompactScene", "decode_compact", "encode_compact", "load_compact",
+           "save_compact", "write_frame_plys"]

@@ -8,7 +8,6 @@ The folder (open ``index.html`` directly, or serve it with ``anigs view --serve`
     scene.js                     the same bytes base64-encoded (``embed``): pages opened from
                                  file:// cannot fetch(), they load this script instead
 """
-
 from __future__ import annotations
 
 import base64
@@ -28,23 +27,13 @@ from anigs.views import cameras_from_views
 log = logging.getLogger("anigs.viewer")
 
 DEFAULT_BACKGROUND = (0.62, 0.76, 0.92)  # the final renders' default sky colour (final.background)
-STATIC_FILES = (
-    "index.html",
-    "viewer.css",
-    "format.js",
-    "sort-worker.js",
-    "shaders.js",
-    "renderer.js",
-    "camera.js",
-    "viewer.js",
-    "ui.js",
-)
+STATIC_FILES = ("index.html", "viewer.css", "format.js", "sort-worker.js", "shaders.js", "renderer.js",
+                "camera.js", "viewer.js", "ui.js")
 SCENE_FILE, EMBED_FILE, CONFIG_FILE = "scene.anigs", "scene.js", "config.js"
 
 
-def load_animated(
-    model_path: str | Path, canonical: str | Path | Gaussians | None = None
-) -> tuple[Gaussians, DCTDeformation, dict[str, Any]]:
+def load_animated(model_path: str | Path, canonical: str | Path | Gaussians | None = None
+                  ) -> tuple[Gaussians, DCTDeformation, dict[str, Any]]:
     """(trained canonical Gaussians, deformation, model config) from ``model.pt`` or a compact file.
 
     ``model.pt`` needs the canonical PLY unless it stores every canonical attribute.
@@ -70,11 +59,9 @@ def views_config(views_json: str | Path | dict | None) -> dict[str, Any]:
         return {"views": [], "up": [0.0, 0.0, 1.0], "roi_centroid": None}
     data = views_json if isinstance(views_json, dict) else read_json(views_json)
     cams = cameras_from_views(data)
-    return {
-        "views": [{"id": c.name, "camera": c.to_dict()} for c in cams],
-        "up": [float(x) for x in data.get("up", [0.0, 0.0, 1.0])],
-        "roi_centroid": data.get("roi_centroid"),
-    }
+    return {"views": [{"id": c.name, "camera": c.to_dict()} for c in cams],
+            "up": [float(x) for x in data.get("up", [0.0, 0.0, 1.0])],
+            "roi_centroid": data.get("roi_centroid")}
 
 
 def copy_static(out_dir: Path) -> list[str]:
@@ -85,16 +72,9 @@ def copy_static(out_dir: Path) -> list[str]:
     return list(STATIC_FILES)
 
 
-def build_viewer(
-    model_path: str | Path,
-    out_dir: str | Path,
-    views_json: str | Path | dict | None = None,
-    canonical: str | Path | Gaussians | None = None,
-    background: Sequence[float] | None = None,
-    fps: float = 12.0,
-    embed: bool = True,
-    title: str = "anigs",
-) -> dict[str, Any]:
+def build_viewer(model_path: str | Path, out_dir: str | Path, views_json: str | Path | dict | None = None,
+                 canonical: str | Path | Gaussians | None = None, background: Sequence[float] | None = None,
+                 fps: float = 12.0, embed: bool = True, title: str = "anigs") -> dict[str, Any]:
     """Write the viewer folder for ``model_path`` (model.pt, or a .anigs compact file).
 
     Args:
@@ -122,30 +102,12 @@ def build_viewer(
         files.append(EMBED_FILE)
     elif (out / EMBED_FILE).exists():
         (out / EMBED_FILE).unlink()  # a stale copy would show an old scene from file://
-    cfg = dict(
-        views_config(views_json),
-        title=title,
-        background=bg,
-        fps=float(fps),
-        data=SCENE_FILE,
-        embedded=EMBED_FILE if embed else None,
-    )
+    cfg = dict(views_config(views_json), title=title, background=bg, fps=float(fps), data=SCENE_FILE,
+               embedded=EMBED_FILE if embed else None)
     atomic_write_text(out / CONFIG_FILE, "window.ANIGS_CONFIG = " + json.dumps(cfg, indent=1) + ";\n")
-    summary = {
-        "out": str(out),
-        "files": sorted(files),
-        "scene_bytes": len(blob),
-        "folder_bytes": sum((out / f).stat().st_size for f in files),
-        "num_gaussians": g.num,
-        "num_dynamic": deformation.num_dynamic,
-        "num_views": len(cfg["views"]),
-    }
-    log.info(
-        "viewer: %d Gaussians (%d moving), scene %.2f MB, %d views -> %s",
-        g.num,
-        deformation.num_dynamic,
-        len(blob) / 1e6,
-        len(cfg["views"]),
-        out,
-    )
+    summary = {"out": str(out), "files": sorted(files), "scene_bytes": len(blob),
+               "folder_bytes": sum((out / f).stat().st_size for f in files),
+               "num_gaussians": g.num, "num_dynamic": deformation.num_dynamic, "num_views": len(cfg["views"])}
+    log.info("viewer: %d Gaussians (%d moving), scene %.2f MB, %d views -> %s", g.num, deformation.num_dynamic,
+             len(blob) / 1e6, len(cfg["views"]), out)
     return summary

@@ -24,7 +24,6 @@ of the data section) and ``arrays``: name -> ``{"dtype", "shape", "offset", "nby
 The motion is :class:`anigs.animate.deform.DCTDeformation` (formula in ``header["formula"]``):
 the loader rebuilds the same tensors, so frame t equals the library's frame t bit for bit.
 """
-
 from __future__ import annotations
 
 import json
@@ -70,15 +69,10 @@ class CompactScene:
 def _arrays(canonical: Gaussians, deformation: DCTDeformation) -> dict[str, np.ndarray]:
     g = canonical.detach().to("cpu")
     f4 = lambda x: np.ascontiguousarray(x.detach().cpu().numpy().astype("<f4"))
-    out = {
-        "means": f4(g.means),
-        "quats": f4(g.quats),
-        "log_scales": f4(g.log_scales),
-        "opacity_logits": f4(g.opacity_logits),
-        "sh": f4(g.sh),
-        "dynamic_index": np.ascontiguousarray(deformation.dynamic_index.cpu().numpy().astype("<u4")),
-        "pos_coeffs": f4(deformation.pos_coeffs),
-    }
+    out = {"means": f4(g.means), "quats": f4(g.quats), "log_scales": f4(g.log_scales),
+           "opacity_logits": f4(g.opacity_logits), "sh": f4(g.sh),
+           "dynamic_index": np.ascontiguousarray(deformation.dynamic_index.cpu().numpy().astype("<u4")),
+           "pos_coeffs": f4(deformation.pos_coeffs)}
     for name in ("rot_coeffs", "max_offset", "max_angle"):
         val = getattr(deformation, name)
         if val is not None:
@@ -86,9 +80,8 @@ def _arrays(canonical: Gaussians, deformation: DCTDeformation) -> dict[str, np.n
     return out
 
 
-def encode_compact(
-    canonical: Gaussians, deformation: DCTDeformation, fps: float = 12.0, extra: dict[str, Any] | None = None
-) -> bytes:
+def encode_compact(canonical: Gaussians, deformation: DCTDeformation, fps: float = 12.0,
+                   extra: dict[str, Any] | None = None) -> bytes:
     """The compact file as bytes (see the module docstring for the layout)."""
     if deformation.num_gaussians is not None and deformation.num_gaussians != canonical.num:
         raise ValueError(f"deformation built for {deformation.num_gaussians} Gaussians, canonical has {canonical.num}")
@@ -106,21 +99,12 @@ def encode_compact(
         off += arr.nbytes
     data = b"".join(chunks)
     header = {
-        "format": FORMAT,
-        "num_gaussians": canonical.num,
-        "sh_degree": canonical.sh_degree,
-        "num_frames": deformation.num_frames,
-        "num_bases": deformation.num_bases,
-        "num_dynamic": deformation.num_dynamic,
-        "rotation": deformation.rot_coeffs is not None,
-        "fps": float(fps),
-        "data_bytes": len(data),
-        "crc32": zlib.crc32(data),
-        "arrays": table,
-        "formula": dict(
-            FORMULA,
-            limits="with max_offset/max_angle: offset x -> L tanh(|x|/L) x/|x| (rotation vector likewise) before use",
-        ),
+        "format": FORMAT, "num_gaussians": canonical.num, "sh_degree": canonical.sh_degree,
+        "num_frames": deformation.num_frames, "num_bases": deformation.num_bases,
+        "num_dynamic": deformation.num_dynamic, "rotation": deformation.rot_coeffs is not None,
+        "fps": float(fps), "data_bytes": len(data), "crc32": zlib.crc32(data), "arrays": table,
+        "formula": dict(FORMULA, limits="with max_offset/max_angle: offset x -> L tanh(|x|/L) x/|x| "
+                        "(rotation vector likewise) before use"),
         "extra": dict(extra or {}),
     }
     text = json.dumps(header, sort_keys=True).encode("utf-8")
@@ -128,13 +112,8 @@ def encode_compact(
     return _PREFIX.pack(MAGIC, VERSION, len(text)) + text + data
 
 
-def save_compact(
-    path: str | Path,
-    canonical: Gaussians,
-    deformation: DCTDeformation,
-    fps: float = 12.0,
-    extra: dict[str, Any] | None = None,
-) -> dict[str, Any]:
+def save_compact(path: str | Path, canonical: Gaussians, deformation: DCTDeformation, fps: float = 12.0,
+                 extra: dict[str, Any] | None = None) -> dict[str, Any]:
     """Write the compact file atomically; returns its header."""
     blob = encode_compact(canonical, deformation, fps, extra)
     with atomic_path(path) as tmp:
@@ -155,7 +134,7 @@ def parse_header(blob: bytes | memoryview, where: str = "compact scene") -> tupl
     if len(blob) < start:
         raise CompactFormatError(f"{where}: truncated in the header ({len(blob)} of {start} bytes)")
     try:
-        header = json.loads(bytes(blob[_PREFIX.size : start]).decode("utf-8"))
+        header = json.loads(bytes(blob[_PREFIX.size:start]).decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CompactFormatError(f"{where}: unreadable JSON header ({exc})") from None
     if not isinstance(header, dict) or header.get("format") != FORMAT:
@@ -181,18 +160,12 @@ def _array(blob: bytes | memoryview, start: int, header: dict, name: str, where:
 def decode_compact(blob: bytes | memoryview, where: str = "compact scene") -> CompactScene:
     """Rebuild (canonical, deformation) from a compact file's bytes."""
     header, start = parse_header(blob, where)
-    data = memoryview(blob)[start : start + int(header["data_bytes"])]
+    data = memoryview(blob)[start:start + int(header["data_bytes"])]
     if zlib.crc32(data) != int(header.get("crc32", -1)):
         raise CompactFormatError(f"{where}: data section is corrupted (CRC-32 mismatch)")
     n, K, D = int(header["num_gaussians"]), int(header["num_bases"]), int(header["num_dynamic"])
-    want = {
-        "means": (n, 3),
-        "quats": (n, 4),
-        "log_scales": (n, 3),
-        "opacity_logits": (n,),
-        "dynamic_index": (D,),
-        "pos_coeffs": (D, 3, K),
-    }
+    want = {"means": (n, 3), "quats": (n, 4), "log_scales": (n, 3), "opacity_logits": (n,),
+            "dynamic_index": (D,), "pos_coeffs": (D, 3, K)}
     if header["rotation"]:
         want["rot_coeffs"] = (D, 3, K)
     arr: dict[str, np.ndarray | None] = {}
@@ -206,22 +179,13 @@ def decode_compact(blob: bytes | memoryview, where: str = "compact scene") -> Co
     if sh is None or sh.ndim != 3 or sh.shape[0] != n or sh.shape[2] != 3:
         raise CompactFormatError(f"{where}: array 'sh' missing or not [N,C,3]")
     if sh_degree_from_coeffs(sh.shape[1]) != int(header["sh_degree"]):
-        raise CompactFormatError(
-            f"{where}: sh has {sh.shape[1]} coefficients, header says degree {header['sh_degree']}"
-        )
+        raise CompactFormatError(f"{where}: sh has {sh.shape[1]} coefficients, header says degree {header['sh_degree']}")
     t = lambda a: torch.from_numpy(a.astype(np.float32))  # astype copies: tensors own their memory
     canonical = Gaussians(t(arr["means"]), t(arr["quats"]), t(arr["log_scales"]), t(arr["opacity_logits"]), t(sh))
     canonical.check_finite(where)
     lim = lambda a: None if a is None else t(a)
-    deformation = DCTDeformation(
-        torch.from_numpy(arr["dynamic_index"].astype(np.int64)),
-        int(header["num_frames"]),
-        K,
-        bool(header["rotation"]),
-        lim(arr["max_offset"]),
-        lim(arr["max_angle"]),
-        n,
-    )
+    deformation = DCTDeformation(torch.from_numpy(arr["dynamic_index"].astype(np.int64)), int(header["num_frames"]),
+                                 K, bool(header["rotation"]), lim(arr["max_offset"]), lim(arr["max_angle"]), n)
     with torch.no_grad():
         deformation.pos_coeffs.copy_(t(arr["pos_coeffs"]))
         if deformation.rot_coeffs is not None:
@@ -241,9 +205,8 @@ def load_compact(path: str | Path) -> CompactScene:
     return decode_compact(path.read_bytes(), str(path))
 
 
-def write_frame_plys(
-    out_dir: str | Path, canonical: Gaussians, deformation: DCTDeformation, frame_step: int = 1
-) -> list[str]:
+def write_frame_plys(out_dir: str | Path, canonical: Gaussians, deformation: DCTDeformation,
+                     frame_step: int = 1) -> list[str]:
     """The optional per-frame 3DGS PLYs ``frames/frame_{t:04d}.ply`` (t = 0, step, ... < T); relative names.
 
     Frame t is :func:`anigs.animate.frames.deformed` written with :meth:`Gaussians.save_ply`, the

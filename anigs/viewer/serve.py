@@ -4,7 +4,6 @@ Only 127.0.0.1 (or "localhost") is accepted: the viewer is meant for the local m
 the network. :func:`start_server` runs in a background thread and is stopped with ``stop()``
 (or as a context manager); :func:`serve_folder` blocks until Ctrl-C or ``duration`` seconds.
 """
-
 from __future__ import annotations
 
 import functools
@@ -21,12 +20,8 @@ LOOPBACK = ("127.0.0.1", "localhost")
 
 
 class _Handler(http.server.SimpleHTTPRequestHandler):
-    extensions_map: ClassVar[dict[str, str]] = {
-        **http.server.SimpleHTTPRequestHandler.extensions_map,
-        ".js": "text/javascript",
-        ".anigs": "application/octet-stream",
-        ".css": "text/css",
-    }
+    extensions_map: ClassVar[dict[str, str]] = {**http.server.SimpleHTTPRequestHandler.extensions_map,
+                      ".js": "text/javascript", ".anigs": "application/octet-stream", ".css": "text/css"}
 
     def end_headers(self) -> None:
         self.send_header("Cache-Control", "no-store")  # a rebuilt viewer shows the new scene
@@ -54,9 +49,8 @@ class ViewerServer:
         self._httpd = _Server(("127.0.0.1", int(port)), handler)
         self.port = int(self._httpd.server_address[1])
         self.url = f"http://127.0.0.1:{self.port}/index.html"
-        self._thread = threading.Thread(
-            target=self._httpd.serve_forever, kwargs={"poll_interval": 0.2}, name="anigs-viewer-server", daemon=True
-        )
+        self._thread = threading.Thread(target=self._httpd.serve_forever, kwargs={"poll_interval": 0.2},
+                                        name="anigs-viewer-server", daemon=True)
         self._thread.start()
 
     def stop(self) -> None:
@@ -78,7 +72,8 @@ def start_server(folder: str | Path, port: int = 0, host: str = "127.0.0.1") -> 
     return ViewerServer(folder, port, host)
 
 
-def serve_folder(folder: str | Path, port: int = 8000, host: str = "127.0.0.1", duration: float | None = None) -> None:
+def serve_folder(folder: str | Path, port: int = 8000, host: str = "127.0.0.1",
+                 duration: float | None = None) -> None:
     """Serve until Ctrl-C, or for ``duration`` seconds when given."""
     server = start_server(folder, port, host)
     print(f"anigs viewer: {server.url}  (Ctrl-C stops)", flush=True)

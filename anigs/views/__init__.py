@@ -46,7 +46,6 @@ ROI coverage counts a Gaussian as seen by a view when it is visible there
 (:mod:`anigs.masks.lift`: ``weight`` = it contributes at least ``min_weight`` pixels of
 blending weight to the rendered image; ``depth`` = its centre passes a depth test).
 """
-
 from __future__ import annotations
 
 import importlib
@@ -56,49 +55,18 @@ from anigs.views.queue import queued_view_count
 
 # the rest loads on first use (PEP 562), so that ``queued_view_count`` does not import torch
 _LAZY = {
-    "ViewsConfig": "config",
-    "ViewPlan": "plan",
-    "plan_views": "plan",
-    "cameras_from_views": "plan",
-    "drop_negligible": "plan",
-    "view_camera": "candidates",
-    "farthest_point_order": "candidates",
-    "ccw_order": "candidates",
-    "make_candidates": "candidates",
-    "location_cameras": "candidates",
-    "score_candidate": "candidates",
-    "in_wedges": "candidates",
-    "azimuth_deg": "candidates",
-    "estimate_up": "coverage",
-    "observation_counts": "coverage",
-    "scene_coverage": "coverage",
-    "capture_pitch_deg": "coverage",
-    "replacement_directions": "coverage",
-    "dynamic_fraction": "coverage",
+    "ViewsConfig": "config", "ViewPlan": "plan", "plan_views": "plan", "cameras_from_views": "plan",
+    "drop_negligible": "plan", "view_camera": "candidates", "farthest_point_order": "candidates",
+    "ccw_order": "candidates", "make_candidates": "candidates", "location_cameras": "candidates",
+    "score_candidate": "candidates", "in_wedges": "candidates", "azimuth_deg": "candidates",
+    "estimate_up": "coverage", "observation_counts": "coverage", "scene_coverage": "coverage",
+    "capture_pitch_deg": "coverage", "replacement_directions": "coverage", "dynamic_fraction": "coverage",
 }
 
-__all__ = [
-    "queued_view_count",
-    "ViewsConfig",
-    "ViewPlan",
-    "plan_views",
-    "cameras_from_views",
-    "drop_negligible",
-    "view_camera",
-    "farthest_point_order",
-    "ccw_order",
-    "make_candidates",
-    "location_cameras",
-    "score_candidate",
-    "in_wedges",
-    "azimuth_deg",
-    "estimate_up",
-    "observation_counts",
-    "scene_coverage",
-    "capture_pitch_deg",
-    "replacement_directions",
-    "dynamic_fraction",
-]
+__all__ = ["queued_view_count", "ViewsConfig", "ViewPlan", "plan_views", "cameras_from_views", "drop_negligible",
+           "view_camera", "farthest_point_order", "ccw_order", "make_candidates", "location_cameras",
+           "score_candidate", "in_wedges", "azimuth_deg", "estimate_up", "observation_counts", "scene_coverage",
+           "capture_pitch_deg", "replacement_directions", "dynamic_fraction"]
 
 
 def __getattr__(name: str) -> Any:

@@ -1,6 +1,5 @@
 """Candidate locations and directions of the view queue: view cameras, farthest-point and
 counter-clockwise orders, heading wedges, candidate scores."""
-
 from __future__ import annotations
 
 import logging
@@ -19,17 +18,8 @@ from anigs.render.visibility import VisibilityConfig, visibility
 log = logging.getLogger("anigs.views")
 
 
-def view_camera(
-    eye: np.ndarray,
-    forward: np.ndarray,
-    up: np.ndarray,
-    yaw_deg: float,
-    pitch_deg: float,
-    fov_deg: float,
-    width: int,
-    height: int,
-    name: str = "",
-) -> Camera:
+def view_camera(eye: np.ndarray, forward: np.ndarray, up: np.ndarray, yaw_deg: float, pitch_deg: float,
+                fov_deg: float, width: int, height: int, name: str = "") -> Camera:
     """Camera at ``eye`` looking along horizontal ``forward`` rotated by ``yaw`` (CCW about up), tilted by ``pitch``."""
     f = forward - up * (forward @ up)
     n = np.linalg.norm(f)
@@ -38,8 +28,8 @@ def view_camera(
     f /= n
     left = np.cross(up, f)
     y, p = math.radians(yaw_deg), math.radians(pitch_deg)
-    h = math.cos(y) * f + math.sin(y) * left  # yaw: +90 turns left (CCW seen from above)
-    d = math.cos(p) * h + math.sin(p) * up  # pitch: positive looks up
+    h = math.cos(y) * f + math.sin(y) * left          # yaw: +90 turns left (CCW seen from above)
+    d = math.cos(p) * h + math.sin(p) * up            # pitch: positive looks up
     right = np.cross(d, up)
     right /= np.linalg.norm(right)
     down = np.cross(d, right)
@@ -111,35 +101,20 @@ def azimuth_deg(vec: np.ndarray, up: np.ndarray) -> np.ndarray:
     return np.degrees(np.arctan2(np.asarray(vec) @ e2, np.asarray(vec) @ e1))
 
 
-def location_cameras(
-    pos: np.ndarray,
-    heading_deg: float,
-    up: np.ndarray,
-    cfg: ViewsConfig,
-    directions: Sequence[float] | None = None,
-    fov_deg: float | None = None,
-) -> list[Camera]:
+def location_cameras(pos: np.ndarray, heading_deg: float, up: np.ndarray, cfg: ViewsConfig,
+                     directions: Sequence[float] | None = None, fov_deg: float | None = None) -> list[Camera]:
     """Cameras at ``pos`` for each yaw of ``directions`` (default ``cfg.directions``) relative to the
     azimuth ``heading_deg``."""
     e1, e2 = horizontal_basis(up)
     h = math.radians(heading_deg)
     fwd = math.cos(h) * e1 + math.sin(h) * e2
     dirs = cfg.directions if directions is None else directions
-    return [
-        view_camera(pos, fwd, up, yaw, cfg.pitch_deg, fov_deg or cfg.fov_deg, cfg.width, cfg.height, f"{yaw:+.0f}")
-        for yaw in dirs
-    ]
+    return [view_camera(pos, fwd, up, yaw, cfg.pitch_deg, fov_deg or cfg.fov_deg, cfg.width, cfg.height,
+                        f"{yaw:+.0f}") for yaw in dirs]
 
 
-def score_candidate(
-    g: Gaussians,
-    pos: np.ndarray,
-    roi_idx: np.ndarray,
-    up: np.ndarray,
-    cfg: ViewsConfig,
-    vcfg: VisibilityConfig,
-    fixed_heading: float | None,
-) -> tuple[float, np.ndarray]:
+def score_candidate(g: Gaussians, pos: np.ndarray, roi_idx: np.ndarray, up: np.ndarray, cfg: ViewsConfig,
+                    vcfg: VisibilityConfig, fixed_heading: float | None) -> tuple[float, np.ndarray]:
     """(heading in deg, bool [R] ROI Gaussians the location's views would see).
 
     Renders a 4-view panorama (FOV >= 92 deg) at ``pos``; a visible ROI Gaussian counts for a
@@ -175,10 +150,8 @@ def candidate_positions(cameras: Sequence[Camera], up: np.ndarray, cfg: ViewsCon
     ``cfg.num_locations`` of them, thinned to ``cfg.max_candidates`` by farthest-point sampling."""
     cand, cand_fwd = make_candidates(cameras, up, cfg)
     if len(cand) < cfg.num_locations:
-        raise ValueError(
-            f"views: {len(cand)} candidate positions but num_locations={cfg.num_locations}; "
-            "lower views.num_locations or add jittered candidates (views.jitter_copies)"
-        )
+        raise ValueError(f"views: {len(cand)} candidate positions but num_locations={cfg.num_locations}; "
+                         "lower views.num_locations or add jittered candidates (views.jitter_copies)")
     if len(cand) > cfg.max_candidates:  # thin by pure farthest-point sampling first
         keep = sorted(farthest_point_order(cand, np.ones(len(cand)), cfg.max_candidates, 0))
         cand, cand_fwd = cand[keep], cand_fwd[keep]

@@ -33,7 +33,6 @@ alpha is >= ``alpha`` and whose alpha the sharp Gaussians that the view does not
 within ``radius`` px of an edge (absolute 4-neighbour Laplacian of the grey image, 0-255, above
 ``threshold``), computed on the view's colour render. It is recorded for each view.
 """
-
 from __future__ import annotations
 
 import logging
@@ -52,39 +51,35 @@ from anigs.render.visibility import blend_weights, frustum_subset, render_inputs
 
 log = logging.getLogger("anigs.views")
 
-EDGE_THRESHOLD = 6.0  # |Laplacian| of the grey image (0-255) that marks an edge
-EDGE_RADIUS = 4  # a pixel is near an edge within this many pixels
+EDGE_THRESHOLD = 6.0   # |Laplacian| of the grey image (0-255) that marks an edge
+EDGE_RADIUS = 4        # a pixel is near an edge within this many pixels
 
 
 @dataclass
 class ContentRule:
     """Parameters of the sharp-Gaussian test and the content figure (from :class:`ViewsConfig`)."""
 
-    min_content: float = 0.5  # a view is kept when >= this share of its pixels shows sharp content
-    sharp_fraction: float = 0.05  # a photo resolves a Gaussian when its largest std dev spans <= this x its width
-    min_sharp_observations: int = 2  # ... in at least this many photos
-    footprint_ratio: float = 6.0  # largest scale <= this x the median of its neighbours'
-    neighbours: int = 16  # neighbours for that median
-    near_points: float = 3.0  # centre within this x the local SfM point spacing of a point (no points: skipped)
-    alpha: float = 0.5  # a content pixel has accumulated alpha >= this
-    min_weight: float = 0.05  # visibility in a photo: blending weight >= this (pixels)
-    max_sampling_ratio: float = (
-        1.0  # a Gaussian counts for a view when its best photo's pixel footprint <= this x the view's (0: off)
-    )
+    min_content: float = 0.5          # a view is kept when >= this share of its pixels shows sharp content
+    sharp_fraction: float = 0.05      # a photo resolves a Gaussian when its largest std dev spans <= this x its width
+    min_sharp_observations: int = 2   # ... in at least this many photos
+    footprint_ratio: float = 6.0      # largest scale <= this x the median of its neighbours'
+    neighbours: int = 16              # neighbours for that median
+    near_points: float = 3.0          # centre within this x the local SfM point spacing of a point (no points: skipped)
+    alpha: float = 0.5                # a content pixel has accumulated alpha >= this
+    min_weight: float = 0.05          # visibility in a photo: blending weight >= this (pixels)
+    max_sampling_ratio: float = 1.0   # a Gaussian counts for a view when its best photo's pixel footprint <= this x the view's (0: off)
 
 
 @dataclass
 class SharpSet:
     """Per-Gaussian result of :func:`sharp_gaussians` (N = number of Gaussians)."""
 
-    sharp: np.ndarray  # bool [N]
-    observations: np.ndarray  # int [N] photos the Gaussian is visible in
-    sharp_observations: np.ndarray  # int [N] photos that resolve it
-    footprint_ok: np.ndarray  # bool [N]
-    near_points: np.ndarray  # bool [N] (all True without points)
-    photo_footprint: np.ndarray | None = (
-        None  # float [N] finest pixel footprint (world units / px) of a photo it is visible in; inf: none
-    )
+    sharp: np.ndarray                 # bool [N]
+    observations: np.ndarray          # int [N] photos the Gaussian is visible in
+    sharp_observations: np.ndarray    # int [N] photos that resolve it
+    footprint_ok: np.ndarray          # bool [N]
+    near_points: np.ndarray           # bool [N] (all True without points)
+    photo_footprint: np.ndarray | None = None  # float [N] finest pixel footprint (world units / px) of a photo it is visible in; inf: none
     summary: dict[str, Any] = field(default_factory=dict)
 
 
@@ -116,9 +111,8 @@ def photo_footprints(g: Gaussians, cameras: Sequence[Camera], min_weight: float 
     return observation_and_sharp_counts(g, cameras, 1.0, min_weight)[2]
 
 
-def observation_and_sharp_counts(
-    g: Gaussians, cameras: Sequence[Camera], sharp_fraction: float, min_weight: float = 0.05
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def observation_and_sharp_counts(g: Gaussians, cameras: Sequence[Camera], sharp_fraction: float,
+                                 min_weight: float = 0.05) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(photos each Gaussian is visible in, photos that resolve it): int [N] each, and its finest
     pixel footprint among the photos it is visible in (float [N], inf: none; :func:`photo_footprints`).
 
@@ -167,9 +161,8 @@ def near_points_mask(g: Gaussians, points: np.ndarray | None, factor: float, k: 
     return d <= factor * spacing[i]
 
 
-def sharp_gaussians(
-    g: Gaussians, cameras: Sequence[Camera], rule: ContentRule, points: np.ndarray | None = None
-) -> SharpSet:
+def sharp_gaussians(g: Gaussians, cameras: Sequence[Camera], rule: ContentRule,
+                    points: np.ndarray | None = None) -> SharpSet:
     """The Gaussians that reconstructed content is made of (see the module docstring)."""
     obs, sobs, finest = observation_and_sharp_counts(g, cameras, rule.sharp_fraction, rule.min_weight)
     ratio = footprint_ratio(g, rule.neighbours)
@@ -178,25 +171,12 @@ def sharp_gaussians(
     resolved = sobs >= rule.min_sharp_observations
     sharp = resolved & foot & near
     n = max(g.num, 1)
-    summary = {
-        "sharp": int(sharp.sum()),
-        "of": int(g.num),
-        "resolved": int(resolved.sum()),
-        "footprint_ok": int(foot.sum()),
-        "near_points": None if points is None else int(near.sum()),
-    }
-    log.info(
-        "views: %d of %d Gaussians are sharp (%.1f%%): resolved by >= %d photos %.1f%%, footprint <= %gx "
-        "neighbours' %.1f%%, near SfM points %s",
-        summary["sharp"],
-        g.num,
-        100 * sharp.sum() / n,
-        rule.min_sharp_observations,
-        100 * resolved.sum() / n,
-        rule.footprint_ratio,
-        100 * foot.sum() / n,
-        "n/a" if points is None else f"{100 * near.sum() / n:.1f}%",
-    )
+    summary = {"sharp": int(sharp.sum()), "of": int(g.num), "resolved": int(resolved.sum()),
+               "footprint_ok": int(foot.sum()), "near_points": None if points is None else int(near.sum())}
+    log.info("views: %d of %d Gaussians are sharp (%.1f%%): resolved by >= %d photos %.1f%%, footprint <= %gx "
+             "neighbours' %.1f%%, near SfM points %s", summary["sharp"], g.num, 100 * sharp.sum() / n,
+             rule.min_sharp_observations, 100 * resolved.sum() / n, rule.footprint_ratio, 100 * foot.sum() / n,
+             "n/a" if points is None else f"{100 * near.sum() / n:.1f}%")
     return SharpSet(sharp, obs, sobs, foot, near, finest, summary)
 
 
@@ -211,14 +191,9 @@ def magnified(g: Gaussians, photo_footprint: np.ndarray, cam: Camera, max_ratio:
     return np.isfinite(view) & (np.asarray(photo_footprint) > max_ratio * view)
 
 
-def content_masks(
-    g: Gaussians,
-    sharp: np.ndarray,
-    cam: Camera,
-    alpha: float = 0.5,
-    photo_footprint: np.ndarray | None = None,
-    max_sampling_ratio: float = 0.0,
-) -> tuple[np.ndarray, np.ndarray]:
+def content_masks(g: Gaussians, sharp: np.ndarray, cam: Camera, alpha: float = 0.5,
+                  photo_footprint: np.ndarray | None = None, max_sampling_ratio: float = 0.0
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """(content, sharp) bool [H,W] of ``cam`` in one render: pixels with alpha >= ``alpha`` of
     which the ``sharp`` [N] Gaussians that ``cam`` does not magnify (:func:`magnified`, with
     ``photo_footprint`` [N]; without it nothing is magnified) carry >= half; and the same
@@ -233,14 +208,8 @@ def content_masks(
     return m["content"], m["sharp"]
 
 
-def content_fraction(
-    g: Gaussians,
-    sharp: np.ndarray,
-    cam: Camera,
-    alpha: float = 0.5,
-    photo_footprint: np.ndarray | None = None,
-    max_sampling_ratio: float = 0.0,
-) -> float:
+def content_fraction(g: Gaussians, sharp: np.ndarray, cam: Camera, alpha: float = 0.5,
+                     photo_footprint: np.ndarray | None = None, max_sampling_ratio: float = 0.0) -> float:
     """Share of ``cam``'s pixels with alpha >= ``alpha`` of which the ``sharp`` [N] Gaussians carry
     >= half, leaving out those ``cam`` magnifies more than ``max_sampling_ratio`` x the best
     photo's sampling (``photo_footprint`` [N]; :func:`content_masks`)."""
@@ -255,16 +224,8 @@ def render_rgb(g: Gaussians, cam: Camera, background: Sequence[float]) -> np.nda
         return np.broadcast_to(bg.numpy(), (cam.height, cam.width, 3)).copy()
     deg = g.sh_degree
     with torch.no_grad():
-        rgb, _, _ = rasterize(
-            *render_inputs(g, idx),
-            g.sh.detach().float().cpu()[idx],
-            cam.torch_viewmat(),
-            cam.torch_K(),
-            cam.width,
-            cam.height,
-            sh_degree=deg,
-            background=bg,
-        )
+        rgb, _, _ = rasterize(*render_inputs(g, idx), g.sh.detach().float().cpu()[idx], cam.torch_viewmat(),
+                              cam.torch_K(), cam.width, cam.height, sh_degree=deg, background=bg)
     return rgb.clamp(0, 1).numpy()
 
 
@@ -286,9 +247,8 @@ class ContentCheck:
     """The content test of candidate directions: :func:`content_fraction` (gated at
     ``rule.min_content``) and :func:`edge_share` (gated at ``min_edge_share``; 0 records it only)."""
 
-    def __init__(
-        self, g: Gaussians, sharp: SharpSet, rule: ContentRule, background: Sequence[float], min_edge_share: float = 0.0
-    ):
+    def __init__(self, g: Gaussians, sharp: SharpSet, rule: ContentRule, background: Sequence[float],
+                 min_edge_share: float = 0.0):
         self.g, self.sharp, self.rule = g, sharp, rule
         self.background, self.min_edge_share = list(background), float(min_edge_share)
 
@@ -296,31 +256,19 @@ class ContentCheck:
         """{"content": ..., "magnified": ..., "edge_share": ...} of a view: ``magnified`` is the share
         of its pixels that sharp Gaussians dominate but that the view magnifies beyond
         ``max_sampling_ratio`` (left out of ``content``)."""
-        content, sharp = content_masks(
-            self.g, self.sharp.sharp, cam, self.rule.alpha, self.sharp.photo_footprint, self.rule.max_sampling_ratio
-        )
-        return {
-            "content": float(content.mean()),
-            "magnified": float((sharp & ~content).mean()),
-            "edge_share": edge_share(render_rgb(self.g, cam, self.background)),
-        }
+        content, sharp = content_masks(self.g, self.sharp.sharp, cam, self.rule.alpha, self.sharp.photo_footprint,
+                                       self.rule.max_sampling_ratio)
+        return {"content": float(content.mean()), "magnified": float((sharp & ~content).mean()),
+                "edge_share": edge_share(render_rgb(self.g, cam, self.background))}
 
     def failure(self, fig: dict[str, float]) -> str | None:
         """Why a view with figures ``fig`` fails (None: it passes)."""
         why = []
         if fig["content"] < self.rule.min_content:
-            why.append(
-                f"content {fig['content']:.2f} < min_content {self.rule.min_content:g} (pixels dominated "
-                "by sharp Gaussians"
-                + (
-                    f"; {fig['magnified']:.2f} of the view magnifies its sharp Gaussians > "
-                    f"max_sampling_ratio {self.rule.max_sampling_ratio:g} x the best photo's "
-                    "sampling"
-                    if fig.get("magnified", 0) > 0
-                    else ""
-                )
-                + ")"
-            )
+            why.append(f"content {fig['content']:.2f} < min_content {self.rule.min_content:g} (pixels dominated "
+                       "by sharp Gaussians" + (f"; {fig['magnified']:.2f} of the view magnifies its sharp Gaussians > "
+                                               f"max_sampling_ratio {self.rule.max_sampling_ratio:g} x the best photo's "
+                                               "sampling" if fig.get("magnified", 0) > 0 else "") + ")")
         if fig["edge_share"] < self.min_edge_share:
             why.append(f"edge share {fig['edge_share']:.2f} < min_edge_share {self.min_edge_share:g}")
         return "; ".join(why) or None
@@ -328,26 +276,17 @@ class ContentCheck:
     def to_json(self) -> dict[str, Any]:
         """The rule as recorded in ``views.json`` (``content``)."""
         r = self.rule
-        return {
-            "min_content": r.min_content,
-            "min_edge_share": self.min_edge_share,
-            "sharp_fraction": r.sharp_fraction,
-            "min_sharp_observations": r.min_sharp_observations,
-            "footprint_ratio": r.footprint_ratio,
-            "neighbours": r.neighbours,
-            "near_points": r.near_points,
-            "alpha": r.alpha,
-            "max_sampling_ratio": r.max_sampling_ratio,
-            "edge": {"threshold": EDGE_THRESHOLD, "radius_px": EDGE_RADIUS, "background": self.background},
-            "sharp_gaussians": self.sharp.summary,
-            "definition": (
-                "content: share of the view's pixels with alpha >= alpha of which sharp Gaussians "
-                "carry >= half; sharp: resolved (largest std dev <= sharp_fraction x its width) by >= "
-                "min_sharp_observations photos, largest scale <= footprint_ratio x the median of "
-                "its neighbours', within near_points x the local spacing of the nearest SfM point, "
-                "and not magnified by the view: the finest pixel footprint (depth / focal length) of a "
-                "photo it is visible in <= max_sampling_ratio x the view's at it (0: off); magnified: "
-                "share of pixels sharp Gaussians dominate that fail only that; edge_share: "
-                "share of the colour render within radius_px of |Laplacian(grey 0-255)| > threshold"
-            ),
-        }
+        return {"min_content": r.min_content, "min_edge_share": self.min_edge_share, "sharp_fraction": r.sharp_fraction,
+                "min_sharp_observations": r.min_sharp_observations, "footprint_ratio": r.footprint_ratio,
+                "neighbours": r.neighbours, "near_points": r.near_points, "alpha": r.alpha,
+                "max_sampling_ratio": r.max_sampling_ratio,
+                "edge": {"threshold": EDGE_THRESHOLD, "radius_px": EDGE_RADIUS, "background": self.background},
+                "sharp_gaussians": self.sharp.summary,
+                "definition": ("content: share of the view's pixels with alpha >= alpha of which sharp Gaussians "
+                               "carry >= half; sharp: resolved (largest std dev <= sharp_fraction x its width) by >= "
+                               "min_sharp_observations photos, largest scale <= footprint_ratio x the median of "
+                               "its neighbours', within near_points x the local spacing of the nearest SfM point, "
+                               "and not magnified by the view: the finest pixel footprint (depth / focal length) of a "
+                               "photo it is visible in <= max_sampling_ratio x the view's at it (0: off); magnified: "
+                               "share of pixels sharp Gaussians dominate that fail only that; edge_share: "
+                               "share of the colour render within radius_px of |Laplacian(grey 0-255)| > threshold")}

@@ -1,6 +1,5 @@
 """Scene coverage of a view (pixels that see Gaussians observed by enough photos), and the
 directions that replace one that fails."""
-
 from __future__ import annotations
 
 import logging
@@ -44,8 +43,8 @@ def scene_coverage(g_observed: Gaussians, cam: Camera, alpha_min: float = 0.5) -
     return float((alpha >= alpha_min).mean())
 
 
-DYNAMIC_SHARE = 0.5  # a pixel is dynamic when the ROI carries >= this share of its alpha ...
-DYNAMIC_ALPHA = 0.3  # ... and its alpha is >= this (the labels/effects mask backends' defaults)
+DYNAMIC_SHARE = 0.5   # a pixel is dynamic when the ROI carries >= this share of its alpha ...
+DYNAMIC_ALPHA = 0.3   # ... and its alpha is >= this (the labels/effects mask backends' defaults)
 
 
 def dynamic_fraction(g: Gaussians, roi: np.ndarray, cam: Camera) -> float:
@@ -69,9 +68,7 @@ def _rel_deg(a: float) -> float:
     return float(_wrap_deg(np.array([a]))[0])
 
 
-def replacement_directions(
-    yaw: float, pitch: float, roi_rel: float | None, cfg: ViewsConfig
-) -> list[tuple[float, float]]:
+def replacement_directions(yaw: float, pitch: float, roi_rel: float | None, cfg: ViewsConfig) -> list[tuple[float, float]]:
     """(yaw, pitch) pairs to try for a requested direction, in order: itself, pitched down in
     ``pitch_step_deg`` steps, then yaws moved ``yaw_steps`` of the way towards ``roi_rel`` (deg,
     relative to the heading) with the same pitches. Duplicates dropped."""

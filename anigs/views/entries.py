@@ -1,6 +1,5 @@
 """The queue's ``views.json`` entries: one per placed view, numbered v00, v01, ... in queue
 order, with what it sees, its overlap with the views before it and the ROI coverage so far."""
-
 from __future__ import annotations
 
 import logging
@@ -18,16 +17,9 @@ from anigs.views.policy import LayoutPolicy
 log = logging.getLogger("anigs.views")
 
 
-def queue_entries(
-    g: Gaussians,
-    roi: np.ndarray,
-    slots: Sequence[Slot],
-    fractions: Sequence[float | None],
-    heading: np.ndarray,
-    figures: dict[int, dict[str, float]],
-    policy: LayoutPolicy,
-    cfg: ViewsConfig,
-) -> tuple[list[dict[str, Any]], list[Camera], list[np.ndarray], list[float], list[float]]:
+def queue_entries(g: Gaussians, roi: np.ndarray, slots: Sequence[Slot], fractions: Sequence[float | None],
+                  heading: np.ndarray, figures: dict[int, dict[str, float]], policy: LayoutPolicy, cfg: ViewsConfig
+                  ) -> tuple[list[dict[str, Any]], list[Camera], list[np.ndarray], list[float], list[float]]:
     """(entries, cameras named by id, bool [N] seen per view, ROI coverage after each view, the same
     ignoring occlusion) for the queued ``slots`` (their dynamic ``fractions``; ``heading`` [M] deg
     per candidate; ``figures``: content figures by camera ``id``)."""
@@ -48,22 +40,12 @@ def queue_entries(
         n_seen = int(seen.sum())
         roi_seen = int((seen & roi).sum())
         entry: dict[str, Any] = {
-            "id": vid,
-            "location": loc,
-            "candidate": int(ci),
-            "yaw": float(yaw),
-            "pitch": float(pitch),
-            "heading_deg": float(heading[ci]),
-            "camera": cam.to_dict(),
-            "roi_visible": roi_seen,
-            "roi_visible_fraction": roi_seen / n_roi,
-            "visible": n_seen,
-            "coverage": cov,
-            "requested_yaw": float(req_yaw),
-            "fov_deg": policy.fov_deg,
-            "replaced": bool(
-                abs(yaw - req_yaw) > 1e-9 or abs(pitch - policy.pitch_deg) > 1e-9 or loc >= cfg.num_locations
-            ),
+            "id": vid, "location": loc, "candidate": int(ci), "yaw": float(yaw), "pitch": float(pitch),
+            "heading_deg": float(heading[ci]), "camera": cam.to_dict(),
+            "roi_visible": roi_seen, "roi_visible_fraction": roi_seen / n_roi, "visible": n_seen,
+            "coverage": cov, "requested_yaw": float(req_yaw), "fov_deg": policy.fov_deg,
+            "replaced": bool(abs(yaw - req_yaw) > 1e-9 or abs(pitch - policy.pitch_deg) > 1e-9
+                             or loc >= cfg.num_locations),
             **figures[id(cam)],
         }
         if dyn is not None:
@@ -74,17 +56,9 @@ def queue_entries(
             entry["overlap_prev"] = ov
             entry["overlap_prev_roi"] = ov_roi
             if ov <= cfg.min_overlap:
-                log.warning(
-                    "views: %s (location %d, yaw %+.0f) overlaps none of the previous views: "
-                    "%d of its %d visible Gaussians were seen before (%.1f%%, min_overlap %.2f)",
-                    vid,
-                    loc,
-                    yaw,
-                    int((seen & any_seen).sum()),
-                    n_seen,
-                    100 * ov,
-                    cfg.min_overlap,
-                )
+                log.warning("views: %s (location %d, yaw %+.0f) overlaps none of the previous views: "
+                            "%d of its %d visible Gaussians were seen before (%.1f%%, min_overlap %.2f)",
+                            vid, loc, yaw, int((seen & any_seen).sum()), n_seen, 100 * ov, cfg.min_overlap)
         else:
             entry["overlap_prev"] = None
             entry["overlap_prev_roi"] = None

@@ -1,7 +1,6 @@
 """Place the queue's directions at the chosen locations: the first direction per requested yaw
 that passes the coverage and content tests (:func:`anigs.views.coverage.replacement_directions`
 gives the order of the replacements), then extra locations for the yaws nowhere placed."""
-
 from __future__ import annotations
 
 import logging
@@ -56,16 +55,8 @@ class Placer:
     def coverage_of(self, ci: int, yaw: float, pitch: float) -> tuple[Camera, float, dict[str, float] | None]:
         """The view's camera, scene coverage and content figures (None when the coverage fails)."""
         cfg = self.cfg
-        cam = view_camera(
-            self.cand[ci],
-            self.heading_vec(self.heading[ci]),
-            self.up,
-            yaw,
-            pitch,
-            self.policy.fov_deg,
-            cfg.width,
-            cfg.height,
-        )
+        cam = view_camera(self.cand[ci], self.heading_vec(self.heading[ci]), self.up, yaw, pitch,
+                          self.policy.fov_deg, cfg.width, cfg.height)
         key = (ci, round(_rel_deg(yaw), 6), round(pitch, 6))
         if key not in self.cov_cache:
             cov = scene_coverage(self.g_obs, cam, cfg.coverage_alpha)
@@ -80,29 +71,15 @@ class Placer:
             if any(abs(_rel_deg(y - uy)) < 1e-6 and abs(p - up_) < 1e-6 for uy, up_ in self.used.get(ci, [])):
                 continue
             cam, cov, fig = self.coverage_of(ci, y, p)
-            why = (
-                f"coverage {cov:.2f} < min_coverage {self.cfg.min_coverage:g}"
-                if fig is None
-                else self.check.failure(fig)
-            )
+            why = (f"coverage {cov:.2f} < min_coverage {self.cfg.min_coverage:g}" if fig is None
+                   else self.check.failure(fig))
             if why is None:
                 self.used.setdefault(ci, []).append((y, p))
                 self.figures[id(cam)] = fig
                 return cam, cov, y, p
-            self.rejected.append(
-                {
-                    "location": loc,
-                    "candidate": int(ci),
-                    "requested_yaw": float(yaw),
-                    "yaw": float(y),
-                    "pitch": float(p),
-                    "coverage": cov,
-                    **(fig or {}),
-                    "reason": why,
-                    "position": self.cand[ci].tolist(),
-                    "forward": cam.forward.tolist(),
-                }
-            )
+            self.rejected.append({"location": loc, "candidate": int(ci), "requested_yaw": float(yaw), "yaw": float(y),
+                                  "pitch": float(p), "coverage": cov, **(fig or {}), "reason": why,
+                                  "position": self.cand[ci].tolist(), "forward": cam.forward.tolist()})
         return None
 
     def place_all(self, chosen: list[int], extra: list[int]) -> tuple[list[Slot], list[int]]:
@@ -136,16 +113,10 @@ class Placer:
                 loc_ids.append(loc)
                 chosen.append(ci)
         if missing:
-            log.warning(
-                "views: %d direction(s) (yaw %s) pass the coverage test (>= %.0f%% of pixels on Gaussians "
-                "seen in >= %d photos) and the content test (>= %.0f%% of pixels on sharp Gaussians) "
-                "nowhere: left out of the queue",
-                len(missing),
-                ", ".join(f"{y:+.0f}" for y in missing),
-                100 * cfg.min_coverage,
-                cfg.min_observations,
-                100 * cfg.min_content,
-            )
+            log.warning("views: %d direction(s) (yaw %s) pass the coverage test (>= %.0f%% of pixels on Gaussians "
+                        "seen in >= %d photos) and the content test (>= %.0f%% of pixels on sharp Gaussians) "
+                        "nowhere: left out of the queue", len(missing), ", ".join(f"{y:+.0f}" for y in missing),
+                        100 * cfg.min_coverage, cfg.min_observations, 100 * cfg.min_content)
         if self.rejected:
             log.info("views: %d direction(s) rejected by the coverage test and replaced", len(self.rejected))
         return slots, chosen

@@ -1,5 +1,4 @@
 """The size of a written view queue (json only: the workflow imports it without torch)."""
-
 from __future__ import annotations
 
 import json

@@ -8,7 +8,6 @@ not installed, it replaces ``anigs.video.write_mp4`` (once ``anigs.video`` is im
 using OpenCV's MPEG-4 Part 2 encoder (``mp4v``): the same frames and file names, another codec
 (H.264 needs ffmpeg's libx264). Each replaced write is logged on stderr. Nothing else changes.
 """
-
 from __future__ import annotations
 
 import importlib.abc
@@ -29,13 +28,13 @@ def write_mp4_opencv(path, clip, fps: int = 24, quality: int = 8) -> None:
     with atomic_path(path) as tmp:
         writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (width, height))
         if not writer.isOpened():
-            raise RuntimeError(
-                f"{path}: OpenCV could not open an mp4v writer (imageio-ffmpeg is not installed on this machine either)"
-            )
+            raise RuntimeError(f"{path}: OpenCV could not open an mp4v writer (imageio-ffmpeg is not installed "
+                               "on this machine either)")
         for f in frames:
             writer.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
         writer.release()
-    print(f"[gpu-check shim] {path}: mp4 written with OpenCV (mp4v), imageio-ffmpeg is not installed", file=sys.stderr)
+    print(f"[gpu-check shim] {path}: mp4 written with OpenCV (mp4v), imageio-ffmpeg is not installed",
+          file=sys.stderr)
 
 
 class _PatchVideo(importlib.abc.MetaPathFinder):

@@ -1,5 +1,4 @@
 """anigs.animate.adam.Adam against torch.optim.Adam + ExponentialLR: the same bits on the CPU."""
-
 import pytest
 import torch
 
@@ -13,9 +12,9 @@ def _train(make, steps=25, seed=0):
     groups = [{"params": [a], "lr": 3e-3, "name": "a"}, {"params": [b], "lr": 1e-2, "name": "b"}]
     opt, after = make(groups)
     for it in range(steps):
-        loss = (a.sin() * torch.randn(a.shape, generator=g)).sum() + (b**2).sum() * 1e-3
+        loss = (a.sin() * torch.randn(a.shape, generator=g)).sum() + (b ** 2).sum() * 1e-3
         if it % 5 == 3:  # a step where one parameter has no gradient
-            loss = (b**3).sum()
+            loss = (b ** 3).sum()
         opt.zero_grad(set_to_none=True) if isinstance(opt, torch.optim.Optimizer) else opt.zero_grad()
         loss.backward()
         opt.step()

@@ -1,5 +1,4 @@
 """DCT deformation field: basis, identity at zero, static rows untouched, rotations, limits, model.pt."""
-
 from __future__ import annotations
 
 import logging
@@ -9,17 +8,8 @@ import pytest
 import torch
 
 from anigs.animate.frames import render_clip, render_frame
-from anigs.animate.deform import (
-    DCTDeformation,
-    axis_angle_to_quat,
-    dct_basis,
-    dynamic_index_from_mask,
-    load_model,
-    quat_multiply,
-    resolve_num_bases,
-    save_model,
-    soft_limit,
-)
+from anigs.animate.deform import (DCTDeformation, axis_angle_to_quat, dct_basis, dynamic_index_from_mask, load_model,
+                          quat_multiply, resolve_num_bases, save_model, soft_limit)
 from anigs.gaussians import Gaussians
 from anigs.geometry.quaternion import quat_to_rotmat
 from tests._scenes import ring_cameras, sway_scene
@@ -27,9 +17,8 @@ from tests._scenes import ring_cameras, sway_scene
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
-def random_field(
-    idx: torch.Tensor, T: int, K: int, n: int, scale: float = 0.05, seed: int = 1, rotation: bool = True
-) -> DCTDeformation:
+def random_field(idx: torch.Tensor, T: int, K: int, n: int, scale: float = 0.05, seed: int = 1,
+                 rotation: bool = True) -> DCTDeformation:
     d = DCTDeformation(idx, T, K, rotation=rotation, num_gaussians=n)
     g = torch.Generator().manual_seed(seed)
     with torch.no_grad():

@@ -1,6 +1,5 @@
 """Per-effect capacity (``update.effect_num_bases``): masked DCT bases stay zero, survive
 save/load/remap/containment copies, the default {} changes nothing, bad keys are refused."""
-
 from __future__ import annotations
 
 import io
@@ -10,7 +9,13 @@ import torch
 
 from anigs.animate.deform import DCTDeformation, load_model, save_model
 from anigs.animate.frames import render_clip
-from anigs.animate.update import UpdateConfig, ViewData, bases_from_config, effect_labels, run_update
+from anigs.animate.update import (
+    UpdateConfig,
+    ViewData,
+    bases_from_config,
+    effect_labels,
+    run_update,
+)
 from tests._scenes import ring_cameras, sway_motion, sway_scene
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -85,24 +90,12 @@ def test_save_load_remap_and_state_copies_keep_the_capacity(tmp_path):
     half = scaled_motion(d, torch.full((d.num_dynamic,), 0.5).numpy())
     assert torch.equal(half.active_bases, d.active_bases) and torch.equal(half.pos_coeffs, d.pos_coeffs * 0.5)
     # training a remapped (round r+1) model keeps masked bases at zero, without a mask it frees them
-    again = run_update(
-        res.canonical,
-        labels,
-        views,
-        UpdateConfig(steps=3, num_bases=K, seed=1, effect_num_bases={"2": 1}),
-        init=d2,
-        progress=False,
-    )
+    again = run_update(res.canonical, labels, views, UpdateConfig(steps=3, num_bases=K, seed=1,
+                       effect_num_bases={"2": 1}), init=d2, progress=False)
     grass = labels[again.deformation.dynamic_index] == 2
     assert bool((again.deformation.pos_coeffs[grass][:, :, 1:] == 0).all())
-    free = run_update(
-        res.canonical,
-        labels,
-        views,
-        UpdateConfig(steps=3, num_bases=K, seed=1, effect_num_bases={}),
-        init=d2,
-        progress=False,
-    )
+    free = run_update(res.canonical, labels, views, UpdateConfig(steps=3, num_bases=K, seed=1, effect_num_bases={}),
+                      init=d2, progress=False)
     assert free.deformation.active_bases is None
 
 
@@ -138,17 +131,14 @@ def test_effect_names_map_to_labels_and_shared_labels_take_the_largest():
     assert bases_from_config(boolean, mixed, 12).tolist() == [5] * 4
 
 
-@pytest.mark.parametrize(
-    "bad, err, match",
-    [
-        ({"foliage": 3}, KeyError, r"effect_num_bases key 'foliage' is unknown"),
-        ({"0": 3}, KeyError, r"effect_num_bases key '0' is unknown"),
-        ({"grass_wave": -2}, ValueError, r"effect_num_bases\['grass_wave'\] = -2: must be an integer >= 1"),
-        ({"1": 0}, ValueError, r"effect_num_bases\['1'\] = 0"),
-        ({"1": 2.5}, ValueError, r"effect_num_bases\['1'\] = 2.5"),
-        ({"1": 3, "leaf_flutter": 4}, ValueError, r"label\(s\) \[1\] both by number and by effect name"),
-    ],
-)
+@pytest.mark.parametrize("bad, err, match", [
+    ({"foliage": 3}, KeyError, r"effect_num_bases key 'foliage' is unknown"),
+    ({"0": 3}, KeyError, r"effect_num_bases key '0' is unknown"),
+    ({"grass_wave": -2}, ValueError, r"effect_num_bases\['grass_wave'\] = -2: must be an integer >= 1"),
+    ({"1": 0}, ValueError, r"effect_num_bases\['1'\] = 0"),
+    ({"1": 2.5}, ValueError, r"effect_num_bases\['1'\] = 2.5"),
+    ({"1": 3, "leaf_flutter": 4}, ValueError, r"label\(s\) \[1\] both by number and by effect name"),
+])
 def test_config_refuses_bad_capacities_naming_the_key(bad, err, match):
     with pytest.raises(err, match=match):
         UpdateConfig.from_dict({"num_bases": 12, "effect_num_bases": bad})
@@ -162,17 +152,8 @@ def test_model_bytes_without_the_key_do_not_depend_on_it(tmp_path):
     d.num_gaussians = G.num
     buf = io.BytesIO()
     torch.save(d.state(), buf)
-    assert set(d.state()) == {
-        "num_frames",
-        "num_bases",
-        "rotation",
-        "num_gaussians",
-        "dynamic_index",
-        "pos_coeffs",
-        "rot_coeffs",
-        "max_offset",
-        "max_angle",
-    }
+    assert set(d.state()) == {"num_frames", "num_bases", "rotation", "num_gaussians", "dynamic_index",
+                              "pos_coeffs", "rot_coeffs", "max_offset", "max_angle"}
     save_model(tmp_path / "a.pt", d, G, UpdateConfig().to_dict())
     save_model(tmp_path / "b.pt", DCTDeformation.from_state(d.state()), G, UpdateConfig().to_dict())
     assert (tmp_path / "a.pt").read_bytes() == (tmp_path / "b.pt").read_bytes()
@@ -197,25 +178,13 @@ def test_update_stage_reads_effect_labels_and_refuses_labels_that_disagree(tmp_p
     np.save(tmp_path / "masks" / "effect_labels.npy", labels.numpy().astype(np.int8))
     for k, v in enumerate(views):
         save_clip(tmp_path / f"v{k}.npz", v.clip.numpy(), {"camera": v.camera.to_dict()})
-    params = {
-        "steps": 6,
-        "num_bases": K,
-        "lr_position_coeffs": 0.05,
-        "effect_num_bases": {"grass_wave": 2},
-        "contain": False,
-    }
-    base = [
-        "update",
-        "--static",
-        str(tmp_path / "static"),
-        "--targets",
-        *[str(tmp_path / f"v{k}.npz") for k in range(len(views))],
-        "--params",
-        json.dumps(params),
-    ]
+    params = {"steps": 6, "num_bases": K, "lr_position_coeffs": 0.05, "effect_num_bases": {"grass_wave": 2},
+              "contain": False}
+    base = ["update", "--static", str(tmp_path / "static"), "--targets",
+            *[str(tmp_path / f"v{k}.npz") for k in range(len(views))], "--params", json.dumps(params)]
     assert main(base + ["--masks", str(tmp_path / "masks"), "--out", str(tmp_path / "m")]) == 0
     _, d, _ = load_model(tmp_path / "m" / "model.pt", G)
-    grass = labels[d.dynamic_index] == 2
+    grass = (labels[d.dynamic_index] == 2)
     assert grass.any() and bool((d.pos_coeffs[grass][:, :, 2:] == 0).all())
     assert bool((d.pos_coeffs[~grass][:, :, 2:] != 0).any())
     bad = labels.clone()

@@ -1,5 +1,4 @@
 """Round arithmetic of the unrolled dataset-model loop."""
-
 from __future__ import annotations
 
 import pytest

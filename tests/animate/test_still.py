@@ -1,5 +1,4 @@
 """The still model: what the workflow writes instead of any round when nothing should move."""
-
 from __future__ import annotations
 
 import argparse
@@ -43,20 +42,8 @@ def test_update_command_still_needs_no_targets_and_clamps_k(tmp_path):
     g.save_ply(tmp_path / "static" / "canonical.ply")
     p = argparse.ArgumentParser()
     update.add_arguments(p)
-    args = p.parse_args(
-        [
-            "--static",
-            str(tmp_path / "static"),
-            "--still",
-            "no effect",
-            "--frames",
-            "5",
-            "--out",
-            str(tmp_path / "still"),
-            "--params",
-            '{"num_bases": 16}',
-        ]
-    )
+    args = p.parse_args(["--static", str(tmp_path / "static"), "--still", "no effect", "--frames", "5",
+                         "--out", str(tmp_path / "still"), "--params", '{"num_bases": 16}'])
     assert update.main(args) == 0
     _, deformation, _ = load_model(tmp_path / "still" / "model.pt")
     assert deformation.num_bases == 4 and deformation.num_dynamic == 0  # K <= T-1

@@ -1,5 +1,4 @@
 """Model update: recovery of a known motion, parameter groups, hard cases, NaN guard, CLI."""
-
 from __future__ import annotations
 
 import json
@@ -17,6 +16,7 @@ from anigs.animate.update import UpdateConfig, UpdateDiverged, ViewData, run_upd
 from tests._scenes import ring_cameras, sway_motion, sway_scene
 
 pytestmark = pytest.mark.usefixtures("one_thread")
+
 
 
 def make_views(G, gt, cams, T):
@@ -46,18 +46,15 @@ def test_update_recovers_a_known_multiview_motion():
     G, mask = sway_scene()
     gt = sway_motion(G, mask, T, K=4, amplitude=0.08)
     views = make_views(G, gt, ring_cameras(4, 96, 72), T)
-    cfg = UpdateConfig(
-        steps=250, views_per_step=2, num_bases=4, rotation=False, lambda_cano=0.1, lr_position_coeffs=2e-3, seed=0
-    )
+    cfg = UpdateConfig(steps=250, views_per_step=2, num_bases=4, rotation=False, lambda_cano=0.1,
+                       lr_position_coeffs=2e-3, seed=0)
     zero = DCTDeformation(gt.dynamic_index, T, 4, rotation=False, num_gaussians=G.num)
     rmse0, rms_disp, peak = trajectory_errors(gt, G, zero, G, T)
     assert rmse0 > 0.9 * rms_disp  # the starting point is wrong by the whole motion
     res = run_update(G, mask, views, cfg, progress=False)
     rmse, rms_disp, peak = trajectory_errors(gt, G, res.deformation, res.canonical, T)
-    print(
-        f"recovery: RMSE {rmse:.5f}, RMS displacement {rms_disp:.4f} ({rmse / rms_disp:.1%}), "
-        f"peak {peak:.4f} ({rmse / peak:.1%})"
-    )
+    print(f"recovery: RMSE {rmse:.5f}, RMS displacement {rms_disp:.4f} ({rmse / rms_disp:.1%}), "
+          f"peak {peak:.4f} ({rmse / peak:.1%})")
     assert rmse < 0.1 * rms_disp
     static = ~mask
     assert torch.equal(res.canonical.means[static], G.means[static])
@@ -140,14 +137,8 @@ def test_single_frame_targets_and_k_clamped(caplog):
 
 def test_amplitude_limits_hold_during_training():
     G, mask, views = _small_problem()
-    cfg = UpdateConfig(
-        steps=15,
-        num_bases=3,
-        lr_position_coeffs=0.5,
-        max_offset_frac=0.02,
-        max_angle_deg=2.0,
-        effect_limits={"2": {"max_offset_frac": 0.05}},
-    )
+    cfg = UpdateConfig(steps=15, num_bases=3, lr_position_coeffs=0.5, max_offset_frac=0.02, max_angle_deg=2.0,
+                       effect_limits={"2": {"max_offset_frac": 0.05}})
     res = run_update(G, mask, views, cfg, progress=False)
     h = G.means[mask, 2]
     for t in range(9):
@@ -189,15 +180,8 @@ def test_nan_gradient_is_detected(tmp_path):
         return torch.sqrt(x - x) if ctx.step == 2 else x  # finite value 0, NaN gradient (d sqrt at 0)
 
     with pytest.raises(UpdateDiverged, match="iteration 2: non-finite gradient"):
-        run_update(
-            G,
-            mask,
-            views,
-            UpdateConfig(steps=5, num_bases=3, lambda_sds=1.0),
-            sds_fn=sds,
-            failure_path=tmp_path / "f.pt",
-            progress=False,
-        )
+        run_update(G, mask, views, UpdateConfig(steps=5, num_bases=3, lambda_sds=1.0), sds_fn=sds,
+                   failure_path=tmp_path / "f.pt", progress=False)
     assert (tmp_path / "f.pt").exists()
 
 
@@ -262,24 +246,8 @@ def test_cli_render_clip_and_update_round_trip(tmp_path):
 
     # round 0: no model -> every frame is the static canonical render
     r0 = tmp_path / "round0" / "render" / "v0.npz"
-    assert (
-        main(
-            [
-                "render_clip",
-                "--static",
-                static,
-                "--camera-json",
-                str(tmp_path / "cam0.json"),
-                "--view-id",
-                "v0",
-                "--out",
-                str(tmp_path / "round0"),
-                "--params",
-                params,
-            ]
-        )
-        == 0
-    )
+    assert main(["render_clip", "--static", static, "--camera-json", str(tmp_path / "cam0.json"), "--view-id", "v0",
+                 "--out", str(tmp_path / "round0"), "--params", params]) == 0
     clip0, meta0 = load_clip(r0)
     assert clip0.shape == (T, 36, 48, 3) and all(np.array_equal(clip0[0], f) for f in clip0)
     assert meta0["camera"]["width"] == 48 and meta0["model"] is None
@@ -291,26 +259,8 @@ def test_cli_render_clip_and_update_round_trip(tmp_path):
         targets.append(str(p))
     out = tmp_path / "round1" / "model.pt"
     upd = json.dumps({"steps": 3, "num_bases": 3, "views_per_step": 1, "contain": False})
-    assert (
-        main(
-            [
-                "update",
-                "--static",
-                static,
-                "--targets",
-                *targets,
-                "--views",
-                vdir,
-                "--masks",
-                masks,
-                "--out",
-                str(tmp_path / "round1"),
-                "--params",
-                upd,
-            ]
-        )
-        == 0
-    )
+    assert main(["update", "--static", static, "--targets", *targets, "--views", vdir, "--masks", masks,
+                 "--out", str(tmp_path / "round1"), "--params", upd]) == 0
     canon, d, payload = load_model(out, ply)
     assert d.num_dynamic == int(mask.sum()) and (d.num_frames, d.num_bases) == (T, 3)
     assert json.loads((tmp_path / "round1" / "update.json").read_text())["steps"] == 3
@@ -318,134 +268,29 @@ def test_cli_render_clip_and_update_round_trip(tmp_path):
 
     # round 2: init from round 1, cameras from the targets' metadata
     out2 = tmp_path / "round2" / "model.pt"
-    assert (
-        main(
-            [
-                "update",
-                "--static",
-                static,
-                "--init",
-                str(tmp_path / "round1"),
-                "--targets",
-                *targets,
-                "--masks",
-                masks,
-                "--out",
-                str(tmp_path / "round2"),
-                "--params",
-                upd,
-            ]
-        )
-        == 0
-    )
+    assert main(["update", "--static", static, "--init", str(tmp_path / "round1"), "--targets", *targets,
+                 "--masks", masks, "--out", str(tmp_path / "round2"), "--params", upd]) == 0
     assert load_model(out2, ply)[2]["extra"]["init_model"] == str(out)
     r2 = tmp_path / "round2" / "render" / "v1.npz"
-    assert (
-        main(
-            [
-                "render_clip",
-                "--static",
-                static,
-                "--model",
-                str(tmp_path / "round2"),
-                "--views",
-                vdir,
-                "--view-id",
-                "v1",
-                "--out",
-                str(tmp_path / "round2"),
-                "--params",
-                params,
-            ]
-        )
-        == 0
-    )
+    assert main(["render_clip", "--static", static, "--model", str(tmp_path / "round2"), "--views", vdir,
+                 "--view-id", "v1", "--out", str(tmp_path / "round2"), "--params", params]) == 0
     clip2, meta2 = load_clip(r2)
     assert clip2.shape == (T, 36, 48, 3) and not np.array_equal(clip2[0], clip2[T // 2])
     assert meta2["view_id"] == "v1" and meta2["model"] == str(out2)
 
     # a baseline variant's update job fits the baseline instead (same inputs, same model.pt format)
     out_b = tmp_path / "baseline" / "model.pt"
-    assert (
-        main(
-            [
-                "update",
-                "--static",
-                static,
-                "--targets",
-                *targets,
-                "--views",
-                vdir,
-                "--masks",
-                masks,
-                "--out",
-                str(tmp_path / "baseline"),
-                "--params",
-                upd,
-                "--method",
-                "lifting",
-                "--method-params",
-                json.dumps({"num_bases": 3}),
-            ]
-        )
-        == 0
-    )
+    assert main(["update", "--static", static, "--targets", *targets, "--views", vdir, "--masks", masks,
+                 "--out", str(tmp_path / "baseline"), "--params", upd,
+                 "--method", "lifting", "--method-params", json.dumps({"num_bases": 3})]) == 0
     _, db, _ = load_model(out_b, ply)
     assert db.num_dynamic == int(mask.sum()) and db.num_bases == 3 and db.pos_coeffs.abs().sum() > 0
 
     # clear errors: unknown view id, unknown config key, frame-count mismatch
-    assert (
-        main(
-            [
-                "render_clip",
-                "--static",
-                static,
-                "--views",
-                vdir,
-                "--view-id",
-                "nope",
-                "--out",
-                str(tmp_path / "x"),
-                "--params",
-                params,
-            ]
-        )
-        == 1
-    )
-    assert (
-        main(
-            [
-                "update",
-                "--static",
-                static,
-                "--targets",
-                *targets,
-                "--masks",
-                masks,
-                "--out",
-                str(tmp_path / "y"),
-                "--params",
-                json.dumps({"stepz": 1}),
-            ]
-        )
-        == 1
-    )
-    assert (
-        main(
-            [
-                "render_clip",
-                "--static",
-                static,
-                "--model",
-                str(tmp_path / "round2"),
-                "--camera-json",
-                str(tmp_path / "cam0.json"),
-                "--out",
-                str(tmp_path / "z"),
-                "--params",
-                '{"num_frames": 5}',
-            ]
-        )
-        == 1
-    )
+    assert main(["render_clip", "--static", static, "--views", vdir, "--view-id", "nope", "--out",
+                 str(tmp_path / "x"), "--params", params]) == 1
+    assert main(["update", "--static", static, "--targets", *targets, "--masks", masks,
+                 "--out", str(tmp_path / "y"), "--params", json.dumps({"stepz": 1})]) == 1
+    assert main(["render_clip", "--static", static, "--model", str(tmp_path / "round2"), "--camera-json",
+                 str(tmp_path / "cam0.json"), "--out", str(tmp_path / "z"), "--params", '{"num_frames": 5}']) == 1
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists() and not (tmp_path / "z").exists()

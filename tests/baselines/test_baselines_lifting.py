@@ -1,5 +1,4 @@
 """Gaussians2Life-style lifting baseline, the shared baseline interface and DCT projection."""
-
 from __future__ import annotations
 
 import cv2
@@ -61,7 +60,7 @@ def test_forward_tracks_follow_a_known_shift():
 
 def test_sample_bilinear_and_jacobians():
     field = np.zeros((1, 4, 5, 1))
-    field[0, :, :, 0] = np.arange(5)[None]  # value = column index
+    field[0, :, :, 0] = np.arange(5)[None]           # value = column index
     uv = np.array([[0.5, 0.5], [2.0, 1.5], [4.5, 3.5]])  # pixel centres at integer + 0.5
     assert np.allclose(sample_bilinear(field, uv)[0, :, 0], [0.0, 1.5, 4.0])
     cam = ring_cameras(1, 96, 72)[0]
@@ -103,9 +102,8 @@ def test_lift_two_views_exact_one_view_in_image_plane():
 def test_dct_projection_is_exact_with_the_full_basis():
     G, mask = sway_scene(n_dyn=20, grid=3)
     idx = torch.nonzero(mask).squeeze(1)
-    traj = G.means.double()[idx][None] + 0.03 * torch.randn(
-        T, idx.numel(), 3, generator=torch.Generator().manual_seed(0), dtype=torch.float64
-    )
+    traj = G.means.double()[idx][None] + 0.03 * torch.randn(T, idx.numel(), 3, generator=torch.Generator().manual_seed(0),
+                                                            dtype=torch.float64)
     canon, d = trajectories_to_deformation(G, idx, traj, T - 1)
     with torch.no_grad():
         back = d.trajectories(canon.means.double(), torch.arange(T)).double()
@@ -170,9 +168,8 @@ def test_run_baseline_writes_a_loadable_model(tmp_path):
         save_clip(p, v.clip.numpy(), {"camera": v.camera.to_dict()})
         targets.append(p)
     out = tmp_path / "model.pt"
-    res = run_baseline(
-        "lifting", ply, tmp_path / "dynamic.npy", targets, out, {"num_bases": 8}, log_json=tmp_path / "log.json"
-    )
+    res = run_baseline("lifting", ply, tmp_path / "dynamic.npy", targets, out, {"num_bases": 8},
+                       log_json=tmp_path / "log.json")
     canon, d, payload = load_model(out, ply)
     assert payload["extra"]["method"] == "lifting" and d.num_bases == 8 and d.num_frames == T
     assert torch.equal(d.pos_coeffs, res.deformation.pos_coeffs)

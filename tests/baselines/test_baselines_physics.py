@@ -1,5 +1,4 @@
 """PhysDreamer-style physics baseline: integrator hard cases, graph, material fit, end to end."""
-
 from __future__ import annotations
 
 import numpy as np
@@ -11,7 +10,7 @@ from anigs.animate.frames import render_clip
 from anigs.animate.update import ViewData
 from anigs.baselines import run_baseline
 from anigs.baselines.base import trajectories_to_deformation
-from anigs.baselines.physics import PhysicsConfig, WindResponse, fit, fit_material, material_regions, pick_view
+from anigs.baselines.physics import (PhysicsConfig, WindResponse, fit, fit_material, material_regions, pick_view)
 from anigs.baselines.springs import ImplicitIntegrator, build_graph, simulate, stiffness_matrix
 from anigs.baselines.tracks import ViewObservation, projection_jacobians
 from anigs.video import save_clip
@@ -50,7 +49,7 @@ def test_stiff_springs_and_huge_steps_stay_bounded(scheme, k, dt):
     us = spsolve(K.tocsc(), f[:, 0])[:, None]
     assert np.isfinite(u).all()
     assert max(k_norm(K, x) for x in u) <= 2.0 * k_norm(K, us) * (1 + 1e-6)
-    if scheme == "euler" and dt >= 1e6:  # L-stable: one huge step lands on the static equilibrium
+    if scheme == "euler" and dt >= 1e6:   # L-stable: one huge step lands on the static equilibrium
         assert np.allclose(u[1], us, rtol=1e-6, atol=0)
 
 
@@ -61,9 +60,9 @@ def test_very_soft_springs_bounded_by_free_motion(scheme):
     dt, steps = 0.05, 200
     u = simulate(g, 1e-12, 0.0, lambda t: np.ones((g.num_nodes, 1)), dt, steps, scheme=scheme)
     t = dt * np.arange(steps + 1)
-    bound = t**2 / 2 + t * dt / 2
+    bound = t ** 2 / 2 + t * dt / 2
     assert np.all(np.abs(u[:, :, 0]) <= bound[:, None] * (1 + 1e-9) + 1e-12)
-    assert np.abs(u[-1]).max() > 0.9 * t[-1] ** 2 / 2  # and it really is (almost) free
+    assert np.abs(u[-1]).max() > 0.9 * t[-1] ** 2 / 2   # and it really is (almost) free
 
 
 @pytest.mark.parametrize("scheme", SCHEMES)
@@ -81,9 +80,9 @@ def test_zero_damping_energy_never_grows(scheme, dt):
         energies.append(integ.energy(u, v))
     e = np.array(energies)
     assert np.all(np.diff(e) <= 1e-9 * e[0])
-    if scheme == "midpoint":  # energy-conserving without damping
+    if scheme == "midpoint":   # energy-conserving without damping
         assert abs(e[-1] - e[0]) <= 1e-8 * e[0]
-    else:  # backward Euler dissipates
+    else:                      # backward Euler dissipates
         assert e[-1] < e[0]
 
 
@@ -102,14 +101,9 @@ def test_single_gaussian_settles_and_unanchored_fails_clearly():
 
 def test_invalid_parameters_fail_with_clear_errors():
     g = build_graph(*plant())
-    for kw, msg in (
-        ({"stiffness": -1.0}, "stiffness must be >= 0"),
-        ({"stiffness": np.nan}, "stiffness contains NaN"),
-        ({"damping": np.inf}, "damping contains NaN or Inf"),
-        ({"dt": 0.0}, "time step"),
-        ({"dt": float("inf")}, "time step"),
-        ({"scheme": "rk4"}, "unknown integrator"),
-    ):
+    for kw, msg in (({"stiffness": -1.0}, "stiffness must be >= 0"), ({"stiffness": np.nan}, "stiffness contains NaN"),
+                    ({"damping": np.inf}, "damping contains NaN or Inf"), ({"dt": 0.0}, "time step"),
+                    ({"dt": float("inf")}, "time step"), ({"scheme": "rk4"}, "unknown integrator")):
         args = {"stiffness": 1.0, "damping": 0.1, "dt": 0.01, "scheme": "midpoint", **kw}
         with pytest.raises(ValueError, match=msg):
             ImplicitIntegrator(g, args["stiffness"], args["damping"], args["dt"], args["scheme"])
@@ -124,7 +118,7 @@ def test_invalid_parameters_fail_with_clear_errors():
 
 def test_every_component_is_anchored_and_stiffness_is_positive_definite():
     X1, S = plant(30)
-    X2 = X1 + np.array([5.0, 0.0, 0.5])  # a second plant floating far from any static point
+    X2 = X1 + np.array([5.0, 0.0, 0.5])          # a second plant floating far from any static point
     g = build_graph(np.r_[X1, X2], S)
     K = stiffness_matrix(g, 10.0).toarray()
     assert np.allclose(K, K.T)
@@ -142,19 +136,8 @@ def synthetic_tracks(X, g, cfg, region, k_true, c_true, T, seed=0):
     d3 = np.zeros((T, len(X), 3))
     d3[..., :2] = np.einsum("tdb,ba->tda", U, amp)
     J = rng.normal(size=(len(X), 2, 3)) * 50
-    return (
-        ViewObservation(
-            None,
-            np.ones(len(X), bool),
-            np.zeros((len(X), 2)),
-            np.einsum("dkj,tdj->tdk", J, d3),
-            np.ones((T, len(X))),
-            J,
-            np.ones(len(X)),
-        ),
-        wind,
-        U,
-    )
+    return ViewObservation(None, np.ones(len(X), bool), np.zeros((len(X), 2)), np.einsum("dkj,tdj->tdk", J, d3),
+                           np.ones((T, len(X))), J, np.ones(len(X))), wind, U
 
 
 @pytest.mark.parametrize("k_true, c_true, tol", [([20.0], [0.5], 1.05), ([20.0, 200.0], [2.0, 2.0], 1.5)])
@@ -163,15 +146,8 @@ def test_material_fit_recovers_stiffness_and_damping(k_true, c_true, tol):
     the fit finds them from a shared start far away (k = 100, c = 2 for every region)."""
     X, S = plant(120)
     R, T = len(k_true), 25
-    cfg = PhysicsConfig(
-        fps=12.0,
-        regions_per_effect=R,
-        max_evals=150,
-        stiffness_bounds=[0.1, 1e6],
-        grid_stiffness=25,
-        sweeps=2,
-        scan_points=13,
-    )
+    cfg = PhysicsConfig(fps=12.0, regions_per_effect=R, max_evals=150, stiffness_bounds=[0.1, 1e6], grid_stiffness=25,
+                        sweeps=2, scan_points=13)
     g = build_graph(X, S, cfg.k_neighbors, cfg.anchor_neighbors, cfg.anchor_radius)
     region, labels = material_regions(X, np.ones(len(X), np.int64), R)
     assert labels == [1] * R
@@ -213,7 +189,7 @@ def test_physics_baseline_end_to_end(tmp_path):
     J = projection_jacobians(X, view.camera)
     p_true = np.einsum("dkj,tdj->tdk", J, disp)
     p_fit = np.einsum("dkj,tdj->tdk", J, (res.trajectories - res.trajectories[:1]).numpy())
-    err = np.sqrt(((p_fit - p_true) ** 2).sum(-1).mean() / (p_true**2).sum(-1).mean())
+    err = np.sqrt(((p_fit - p_true) ** 2).sum(-1).mean() / (p_true ** 2).sum(-1).mean())
     print(f"physics: fit view {res.info['fit_view']}, reprojected relative RMSE {err:.3f}, info {res.info}")
     assert err < 0.5
     assert res.info["relative_residual"] < 0.5
@@ -230,14 +206,8 @@ def test_physics_baseline_end_to_end(tmp_path):
         targets.append(tmp_path / f"{v.camera.name}.npz")
         save_clip(targets[-1], v.clip.numpy(), {"camera": v.camera.to_dict()})
     out = tmp_path / "model.pt"
-    r2 = run_baseline(
-        "physics",
-        ply,
-        tmp_path / "dynamic.npy",
-        targets,
-        out,
-        {**cfg.to_dict(), "fit_view": "v1", "max_evals": 0, "grid_stiffness": 1, "sweeps": 0},
-    )
+    r2 = run_baseline("physics", ply, tmp_path / "dynamic.npy", targets, out,
+                      {**cfg.to_dict(), "fit_view": "v1", "max_evals": 0, "grid_stiffness": 1, "sweeps": 0})
     canon, d, payload = load_model(out, ply)
     assert payload["extra"]["info"]["fit_view"] == "v1" and r2.info["evaluations"] == 1
     assert render_clip(canon, d, views[1].camera, T).shape == views[1].clip.shape
@@ -247,13 +217,11 @@ def test_only_the_scene_effects_are_simulated_and_view_choice():
     G, mask = sway_scene(n_dyn=60, grid=7)
     labels = torch.zeros(G.num, dtype=torch.long)
     dyn = torch.nonzero(mask).squeeze(1)
-    labels[dyn[:30]], labels[dyn[30:]] = 2, 5  # two effect labels; 0 = static
+    labels[dyn[:30]], labels[dyn[30:]] = 2, 5      # two effect labels; 0 = static
     cams = ring_cameras(2, 64, 48)
     clip = render_clip(G, None, cams[0], 5)
     views = [ViewData(cams[0], clip), ViewData(cams[1], render_clip(G, None, cams[1], 5))]
-    res = fit(
-        G, labels, views, {"regions_per_effect": 2, "max_evals": 0, "grid_stiffness": 1, "sweeps": 0, "fps": 12.0}
-    )
+    res = fit(G, labels, views, {"regions_per_effect": 2, "max_evals": 0, "grid_stiffness": 1, "sweeps": 0, "fps": 12.0})
     assert sorted(set(res.info["region_labels"])) == [2, 5]
     assert res.deformation.num_dynamic == 60
     # a still target clip: the fitted wind is (numerically) zero, nothing moves

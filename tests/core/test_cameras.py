@@ -1,5 +1,4 @@
 """Pinhole camera conventions and IO."""
-
 from __future__ import annotations
 
 import numpy as np
@@ -31,9 +30,7 @@ def test_fov_roundtrip_and_scaling():
 
 
 def test_json_roundtrip(tmp_path):
-    cams = [
-        Camera(intrinsics_from_fov(50 + i, 32, 24), look_at([i, 0, 1], [0, 5, 1]), 32, 24, f"c{i}") for i in range(3)
-    ]
+    cams = [Camera(intrinsics_from_fov(50 + i, 32, 24), look_at([i, 0, 1], [0, 5, 1]), 32, 24, f"c{i}") for i in range(3)]
     save_cameras(tmp_path / "c.json", cams)
     back = load_cameras(tmp_path / "c.json")
     assert [c.name for c in back] == ["c0", "c1", "c2"]

@@ -1,5 +1,4 @@
 """anigs CMD ... --then CMD ...: commands run one after another in one process."""
-
 import json
 import logging
 

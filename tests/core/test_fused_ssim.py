@@ -1,5 +1,4 @@
 """Fused SSIM (anigs.ssim.fused, compiled kernel anigs.ssim.kernel) against the reference anigs.ssim.reference."""
-
 from __future__ import annotations
 
 import pytest

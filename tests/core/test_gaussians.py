@@ -1,5 +1,4 @@
 """Gaussian set and the standard 3DGS PLY layout."""
-
 from __future__ import annotations
 
 import numpy as np
@@ -11,13 +10,8 @@ from anigs.gaussians import Gaussians, load_ply, ply_property_names, save_ply
 
 def _random(n=50, deg=3, seed=0) -> Gaussians:
     g = torch.Generator().manual_seed(seed)
-    return Gaussians(
-        torch.randn(n, 3, generator=g),
-        torch.randn(n, 4, generator=g),
-        torch.randn(n, 3, generator=g),
-        torch.randn(n, generator=g),
-        torch.randn(n, (deg + 1) ** 2, 3, generator=g),
-    )
+    return Gaussians(torch.randn(n, 3, generator=g), torch.randn(n, 4, generator=g), torch.randn(n, 3, generator=g),
+                     torch.randn(n, generator=g), torch.randn(n, (deg + 1) ** 2, 3, generator=g))
 
 
 @pytest.mark.parametrize("deg", [0, 1, 2, 3])
@@ -46,8 +40,7 @@ def test_reads_ply_written_by_another_tool(tmp_path):
     arr["red"] = 7
     faces = np.array([([0, 1, 2],)], dtype=[("vertex_indices", "i4", (3,))])
     plyfile.PlyData([plyfile.PlyElement.describe(arr, "vertex"), plyfile.PlyElement.describe(faces, "face")]).write(
-        str(tmp_path / "other.ply")
-    )
+        str(tmp_path / "other.ply"))
     g = load_ply(tmp_path / "other.ply")
     assert g.sh_degree == deg
     assert np.allclose(g.means[:, 1].numpy(), cols["y"])

@@ -1,5 +1,4 @@
 """Photo import (anigs.photos): EXIF orientation, downscale, corrupt files, folder checks."""
-
 from __future__ import annotations
 
 import logging
@@ -144,7 +143,6 @@ def test_bad_captures_fail_early_naming_the_cause(tmp_path):
     """Blank photos, copies of one photo and an odd shape (a panorama among photos) stop the import
     before anything is written, each with an error that names the files; copies among enough
     distinct photos are left out with a warning."""
-
     def folder(name: str, arrays: dict) -> tuple:
         src = tmp_path / name / "src"
         src.mkdir(parents=True)
@@ -153,10 +151,8 @@ def test_bad_captures_fail_early_naming_the_cause(tmp_path):
         return src, tmp_path / name / "dst"
 
     good = {f"p{i}.png": _pattern(64, 48, seed=i) for i in range(4)}
-    src, dst = folder(
-        "blank",
-        {**good, "black.png": np.zeros((48, 64, 3), np.uint8), "white.png": np.full((48, 64, 3), 255, np.uint8)},
-    )
+    src, dst = folder("blank", {**good, "black.png": np.zeros((48, 64, 3), np.uint8),
+                                "white.png": np.full((48, 64, 3), 255, np.uint8)})
     with pytest.raises(ValueError, match=r"2 blank photo\(s\).*black.png, white.png"):
         import_photos(src, dst)
     assert not dst.exists()
@@ -180,3 +176,4 @@ def test_bad_captures_fail_early_naming_the_cause(tmp_path):
     (src / "cut.jpg").write_bytes((src / "p0.png").read_bytes()[:200])
     with pytest.raises(ValueError, match=r"(?s)2 unreadable.*cut.jpg: OSError.*notes.jpg"):
         import_photos(src, dst)
+

@@ -1,6 +1,5 @@
 """Library size limits (issue 25): no module of ``anigs/`` outside ``anigs/stages/`` over 400 lines,
 no function or method there over 120 lines. ``python tests/core/test_sizes.py`` lists the largest."""
-
 from __future__ import annotations
 
 import ast
@@ -41,9 +40,7 @@ def function_sizes(path: Path) -> list[tuple[str, int]]:
 
 def test_the_checker_sees_functions_and_methods(tmp_path):
     src = tmp_path / "m.py"
-    src.write_text(
-        "class A:\n    def f(self):\n        def g():\n            pass\n        return 1\n\n\ndef h():\n    pass\n"
-    )
+    src.write_text("class A:\n    def f(self):\n        def g():\n            pass\n        return 1\n\n\ndef h():\n    pass\n")
     assert dict(function_sizes(src)) == {"A.f": 4, "A.f.g": 2, "h": 2}
     assert module_lines(src) == 9
     assert len(library_modules()) > 50 and not any("stages" in p.parts for p in library_modules())
@@ -55,22 +52,16 @@ def test_no_library_module_over_the_limit():
 
 
 def test_no_library_function_over_the_limit():
-    big = {
-        f"{p.relative_to(ROOT.parent)}:{name}": n
-        for p in library_modules()
-        for name, n in function_sizes(p)
-        if n > MAX_FUNCTION_LINES
-    }
+    big = {f"{p.relative_to(ROOT.parent)}:{name}": n for p in library_modules()
+           for name, n in function_sizes(p) if n > MAX_FUNCTION_LINES}
     assert not big, f"functions over {MAX_FUNCTION_LINES} lines (extract steps): {big}"
 
 
 if __name__ == "__main__":
     top = int(sys.argv[1]) if len(sys.argv) > 1 else 10
     mods = sorted(((module_lines(p), str(p.relative_to(ROOT.parent))) for p in library_modules()), reverse=True)
-    funcs = sorted(
-        ((n, f"{p.relative_to(ROOT.parent)}:{name}") for p in library_modules() for name, n in function_sizes(p)),
-        reverse=True,
-    )
+    funcs = sorted(((n, f"{p.relative_to(ROOT.parent)}:{name}") for p in library_modules()
+                    for name, n in function_sizes(p)), reverse=True)
     print(f"largest modules (limit {MAX_MODULE_LINES}):")
     print("\n".join(f"  {n:5d} {p}" for n, p in mods[:top]))
     print(f"largest functions (limit {MAX_FUNCTION_LINES}):")

@@ -1,5 +1,4 @@
 """Embedded synthetic demo scene: scene, ground-truth motion, capture, CLI."""
-
 from __future__ import annotations
 
 import json
@@ -14,24 +13,9 @@ import yaml
 from anigs.cameras import load_cameras
 from anigs.gaussians import load_ply
 from anigs.render import render_gaussians
-from anigs.synth import (
-    EFFECT_TYPES,
-    LABEL_EFFECTS,
-    LABEL_IDS,
-    LABELS,
-    WATER_LABEL,
-    CaptureConfig,
-    MotionParams,
-    SceneConfig,
-    SynthConfig,
-    build_scene,
-    camera_path,
-    gt_clip_offsets,
-    gt_offsets,
-    motion_tables,
-    render_image,
-    write_capture,
-)
+from anigs.synth import (EFFECT_TYPES, LABEL_EFFECTS, LABEL_IDS, LABELS, WATER_LABEL, CaptureConfig, MotionParams,
+                         SceneConfig, SynthConfig, build_scene, camera_path, gt_clip_offsets, gt_offsets,
+                         motion_tables, render_image, write_capture)
 
 ROOT = Path(__file__).resolve().parents[2]
 STATIC = [i for i, n in LABELS.items() if not LABEL_EFFECTS[n]]
@@ -45,9 +29,8 @@ def scene():
 
 @pytest.fixture(scope="module")
 def small_cfg():
-    return SynthConfig.from_dict(
-        {"seed": 3, "scene": {"num_gaussians": 6000}, "capture": {"num_images": 6, "width": 96, "height": 72}}
-    )
+    return SynthConfig.from_dict({"seed": 3, "scene": {"num_gaussians": 6000},
+                                  "capture": {"num_images": 6, "width": 96, "height": 72}})
 
 
 # ---- scene --------------------------------------------------------------------------
@@ -143,9 +126,8 @@ def test_motion_is_spatially_coherent_and_follows_the_wind():
     anchors = means.clone()
     anchors[:, 2] = 0
     labels = torch.full((3,), LABEL_IDS["foliage"])
-    clip = gt_clip_offsets(
-        MotionParams.from_dict({"effects": {"leaf_flutter": {"amplitude": 0.0}}}), means, anchors, labels
-    )
+    clip = gt_clip_offsets(MotionParams.from_dict({"effects": {"leaf_flutter": {"amplitude": 0.0}}}),
+                           means, anchors, labels)
     near = (clip[:, 0] - clip[:, 1]).norm(dim=1).max()
     far = (clip[:, 0] - clip[:, 2]).norm(dim=1).max()
     assert float(near) < 0.05 * float(far)
@@ -156,9 +138,8 @@ def test_motion_is_spatially_coherent_and_follows_the_wind():
 
 
 def test_motion_params_json_roundtrip_and_errors():
-    p = MotionParams.from_dict(
-        {"wind_dir_deg": 75, "frames": 33, "effects": {"grass_wave": {"amplitude": 0.05, "cycles": 3}}}
-    )
+    p = MotionParams.from_dict({"wind_dir_deg": 75, "frames": 33,
+                                "effects": {"grass_wave": {"amplitude": 0.05, "cycles": 3}}})
     d = json.loads(json.dumps(p.to_dict()))
     q = MotionParams.from_dict(d)
     assert q.to_dict() == p.to_dict()
@@ -281,40 +262,12 @@ def test_cli_capture_synthetic_and_photos(tmp_path, small_cfg):
     rng = np.random.default_rng(0)
     for i in range(3):
         imageio.imwrite(photos / f"p{i}.png", rng.integers(0, 255, (60, 80, 3), dtype=np.uint8))
-    assert (
-        main(
-            [
-                "capture",
-                "--source",
-                "photos",
-                "--photos",
-                str(photos),
-                "--params",
-                '{"max_side": 40}',
-                "--out",
-                str(tmp_path / "p"),
-            ]
-        )
-        == 0
-    )
+    assert main(["capture", "--source", "photos", "--photos", str(photos), "--params", '{"max_side": 40}',
+                 "--out", str(tmp_path / "p")]) == 0
     got = sorted((tmp_path / "p" / "images").glob("*.png"))
     assert len(got) == 3 and max(imageio.imread(got[0]).shape[:2]) == 40
-    assert (
-        main(
-            [
-                "capture",
-                "--source",
-                "photos",
-                "--photos",
-                str(photos),
-                "--params",
-                '{"max_sid": 4}',
-                "--out",
-                str(tmp_path / "p"),
-            ]
-        )
-        == 1
-    )
+    assert main(["capture", "--source", "photos", "--photos", str(photos), "--params", '{"max_sid": 4}',
+                 "--out", str(tmp_path / "p")]) == 1
 
 
 # ---- optional pond and bare courtyard ------------------------------------------------------
@@ -337,7 +290,6 @@ def test_pond_scene_labels_geometry_and_tables():
     z = a.means[water, 2]
     assert float(z.max()) < 0.0 and float(z.min()) > -0.05  # flat, just under the lawn
     from anigs.synth.pond import RIM, in_pond
-
     xy = a.means[:, :2].numpy()
     assert bool(in_pond(xy[water.numpy()], 0.02).all())
     ground = (labels == LABEL_IDS["ground"]).numpy()

@@ -1,7 +1,6 @@
 """The user corrects what moves: drop / force a numbered candidate of overview.png, a 3D box, a
 SuperSplat selection export matched by position; and the per-frame PLYs load in SuperSplat as one
 timeline (its rule: one shared prefix and a trailing frame number, `(.*?)(\\d+)\\.ply`)."""
-
 from __future__ import annotations
 
 import json
@@ -16,9 +15,7 @@ from anigs.cli import main
 from anigs.effects.config import REGIONS
 from anigs.stages.effects import Outputs as EffectsOutputs
 
-SUPERSPLAT_SEQUENCE = re.compile(
-    r"(.*?)(\d+)(?:\.compressed)?\.ply$"
-)  # SuperSplat's isPlySequence (src/file-handler.ts)
+SUPERSPLAT_SEQUENCE = re.compile(r"(.*?)(\d+)(?:\.compressed)?\.ply$")  # SuperSplat's isPlySequence (src/file-handler.ts)
 
 
 @pytest.fixture(scope="module")
@@ -39,37 +36,15 @@ def room(tmp_path_factory):
 
 
 def _run(tmp: Path, out: str, params: dict) -> dict:
-    args = [
-        "effects",
-        "--canonical",
-        str(tmp / "canonical.ply"),
-        "--cameras",
-        str(tmp / "cameras.json"),
-        "--images",
-        str(tmp / "images"),
-        "--out",
-        str(tmp / out),
-        "--params",
-        json.dumps(params),
-    ]
+    args = ["effects", "--canonical", str(tmp / "canonical.ply"), "--cameras", str(tmp / "cameras.json"),
+            "--images", str(tmp / "images"), "--out", str(tmp / out), "--params", json.dumps(params)]
     assert main(args) == 0
     return EffectsOutputs(tmp / out).report()
 
 
 def _fails(tmp: Path, params: dict, caplog, pattern: str) -> None:
-    args = [
-        "effects",
-        "--canonical",
-        str(tmp / "canonical.ply"),
-        "--cameras",
-        str(tmp / "cameras.json"),
-        "--images",
-        str(tmp / "images"),
-        "--out",
-        str(tmp / "failed"),
-        "--params",
-        json.dumps(params),
-    ]
+    args = ["effects", "--canonical", str(tmp / "canonical.ply"), "--cameras", str(tmp / "cameras.json"),
+            "--images", str(tmp / "images"), "--out", str(tmp / "failed"), "--params", json.dumps(params)]
     assert main(args) != 0
     assert re.search(pattern, caplog.text), caplog.text[-2000:]
 
@@ -77,9 +52,7 @@ def _fails(tmp: Path, params: dict, caplog, pattern: str) -> None:
 def test_drop_and_force_by_number(room, caplog):
     tmp, d, auto = room
     assert auto["chosen"] == ["foliage_sway", "leaf_flutter"]
-    plant = max(
-        (c for c in auto["candidates"] if c["region"] == "foliage" and c["kept"]), key=lambda c: c["num_gaussians"]
-    )
+    plant = max((c for c in auto["candidates"] if c["region"] == "foliage" and c["kept"]), key=lambda c: c["num_gaussians"])
     rejected = auto["rejected"][0]
     doc = _run(tmp, "drop", {"drop": [plant["number"]], "force": [rejected["number"]]})
     regions = np.load(tmp / "drop" / "regions.npy")
@@ -108,9 +81,7 @@ def test_box_and_supersplat_selection(room, caplog):
     # a SuperSplat export of the selected plant: the selected Gaussians, positions unchanged
     label = d.gaussians.extras["label"].numpy()
     g.subset(torch.from_numpy(np.flatnonzero(label == 4))).save_ply(tmp / "plant_selection.ply")
-    doc = _run(
-        tmp, "sel", {"boxes": [box], "selections": [{"ply": str(tmp / "plant_selection.ply"), "effect": "still"}]}
-    )
+    doc = _run(tmp, "sel", {"boxes": [box], "selections": [{"ply": str(tmp / "plant_selection.ply"), "effect": "still"}]})
     dyn = EffectsOutputs(tmp / "sel").dynamic()
     assert doc["chosen"] == ["flower_bob"]  # the rug bobs because the box says so; the plant stays still
     assert dyn[rug].mean() > 0.99 and not dyn[label == 4].any()
@@ -131,8 +102,7 @@ def test_frame_plys_load_as_one_supersplat_timeline(tmp_path):
     names = write_frame_plys(tmp_path, g, d, 2)
     folder = {Path(n).parent for n in names}
     assert len(folder) == 1 and sorted(p.name for p in (tmp_path / folder.pop()).iterdir()) == sorted(
-        Path(n).name for n in names
-    )  # the folder holds the sequence only (SuperSplat takes a dropped folder)
+        Path(n).name for n in names)  # the folder holds the sequence only (SuperSplat takes a dropped folder)
     matches = [SUPERSPLAT_SEQUENCE.match(Path(n).name.lower()) for n in names]
     assert all(matches) and len({mt.group(1) for mt in matches}) == 1
     assert [int(mt.group(2)) for mt in matches] == sorted(int(mt.group(2)) for mt in matches)

@@ -5,7 +5,6 @@ picture, a red rug and ceiling lamps around a potted plant, a mown lawn beside a
 The detector runs with every kind allowed (no prompt), so geometry alone must keep the decoys
 still; the real effects must still be found. The fitted model is the scene itself.
 """
-
 from __future__ import annotations
 
 import numpy as np
@@ -15,13 +14,8 @@ from anigs.effects import EFFECTS, Config, detect_effects
 from anigs.synth import LABEL_IDS, render_image
 from anigs.synth.decoys import ALLOWED, DECOY_PARTS, DECOYS, build_decoy
 
-REGION_LABEL = {
-    "foliage_sway": "foliage",
-    "leaf_flutter": "foliage",
-    "grass_wave": "grass",
-    "flower_bob": "flowers",
-    "water_ripple": "water",
-}
+REGION_LABEL = {"foliage_sway": "foliage", "leaf_flutter": "foliage", "grass_wave": "grass", "flower_bob": "flowers",
+                "water_ripple": "water"}
 
 
 @pytest.fixture(scope="module", params=DECOYS)
@@ -55,10 +49,8 @@ def test_nothing_labelled_still_moves(decoy):
                 wrong |= _chosen(res, e) & inside
         report[name] = (int(wrong.sum()), int(inside.sum()))
     still_share = float((moving & d.still_mask()).sum() / max(moving.sum(), 1))
-    print(
-        f"{d.name}: detected {res.detected}; decoy Gaussians moved by an effect they may not take {report}; "
-        f"share of the moving Gaussians labelled still {still_share:.4f}"
-    )
+    print(f"{d.name}: detected {res.detected}; decoy Gaussians moved by an effect they may not take {report}; "
+          f"share of the moving Gaussians labelled still {still_share:.4f}")
     for name, (wrong, total) in report.items():
         assert wrong == 0, (d.name, name, wrong, total)
     # the share counts the still labels outside the decoy parts too: on the facade, the top of the trunk

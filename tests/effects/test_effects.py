@@ -4,7 +4,6 @@ with a pond and the bare courtyard; flowers of any hue; green pictures on walls 
 The fitted model is the ground-truth scene itself (small scenes, few small photos), so the figures
 measure the detector, not the static fit.
 """
-
 from __future__ import annotations
 
 import json
@@ -24,13 +23,8 @@ from anigs.synth import LABEL_IDS, CaptureConfig, SceneConfig, build_scene, came
 from anigs.synth.scene import frame_from_normal, quat_from_matrix
 from anigs.stages.effects import Outputs as EffectsOutputs
 
-TRUTH = {
-    "foliage_sway": "foliage",
-    "leaf_flutter": "foliage",
-    "grass_wave": "grass",
-    "flower_bob": "flowers",
-    "water_ripple": "water",
-}
+TRUTH = {"foliage_sway": "foliage", "leaf_flutter": "foliage", "grass_wave": "grass", "flower_bob": "flowers",
+         "water_ripple": "water"}
 
 
 def _capture(scene_cfg: SceneConfig, images: int = 12, width: int = 160):
@@ -142,13 +136,11 @@ def _gaussians(means, scales, normals, colors, opacity=0.95, labels=None) -> Gau
     n = len(means)
     q = quat_from_matrix(frame_from_normal(np.asarray(normals, float)))
     return Gaussians(
-        means=torch.tensor(means, dtype=torch.float32),
-        quats=torch.tensor(q, dtype=torch.float32),
+        means=torch.tensor(means, dtype=torch.float32), quats=torch.tensor(q, dtype=torch.float32),
         log_scales=torch.log(torch.tensor(scales, dtype=torch.float32)),
         opacity_logits=torch.logit(torch.full((n,), opacity)),
         sh=rgb_to_sh0(torch.tensor(np.clip(colors, 0.02, 0.97), dtype=torch.float32))[:, None, :].contiguous(),
-        extras={"label": torch.tensor(labels if labels is not None else np.zeros(n), dtype=torch.int64)},
-    )
+        extras={"label": torch.tensor(labels if labels is not None else np.zeros(n), dtype=torch.int64)})
 
 
 def _floor(rng, half: float, step: float, color) -> tuple:
@@ -160,9 +152,8 @@ def _floor(rng, half: float, step: float, color) -> tuple:
     return means, np.tile([0.8 * step, 0.8 * step, 0.003], (m, 1)), np.tile([0.0, 0, 1], (m, 1)), cols
 
 
-def _ring_cameras(
-    target, radius: float, height: float, count: int, arc: float = 2 * math.pi, start: float = 0.0, size=(160, 120)
-) -> list[Camera]:
+def _ring_cameras(target, radius: float, height: float, count: int, arc: float = 2 * math.pi, start: float = 0.0,
+                  size=(160, 120)) -> list[Camera]:
     K = intrinsics_from_fov(55.0, *size)
     cams = []
     for i in range(count):
@@ -189,10 +180,8 @@ def test_red_flower_next_to_leaves_is_a_flower_not_foliage():
     head = np.array([0.0, -0.62, 0.95]) + e * rng.uniform(0.0, 0.14, (len(e), 1))
     red = np.array([0.85, 0.1, 0.08]) * rng.uniform(0.85, 1.1, (len(e), 1))
     parts.append((head, np.tile([0.025, 0.02, 0.005], (len(e), 1)), e, red, 2))
-    g = _gaussians(
-        *[np.concatenate([p[k] for p in parts]) for k in range(4)],
-        labels=np.concatenate([np.full(len(p[0]), p[4]) for p in parts]),
-    )
+    g = _gaussians(*[np.concatenate([p[k] for p in parts]) for k in range(4)],
+                   labels=np.concatenate([np.full(len(p[0]), p[4]) for p in parts]))
     cams = _ring_cameras((0.0, 0.0, 0.8), 2.6, 1.5, 8, arc=math.pi, start=-math.pi * 0.95)
     imgs = [render_image(g, c, (0.62, 0.76, 0.92)) for c in cams]
     res = detect_effects(imgs, cams, g, Config())
@@ -200,10 +189,8 @@ def test_red_flower_next_to_leaves_is_a_flower_not_foliage():
     flowers = np.isin(np.arange(g.num), res.effects["flower_bob"].indices)
     foliage = np.isin(np.arange(g.num), res.effects["foliage_sway"].indices)
     blossom, leaf = labels == 2, labels == 1
-    print(
-        f"blossom in flower_bob {flowers[blossom].mean():.3f}, in foliage {foliage[blossom].mean():.3f}; "
-        f"leaves in foliage {foliage[leaf].mean():.3f}"
-    )
+    print(f"blossom in flower_bob {flowers[blossom].mean():.3f}, in foliage {foliage[blossom].mean():.3f}; "
+          f"leaves in foliage {foliage[leaf].mean():.3f}")
     assert res.effects["flower_bob"].detected and res.effects["foliage_sway"].detected
     assert flowers[blossom].mean() >= 0.6 and foliage[blossom].mean() <= 0.1
     assert foliage[leaf].mean() >= 0.7 and flowers[leaf].mean() <= 0.2
@@ -228,10 +215,8 @@ def test_green_picture_on_a_wall_is_not_foliage():
     cfg = Config()
     # the picture is green by colour in every photo: only geometry can tell it from a plant
     pic_px = [render_label_map(g, labels, c) == 1 for c in cams]
-    assert all(
-        cues.green(im, cfg.green_hue, cfg.green_min_saturation, cfg.min_value)[m].mean() > 0.5
-        for im, m in zip(imgs, pic_px)
-    )
+    assert all(cues.green(im, cfg.green_hue, cfg.green_min_saturation, cfg.min_value)[m].mean() > 0.5
+               for im, m in zip(imgs, pic_px))
     res = detect_effects(imgs, cams, g, cfg)
     foliage = np.isin(np.arange(g.num), res.effects["foliage_sway"].indices)
     assert not res.effects["foliage_sway"].detected, res.effects["foliage_sway"].reason
@@ -256,15 +241,8 @@ def test_stage_effects_list_restricts_and_reports_what_the_scene_lacks(tmp_path)
     save_cameras(tmp_path / "cameras.json", cams)
     for cam, img in zip(cams, imgs):
         write_rgb_png(tmp_path / "images" / cam.name, img)
-    base = [
-        "effects",
-        "--canonical",
-        str(tmp_path / "canonical.ply"),
-        "--cameras",
-        str(tmp_path / "cameras.json"),
-        "--images",
-        str(tmp_path / "images"),
-    ]
+    base = ["effects", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+            "--images", str(tmp_path / "images")]
     assert main(base + ["--out", str(tmp_path / "auto"), "--params", "{}"]) == 0
     auto = EffectsOutputs(tmp_path / "auto").report()
     assert auto["requested"] == "auto" and auto["chosen"] == auto["detected"] and "water_ripple" in auto["chosen"]
@@ -272,9 +250,8 @@ def test_stage_effects_list_restricts_and_reports_what_the_scene_lacks(tmp_path)
     assert main(base + ["--out", str(tmp_path / "list"), "--params", listed]) == 0
     doc = EffectsOutputs(tmp_path / "list").report()
     want = [e for e in ("water_ripple", "grass_wave", "flower_bob") if e in auto["detected"]]
-    assert doc["chosen"] == want and doc["requested_not_found"] == [
-        e for e in ("water_ripple", "grass_wave", "flower_bob") if e not in want
-    ]
+    assert doc["chosen"] == want and doc["requested_not_found"] == [e for e in ("water_ripple", "grass_wave",
+                                                                                "flower_bob") if e not in want]
     regions = EffectsOutputs(tmp_path / "list").regions()
     dyn = EffectsOutputs(tmp_path / "list").dynamic()
     assert dyn.shape == (g.num,) and dyn.sum() == doc["num_dynamic"]

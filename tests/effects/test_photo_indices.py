@@ -1,6 +1,5 @@
 """The effects stage reads only the photos the detection analyses (anigs.effects.detect.photo_indices):
 picking again from the picked photos keeps every one of them, so the detection sees the same photos."""
-
 from __future__ import annotations
 
 import numpy as np

@@ -5,7 +5,6 @@ On the synthetic garden a 35-Gaussian clump of flowers was rejected "on large fl
 RANSAC sliced the bed of flower heads around it into layers, and whether it did depended on how many
 random draws the parts checked before had used (garden flower recall 0.452 -> 0.408).
 """
-
 from __future__ import annotations
 
 import numpy as np
@@ -61,11 +60,8 @@ def test_a_parts_verdict_does_not_depend_on_the_parts_checked_before_it(seed):
     alone = _flowers(means, colours, region, height)[0]
     # a bush far away, checked first (foliage comes before flowers), draws its own RANSAC samples
     bush = np.random.default_rng(9).normal([6.0, 6.0, 0.8], 0.3, (200, 3))
-    both = _flowers(
-        np.vstack([means, bush]),
-        np.vstack([colours, np.tile(GREEN, (200, 1))]),
-        np.concatenate([region, np.full(200, REGIONS.index("foliage"))]),
-        np.concatenate([height, bush[:, 2]]),
-    )[0]
+    both = _flowers(np.vstack([means, bush]), np.vstack([colours, np.tile(GREEN, (200, 1))]),
+                    np.concatenate([region, np.full(200, REGIONS.index("foliage"))]),
+                    np.concatenate([height, bush[:, 2]]))[0]
     assert np.array_equal(alone.indices, both.indices)
     assert alone.figures == both.figures and alone.kept == both.kept

@@ -1,7 +1,6 @@
 """The prompt names the kinds that may move (anigs.effects.vocabulary), the effects stage follows it
 with `effects: auto`, an explicit list overrides it, and a misspelt effect name in a scene file
 fails when the workflow is parsed."""
-
 from __future__ import annotations
 
 import json
@@ -19,22 +18,19 @@ from anigs.stages.effects import Outputs as EffectsOutputs
 ROOT = Path(__file__).resolve().parents[2]
 
 
-@pytest.mark.parametrize(
-    "prompt, regions",
-    [
-        ("a garden with trees, bushes, grass and flowers swaying gently in the wind", ["foliage", "grass", "flowers"]),
-        ("plants, leaves and flowers swaying gently in the wind", ["foliage", "flowers"]),
-        ("a building with trees and lawns in the wind", ["foliage", "grass"]),
-        ("a plant with fronds moving", ["foliage"]),
-        ("an object in a room", []),
-        ("a ROSE by the Fountain", ["flowers", "water"]),
-        ("a park", ["foliage", "grass", "flowers"]),
-        ("a room without plants, lit by a lamp", []),
-        ("no flowers, only trees in the wind", ["foliage"]),
-        ("a meadow and a lake", ["grass", "water"]),
-        ("", []),
-    ],
-)
+@pytest.mark.parametrize("prompt, regions", [
+    ("a garden with trees, bushes, grass and flowers swaying gently in the wind", ["foliage", "grass", "flowers"]),
+    ("plants, leaves and flowers swaying gently in the wind", ["foliage", "flowers"]),
+    ("a building with trees and lawns in the wind", ["foliage", "grass"]),
+    ("a plant with fronds moving", ["foliage"]),
+    ("an object in a room", []),
+    ("a ROSE by the Fountain", ["flowers", "water"]),
+    ("a park", ["foliage", "grass", "flowers"]),
+    ("a room without plants, lit by a lamp", []),
+    ("no flowers, only trees in the wind", ["foliage"]),
+    ("a meadow and a lake", ["grass", "water"]),
+    ("", []),
+])
 def test_prompt_names_kinds(prompt, regions):
     assert prompt_kinds(prompt).regions == regions
 
@@ -85,19 +81,8 @@ def garden_stage(tmp_path_factory):
 def _run(tmp: Path, out: str, params: dict, prompt: str | None = None) -> dict:
     from anigs.cli import main
 
-    args = [
-        "effects",
-        "--canonical",
-        str(tmp / "canonical.ply"),
-        "--cameras",
-        str(tmp / "cameras.json"),
-        "--images",
-        str(tmp / "images"),
-        "--out",
-        str(tmp / out),
-        "--params",
-        json.dumps(params),
-    ]
+    args = ["effects", "--canonical", str(tmp / "canonical.ply"), "--cameras", str(tmp / "cameras.json"),
+            "--images", str(tmp / "images"), "--out", str(tmp / out), "--params", json.dumps(params)]
     if prompt is not None:
         args += ["--prompt", prompt]
     assert main(args) == 0

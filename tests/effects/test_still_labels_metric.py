@@ -1,6 +1,5 @@
 """gt/moving_labelled_still (anigs/metrics/still_labels.py): the share of the model's moving
 Gaussians whose ground-truth label must stay still, on a hand-built model."""
-
 from __future__ import annotations
 
 import numpy as np
@@ -27,10 +26,8 @@ def test_share_of_moving_gaussians_labelled_still(tmp_path, wrong):
     g.save_ply(gt / "gaussians.ply")
     np.save(gt / "labels.npy", labels.astype(np.int32))
     write_json(gt / "motion.json", {"labels": {str(k): v for k, v in ALL_LABELS.items()}})
-    cams = [
-        Camera(intrinsics_from_fov(60, 32, 24), look_at((5 * np.cos(a), 5 * np.sin(a), 2), (0, 0, 0)), 32, 24, f"c{i}")
-        for i, a in enumerate(np.linspace(0, 2 * np.pi, 6, endpoint=False))
-    ]
+    cams = [Camera(intrinsics_from_fov(60, 32, 24), look_at((5 * np.cos(a), 5 * np.sin(a), 2), (0, 0, 0)), 32, 24,
+                   f"c{i}") for i, a in enumerate(np.linspace(0, 2 * np.pi, 6, endpoint=False))]
     save_cameras(gt / "cameras.json", cams)
     save_cameras(tmp_path / "cameras.json", cams)
     ply = tmp_path / "canonical.ply"

@@ -1,6 +1,5 @@
 """Containment of the dynamic set (anigs.masks.contain): a halo that spills out of the masks stays
 still, a compact Gaussian inside them keeps moving, and then nothing outside the masks changes."""
-
 from __future__ import annotations
 
 import numpy as np
@@ -30,20 +29,12 @@ def _scene():
     halo = np.array([[0.0, 0.0, 4.9]])
     hidden = np.array([[4.0, 0.0, 9.0]])  # behind the opaque wall
     pts = np.concatenate([wall, cluster, halo, hidden])
-    cols = np.concatenate(
-        [
-            rng.uniform(0.2, 0.8, (len(wall), 3)),
-            np.tile([0.1, 0.6, 0.1], (len(cluster), 1)),
-            [[0.2, 0.5, 0.2]],
-            [[0.9, 0.1, 0.1]],
-        ]
-    )
-    g = Gaussians.from_points(
-        torch.tensor(pts, dtype=torch.float32), torch.tensor(cols, dtype=torch.float32), 0.05, opacity=0.99
-    )
-    scales = np.concatenate(
-        [np.full((len(wall), 3), 0.3), np.full((len(cluster), 3), 0.06), [[1.5, 1.0, 0.3]], [[0.5, 0.5, 0.3]]]
-    )
+    cols = np.concatenate([rng.uniform(0.2, 0.8, (len(wall), 3)), np.tile([0.1, 0.6, 0.1], (len(cluster), 1)),
+                           [[0.2, 0.5, 0.2]], [[0.9, 0.1, 0.1]]])
+    g = Gaussians.from_points(torch.tensor(pts, dtype=torch.float32), torch.tensor(cols, dtype=torch.float32),
+                              0.05, opacity=0.99)
+    scales = np.concatenate([np.full((len(wall), 3), 0.3), np.full((len(cluster), 3), 0.06),
+                             [[1.5, 1.0, 0.3]], [[0.5, 0.5, 0.3]]])
     g.log_scales = torch.tensor(scales, dtype=torch.float32).log()
     op = np.concatenate([np.full(len(wall) + len(cluster), 0.99), [0.25], [0.99]])
     g.opacity_logits = torch.logit(torch.tensor(op, dtype=torch.float32))
@@ -99,7 +90,8 @@ def test_contained_motion_leaves_the_outside_still(scene):
     contained = contain_dynamic(g, lifted, [cam], [mask]).dynamic
 
     def clip(flags):
-        d = DCTDeformation(dynamic_index_from_mask(torch.from_numpy(flags)), 9, 4, rotation=False, num_gaussians=g.num)
+        d = DCTDeformation(dynamic_index_from_mask(torch.from_numpy(flags)), 9, 4, rotation=False,
+                           num_gaussians=g.num)
         with torch.no_grad():
             d.pos_coeffs.copy_(torch.randn(d.pos_coeffs.shape, generator=torch.Generator().manual_seed(1)) * 0.1)
         return render_clip(g, d, cam, 9, BG).numpy()
@@ -145,9 +137,8 @@ def test_masks_stage_contains_the_effects_set(tmp_path):
 
     g, index, cam = _scene()
     g.save_ply(tmp_path / "canonical.ply")
-    (tmp_path / "views.json").write_text(
-        json.dumps({"views": [{"id": "v00", "camera": cam.to_dict()}], "up": [0, -1, 0]})
-    )
+    (tmp_path / "views.json").write_text(json.dumps({"views": [{"id": "v00", "camera": cam.to_dict()}],
+                                                     "up": [0, -1, 0]}))
     eff = tmp_path / "effects"
     eff.mkdir()
     regions = np.full(g.num, -1, np.int8)
@@ -155,15 +146,8 @@ def test_masks_stage_contains_the_effects_set(tmp_path):
     np.save(EffectsOutputs(eff).path("regions"), regions)
     np.save(EffectsOutputs(eff).path("dynamic"), regions >= 0)
     EffectsOutputs(eff).path("effects").write_text(json.dumps({"chosen": ["foliage_sway"]}))
-    args = [
-        "masks",
-        "--canonical",
-        str(tmp_path / "canonical.ply"),
-        "--views",
-        str(tmp_path / "views.json"),
-        "--effects",
-        str(eff),
-    ]
+    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
+            "--effects", str(eff)]
     assert main(args + ["--out", str(tmp_path / "on"), "--params", "{}"]) == 0
     assert main(args + ["--out", str(tmp_path / "off"), "--params", json.dumps({"contain": False})]) == 0
     on, off = MasksOutputs(tmp_path / "on").dynamic(), MasksOutputs(tmp_path / "off").dynamic()
@@ -172,10 +156,7 @@ def test_masks_stage_contains_the_effects_set(tmp_path):
     info = MasksOutputs(tmp_path / "on").report()
     assert info["containment"]["frozen"] == 1 and info["containment"]["margin_px"] == 3
     assert "containment" not in MasksOutputs(tmp_path / "off").report()
-    np.testing.assert_array_equal(
-        read_mask_png(MasksOutputs(tmp_path / "on").path("mask", view="v00")),
-        read_mask_png(MasksOutputs(tmp_path / "off").path("mask", view="v00")),
-    )
+    np.testing.assert_array_equal(read_mask_png(MasksOutputs(tmp_path / "on").path("mask", view="v00")), read_mask_png(MasksOutputs(tmp_path / "off").path("mask", view="v00")))
     assert main(args + ["--out", str(tmp_path / "x"), "--params", json.dumps({"contain_margin_px": -1})]) == 1
 
 
@@ -260,26 +241,13 @@ def test_update_stage_contains_the_trained_motion(tmp_path, scene):
         target = render_clip(g, _deformation(g, lifted, scale=0.3), cam, 9, BG).numpy()
     save_clip(tmp_path / "v00.npz", target, {"camera": cam.to_dict()})
     params = {"steps": 20, "num_bases": 4, "background": list(BG), "lr_position_coeffs": 0.05, "spatial_lr_scale": 1.0}
-    base = [
-        "update",
-        "--static",
-        str(tmp_path / "static"),
-        "--targets",
-        str(tmp_path / "v00.npz"),
-        "--views",
-        str(tmp_path / "views"),
-        "--masks",
-        str(tmp_path / "masks"),
-    ]
-    assert (
-        main(base + ["--out", str(tmp_path / "on"), "--round", "2", "--rounds", "2", "--params", json.dumps(params)])
-        == 0
-    )
+    base = ["update", "--static", str(tmp_path / "static"), "--targets", str(tmp_path / "v00.npz"),
+            "--views", str(tmp_path / "views"), "--masks", str(tmp_path / "masks")]
+    assert main(base + ["--out", str(tmp_path / "on"), "--round", "2", "--rounds", "2",
+                        "--params", json.dumps(params)]) == 0
     assert main(base + ["--out", str(tmp_path / "off"), "--params", json.dumps({**params, "contain": False})]) == 0
-    assert (
-        main(base + ["--out", str(tmp_path / "early"), "--round", "1", "--rounds", "2", "--params", json.dumps(params)])
-        == 0
-    )
+    assert main(base + ["--out", str(tmp_path / "early"), "--round", "1", "--rounds", "2",
+                        "--params", json.dumps(params)]) == 0
     c_on, d_on, _ = load_model(tmp_path / "on" / "model.pt", g)
     c_off, d_off, _ = load_model(tmp_path / "off" / "model.pt", g)
     assert d_off.num_dynamic == int(lifted.sum())

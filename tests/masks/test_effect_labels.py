@@ -1,5 +1,4 @@
 """The per-Gaussian effect labels the masks stage writes for the update's per-effect settings."""
-
 import numpy as np
 import pytest
 

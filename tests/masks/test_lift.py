@@ -2,7 +2,6 @@
 
 Also home of ``toy_scene``, the small labelled scene the views/masks tests share.
 """
-
 from __future__ import annotations
 
 import math
@@ -15,22 +14,15 @@ from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.gaussians import Gaussians
 from anigs.geometry.propagate import propagate_labels
 from anigs.masks.lift import LiftConfig, lift_masks, lift_masks_report
-from anigs.render.visibility import (
-    VisibilityConfig,
-    blend_weights,
-    check_mask,
-    frustum_subset,
-    render_depth,
-    visibility,
-)
+from anigs.render.visibility import (VisibilityConfig, blend_weights, check_mask, frustum_subset, render_depth,
+                                     visibility)
 from anigs.render import render_gaussians
 
 SKY = (0.62, 0.76, 0.92)
 
 
-def toy_scene(
-    seed: int = 0, ring: int = 10, width: int = 96, height: int = 72, lawn: bool = False, ground_noise: float = 0.0
-):
+def toy_scene(seed: int = 0, ring: int = 10, width: int = 96, height: int = 72, lawn: bool = False,
+              ground_noise: float = 0.0):
     """A small labelled z-up scene and a ring of cameras around it.
 
     Labels: 0 ground (brown, or lawn green with ``lawn``), 1 grey wall, 4 green textured
@@ -59,9 +51,8 @@ def toy_scene(
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         q = np.asarray(c) + d * r * rng.uniform(0.2, 1.0, (n, 1)) ** (1 / 3)
         pts.append(q), scl.append(np.full((n, 3), 0.08)), lab.append(np.full(n, 4))
-        cols.append(
-            np.clip(np.array([0.18, 0.55, 0.15]) * rng.uniform(0.6, 1.3, (n, 1)) + rng.normal(0, 0.03, (n, 3)), 0, 1)
-        )
+        cols.append(np.clip(np.array([0.18, 0.55, 0.15]) * rng.uniform(0.6, 1.3, (n, 1))
+                            + rng.normal(0, 0.03, (n, 3)), 0, 1))
     P = torch.tensor(np.concatenate(pts), dtype=torch.float32)
     C = torch.tensor(np.concatenate(cols), dtype=torch.float32)
     S = torch.tensor(np.concatenate(scl), dtype=torch.float32)
@@ -177,9 +168,8 @@ def test_lift_errors(scene):
 
 
 def test_propagate_labels():
-    means = np.array(
-        [[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [5, 0, 0], [5.1, 0, 0], [0.05, 0.05, 0], [5.05, 0, 0]], float
-    )
+    means = np.array([[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [5, 0, 0], [5.1, 0, 0],
+                      [0.05, 0.05, 0], [5.05, 0, 0]], float)
     decided = np.array([1, 1, 1, 1, 1, 0, 0], bool)
     value = np.array([1, 1, 1, 0, 0, 0, 0], bool)
     out = propagate_labels(means, decided, value, k=2)

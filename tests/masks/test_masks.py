@@ -1,5 +1,4 @@
 """Dynamic-region masks (anigs.masks: vegetation, labels, sam2 backends; `anigs masks`)."""
-
 from __future__ import annotations
 
 import json
@@ -22,8 +21,8 @@ def _synthetic_frame(seed: int = 0, h: int = 96, w: int = 128):
     rng = np.random.default_rng(seed)
     img = np.zeros((h, w, 3), np.float32)
     img[: h // 3] = SKY
-    img[h // 3 :] = np.array([0.45, 0.33, 0.2]) * rng.uniform(0.8, 1.2, (h - h // 3, w, 1))
-    img[h // 4 : 3 * h // 4, : w // 4] = np.array([0.55, 0.55, 0.56]) * rng.uniform(0.85, 1.15, (h // 2, w // 4, 1))
+    img[h // 3:] = np.array([0.45, 0.33, 0.2]) * rng.uniform(0.8, 1.2, (h - h // 3, w, 1))
+    img[h // 4: 3 * h // 4, : w // 4] = np.array([0.55, 0.55, 0.56]) * rng.uniform(0.85, 1.15, (h // 2, w // 4, 1))
     yy, xx = np.mgrid[:h, :w]
     bush = ((yy - h * 0.55) / (h * 0.22)) ** 2 + ((xx - w * 0.62) / (w * 0.18)) ** 2 < 1
     leaves = np.array([0.18, 0.5, 0.14]) * rng.uniform(0.5, 1.4, (h, w, 1)) + rng.normal(0, 0.02, (h, w, 3))
@@ -179,7 +178,7 @@ def _flower_bed_frame(h: int = 96, w: int = 128):
     colours = np.array([[0.9, 0.2, 0.2], [0.95, 0.85, 0.2], [0.85, 0.3, 0.8], [0.95, 0.95, 0.95]], np.float32)
     for y in range(61, 75, 4):
         for x in range(31 + (y % 3), 89, 4):
-            img[y : y + 2, x : x + 2] = colours[rng.integers(len(colours))]
+            img[y:y + 2, x:x + 2] = colours[rng.integers(len(colours))]
     plane = GroundPlane(np.array([0, 0, 1.0]), 0.0, 0.05, layer=0.3, camera_height=1.5)
     frame = Frame(img, cam, depth.astype(np.float32), np.ones((h, w), np.float32), "bed", np.asarray(SKY, np.float32))
     return frame, plane, bed
@@ -197,14 +196,8 @@ def test_flower_bed_inside_the_ground_layer():
     # the old rule (flowers only above the ground layer): nothing
     assert not vegetation_mask(frame.image, VegetationConfig(flowers_in_ground=False), frame=frame, ground=plane).any()
     # without the blossoms the lawn gives an empty mask
-    lawn = Frame(
-        np.where(bed[..., None], frame.image[5:6, 5:6], frame.image),
-        frame.camera,
-        frame.depth,
-        frame.alpha,
-        "lawn",
-        frame.background,
-    )
+    lawn = Frame(np.where(bed[..., None], frame.image[5:6, 5:6], frame.image), frame.camera, frame.depth,
+                 frame.alpha, "lawn", frame.background)
     assert not vegetation_mask(lawn.image, VegetationConfig(), frame=lawn, ground=plane).any()
 
 
@@ -212,10 +205,8 @@ def _ring(n: int = 6, height: float = 1.6):
     from anigs.cameras import Camera, intrinsics_from_fov, look_at
 
     K = intrinsics_from_fov(60, 32, 24)
-    return [
-        Camera(K, look_at((4 * np.cos(a), 4 * np.sin(a), height), (0, 0, 0.5)), 32, 24, f"c{i}")
-        for i, a in enumerate(np.linspace(0, 2 * np.pi, n, endpoint=False))
-    ]
+    return [Camera(K, look_at((4 * np.cos(a), 4 * np.sin(a), height), (0, 0, 0.5)), 32, 24, f"c{i}")
+            for i, a in enumerate(np.linspace(0, 2 * np.pi, n, endpoint=False))]
 
 
 def _ground_and_bushes(noise: float, seed: int = 0, extra: np.ndarray | None = None) -> np.ndarray:
@@ -271,10 +262,10 @@ def test_ground_layer_removes_a_noisy_lawn(noisy_lawn_scene):
 
     def scores(masks):
         iou = np.mean([mask_iou(masks[k]["dynamic"], truth[k]["dynamic"]) for k in keep])
-        recall = np.mean([(masks[k]["dynamic"] & truth[k]["dynamic"]).sum() / truth[k]["dynamic"].sum() for k in keep])
+        recall = np.mean([(masks[k]["dynamic"] & truth[k]["dynamic"]).sum() / truth[k]["dynamic"].sum()
+                          for k in keep])
         leak = sum((m["dynamic"] & l["dynamic"]).sum() for m, l in zip(masks, lawn)) / sum(
-            l["dynamic"].sum() for l in lawn
-        )
+            l["dynamic"].sum() for l in lawn)
         return iou, recall, leak
 
     iou, recall, leak = scores(compute_masks("vegetation", frames, ground=ground))
@@ -321,7 +312,6 @@ def test_sam2_backend_reports_what_to_install(tmp_path):
     try:
         import sam2  # noqa: F401
         import torchvision  # noqa: F401
-
         importable = True
     except Exception:
         importable = False
@@ -341,10 +331,8 @@ def test_sam2_random_weights_real_code_path():
         import sam2  # noqa: F401
         import torchvision  # noqa: F401
     except Exception as exc:  # torchvision on PyPI is a CUDA build: fails with the CPU torch
-        pytest.skip(
-            f"sam2 cannot import here ({type(exc).__name__}: {exc}); "
-            "needs sam2 + a torchvision matching torch (see NOTES.md)"
-        )
+        pytest.skip(f"sam2 cannot import here ({type(exc).__name__}: {exc}); "
+                    "needs sam2 + a torchvision matching torch (see NOTES.md)")
     img, bush = _synthetic_frame(h=64, w=64)
     backend = get_mask_backend("sam2", checkpoint=None, random_weights=True, points_per_side=4, device="cpu")
     out = compute_masks(backend, [Frame(img, name="v00")])
@@ -358,10 +346,8 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
     gs, lab, cams, _ = lawn_scene
     gs.save_ply(tmp_path / "canonical.ply")
     np.save(tmp_path / "labels.npy", lab)
-    motion = {
-        "labels": {"0": "ground", "1": "building", "4": "foliage"},
-        "label_effects": {"ground": [], "building": [], "foliage": ["foliage_sway", "leaf_flutter"]},
-    }
+    motion = {"labels": {"0": "ground", "1": "building", "4": "foliage"},
+              "label_effects": {"ground": [], "building": [], "foliage": ["foliage_sway", "leaf_flutter"]}}
     (tmp_path / "motion.json").write_text(json.dumps(motion))
     vcfg = ViewsConfig(width=80, height=60)
     views = []
@@ -371,26 +357,13 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
         views.append({"id": f"v{i:02d}", "camera": cam.to_dict()})
     (tmp_path / "views.json").write_text(json.dumps({"views": views, "up": [0, 0, 1]}))
     out = tmp_path / "masks"
-    args = [
-        "masks",
-        "--canonical",
-        str(tmp_path / "canonical.ply"),
-        "--views",
-        str(tmp_path / "views.json"),
-        "--out",
-        str(out),
-        "--labels",
-        str(tmp_path / "labels.npy"),
-        "--motion",
-        str(tmp_path / "motion.json"),
-    ]
+    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
+            "--out", str(out), "--labels", str(tmp_path / "labels.npy"), "--motion", str(tmp_path / "motion.json")]
     assert main(args + ["--params", json.dumps({"backend": "labels"})]) == 0
     for v in views:
         assert read_mask_png(MasksOutputs(out).path("mask", view=v["id"])).shape == (60, 80)
         assert MasksOutputs(out).exists("overlay", view=v["id"])
-        assert MasksOutputs(out).exists("effect_mask", view=v["id"], effect="foliage_sway") and MasksOutputs(
-            out
-        ).exists("effect_mask", view=v["id"], effect="leaf_flutter")
+        assert MasksOutputs(out).exists("effect_mask", view=v["id"], effect="foliage_sway") and MasksOutputs(out).exists("effect_mask", view=v["id"], effect="leaf_flutter")
     info = MasksOutputs(out).report()
     assert info["iou_vs_labels"]["min"] == 1.0  # the labels backend is its own yardstick
     lv = info["lift_vs_labels"]
@@ -410,18 +383,10 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
 
     for v in views:
         write_rgb_png(tmp_path / "frames" / f"{v['id']}.png", np.full((60, 80, 3), 0.5, np.float32))
-    assert (
-        main(args + ["--out", str(tmp_path / "grey"), "--frames", str(tmp_path / "frames"), "--params", veg_params])
-        == 0
-    )
-    assert not read_mask_png(
-        MasksOutputs(tmp_path / "grey").path("mask", view="v00")
-    ).any()  # an all-grey frame: empty mask, no crash
+    assert main(args + ["--out", str(tmp_path / "grey"), "--frames", str(tmp_path / "frames"), "--params", veg_params]) == 0
+    assert not read_mask_png(MasksOutputs(tmp_path / "grey").path("mask", view="v00")).any()  # an all-grey frame: empty mask, no crash
     (tmp_path / "frames" / "v01.png").unlink()
-    assert (
-        main(args + ["--out", str(tmp_path / "grey2"), "--frames", str(tmp_path / "frames"), "--params", veg_params])
-        == 1
-    )
+    assert main(args + ["--out", str(tmp_path / "grey2"), "--frames", str(tmp_path / "frames"), "--params", veg_params]) == 1
 
 
 def test_labels_across_frames_and_transfer(lawn_scene):
@@ -462,10 +427,8 @@ def test_cli_masks_lifts_over_capture_photos(tmp_path, lawn_scene):
     gs, lab, cams, frames = lawn_scene
     gs.save_ply(tmp_path / "canonical.ply")
     np.save(tmp_path / "labels.npy", lab)
-    motion = {
-        "labels": {"0": "ground", "1": "building", "4": "foliage"},
-        "label_effects": {"ground": [], "building": [], "foliage": ["foliage_sway"]},
-    }
+    motion = {"labels": {"0": "ground", "1": "building", "4": "foliage"},
+              "label_effects": {"ground": [], "building": [], "foliage": ["foliage_sway"]}}
     (tmp_path / "motion.json").write_text(json.dumps(motion))
     save_cameras(tmp_path / "cameras.json", cams)
     for fr in frames:  # the "photos": renders of the scene from the ring of capture cameras
@@ -475,25 +438,11 @@ def test_cli_masks_lifts_over_capture_photos(tmp_path, lawn_scene):
     vcams = location_cameras(pos, heading, np.array([0, 0, 1.0]), ViewsConfig(width=80, height=60))
     views = [{"id": f"v{i:02d}", "camera": c.to_dict()} for i, c in enumerate(vcams)]
     (tmp_path / "views.json").write_text(json.dumps({"views": views, "up": [0, 0, 1]}))
-    base = [
-        "masks",
-        "--canonical",
-        str(tmp_path / "canonical.ply"),
-        "--views",
-        str(tmp_path / "views.json"),
-        "--labels",
-        str(tmp_path / "labels.npy"),
-        "--motion",
-        str(tmp_path / "motion.json"),
-        "--gt-gaussians",
-        str(tmp_path / "canonical.ply"),
-        "--gt-cameras",
-        str(tmp_path / "cameras.json"),
-        "--cameras",
-        str(tmp_path / "cameras.json"),
-        "--params",
-        json.dumps({"backend": "vegetation", "appearance": True}),
-    ]
+    base = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
+            "--labels", str(tmp_path / "labels.npy"), "--motion", str(tmp_path / "motion.json"),
+            "--gt-gaussians", str(tmp_path / "canonical.ply"), "--gt-cameras", str(tmp_path / "cameras.json"),
+            "--cameras", str(tmp_path / "cameras.json"),
+            "--params", json.dumps({"backend": "vegetation", "appearance": True})]
     assert main(base + ["--out", str(tmp_path / "views_only")]) == 0
     assert main(base + ["--out", str(tmp_path / "capture"), "--images", str(tmp_path / "images")]) == 0
     before = MasksOutputs(tmp_path / "views_only").report()
@@ -517,7 +466,7 @@ def test_cli_masks_lifts_over_capture_photos(tmp_path, lawn_scene):
     assert len(after["completed_fraction"]) == len(views)
     # photos missing: an error naming the folder; --images without --cameras: an error
     assert main(base + ["--out", str(tmp_path / "x"), "--images", str(tmp_path / "nope")]) == 1
-    no_cams = base[: base.index("--gt-gaussians")] + ["--params", json.dumps({"backend": "vegetation"})]
+    no_cams = base[:base.index("--gt-gaussians")] + ["--params", json.dumps({"backend": "vegetation"})]
     assert main(no_cams + ["--out", str(tmp_path / "y"), "--images", str(tmp_path / "images")]) == 1
 
 
@@ -570,17 +519,8 @@ def test_cli_masks_effects_backend_renders_the_effects_stage_sets(tmp_path, lawn
     np.save(EffectsOutputs(eff).path("regions"), regions)
     np.save(EffectsOutputs(eff).path("dynamic"), regions >= 0)
     EffectsOutputs(eff).path("effects").write_text(json.dumps({"chosen": ["foliage_sway", "leaf_flutter"]}))
-    args = [
-        "masks",
-        "--canonical",
-        str(tmp_path / "canonical.ply"),
-        "--views",
-        str(tmp_path / "views.json"),
-        "--effects",
-        str(eff),
-        "--params",
-        "{}",
-    ]
+    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
+            "--effects", str(eff), "--params", "{}"]
     assert main(args + ["--out", str(tmp_path / "m")]) == 0
     info = MasksOutputs(tmp_path / "m").report()
     assert info["backend"] == "effects" and info["lift"]["source"].startswith("effects:")
@@ -601,10 +541,7 @@ def test_cli_masks_effects_backend_renders_the_effects_stage_sets(tmp_path, lawn
         for e in ("foliage_sway", "leaf_flutter"):
             m = read_mask_png(MasksOutputs(tmp_path / "veg").path("effect_mask", view=v["id"], effect=e))
             assert not (m & ~whole).any(), (v["id"], e)
-    assert any(
-        read_mask_png(MasksOutputs(tmp_path / "veg").path("effect_mask", view=v["id"], effect="foliage_sway")).any()
-        for v in views
-    )
+    assert any(read_mask_png(MasksOutputs(tmp_path / "veg").path("effect_mask", view=v["id"], effect="foliage_sway")).any() for v in views)
     EffectsOutputs(eff).path("effects").write_text(json.dumps({"chosen": []}))
     np.save(EffectsOutputs(eff).path("dynamic"), np.zeros(gs.num, bool))
     assert main(args + ["--out", str(tmp_path / "none")]) == 0

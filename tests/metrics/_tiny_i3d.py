@@ -1,7 +1,6 @@
 """A tiny random-weight 3D-conv network with the I3D TorchScript call convention
 (``net(x, rescale=..., resize=..., return_features=True)``, x float [B,3,T,H,W] -> [B,400]):
 the tests' stand-in for the Kinetics-400 I3D (no weights offline in tests)."""
-
 from __future__ import annotations
 
 import torch
@@ -19,9 +18,8 @@ class TinyI3D(nn.Module):
         self.fc = nn.Linear(32, dim)
         self.eval()
 
-    def forward(
-        self, x: torch.Tensor, rescale: bool = False, resize: bool = False, return_features: bool = True
-    ) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, rescale: bool = False, resize: bool = False,
+                return_features: bool = True) -> torch.Tensor:
         if rescale:
             x = x / 127.5 - 1.0
         h = torch.relu(self.c2(torch.relu(self.c1(x))))

@@ -1,5 +1,4 @@
 """The bootstrap spread of a Fréchet distance (anigs.metrics.bootstrap)."""
-
 from __future__ import annotations
 
 import numpy as np

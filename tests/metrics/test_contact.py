@@ -1,12 +1,12 @@
 """The contact sheet of final clips (anigs.metrics.contact) on a tiny fake clip with known motion."""
-
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from anigs.images import write_mask_png
-from anigs.metrics.contact import ContactRow, contact_sheet, heat_colours, load_rows, max_change, save_contact_sheet
+from anigs.metrics.contact import (ContactRow, contact_sheet, heat_colours, load_rows, max_change,
+                                   save_contact_sheet)
 from anigs.video import save_clip
 
 T, H, W = 5, 24, 32
@@ -28,9 +28,9 @@ def test_heat_map_is_black_where_still_and_coloured_where_anything_changes():
     change = max_change(clip)
     assert change[0, 0] == 0 and change[20, 28] == pytest.approx(2 / 255, abs=1e-6)
     heat = heat_colours(change)
-    assert (heat[0, 0] == 0).all()  # still: black
-    assert heat[20, 28].max() > 0.1  # a leak of 2/255 shows
-    assert heat[5, 5].max() > 0.1  # the motion shows
+    assert (heat[0, 0] == 0).all()                 # still: black
+    assert heat[20, 28].max() > 0.1                # a leak of 2/255 shows
+    assert heat[5, 5].max() > 0.1                  # the motion shows
     with pytest.raises(ValueError, match="clip"):
         max_change(clip[0])
 
@@ -41,7 +41,7 @@ def test_contact_sheet_rows_columns_and_numbers():
     rows = [ContactRow("v00", clip, mask, effects), ContactRow("v01", clip, None)]
     img, stats = contact_sheet(rows, panel_width=64)
     assert img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3
-    assert img.shape[1] == 5 * 64 + 4 * 4  # first frame, dynamic, 2 effects, heat map
+    assert img.shape[1] == 5 * 64 + 4 * 4            # first frame, dynamic, 2 effects, heat map
     s0 = stats[0]
     assert s0["mask_fraction"] == pytest.approx(mask.mean())
     assert set(s0["effects"]) == {"flower_bob", "foliage_sway"}
@@ -49,7 +49,7 @@ def test_contact_sheet_rows_columns_and_numbers():
     outside = (~_dilated(mask)).sum()
     assert s0["outside_still"] == pytest.approx(1 - 1 / outside)
     assert s0["outside_max_change"] == pytest.approx(0.1, abs=1e-6) and s0["mask_moving"] == 1.0
-    assert "mask_fraction" not in stats[1]  # no mask: only the clip's own numbers
+    assert "mask_fraction" not in stats[1]           # no mask: only the clip's own numbers
     with pytest.raises(ValueError, match="does not match"):
         contact_sheet([ContactRow("v00", clip, mask[:-1])])
 

@@ -1,5 +1,4 @@
 """TorchScript loading and the FVD/FID input protocol, with tiny scripted stand-in networks."""
-
 from __future__ import annotations
 
 import numpy as np
@@ -7,16 +6,8 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from anigs.metrics.features import (
-    Unavailable,
-    i3d_features,
-    inception_features,
-    load_detector,
-    pool_frames,
-    preprocess_fvd_clip,
-    resize_center_crop,
-    sample_windows,
-)
+from anigs.metrics.features import (Unavailable, i3d_features, inception_features, load_detector, pool_frames,
+                                    preprocess_fvd_clip, resize_center_crop, sample_windows)
 
 
 class StandInI3D(torch.nn.Module):
@@ -25,9 +16,8 @@ class StandInI3D(torch.nn.Module):
     Feature = [T, H, W, min, max] + the input average-pooled to [3, 1, 2, 2] (12 values).
     """
 
-    def forward(
-        self, x: torch.Tensor, rescale: bool = False, resize: bool = False, return_features: bool = False
-    ) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, rescale: bool = False, resize: bool = False,
+                return_features: bool = False) -> torch.Tensor:
         if rescale:
             x = x / 127.5 - 1.0
         if resize:
@@ -37,7 +27,7 @@ class StandInI3D(torch.nn.Module):
         mn = x.reshape(b, -1).min(dim=1).values[:, None]
         mx = x.reshape(b, -1).max(dim=1).values[:, None]
         h2, w2 = x.shape[3] // 2, x.shape[4] // 2
-        pooled = x[:, :, :, : 2 * h2, : 2 * w2].reshape(b, 3, x.shape[2], 2, h2, 2, w2).double().mean(dim=(2, 4, 6))
+        pooled = x[:, :, :, :2 * h2, :2 * w2].reshape(b, 3, x.shape[2], 2, h2, 2, w2).double().mean(dim=(2, 4, 6))
         pooled = pooled.float().reshape(b, -1)
         out = torch.cat([shape, mn, mx, pooled], dim=1)
         if not return_features:
@@ -109,10 +99,8 @@ def test_fvd_protocol_through_scripted_network(i3d_path):
     det = load_detector(i3d_path, "FVD (I3D)")
     rng = np.random.default_rng(0)
     colour = np.array([0.2, 0.5, 0.8], np.float32)
-    clips = [
-        np.broadcast_to(colour, (6, 48, 80, 3)).copy(),  # short: padded to 10 frames
-        rng.uniform(0, 1, (12, 60, 60, 3)).astype(np.float32),
-    ]
+    clips = [np.broadcast_to(colour, (6, 48, 80, 3)).copy(),  # short: padded to 10 frames
+             rng.uniform(0, 1, (12, 60, 60, 3)).astype(np.float32)]
     feats, info = i3d_features(det, clips, crop_size=256, min_frames=10, batch_size=4, detector_resize=False)
     assert feats.shape == (2, 17) and feats.dtype == np.float64
     assert info["padded_frames"] == 4

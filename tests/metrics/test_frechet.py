@@ -1,5 +1,4 @@
 """Fréchet distance: closed form for Gaussians, an independent oracle, and the guards."""
-
 from __future__ import annotations
 
 import numpy as np

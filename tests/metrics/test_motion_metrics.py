@@ -1,19 +1,11 @@
 """Weight-free motion metrics on clips with known motion, and GT motion statistic distances."""
-
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from anigs.metrics.motion import (
-    clip_motion_metrics,
-    dominant_frequency,
-    gt_motion_distances,
-    optical_flow_magnitudes,
-    resize_mask,
-    temporal_spectrum,
-    trajectory_stats,
-)
+from anigs.metrics.motion import (clip_motion_metrics, dominant_frequency, gt_motion_distances, optical_flow_magnitudes,
+                                  resize_mask, temporal_spectrum, trajectory_stats)
 from anigs.pixels import dilate
 
 T, H, W = 32, 48, 64
@@ -34,7 +26,7 @@ def make_clip(static_noise: float = 0.0, static_shift: float = 0.0, seed: int = 
     rng = np.random.default_rng(seed)
     bg = _texture(seed)
     mask = np.zeros((H, W), bool)
-    mask[:, W // 2 :] = True
+    mask[:, W // 2:] = True
     x = np.arange(W, dtype=np.float32)
     clip = np.empty((T, H, W, 3), np.float32)
     for t in range(T):
@@ -43,7 +35,7 @@ def make_clip(static_noise: float = 0.0, static_shift: float = 0.0, seed: int = 
             frame = np.roll(bg, int(round(static_shift * t)), axis=1)
         frame = frame + static_noise * rng.normal(size=frame.shape).astype(np.float32)
         wave = 0.5 + 0.35 * np.sin(2 * np.pi * (x / WAVELEN - FREQ * t))
-        frame[:, W // 2 :] = wave[None, W // 2 :, None] * np.array([0.3, 1.0, 0.4], np.float32)
+        frame[:, W // 2:] = wave[None, W // 2:, None] * np.array([0.3, 1.0, 0.4], np.float32)
         clip[t] = frame.clip(0, 1)
     return clip, mask
 
@@ -170,17 +162,14 @@ def test_eval_gt_glue_with_synthetic_truth_and_dct_model(tmp_path):
     np.save(gt / "anchors.npy", anchors.astype(np.float32))
     params = motion.MotionParams()
     write_json(gt / "motion.json", {"params": params.to_dict()})
-    cams = [
-        Camera(intrinsics_from_fov(60, 32, 24), look_at((4 * np.cos(a), 4 * np.sin(a), 2), (0, 0, 0)), 32, 24, f"c{i}")
-        for i, a in enumerate(np.linspace(0, 2 * np.pi, 6, endpoint=False))
-    ]
+    cams = [Camera(intrinsics_from_fov(60, 32, 24), look_at((4 * np.cos(a), 4 * np.sin(a), 2), (0, 0, 0)), 32, 24, f"c{i}")
+            for i, a in enumerate(np.linspace(0, 2 * np.pi, 6, endpoint=False))]
     save_cameras(gt / "cameras.json", cams)
     save_cameras(tmp_path / "cameras.json", cams)
 
     T = params.frames
-    off = motion.gt_clip_offsets(
-        params, gs.means, torch.tensor(anchors, dtype=torch.float32), torch.tensor(labels).long()
-    )  # [T,N,3]
+    off = motion.gt_clip_offsets(params, gs.means, torch.tensor(anchors, dtype=torch.float32),
+                                 torch.tensor(labels).long())  # [T,N,3]
     dyn = torch.arange(n_dyn)
     K = T - 1
     B = deform.dct_basis(torch.arange(T, dtype=torch.float64), T, K).float()  # [T,K]

@@ -5,7 +5,6 @@ time either with one consistent motion (every camera sees the same instant) or w
 independent motion (each camera sees the bushes at its own random phase, like independently
 generated clips). The protocol must score the consistent motion clearly higher.
 """
-
 from __future__ import annotations
 
 import math
@@ -44,9 +43,8 @@ def make_scene(seed: int = 0):
     cols = np.concatenate([ground_col] + bush_col).clip(0, 1).astype(np.float32)
     ids = np.concatenate([np.full(len(ground), -1)] + bush_id)
     scales = np.where(ids[:, None] < 0, 0.075, 0.06).repeat(3, 1)
-    gs = Gaussians.from_points(
-        torch.from_numpy(pts), torch.from_numpy(cols), torch.from_numpy(scales).float(), opacity=0.95
-    )
+    gs = Gaussians.from_points(torch.from_numpy(pts), torch.from_numpy(cols), torch.from_numpy(scales).float(),
+                               opacity=0.95)
     return gs, ids >= 0, ids, rng.uniform(0, 2 * math.pi, len(centres))
 
 
@@ -100,35 +98,21 @@ def tiny_fit(images, cameras, init_points, init_colors, iterations: int = 80, se
     log_s = torch.full((n,), math.log(0.06), requires_grad=True)
     quats = torch.zeros(n, 4)
     quats[:, 0] = 1
-    opt = torch.optim.Adam(
-        [
-            {"params": [means], "lr": 3e-3},
-            {"params": [col_logit], "lr": 5e-2},
-            {"params": [op_logit], "lr": 5e-2},
-            {"params": [log_s], "lr": 1e-2},
-        ]
-    )
+    opt = torch.optim.Adam([{"params": [means], "lr": 3e-3}, {"params": [col_logit], "lr": 5e-2},
+                            {"params": [op_logit], "lr": 5e-2}, {"params": [log_s], "lr": 1e-2}])
     targets = [torch.from_numpy(im) for im in images]
     for _ in range(iterations):
         v = int(torch.randint(len(cameras), (1,), generator=gen))
         cam = cameras[v]
-        rgb, _, _ = rasterize(
-            means,
-            quats,
-            log_s.exp()[:, None].expand(n, 3),
-            torch.sigmoid(op_logit),
-            torch.sigmoid(col_logit),
-            cam.torch_viewmat(),
-            cam.torch_K(),
-            cam.width,
-            cam.height,
-        )
+        rgb, _, _ = rasterize(means, quats, log_s.exp()[:, None].expand(n, 3), torch.sigmoid(op_logit),
+                              torch.sigmoid(col_logit), cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height)
         loss = (rgb - targets[v]).abs().mean()
         opt.zero_grad()
         loss.backward()
         opt.step()
     sh = rgb_to_sh0(torch.sigmoid(col_logit.detach()))[:, None, :]
-    return Gaussians(means.detach(), quats, log_s.detach()[:, None].expand(n, 3).clone(), op_logit.detach(), sh)
+    return Gaussians(means.detach(), quats, log_s.detach()[:, None].expand(n, 3).clone(),
+                     op_logit.detach(), sh)
 
 
 def test_novel_timestep_scales_the_papers_t21():
@@ -170,10 +154,8 @@ def test_discriminative_power_with_stand_in_fit():
         imgs, cams, pts, cols = views_at_novel_time(consistent)
         res[consistent] = multiview_consistency(imgs, cams, tiny_fit, pts, cols)
     good, bad = res[True], res[False]
-    print(
-        f"stand-in fit: consistent {good.psnr:.2f} dB / SSIM {good.ssim:.3f}; "
-        f"independent {bad.psnr:.2f} dB / SSIM {bad.ssim:.3f}"
-    )
+    print(f"stand-in fit: consistent {good.psnr:.2f} dB / SSIM {good.ssim:.3f}; "
+          f"independent {bad.psnr:.2f} dB / SSIM {bad.ssim:.3f}")
     assert good.n_train == 6 and good.n_eval == 6 and len(good.per_view) == 6
     assert good.psnr > bad.psnr + 2.0
     assert good.ssim > bad.ssim
@@ -186,23 +168,14 @@ def test_discriminative_power_with_real_static_fit():
     from anigs.metrics.multiview import static_fit_fn
 
     # a short fit without densification: enough to separate the two cases, ~1 min of CPU per fit
-    fit, background = static_fit_fn(
-        {
-            "iterations": 200,
-            "sh_degree": 0,
-            "seed": 0,
-            "device": "cpu",
-            "densify": {"start": 10_000, "stop": 10_000, "reset_every": 0},
-        }
-    )
+    fit, background = static_fit_fn({"iterations": 200, "sh_degree": 0, "seed": 0, "device": "cpu",
+                                     "densify": {"start": 10_000, "stop": 10_000, "reset_every": 0}})
     res = {}
     for consistent in (True, False):
         imgs, cams, pts, cols = views_at_novel_time(consistent)
         res[consistent] = multiview_consistency(imgs, cams, fit, pts, cols, background=background)
     good, bad = res[True], res[False]
-    print(
-        f"anigs.static.fit.fit_static: consistent {good.psnr:.2f} dB / SSIM {good.ssim:.3f} ({good.fit_seconds:.1f} s); "
-        f"independent {bad.psnr:.2f} dB / SSIM {bad.ssim:.3f} ({bad.fit_seconds:.1f} s)"
-    )
+    print(f"anigs.static.fit.fit_static: consistent {good.psnr:.2f} dB / SSIM {good.ssim:.3f} ({good.fit_seconds:.1f} s); "
+          f"independent {bad.psnr:.2f} dB / SSIM {bad.ssim:.3f} ({bad.fit_seconds:.1f} s)")
     assert good.psnr > bad.psnr + 2.0
     assert good.ssim > bad.ssim

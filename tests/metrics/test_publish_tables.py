@@ -1,5 +1,4 @@
 """benchmarks/publish_tables.py: the published tables are the generated Markdown, between markers."""
-
 import subprocess
 import sys
 from pathlib import Path
@@ -14,14 +13,10 @@ def _run(*args):
 
 def test_blocks_are_filled_from_the_results_and_check_sees_staleness(tmp_path):
     doc = tmp_path / "README.md"
-    doc.write_text(
-        "intro\n<!-- generated: tables -->\nold | figures\n<!-- end generated: tables -->\nmiddle\n"
-        "<!-- generated: tradeoff -->\n<!-- end generated: tradeoff -->\nend\n"
-    )
+    doc.write_text("intro\n<!-- generated: tables -->\nold | figures\n<!-- end generated: tables -->\nmiddle\n"
+                   "<!-- generated: tradeoff -->\n<!-- end generated: tradeoff -->\nend\n")
     (tmp_path / "results" / "tables").mkdir(parents=True)
-    (tmp_path / "results" / "tables" / "table5_ablation.md").write_text(
-        "## Ablation\n\n| a | b |\n|---|---|\n| 1 | 2 |\n"
-    )
+    (tmp_path / "results" / "tables" / "table5_ablation.md").write_text("## Ablation\n\n| a | b |\n|---|---|\n| 1 | 2 |\n")
     (tmp_path / "results" / "tables" / "table1_fvd.md").write_text("## FVD\n\n| x |\n|---|\n| 3 |\n")
     assert _run("--results", tmp_path / "results", "--into", doc, "--check").returncode == 1  # stale
     res = _run("--results", tmp_path / "results", "--into", doc)

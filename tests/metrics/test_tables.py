@@ -1,5 +1,4 @@
 """Paper tables from metrics.json records: structure, n/a footnotes, averages, bold, three formats."""
-
 from __future__ import annotations
 
 import csv
@@ -10,33 +9,15 @@ import pytest
 
 from anigs.io import write_json
 from anigs.metrics import metric_record, not_available
-from anigs.tables import (
-    SCHEMA,
-    ablation_table,
-    build_tables,
-    fvd_table,
-    load_metrics,
-    multiview_table,
-    to_csv,
-    to_latex,
-    to_markdown,
-    weightfree_table,
-    write_tables,
-)
+from anigs.tables import (SCHEMA, ablation_table, build_tables, fvd_table, load_metrics, multiview_table,
+                          to_csv, to_latex, to_markdown, weightfree_table, write_tables)
 
 SCENES = ["fireplace", "garden"]
 
 
 def rec(scene, method="Ours", variant="full", dataset="anigs", **metrics):
-    return {
-        "schema": SCHEMA,
-        "scene": scene,
-        "method": method,
-        "variant": variant,
-        "dataset": dataset,
-        "metrics": metrics,
-        "_path": f"{scene}-{method}-{variant}",
-    }
+    return {"schema": SCHEMA, "scene": scene, "method": method, "variant": variant, "dataset": dataset,
+            "metrics": metrics, "_path": f"{scene}-{method}-{variant}"}
 
 
 def fvd(v, n=250):
@@ -97,48 +78,23 @@ def test_missing_record_is_na_with_reason():
 
 
 def test_ablation_table_order_labels_and_best():
-    vals = {
-        "no_dataset_update": 533.95,
-        "no_view_expansion": 511.46,
-        "no_composed_v2v": 420.77,
-        "opt_all": 473.14,
-        "opt_deform_only": 450.22,
-        "full": 374.49,
-    }
+    vals = {"no_dataset_update": 533.95, "no_view_expansion": 511.46, "no_composed_v2v": 420.77,
+            "opt_all": 473.14, "opt_deform_only": 450.22, "full": 374.49}
     recs = [rec("fireplace", variant=v, **{"fvd/ltx": fvd(x)}) for v, x in vals.items()]
     recs = [r for r in recs if r["variant"] != "opt_all"]  # one variant not run
     t = ablation_table(recs)
-    assert [r[0] for r in t.rows] == [
-        "w/o dataset--model update",
-        "w/o viewpoint expansion",
-        "w/o ComposedV2V",
-        "w/ opt. all param.",
-        "w/ opt. deformation only",
-        "Ours (full model)",
-    ]
+    assert [r[0] for r in t.rows] == ["w/o dataset--model update", "w/o viewpoint expansion", "w/o ComposedV2V",
+                                      "w/ opt. all param.", "w/ opt. deformation only", "Ours (full model)"]
     assert t.rows[-1][1][0].bold and t.rows[-1][1][0].value == 374.49
     assert t.rows[3][1][0].value is None and "opt_all" in t.footnotes[t.rows[3][1][0].note - 1]
     assert r"\textsc{ComposedV2V}" in to_latex(t)
 
 
 def test_multiview_table_rows():
-    recs = [
-        rec(
-            s,
-            **{
-                "multiview/psnr_capture": metric_record(27.4 + i, True, "dB"),
-                "multiview/psnr_novel": metric_record(25.9 + i, True, "dB"),
-            },
-        )
-        for i, s in enumerate(SCENES)
-    ]
-    recs.append(
-        rec(
-            "garden",
-            variant="no_composed_v2v",
-            **{"multiview/psnr_novel": not_available("static fit unavailable", True, "dB")},
-        )
-    )
+    recs = [rec(s, **{"multiview/psnr_capture": metric_record(27.4 + i, True, "dB"),
+                      "multiview/psnr_novel": metric_record(25.9 + i, True, "dB")}) for i, s in enumerate(SCENES)]
+    recs.append(rec("garden", variant="no_composed_v2v",
+                    **{"multiview/psnr_novel": not_available("static fit unavailable", True, "dB")}))
     t = multiview_table(recs)
     assert t.header == ["PSNR", "fireplace", "garden"]
     assert t.rows[0][0] == "Original capture" and [c.value for c in t.rows[0][1]] == [27.4, 28.4]
@@ -148,16 +104,9 @@ def test_multiview_table_rows():
 
 
 def test_weightfree_table_every_variant():
-    recs = [
-        rec(
-            "demo",
-            variant=v,
-            static_abs_diff=metric_record(x, False),
-            dynamic_abs_diff=metric_record(0.05, True),
-            **{"gt/rms_amplitude_ratio": metric_record(0.9, True)},
-        )
-        for v, x in (("full", 0.001), ("no_composed_v2v", 0.004))
-    ]
+    recs = [rec("demo", variant=v, static_abs_diff=metric_record(x, False), dynamic_abs_diff=metric_record(0.05, True),
+                **{"gt/rms_amplitude_ratio": metric_record(0.9, True)})
+            for v, x in (("full", 0.001), ("no_composed_v2v", 0.004))]
     recs.append(rec("demo", method="Baseline", static_abs_diff=not_available("no dynamic masks given", False)))
     t = weightfree_table(recs)
     assert t.header[:2] == ["scene", "method"] and "static |dI/dt|" in t.header and "GT amp. ratio" in t.header
@@ -171,16 +120,10 @@ def test_weightfree_table_every_variant():
 def test_weightfree_bolds_each_column_in_its_direction_with_significant_digits():
     """The share of still pixels is best high, leakage and GT distances best low; ~1e-6 leakage is
     printed with significant digits, not as 0.0000; the GT amplitude ratio (best at 1) is not bolded."""
-    recs = [
-        rec(
-            "demo",
-            method=m,
-            static_abs_diff=metric_record(a, False),
-            static_outside_mask_still=metric_record(still, True),
-            **{"gt/frequency_w1": metric_record(w, False), "gt/rms_amplitude_ratio": metric_record(r, None)},
-        )
-        for m, a, still, w, r in (("Ours", 2.08e-6, 1.0, 0.016, 0.83), ("Other", 4.9e-6, 0.99866, 0.051, 1.0))
-    ]
+    recs = [rec("demo", method=m, static_abs_diff=metric_record(a, False),
+                static_outside_mask_still=metric_record(still, True),
+                **{"gt/frequency_w1": metric_record(w, False), "gt/rms_amplitude_ratio": metric_record(r, None)})
+            for m, a, still, w, r in (("Ours", 2.08e-6, 1.0, 0.016, 0.83), ("Other", 4.9e-6, 0.99866, 0.051, 1.0))]
     t = weightfree_table(recs)
     col = {h: i for i, h in enumerate(t.header[2:])}
     ours, other = t.rows[0][1], t.rows[1][1]
@@ -222,12 +165,8 @@ def test_second_dataset_gets_table2():
 
 def test_table1_has_fid_blocks_with_the_reason_when_not_computed():
     recs = paper_like_records()
-    recs[0]["metrics"]["fid/ltx"] = {
-        "available": False,
-        "value": None,
-        "higher_is_better": False,
-        "reason": "no weights path for fid (eval.inception_path)",
-    }
+    recs[0]["metrics"]["fid/ltx"] = {"available": False, "value": None, "higher_is_better": False,
+                                      "reason": "no weights path for fid (eval.inception_path)"}
     recs[1]["metrics"]["fid/ltx"] = {"available": True, "value": 12.5, "higher_is_better": False}
     t = fvd_table(recs)
     labels = list(t.sections.values())
@@ -269,11 +208,11 @@ def _tiny_inputs(tmp_path):
             bg = rng.uniform(0, 1, (H, W, 3)).astype(np.float32)
             clip = np.repeat(bg[None], T, 0)
             for t in range(T):
-                clip[t, :, W // 2 :] = (0.5 + 0.4 * np.sin(2 * np.pi * (x[W // 2 :] / 8 - 0.25 * t)))[None, :, None]
+                clip[t, :, W // 2:] = (0.5 + 0.4 * np.sin(2 * np.pi * (x[W // 2:] / 8 - 0.25 * t)))[None, :, None]
             save_clip(tmp_path / folder / ("clips" if folder == "final" else "") / f"view_{v}.npz", clip)
             if folder == "final":
                 m = np.zeros((H, W), bool)
-                m[:, W // 2 :] = True
+                m[:, W // 2:] = True
                 write_mask_png(tmp_path / "masks" / f"view_{v}.png", m)
     pts = rng.uniform(-1, 1, (300, 3)).astype(np.float32)
     cols = rng.uniform(0, 1, (300, 3)).astype(np.float32)
@@ -283,16 +222,8 @@ def _tiny_inputs(tmp_path):
     with torch.no_grad():
         d.pos_coeffs.normal_(0, 0.05, generator=torch.Generator().manual_seed(0))
     save_model(tmp_path / "model" / "model.pt", d, gs)
-    cams = [
-        Camera(
-            intrinsics_from_fov(60, 32, 24),
-            look_at((4 * np.cos(a), 4 * np.sin(a), 1.5), (0, 0, 0)),
-            32,
-            24,
-            f"img_{i:03d}.png",
-        )
-        for i, a in enumerate(np.linspace(0, 2 * np.pi, 6, endpoint=False))
-    ]
+    cams = [Camera(intrinsics_from_fov(60, 32, 24), look_at((4 * np.cos(a), 4 * np.sin(a), 1.5), (0, 0, 0)), 32, 24,
+                   f"img_{i:03d}.png") for i, a in enumerate(np.linspace(0, 2 * np.pi, 6, endpoint=False))]
     save_cameras(tmp_path / "sfm" / "cameras.json", cams)
     from anigs.video import save_png
 
@@ -314,42 +245,18 @@ def test_eval_cli_writes_schema_and_tables_read_it(tmp_path):
     d = _tiny_inputs(tmp_path)
 
     class StandIn(torch.nn.Module):
-        def forward(
-            self, x: torch.Tensor, rescale: bool = False, resize: bool = False, return_features: bool = False
-        ) -> torch.Tensor:
+        def forward(self, x: torch.Tensor, rescale: bool = False, resize: bool = False,
+                    return_features: bool = False) -> torch.Tensor:
             return torch.cat([x.mean(dim=(2, 3, 4)), x.std(dim=(2, 3, 4))], dim=1)
 
     torch.jit.script(StandIn()).save(str(d / "i3d.pt"))
-    params = {
-        "i3d_path": str(d / "i3d.pt"),
-        "inception_path": str(d / "missing.pt"),
-        "fvd_clip_frames": 8,
-        "fvd_window_stride": 2,
-        "flow_preset": "ultrafast",
-        "multiview_fit": {"iterations": 10, "sh_degree": 0, "device": "cpu"},
-    }
+    params = {"i3d_path": str(d / "i3d.pt"), "inception_path": str(d / "missing.pt"), "fvd_clip_frames": 8,
+              "fvd_window_stride": 2, "flow_preset": "ultrafast",
+              "multiview_fit": {"iterations": 10, "sh_degree": 0, "device": "cpu"}}
     out = d / "eval" / "metrics.json"
-    argv = [
-        "eval",
-        "--final",
-        str(d / "final"),
-        "--masks",
-        str(d / "masks"),
-        "--reference",
-        f"procedural={d / 'ref'}",
-        "--model",
-        str(d / "model"),
-        "--static",
-        str(d / "static"),
-        "--sfm",
-        str(d / "sfm"),
-        "--scene",
-        "demo",
-        "--out",
-        str(out.parent),
-        "--params",
-        json.dumps(params),
-    ]
+    argv = ["eval", "--final", str(d / "final"), "--masks", str(d / "masks"), "--reference",
+            f"procedural={d / 'ref'}", "--model", str(d / "model"), "--static", str(d / "static"),
+            "--sfm", str(d / "sfm"), "--scene", "demo", "--out", str(out.parent), "--params", json.dumps(params)]
     assert main(argv) == 0
     rec = read_json(out)
     assert rec["schema"] == SCHEMA and rec["scene"] == "demo" and rec["variant"] == "full"
@@ -368,7 +275,7 @@ def test_eval_cli_writes_schema_and_tables_read_it(tmp_path):
     params2 = dict(params, i3d_path="", multiview=False)
     out2 = d / "eval_abl" / "metrics.json"
     argv2 = [a if a != str(out.parent) else str(out2.parent) for a in argv]
-    argv2 = argv2[: argv2.index("--params")] + ["--variant", "no_composed_v2v", "--params", json.dumps(params2)]
+    argv2 = argv2[:argv2.index("--params")] + ["--variant", "no_composed_v2v", "--params", json.dumps(params2)]
     assert main(argv2) == 0
     m2 = read_json(out2)["metrics"]
     assert not m2["fvd/procedural"]["available"] and "no weights path" in m2["fvd/procedural"]["reason"]
@@ -395,16 +302,10 @@ def test_eval_fid_reference_pools_paths(tmp_path):
             return torch.cat([x.mean(dim=(2, 3)), x.std(dim=(2, 3))], dim=1)
 
     torch.jit.script(StandInInception()).save(str(d / "inc.pt"))
-    cfg = EvalConfig.from_dict(
-        {"inception_path": str(d / "inc.pt"), "fid_size": 32, "multiview": False, "i3d_path": ""}
-    )  # FVD off: its reason says so
-    m = evaluate(
-        cfg,
-        [d / "final" / "clips"],
-        d / "masks",
-        {"ltx": [d / "ref"]},
-        fid_references={"ltx": [d / "ref", d / "final" / "clips"]},
-    )
+    cfg = EvalConfig.from_dict({"inception_path": str(d / "inc.pt"), "fid_size": 32, "multiview": False,
+                                "i3d_path": ""})  # FVD off: its reason says so
+    m = evaluate(cfg, [d / "final" / "clips"], d / "masks", {"ltx": [d / "ref"]},
+                 fid_references={"ltx": [d / "ref", d / "final" / "clips"]})
     assert m["fid/ltx"]["available"] and m["fid/ltx"]["samples"] == {"test": 2 * 12, "reference": 5 * 12}
     assert m["fid/ltx"]["feature_dim"] == 6
     assert not m["fvd/ltx"]["available"] and "no weights path" in m["fvd/ltx"]["reason"]
@@ -420,32 +321,17 @@ def test_eval_in_two_parts_gives_the_same_record_as_in_one(tmp_path, caplog):
     from anigs.io import read_json, write_json
 
     d = _tiny_inputs(tmp_path)
-    params = json.dumps(
-        {"flow_preset": "ultrafast", "multiview_fit": {"iterations": 10, "sh_degree": 0, "device": "cpu"}}
-    )
-    common = [
-        "--masks",
-        str(d / "masks"),
-        "--model",
-        str(d / "model"),
-        "--static",
-        str(d / "static"),
-        "--sfm",
-        str(d / "sfm"),
-        "--scene",
-        "demo",
-        "--params",
-        params,
-    ]
+    params = json.dumps({"flow_preset": "ultrafast", "multiview_fit": {"iterations": 10, "sh_degree": 0,
+                                                                       "device": "cpu"}})
+    common = ["--masks", str(d / "masks"), "--model", str(d / "model"), "--static", str(d / "static"),
+              "--sfm", str(d / "sfm"), "--scene", "demo", "--params", params]
     final = ["--final", str(d / "final")]
     assert main(["eval", *final, *common, "--out", str(d / "one")]) == 0
     assert main(["eval", "--part", "model", *common, "--out", str(d / "two")]) == 0
     assert main(["eval", "--part", "clips", *final, *common, "--out", str(d / "two")]) == 0
     assert main(["eval", "--merge", "--out", str(d / "two")]) == 0
-    one, half, clips, two = (
-        read_json(d / f)
-        for f in ("one/metrics.json", "two/model_metrics.json", "two/clip_metrics.json", "two/metrics.json")
-    )
+    one, half, clips, two = (read_json(d / f) for f in ("one/metrics.json", "two/model_metrics.json",
+                                                        "two/clip_metrics.json", "two/metrics.json"))
     assert half["part"] == "model" and set(half["metrics"]) == {k for k in one["metrics"] if k.startswith("multiview/")}
     assert clips["part"] == "clips" and not any(k.startswith("multiview/") for k in clips["metrics"])
     assert one["part"] == two["part"] == "all"

@@ -1,6 +1,5 @@
 """FVD-GT in the tables: joined from its own records, a Table 1 block with spread and clip counts
 for methods and ablations, the no-motion control, the detail table, n/a on real captures."""
-
 from __future__ import annotations
 
 import pytest
@@ -12,36 +11,15 @@ from anigs.tables import SCHEMA, build_tables, fvd_table, load_metrics, to_csv, 
 
 
 def _gt(v, std, n=128):
-    return metric_record(
-        v,
-        False,
-        "",
-        {"views": "64"},
-        {"test": n, "reference": n, "views": 64},
-        feature_dim=400,
-        bootstrap={"std": std, "interval": [v - 2 * std, v + 2 * std], "resamples": 200},
-        still_control=metric_record(
-            900.0,
-            False,
-            "",
-            {},
-            {"test": n, "reference": n, "views": 64},
-            bootstrap={"std": 30.0, "interval": [850.0, 950.0]},
-        ),
-    )
+    return metric_record(v, False, "", {"views": "64"}, {"test": n, "reference": n, "views": 64}, feature_dim=400,
+                         bootstrap={"std": std, "interval": [v - 2 * std, v + 2 * std], "resamples": 200},
+                         still_control=metric_record(900.0, False, "", {}, {"test": n, "reference": n, "views": 64},
+                                                     bootstrap={"std": 30.0, "interval": [850.0, 950.0]}))
 
 
 def _rec(method, variant, part="all", gt_dir="results/demo/capture/gt", **metrics):
-    return {
-        "schema": SCHEMA,
-        "scene": "demo",
-        "dataset": "anigs",
-        "method": method,
-        "variant": variant,
-        "part": part,
-        "inputs": {"gt_dir": gt_dir},
-        "metrics": metrics,
-    }
+    return {"schema": SCHEMA, "scene": "demo", "dataset": "anigs", "method": method, "variant": variant,
+            "part": part, "inputs": {"gt_dir": gt_dir}, "metrics": metrics}
 
 
 def _files(tmp_path):
@@ -68,15 +46,10 @@ def test_table1_fvd_gt_block(tmp_path):
     names = list(t.sections.values())
     assert names[0] == "FVD-LTX" and names[1].startswith("FVD-GT") and names[-1] == "FID-LTX"
     start = list(t.sections)[1]
-    rows = t.rows[start : start + 5]
+    rows = t.rows[start:start + 5]
     labels = [r[0] for r in rows]
-    assert labels == [
-        "Ours",
-        "Gaussians2Life",
-        "PhysDreamer",
-        "Ours (w/o ComposedV2V)",
-        "Static scene, no motion (control)",
-    ]
+    assert labels == ["Ours", "Gaussians2Life", "PhysDreamer", "Ours (w/o ComposedV2V)",
+                      "Static scene, no motion (control)"]
     assert rows[0][1][0].text() == "400.00 ± 10.00 (128)" and rows[0][1][0].bold
     assert rows[3][1][0].text() == "450.00 ± 11.00 (128)" and not rows[3][1][0].bold
     assert rows[4][1][0].text() == "900.00 ± 30.00 (128)" and not rows[4][1][0].bold

@@ -1,17 +1,11 @@
 """VBench temporal flickering and the dynamic-degree proxy (anigs.metrics.vbench)."""
-
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from anigs.metrics.vbench import (
-    check_finite_clip,
-    dynamic_degree_proxy,
-    temporal_flickering,
-    top_flow_magnitude,
-    vbench_metrics,
-)
+from anigs.metrics.vbench import check_finite_clip, dynamic_degree_proxy, temporal_flickering, top_flow_magnitude, \
+    vbench_metrics
 
 
 def _texture(h: int, w: int, seed: int = 0) -> np.ndarray:
@@ -25,7 +19,7 @@ def _texture(h: int, w: int, seed: int = 0) -> np.ndarray:
 def _moving(shift_px: float, T: int = 25, h: int = 96, w: int = 128) -> np.ndarray:
     """A texture translating by ``shift_px`` per frame (integer steps via np.roll)."""
     base = _texture(h, w + int(shift_px * T) + 8)
-    return np.stack([base[:, int(round(t * shift_px)) : int(round(t * shift_px)) + w] for t in range(T)])
+    return np.stack([base[:, int(round(t * shift_px)):int(round(t * shift_px)) + w] for t in range(T)])
 
 
 def test_flicker_of_a_still_clip_is_one_and_of_noise_lower():

@@ -1,5 +1,4 @@
 """ComposedV2V: the paper's composition, static re-paste, empty masks, the ablation switch."""
-
 from __future__ import annotations
 
 import numpy as np
@@ -58,7 +57,7 @@ def test_static_pixels_bit_exact_after_refinement(feather):
     for t in range(T):
         assert np.array_equal(out[t][static], clip[0][static])
     assert info["static_max_change"] == 0.0 and info["skipped"] is None
-    assert np.abs(out[:, m == 1] - clip[:, m == 1]).mean() > 0.01  # the dynamic region was refined
+    assert np.abs(out[:, m == 1] - clip[:, m == 1]).mean() > 0.01   # the dynamic region was refined
     # the prior saw the composed clip: static region frozen at frame 0
     seen = prior.inputs[0]
     assert np.array_equal(seen[:, static], np.broadcast_to(clip[0][static], seen[:, static].shape))
@@ -90,7 +89,7 @@ def test_soft_mask_feathers_inwards_only():
     m = mask_box()
     s = soft_mask(m, 4.0)
     assert np.all(s[m == 0] == 0) and s.max() == 1.0
-    assert 0 < s[8, 20] < 1 and s[16, 20] == 1.0  # edge row soft, centre full
+    assert 0 < s[8, 20] < 1 and s[16, 20] == 1.0        # edge row soft, centre full
     assert np.array_equal(soft_mask(m, 0.0), m)
     assert np.all(soft_mask(np.ones((H, W)), 3.0) == 1.0)  # the image border is not an edge
 
@@ -123,7 +122,7 @@ def test_dilation_grows_the_dynamic_region():
     prior = RecordingPrior()
     out, info = composed_v2v(prior, clip, m, "", 2, 0.8, ComposeConfig(dilate_px=2))
     assert info["mask_fraction"] > m.mean()
-    assert np.abs(out[:, 6, 20] - clip[0, 6, 20]).max() > 0  # 2 px above the box: now dynamic
+    assert np.abs(out[:, 6, 20] - clip[0, 6, 20]).max() > 0        # 2 px above the box: now dynamic
     assert np.array_equal(out[:, 5, 20], np.broadcast_to(clip[0, 5, 20], out[:, 5, 20].shape))  # 3 px: static
     with pytest.raises(ValueError, match="dilate_px"):
         ComposeConfig.from_dict({"dilate_px": -1})
@@ -144,47 +143,13 @@ def test_refine_command_end_to_end(tmp_path):
     out = tmp_path / "round2" / "target" / "v001.npz"
     params = '{"strength": 1.0, "effects": ["foliage_sway", "grass_wave"], "seed": 5}'
     rd = str(tmp_path / "round2")
-    rc = main(
-        [
-            "refine",
-            "--render-clip",
-            rd,
-            "--view",
-            "v001",
-            "--mask",
-            f"foliage_sway={tmp_path / 'm.png'}",
-            f"grass_wave={tmp_path / 'e.png'}",
-            "--out",
-            rd,
-            "--params",
-            params,
-            "--info",
-            str(tmp_path / "info.json"),
-        ]
-    )
+    rc = main(["refine", "--render-clip", rd, "--view", "v001", "--mask", f"foliage_sway={tmp_path / 'm.png'}",
+               f"grass_wave={tmp_path / 'e.png'}", "--out", rd, "--params", params, "--info", str(tmp_path / "info.json")])
     assert rc == 0
     target, meta = load_clip(out)
     assert target.shape == clip.shape and meta["refine"]["seed"] == view_seed(5, 2, "v001")
     assert meta["refine"]["round"] == 2 and meta["refine"]["view"] == "v001"
     assert np.abs(target[:, mask_box() == 1] - clip[:, mask_box() == 1]).max() > 0.01
-    assert (
-        len({view_seed(5, 2, "v001"), view_seed(5, 2, "v002"), view_seed(5, 3, "v001"), view_seed(6, 2, "v001")}) == 4
-    )
-    assert (
-        main(
-            [
-                "refine",
-                "--render-clip",
-                rd,
-                "--view",
-                "v001",
-                "--mask",
-                str(tmp_path / "m.png"),
-                "--out",
-                rd,
-                "--params",
-                '{"strenght": 1}',
-            ]
-        )
-        == 1
-    )
+    assert len({view_seed(5, 2, "v001"), view_seed(5, 2, "v002"), view_seed(5, 3, "v001"), view_seed(6, 2, "v001")}) == 4
+    assert main(["refine", "--render-clip", rd, "--view", "v001", "--mask", str(tmp_path / "m.png"), "--out", rd,
+                 "--params", '{"strenght": 1}']) == 1

@@ -1,5 +1,4 @@
 """LTX-Video prior on a tiny random-weight stack saved to disk and loaded back (real code path)."""
-
 from __future__ import annotations
 
 import logging
@@ -61,8 +60,7 @@ def test_refine_shapes_sigmas_timesteps(tiny_ltx, caplog):
     prior = prior_for(tiny_ltx, steps=4)
     seen = []
     prior.load().transformer.register_forward_pre_hook(
-        lambda mod, args, kwargs: seen.append(kwargs["timestep"].detach().clone()), with_kwargs=True
-    )
+        lambda mod, args, kwargs: seen.append(kwargs["timestep"].detach().clone()), with_kwargs=True)
     clip = small_clip()
     with caplog.at_level(logging.INFO, logger="anigs.refine.prior.ltx"):
         out = prior.refine(clip, None, "trees sway", seed=3, strength=0.6)
@@ -74,7 +72,7 @@ def test_refine_shapes_sigmas_timesteps(tiny_ltx, caplog):
     assert len(seen) == 4
     per_frame = 2 * 2  # latent tokens of one frame: 64/32 x 64/32
     for t_used, s in zip(seen, sig[:-1]):
-        assert torch.all(t_used[:, :per_frame] == 0)  # frame 0: clean condition
+        assert torch.all(t_used[:, :per_frame] == 0)                       # frame 0: clean condition
         assert torch.allclose(t_used[:, per_frame:], torch.tensor(s * 1000.0))
     again = prior_for(tiny_ltx, steps=4).refine(clip, None, "trees sway", seed=3, strength=0.6)
     assert np.array_equal(out, again)
@@ -88,7 +86,7 @@ def test_generate_and_distilled_schedule(tiny_ltx):
     out = prior.generate(small_clip(1, 32, 48)[0], None, "grass waves", seed=1, num_frames=9)
     assert out.shape == (9, 32, 48, 3) and np.isfinite(out).all()
     assert prior.last_info["sigmas"] == DISTILLED + [0.0]
-    one = prior.refine(small_clip(1, 20, 30), None, "", seed=0, strength=0.5)  # 1 frame, odd size
+    one = prior.refine(small_clip(1, 20, 30), None, "", seed=0, strength=0.5)   # 1 frame, odd size
     assert one.shape == (1, 20, 30, 3) and np.isfinite(one).all()
 
 
@@ -109,7 +107,7 @@ def test_prompt_embeds_without_text_encoder(tiny_ltx, tmp_path):
 def test_sds_gradient_reaches_only_the_sampled_frame(tiny_ltx, tau):
     prior = prior_for(tiny_ltx, sds_tau_min=tau, sds_tau_max=tau)
     base = torch.from_numpy(small_clip(5, 32, 40))
-    coeffs = torch.zeros(5, requires_grad=True)  # stand-in for the deformation coefficients
+    coeffs = torch.zeros(5, requires_grad=True)          # stand-in for the deformation coefficients
     clip = (base * (1 + coeffs[:, None, None, None])).clamp(0, 1)
     loss = prior.sds_loss(clip, "trees sway", torch.Generator().manual_seed(0))
     assert loss.ndim == 0 and torch.isfinite(loss)

@@ -1,5 +1,4 @@
 """Procedural spectral motion prior: spectra, masks, smoothness, strength, edge cases."""
-
 from __future__ import annotations
 
 import cv2
@@ -37,7 +36,7 @@ def test_temporal_spectrum_peaks_in_band(effect):
     spec = (np.abs(np.fft.rfft(sig * np.hanning(T)[:, None], axis=0)) ** 2).sum(1)
     freqs = np.fft.rfftfreq(T, 1 / fps)
     lo, hi = EFFECTS[effect].band_hz
-    assert lo - 0.1 <= freqs[spec.argmax()] <= hi + 0.1  # peak inside the band (+- one frequency bin)
+    assert lo - 0.1 <= freqs[spec.argmax()] <= hi + 0.1   # peak inside the band (+- one frequency bin)
     inband = (freqs >= lo - 0.2) & (freqs <= hi + 0.2)
     assert spec[inband].sum() / spec.sum() > 0.9
 
@@ -49,9 +48,9 @@ def test_zero_outside_mask_and_no_tearing(effect):
     for seed in (0, 1):
         seq = prior.motion_field({effect: mask}, H, W, seed=seed).sequence(49)
         assert np.all(seq[:, mask == 0] == 0)
-        assert np.abs(seq).max() > 0.05  # it does move
-        assert np.all(seq[0] == 0)  # frame 0 is the canonical frame
-        assert field_gradient_max(seq) < 0.8  # no fold-over: warp stays one-to-one
+        assert np.abs(seq).max() > 0.05                     # it does move
+        assert np.all(seq[0] == 0)                          # frame 0 is the canonical frame
+        assert field_gradient_max(seq) < 0.8                # no fold-over: warp stays one-to-one
         # temporally smooth too: frame-to-frame change well below a pixel
         assert np.abs(np.diff(seq, axis=0)).max() < 1.0
 
@@ -73,23 +72,22 @@ def test_anchor_profile_grows_upwards():
     prior = ProceduralPrior({"effects": ["foliage_sway"]})
     mask = box_mask()
     seq = prior.motion_field({"foliage_sway": mask}, H, W, seed=0).sequence(96)
-    rms = np.sqrt((seq**2).mean(axis=(0, 3)))
+    rms = np.sqrt((seq ** 2).mean(axis=(0, 3)))
     top, bottom = rms[20:25, 30:50].mean(), rms[46:50, 30:50].mean()
     assert top > 2.0 * bottom
 
 
 @pytest.mark.parametrize("wind", [0.0, 180.0])
 def test_grass_wave_travels_with_the_wind(wind):
-    prior = ProceduralPrior(
-        {"effects": ["grass_wave"], "effect_params": {"grass_wave": {"wind_dir_deg": wind, "axis_weights": [1.0, 0.0]}}}
-    )
+    prior = ProceduralPrior({"effects": ["grass_wave"],
+                             "effect_params": {"grass_wave": {"wind_dir_deg": wind, "axis_weights": [1.0, 0.0]}}})
     mask = np.ones((H, W), np.float32)
     seq = prior.motion_field({"grass_wave": mask}, H, W, seed=2).sequence(240)[..., 0]  # x component
-    a, b = seq[:, 10:54, 20:50], seq[:, 10:54, 26:56]  # b is 6 px further along +x
+    a, b = seq[:, 10:54, 20:50], seq[:, 10:54, 26:56]   # b is 6 px further along +x
     a = a - a.mean(0)
     b = b - b.mean(0)
     lags = np.arange(-10, 11)
-    corr = [np.mean(a[max(0, -l) : 240 - max(0, l)] * b[max(0, l) : 240 - max(0, -l)]) for l in lags]
+    corr = [np.mean(a[max(0, -l):240 - max(0, l)] * b[max(0, l):240 - max(0, -l)]) for l in lags]
     best = lags[int(np.argmax(corr))]
     # b(t + lag) ~ a(t): downwind points repeat the motion later
     assert (best > 0) if wind == 0.0 else (best < 0)
@@ -202,10 +200,10 @@ def test_static_shimmer_magnitude_and_only_static_pixels():
     clean = ProceduralPrior().refine(clip, mask, "", 4, 0.5)
     out = ProceduralPrior({"static_shimmer": sigma}).refine(clip, mask, "", 4, 0.5)
     static = mask == 0
-    assert np.array_equal(out[0], clip[0])  # frame 0 stays the canonical frame
-    assert np.array_equal(out[:, ~static], clean[:, ~static])  # the dynamic region is untouched
+    assert np.array_equal(out[0], clip[0])                      # frame 0 stays the canonical frame
+    assert np.array_equal(out[:, ~static], clean[:, ~static])   # the dynamic region is untouched
     mad = np.abs(np.diff(out[:, static], axis=0)).mean()
-    assert mad == pytest.approx(2 * sigma / np.sqrt(np.pi), rel=0.2)  # the stated VBench-style figure
+    assert mad == pytest.approx(2 * sigma / np.sqrt(np.pi), rel=0.2)   # the stated VBench-style figure
 
 
 def test_static_drift_grows_to_the_configured_rms():
@@ -238,7 +236,7 @@ def test_per_view_gain_and_direction_of_the_kept_motion():
         rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
         want = f["gain"] * d_src @ rot.T
         assert np.abs(d_out - want).mean() < 0.3 * np.abs(want).mean() + 0.05
-    assert draws[0] != draws[1]  # each view (seed) draws its own flaw
+    assert draws[0] != draws[1]                      # each view (seed) draws its own flaw
     again = prior.refine(src, mask, "", 1, 0.0)
     assert prior.last_info["flaws"]["gain"] == draws[0][0]  # deterministic per seed
     assert np.isfinite(again).all()
@@ -249,10 +247,10 @@ def test_time_shift_of_the_kept_motion():
 
     T = 7
     est = np.zeros((T, 2, 3, 2), np.float32)
-    est[..., 0] = np.arange(T, dtype=np.float32)[:, None, None] ** 2  # d(t) = t^2 in x
+    est[..., 0] = np.arange(T, dtype=np.float32)[:, None, None] ** 2      # d(t) = t^2 in x
     sh = time_shifted(est, 1.5)
     assert np.all(sh[0] == 0)
     t = 2
-    assert sh[t, 0, 0, 0] == pytest.approx((t + 1.5) ** 2 - 1.5**2, abs=0.3)  # linear interpolation of t^2
+    assert sh[t, 0, 0, 0] == pytest.approx((t + 1.5) ** 2 - 1.5 ** 2, abs=0.3)  # linear interpolation of t^2
     assert np.array_equal(time_shifted(est, 0.0), est)
-    assert np.all(np.isfinite(time_shifted(est, 100.0)))  # clamped past the end
+    assert np.all(np.isfinite(time_shifted(est, 100.0)))                         # clamped past the end

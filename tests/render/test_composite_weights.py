@@ -6,7 +6,6 @@ The reference is one backward pass of the cpu rasterizer with zero colours: d(su
 f_c(p)) / d colour_ic = sum_p w_i(p) f_c(p), with w_i(p) = alpha_i(p) T_i(p). A second, independent
 check is the forward image itself: sum_i w_i(p) = alpha(p) at every pixel.
 """
-
 from __future__ import annotations
 
 import os
@@ -58,9 +57,8 @@ def _reference(means, quats, scales, opac, viewmat, K, W, H, factors):
 
 def _alpha(means, quats, scales, opac, viewmat, K, W, H):
     with torch.no_grad():
-        _, alpha, _ = rasterize(
-            means, quats, scales, opac, torch.zeros(means.shape[0], 3), viewmat, K, W, H, backend="cpu"
-        )
+        _, alpha, _ = rasterize(means, quats, scales, opac, torch.zeros(means.shape[0], 3), viewmat, K, W, H,
+                                backend="cpu")
     return alpha.double()
 
 
@@ -137,15 +135,11 @@ def test_culled_gaussians_get_zero():
     W, H = 70, 45
     means, quats, scales, opac, _, viewmat, K = random_scene(300, W, H, 0, seed=31)
     n = means.shape[0]
-    extra_means = torch.tensor(
-        [
-            [0.0, 0.0, -4.0],  # behind the camera
-            [0.0, 0.0, 0.005],  # in front of the near plane
-            [40.0, 0.0, 4.0],  # outside the image (right)
-            [0.0, -30.0, 4.0],  # outside the image (top)
-            [0.1, 0.1, 4.0],
-        ]
-    )  # in view but opacity < 1/255
+    extra_means = torch.tensor([[0.0, 0.0, -4.0],    # behind the camera
+                                [0.0, 0.0, 0.005],   # in front of the near plane
+                                [40.0, 0.0, 4.0],    # outside the image (right)
+                                [0.0, -30.0, 4.0],   # outside the image (top)
+                                [0.1, 0.1, 4.0]])    # in view but opacity < 1/255
     m = torch.cat([means, extra_means])
     q = torch.cat([quats, torch.tensor([[1.0, 0, 0, 0]]).repeat(5, 1)])
     s = torch.cat([scales, torch.full((5, 3), 0.05)])
@@ -153,9 +147,8 @@ def test_culled_gaussians_get_zero():
     f = _factors(H, W, 2, seed=32)
     w = composite_weights_cpu(m, q, s, o, viewmat, K, W, H, f)
     assert torch.equal(w[n:], torch.zeros(5, 2))
-    torch.testing.assert_close(
-        w[:n], composite_weights_cpu(means, quats, scales, opac, viewmat, K, W, H, f), rtol=0, atol=0
-    )
+    torch.testing.assert_close(w[:n], composite_weights_cpu(means, quats, scales, opac, viewmat, K, W, H, f),
+                               rtol=0, atol=0)
 
     # a probe behind an opaque wall: the forward stops before it reaches the probe
     ys, xs = torch.meshgrid(torch.linspace(-2, 2, 30), torch.linspace(-2.5, 2.5, 36), indexing="ij")
@@ -217,7 +210,6 @@ def test_invalid_inputs_raise():
 
 # ---- anigs.masks.visibility.blend_weights: the forward-only path and the backward fallback
 
-
 def _lift_scene(W, H):
     means, quats, scales, opac, colors, *_ = random_scene(400, W, H, 0, seed=71)
     sh = torch.zeros(len(means), 1, 3)
@@ -277,9 +269,8 @@ def test_blend_weights_nothing_in_view():
     assert total.shape == (g.num,) and not total.any() and not inside.any()
 
 
-@pytest.mark.parametrize(
-    "env", [{"ANIGS_KERNEL_THREADS": "pool"}, {"ANIGS_KERNEL_ARCH": "none"}], ids=["thread-pool", "baseline-isa"]
-)
+@pytest.mark.parametrize("env", [{"ANIGS_KERNEL_THREADS": "pool"}, {"ANIGS_KERNEL_ARCH": "none"}],
+                         ids=["thread-pool", "baseline-isa"])
 def test_other_kernel_builds(tmp_path, env):
     """The kernel's own thread pool (instead of OpenMP) and the baseline instruction set (4-lane
     windows): the same agreement with the backward, and identical bits for 1 and 2 threads."""
@@ -305,7 +296,6 @@ for W, H in ((64, 48), (70, 45)):
 print("ok")
 """
     full_env = dict(os.environ, ANIGS_CACHE=str(tmp_path), **env)
-    res = subprocess.run(
-        [sys.executable, "-c", code], cwd=ROOT, env=full_env, capture_output=True, text=True, timeout=600
-    )
+    res = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=full_env, capture_output=True, text=True,
+                         timeout=600)
     assert res.returncode == 0 and "ok" in res.stdout, res.stdout[-2000:] + res.stderr[-3000:]

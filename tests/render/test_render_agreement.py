@@ -1,5 +1,4 @@
 """The cpu kernel against the pure-torch reference, and both against gsplat's torch oracle."""
-
 from __future__ import annotations
 
 import pytest
@@ -24,16 +23,8 @@ CASES = [  # (N, sh_degree, seed, W, H)
 def _render_with_grads(scene, W, H, deg, backend, weights):
     means, quats, scales, opac, colors, viewmat, K = scene
     leaves = [t.clone().requires_grad_(True) for t in (means, quats, scales, opac, colors)]
-    rgb, alpha, meta = rasterize(
-        *leaves,
-        viewmat,
-        K,
-        W,
-        H,
-        sh_degree=deg if deg else None,
-        background=torch.tensor([0.1, 0.5, 0.9]),
-        backend=backend,
-    )
+    rgb, alpha, meta = rasterize(*leaves, viewmat, K, W, H, sh_degree=deg if deg else None,
+                                 background=torch.tensor([0.1, 0.5, 0.9]), backend=backend)
     wr, wa, wd = weights
     loss = (rgb * wr).sum() + (alpha * wa).sum() + (meta["depth"] * wd).sum()
     loss.backward()

@@ -1,7 +1,6 @@
 """The fused cpu kernel (anigs/render/csrc) on paths the scene-level agreement tests do not
 reach: SH degree 0 and unused SH coefficients, background gradients, strided upstream
 gradients, concurrent and forked callers, and the baseline instruction-set build."""
-
 from __future__ import annotations
 
 import multiprocessing as mp
@@ -100,9 +99,8 @@ def test_unused_outputs_match_zero_gradients():
     scene = random_scene(1200, W, H, 0, seed=43)
     wt = torch.randn(H, W, 3, generator=torch.Generator().manual_seed(6))
     _, _, g_none = _grads(scene, W, H, None, "cpu", lambda rgb, alpha, depth: (rgb * wt).sum())
-    _, _, g_zero = _grads(
-        scene, W, H, None, "cpu", lambda rgb, alpha, depth: (rgb * wt).sum() + 0 * (alpha.sum() + depth.sum())
-    )
+    _, _, g_zero = _grads(scene, W, H, None, "cpu",
+                          lambda rgb, alpha, depth: (rgb * wt).sum() + 0 * (alpha.sum() + depth.sum()))
     for name, a, b in zip(["means", "quats", "scales", "opacities", "colors"], g_none, g_zero):
         torch.testing.assert_close(a, b, rtol=1e-6, atol=1e-9, msg=name)
 

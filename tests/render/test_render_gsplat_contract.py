@@ -4,7 +4,6 @@ gsplat's rasterizer consumes a batched means2d [C,N,2]; ``meta["means2d"]`` is i
 ([N,2]) and must behave like the other backends' for densification: ``retain_grad()``
 before backward, then ``.grad`` holds the screen-space gradient.
 """
-
 from __future__ import annotations
 
 import sys
@@ -24,9 +23,8 @@ def _fake_rasterization(captured: dict):
 
     def rasterization(means, quats, scales, opacities, colors, viewmats, Ks, width, height, **kw):
         K = Ks[0]
-        means2d = torch.stack(
-            [K[0, 0] * means[:, 0] / means[:, 2] + K[0, 2], K[1, 1] * means[:, 1] / means[:, 2] + K[1, 2]], -1
-        )[None]  # [1,N,2]
+        means2d = torch.stack([K[0, 0] * means[:, 0] / means[:, 2] + K[0, 2],
+                               K[1, 1] * means[:, 1] / means[:, 2] + K[1, 2]], -1)[None]  # [1,N,2]
         means2d.retain_grad()  # the reference gradient
         captured["means2d"] = means2d
         ys, xs = torch.meshgrid(torch.arange(height) + 0.5, torch.arange(width) + 0.5, indexing="ij")
@@ -52,13 +50,8 @@ def fake_gsplat(monkeypatch):
 def _scene(n: int = 5):
     g = torch.Generator().manual_seed(0)
     means = torch.cat([torch.rand(n, 2, generator=g) - 0.5, 2 + torch.rand(n, 1, generator=g)], 1)
-    leaves = [
-        means,
-        torch.randn(n, 4, generator=g),
-        torch.full((n, 3), 0.1),
-        torch.rand(n, generator=g) * 0.5 + 0.3,
-        torch.rand(n, 3, generator=g),
-    ]
+    leaves = [means, torch.randn(n, 4, generator=g), torch.full((n, 3), 0.1),
+              torch.rand(n, generator=g) * 0.5 + 0.3, torch.rand(n, 3, generator=g)]
     K = torch.tensor([[20.0, 0, W / 2], [0, 20.0, H / 2], [0, 0, 1]])
     return [t.requires_grad_(True) for t in leaves], torch.eye(4), K
 

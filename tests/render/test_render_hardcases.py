@@ -1,5 +1,4 @@
 """Numerically hard inputs: outputs and gradients must stay finite on every backend."""
-
 from __future__ import annotations
 
 import pytest

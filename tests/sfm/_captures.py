@@ -5,7 +5,6 @@
 groups that sequential matching cannot join (10, 6 and 4 photos; see ``SPLIT_ORDER``), while
 every photo overlaps its ring neighbours, so matching every pair joins them into one model.
 """
-
 from __future__ import annotations
 
 import math
@@ -21,7 +20,7 @@ from anigs.video import save_png
 
 W, H = 320, 240
 # quaternions (w,x,y,z) turning a disc's thin local z axis onto the world x, y, z normals
-_Q_NORMAL = np.array([[math.sqrt(0.5), 0, math.sqrt(0.5), 0], [math.sqrt(0.5), -math.sqrt(0.5), 0, 0], [1, 0, 0, 0]])
+_Q_NORMAL = np.array([[math.sqrt(.5), 0, math.sqrt(.5), 0], [math.sqrt(.5), -math.sqrt(.5), 0, 0], [1, 0, 0, 0]])
 # ring positions in file-name order: 0..9 (one group), then 14..19 (joins 0 only on the ring),
 # then 10..13 (joins 9 only on the ring): neighbours in the order are ring neighbours inside a
 # group and 5 or 9 positions (90 or 162 degrees) apart at the group boundaries
@@ -34,13 +33,8 @@ def textured_boxes(seed: int = 0, n_ground: int = 4000, n_box: int = 900) -> Gau
     rng = np.random.default_rng(seed)
     pts = [np.c_[rng.uniform(-3, 3, (n_ground, 2)), np.zeros(n_ground)]]
     normals = [np.full(n_ground, 2)]
-    boxes = [
-        ((-0.9, -0.5), (0.7, 0.6, 0.9)),
-        ((0.9, 0.7), (0.5, 0.8, 0.6)),
-        ((0.3, -1.2), (0.6, 0.4, 1.2)),
-        ((-0.6, 1.1), (0.4, 0.5, 0.7)),
-        ((1.3, -0.3), (0.3, 0.3, 0.5)),
-    ]
+    boxes = [((-0.9, -0.5), (0.7, 0.6, 0.9)), ((0.9, 0.7), (0.5, 0.8, 0.6)), ((0.3, -1.2), (0.6, 0.4, 1.2)),
+             ((-0.6, 1.1), (0.4, 0.5, 0.7)), ((1.3, -0.3), (0.3, 0.3, 0.5))]
     for (cx, cy), size in boxes:
         size = np.array(size)
         u = rng.uniform(-0.5, 0.5, (n_box, 3))

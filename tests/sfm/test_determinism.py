@@ -5,7 +5,6 @@ Before the fix, 3 of 19 runs of the demo's sfm stage gave other cameras (1 in 6)
 with two threads, as the workflow rule runs it. ``benchmarks/sfm_determinism.py`` does the same on
 the demo and prints the seconds.
 """
-
 from __future__ import annotations
 
 import hashlib
@@ -28,29 +27,10 @@ def test_twenty_runs_give_one_cameras_json(tmp_path):
     digests = []
     for k in range(RUNS):
         out = tmp_path / f"run{k}"
-        done = subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "anigs.cli",
-                "--threads",
-                "2",
-                "sfm",
-                "--images",
-                str(images),
-                "--out",
-                str(out),
-                "--gt-cameras",
-                str(gt),
-                "--params",
-                params,
-            ],
-            capture_output=True,
-            text=True,
-        )
+        done = subprocess.run([sys.executable, "-m", "anigs.cli", "--threads", "2", "sfm", "--images", str(images),
+                               "--out", str(out), "--gt-cameras", str(gt), "--params", params],
+                              capture_output=True, text=True)
         assert done.returncode == 0, done.stderr[-3000:]
-        digests.append(
-            hashlib.md5((out / "cameras.json").read_bytes()).hexdigest()
-            + hashlib.md5((out / "points.npz").read_bytes()).hexdigest()
-        )
+        digests.append(hashlib.md5((out / "cameras.json").read_bytes()).hexdigest()
+                       + hashlib.md5((out / "points.npz").read_bytes()).hexdigest())
     assert len(set(digests)) == 1, {d: digests.count(d) for d in set(digests)}

@@ -4,7 +4,6 @@ The capture (tests/sfm/_captures.py): 20 photos of one orbit, named so that sequ
 with ``sequential_overlap: 1`` joins only runs of ring neighbours (groups of 10, 6 and 4 photos);
 matching more pairs joins them. Real COLMAP throughout, 320x240 renders.
 """
-
 from __future__ import annotations
 
 import json
@@ -21,13 +20,8 @@ from anigs.sfm.colmap import SfmConfig, SfmError, run_sfm  # noqa: E402
 from anigs.sfm.diagnose import groups, likely_causes  # noqa: E402
 
 # sequential pairs (i, i+1) only, no look-alike pairs: what leaves the split capture in groups
-SEQUENTIAL = {
-    "camera_model": "SIMPLE_PINHOLE",
-    "matcher": "sequential",
-    "sequential_overlap": 1,
-    "sequential_similar": 0,
-    "refine": False,
-}
+SEQUENTIAL = {"camera_model": "SIMPLE_PINHOLE", "matcher": "sequential", "sequential_overlap": 1,
+              "sequential_similar": 0, "refine": False}
 
 
 @pytest.fixture(scope="module")
@@ -104,7 +98,6 @@ def test_below_half_is_an_error_naming_cause_and_settings(split, tmp_path):
 
 # ---- the diagnosis on its own -------------------------------------------------------------
 
-
 def test_groups_of_a_match_graph():
     adj = np.zeros((6, 6), bool)
     for i, j in [(0, 1), (1, 2), (3, 4)]:
@@ -113,9 +106,8 @@ def test_groups_of_a_match_graph():
 
 
 def test_few_features_named_first():
-    causes, settings, facts = likely_causes(
-        None, [{"registered": 2, "keypoints_per_image": 120.0, "verified_pairs": 3, "models": [2]}], [], True
-    )
+    causes, settings, facts = likely_causes(None, [{"registered": 2, "keypoints_per_image": 120.0,
+                                                    "verified_pairs": 3, "models": [2]}], [], True)
     assert causes[0].startswith("too few features (120")
     assert any("sift_peak_threshold" in s for s in settings) and facts["keypoints_per_image"] == 120.0
 

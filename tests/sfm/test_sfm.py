@@ -5,7 +5,6 @@ plane and on the faces of four boxes, rendered with the project's rasterizer at 
 Two captures: a ring of 20 cameras around the boxes (SIMPLE_RADIAL, so the undistortion
 path runs) and a forward-facing grid of 16 cameras with a small baseline (SIMPLE_PINHOLE).
 """
-
 from __future__ import annotations
 
 import logging
@@ -20,14 +19,8 @@ pycolmap = pytest.importorskip("pycolmap")
 
 from anigs.sfm import colmap as sfm_mod  # noqa: E402
 from anigs.sfm import plan  # noqa: E402
-from anigs.sfm.align import (  # noqa: E402
-    Similarity,
-    estimate_up,
-    pose_errors,
-    rotation_angle_deg,
-    rotation_between,
-    umeyama,
-)
+from anigs.sfm.align import (Similarity, estimate_up, pose_errors, rotation_angle_deg, rotation_between,  # noqa: E402
+                         umeyama)
 from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at  # noqa: E402
 from anigs.gaussians import Gaussians  # noqa: E402
 from anigs.sfm.colmap import SfmConfig, SfmError, run_sfm  # noqa: E402
@@ -35,7 +28,7 @@ from _captures import render as render_capture  # noqa: E402
 
 W, H = 320, 240
 # quaternions (w,x,y,z) turning the thin local z axis onto the world x, y, z normals
-_Q_NORMAL = np.array([[math.sqrt(0.5), 0, math.sqrt(0.5), 0], [math.sqrt(0.5), -math.sqrt(0.5), 0, 0], [1, 0, 0, 0]])
+_Q_NORMAL = np.array([[math.sqrt(.5), 0, math.sqrt(.5), 0], [math.sqrt(.5), -math.sqrt(.5), 0, 0], [1, 0, 0, 0]])
 
 
 def textured_scene(seed: int = 0, n_ground: int = 3000, n_box: int = 700) -> Gaussians:
@@ -43,12 +36,8 @@ def textured_scene(seed: int = 0, n_ground: int = 3000, n_box: int = 700) -> Gau
     rng = np.random.default_rng(seed)
     pts = [np.c_[rng.uniform(-2.5, 2.5, (n_ground, 2)), np.zeros(n_ground)]]
     normals = [np.full(n_ground, 2)]
-    boxes = [
-        ((-0.8, -0.5), (0.7, 0.6, 0.9)),
-        ((0.9, 0.6), (0.5, 0.8, 0.5)),
-        ((0.2, -1.2), (0.6, 0.4, 1.3)),
-        ((-0.6, 1.1), (0.4, 0.4, 0.7)),
-    ]
+    boxes = [((-0.8, -0.5), (0.7, 0.6, 0.9)), ((0.9, 0.6), (0.5, 0.8, 0.5)),
+             ((0.2, -1.2), (0.6, 0.4, 1.3)), ((-0.6, 1.1), (0.4, 0.4, 0.7))]
     for (cx, cy), size in boxes:
         size = np.array(size)
         u = rng.uniform(-0.5, 0.5, (n_box, 3))
@@ -106,7 +95,6 @@ def ring(tmp_path_factory, scene):
 
 # ---- the real reconstruction ----------------------------------------------------------------
 
-
 def test_ring_registers_all_and_is_accurate(ring):
     r = ring["res"].report
     assert r["registered"] == r["images"] == 20
@@ -156,12 +144,8 @@ def test_ring_outputs_follow_the_contract(ring):
 
 def test_upright_frame_without_ground_truth(ring, tmp_path):
     """From the existing model (no GT): up must be +z and the ground z = 0, up to scale."""
-    res = run_sfm(
-        ring["images"],
-        tmp_path / "sfm",
-        SfmConfig(camera_model="SIMPLE_RADIAL"),
-        model_dir=ring["out"] / "work" / "selected",
-    )
+    res = run_sfm(ring["images"], tmp_path / "sfm", SfmConfig(camera_model="SIMPLE_RADIAL"),
+                  model_dir=ring["out"] / "work" / "selected")
     assert res.report["frame"]["mode"] == "upright"
     gt = {c.name: c for c in load_cameras(ring["gt"])}
     z = np.array([0.0, 0.0, 1.0])
@@ -183,21 +167,9 @@ def test_cli_from_existing_model(ring, tmp_path, capsys):
     from anigs.cli import main
 
     out = tmp_path / "sfm"
-    rc = main(
-        [
-            "sfm",
-            "--images",
-            str(ring["images"]),
-            "--out",
-            str(out),
-            "--gt-cameras",
-            str(ring["gt"]),
-            "--model",
-            str(ring["out"] / "work" / "selected"),
-            "--params",
-            json.dumps({"camera_model": "SIMPLE_RADIAL", "min_registered_fraction": 0.9}),
-        ]
-    )
+    rc = main(["sfm", "--images", str(ring["images"]), "--out", str(out), "--gt-cameras", str(ring["gt"]),
+               "--model", str(ring["out"] / "work" / "selected"),
+               "--params", json.dumps({"camera_model": "SIMPLE_RADIAL", "min_registered_fraction": 0.9})])
     assert rc == 0
     assert "registered 20/20 images" in capsys.readouterr().out
     report = json.loads((out / "report.json").read_text())
@@ -208,13 +180,8 @@ def test_cli_from_existing_model(ring, tmp_path, capsys):
 
 def test_existing_project_sparse_folder(ring, tmp_path):
     """--model accepts a COLMAP project's sparse/ folder (with 0/ inside), e.g. our own output."""
-    res = run_sfm(
-        ring["out"] / "images",
-        tmp_path / "again",
-        SfmConfig(camera_model="PINHOLE"),
-        gt_cameras=ring["gt"],
-        model_dir=ring["out"] / "sparse",
-    )
+    res = run_sfm(ring["out"] / "images", tmp_path / "again", SfmConfig(camera_model="PINHOLE"),
+                  gt_cameras=ring["gt"], model_dir=ring["out"] / "sparse")
     assert res.report["registered"] == 20 and res.report["undistorted"] is False
     assert res.report["gt_errors"]["rotation_error_deg"]["max"] < 0.5
     (tmp_path / "nothing").mkdir()
@@ -223,7 +190,6 @@ def test_existing_project_sparse_folder(ring, tmp_path):
 
 
 # ---- fine-scale refinement (anigs.sfm.bundle) on the ring's database and raw model ---------------
-
 
 def test_ring_refinement_report(ring):
     r = ring["res"].report
@@ -274,16 +240,14 @@ def test_refinement_undoes_a_camera_perturbation(ring):
     pose = frame.rig_from_world
     c, s = math.cos(math.radians(0.5)), math.sin(math.radians(0.5))
     tilt = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])  # 0.5 degrees about the camera's x axis
-    frame.rig_from_world = pycolmap.Rigid3d(
-        pycolmap.Rotation3d(tilt @ pose.rotation.matrix()), np.asarray(pose.translation).reshape(3, 1)
-    )
+    frame.rig_from_world = pycolmap.Rigid3d(pycolmap.Rotation3d(tilt @ pose.rotation.matrix()),
+                                            np.asarray(pose.translation).reshape(3, 1))
     relative = lambda r: rotation_angle_deg(r[a] @ r[b].T, ref[a] @ ref[b].T)  # noqa: E731
     moved = {i: rec.images[i].cam_from_world().rotation.matrix() for i in ids}
     assert relative(moved) > 0.45
     n_points = rec.num_points3D()
-    report = refine_fine_scale(
-        rec, ring["out"] / "work" / "database.db", max_keypoint_scale=1.3, min_observations=60, loss_scale=0.5
-    )
+    report = refine_fine_scale(rec, ring["out"] / "work" / "database.db", max_keypoint_scale=1.3,
+                               min_observations=60, loss_scale=0.5)
     after = {i: rec.images[i].cam_from_world().rotation.matrix() for i in ids}
     assert relative(after) < 0.1, relative(after)
     assert rec.num_points3D() == n_points and report["points_total"] == n_points
@@ -291,7 +255,6 @@ def test_refinement_undoes_a_camera_perturbation(ring):
 
 
 # ---- failure handling (mapper replaced; the images and model are the ring's) -------------
-
 
 def _patch_colmap(monkeypatch, models_for_angle):
     """Skip extraction/matching; the mapper returns models_for_angle(angle) or raises it."""
@@ -352,18 +315,15 @@ def test_too_few_registered_goes_on_partial_or_fails_after_retry(ring, ring_mode
     assert "init_min_tri_angle=4.0" in str(err.value) and "Settings to try" in str(err.value)
     assert not (tmp_path / "sfm2" / "cameras.json").exists()
     # a lower threshold accepts the same model as complete
-    res = run_sfm(
-        ring["out"] / "images", tmp_path / "sfm3", SfmConfig(camera_model="PINHOLE", min_registered_fraction=0.4)
-    )
+    res = run_sfm(ring["out"] / "images", tmp_path / "sfm3",
+                  SfmConfig(camera_model="PINHOLE", min_registered_fraction=0.4))
     assert res.report["registered"] == 9 and res.report["status"] == "complete"
     assert len(res.report["unregistered_images"]) == 11
 
 
 def test_mapping_failure_retries_with_lower_angle(ring, ring_model, tmp_path, monkeypatch, caplog):
     def models(angle):
-        return (
-            RuntimeError("no good initial image pair found") if angle > 10 else {0: pycolmap.Reconstruction(ring_model)}
-        )
+        return RuntimeError("no good initial image pair found") if angle > 10 else {0: pycolmap.Reconstruction(ring_model)}
 
     calls = _patch_colmap(monkeypatch, models)
     with caplog.at_level(logging.WARNING, logger="anigs.sfm.colmap"):
@@ -377,13 +337,11 @@ def test_mapping_failure_retries_with_lower_angle(ring, ring_model, tmp_path, mo
     # a failure with the retry disabled is an error naming 0/20
     _patch_colmap(monkeypatch, lambda a: RuntimeError("boom"))
     with pytest.raises(SfmError, match=r"registered 0/20"):
-        run_sfm(
-            ring["out"] / "images", tmp_path / "sfm3", SfmConfig(camera_model="PINHOLE", retry_init_min_tri_angle=None)
-        )
+        run_sfm(ring["out"] / "images", tmp_path / "sfm3",
+                SfmConfig(camera_model="PINHOLE", retry_init_min_tri_angle=None))
 
 
 # ---- checks before COLMAP runs ---------------------------------------------------------------
-
 
 def _forbid_colmap(monkeypatch):
     def boom(*a, **k):
@@ -478,26 +436,14 @@ def test_config_rejects_unknown_and_bad_values():
         SfmConfig.from_dict({"camera_model": "SIMPLE_RADIAL", "camera_params": [300, 160, 120]})
     with pytest.raises(ValueError, match="num_threads"):
         SfmConfig.from_dict({"num_threads": 0})
-    for key, bad in (
-        ("mapper_num_threads", -2),
-        ("init_min_tri_angle", "wide"),
-        ("init_min_tri_angle", 95),
-        ("exhaustive_max_images", 1),
-        ("exhaustive_max_comparisons", 0),
-        ("sequential_similar", -1),
-        ("ba_global_growth", 1.0),
-        ("ba_global_max_refinements", 0),
-        ("ba_local_max_refinements", 0),
-    ):
+    for key, bad in (("mapper_num_threads", -2), ("init_min_tri_angle", "wide"), ("init_min_tri_angle", 95),
+                     ("exhaustive_max_images", 1), ("exhaustive_max_comparisons", 0), ("sequential_similar", -1),
+                     ("ba_global_growth", 1.0), ("ba_global_max_refinements", 0), ("ba_local_max_refinements", 0)):
         with pytest.raises(ValueError, match=key):
             SfmConfig.from_dict({key: bad})
     assert SfmConfig.from_dict({}).matcher == "auto" and SfmConfig.from_dict({}).init_min_tri_angle == "auto"
-    for key, bad in (
-        ("refine_max_keypoint_scale", 0),
-        ("refine_min_observations", -1),
-        ("refine_loss_scale", -0.5),
-        ("sift_peak_threshold", 0),
-    ):
+    for key, bad in (("refine_max_keypoint_scale", 0), ("refine_min_observations", -1), ("refine_loss_scale", -0.5),
+                     ("sift_peak_threshold", 0)):
         with pytest.raises(ValueError, match=key):
             SfmConfig.from_dict({key: bad})
     assert SfmConfig.from_dict({"matcher": "sequential"}).matcher == "sequential"
@@ -536,7 +482,6 @@ def test_same_seed_same_output_for_any_extraction_thread_count(ring, tmp_path):
 
 
 # ---- choices from the capture (anigs.sfm.plan) ------------------------------------------------
-
 
 def _copy_as(paths, folder: Path, names) -> list[Path]:
     folder.mkdir()
@@ -626,12 +571,10 @@ def test_held_distortion_is_estimated_without_refinement(ring, tmp_path):
 
 # ---- a real forward-facing capture -------------------------------------------------------------
 
-
 def test_forward_facing_capture(tmp_path, scene):
     images, gt = render_capture(tmp_path, forward_cameras(), scene)
-    res = run_sfm(
-        images, tmp_path / "sfm", SfmConfig(camera_model="SIMPLE_PINHOLE", matcher="sequential"), gt_cameras=gt
-    )
+    res = run_sfm(images, tmp_path / "sfm", SfmConfig(camera_model="SIMPLE_PINHOLE", matcher="sequential"),
+                  gt_cameras=gt)
     r = res.report
     assert r["registered"] == r["images"] == 16
     assert r["undistorted"] is False
@@ -645,18 +588,13 @@ def test_forward_facing_capture(tmp_path, scene):
 
 # ---- similarity algebra -------------------------------------------------------------------------
 
-
 def _random_similarity(rng) -> Similarity:
     q = rng.standard_normal(4)
     q /= np.linalg.norm(q)
     w, x, y, z = q
-    R = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                  [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                  [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
     return Similarity(float(rng.uniform(0.3, 3)), R, rng.standard_normal(3))
 
 

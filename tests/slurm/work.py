@@ -4,7 +4,6 @@ capture:  seed -> capture.json (a list of pseudo-random integers)
 refine:   capture.json + view index -> refine/{view}.bin (a hash chain, optionally slowed down)
 update:   all refine/*.bin -> update.json (fan-in: combined digest and per-view digests)
 """
-
 from __future__ import annotations
 
 import argparse

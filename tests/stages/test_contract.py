@@ -1,5 +1,4 @@
 """The stage contract base: layout paths and folders, checked loaders, flags derived from Inputs fields."""
-
 from __future__ import annotations
 
 import argparse
@@ -88,7 +87,7 @@ def test_flags_derive_from_fields_and_round_trip(tmp_path):
     flags = {a.option_strings[0] for a in p._actions if a.option_strings}
     assert {"--toy", "--canonical", "--masks-dir", "--effects", "--steps", "--names", "--keep-work"} <= flags
     with pytest.raises(SystemExit):
-        p.parse_args(["--canonical", "c.ply"])  # --toy is required
+        p.parse_args(["--canonical", "c.ply"])          # --toy is required
     args = p.parse_args(["--toy", str(tmp_path), "--canonical", "c.ply", "--steps", "7", "--names", "a", "b"])
     inp = _In.from_args(args)
     assert inp.toy == _Out(tmp_path) and inp.canonical == Path("c.ply") and inp.steps == 7

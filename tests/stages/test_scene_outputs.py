@@ -1,5 +1,4 @@
 """The scene stages' Outputs: their checked loaders, as other stages, metrics and benchmarks read them."""
-
 from __future__ import annotations
 
 import json

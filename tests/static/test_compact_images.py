@@ -1,5 +1,4 @@
 """The static fit's photos held as uint8 (a quarter of float32's memory): the same pixels, the same fit."""
-
 from __future__ import annotations
 
 import numpy as np

@@ -1,5 +1,4 @@
 """Densification strategy: state accumulation, clone/split/prune, budget, opacity reset, Adam moments."""
-
 from __future__ import annotations
 
 import math
@@ -7,16 +6,8 @@ import math
 import pytest
 import torch
 
-from anigs.static.densify import (
-    AllPrunedError,
-    DensifyConfig,
-    DensifyState,
-    refine,
-    refine_due,
-    reset_opacity,
-    stats_needed,
-    update_state,
-)
+from anigs.static.densify import (AllPrunedError, DensifyConfig, DensifyState, refine, refine_due, reset_opacity,
+                                  stats_needed, update_state)
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
@@ -32,9 +23,8 @@ def make_params(n: int, scale: float = 0.01, opacity: float = 0.5, seed: int = 0
         "sh_dc": P(torch.randn(n, 1, 3, generator=g)),
         "sh_rest": P(torch.zeros(n, 3, 3)),
     }
-    opt = torch.optim.Adam(
-        [{"params": [v], "lr": 1e-3, "name": k} for k, v in params.items()], eps=1e-15, fused=fused or None
-    )
+    opt = torch.optim.Adam([{"params": [v], "lr": 1e-3, "name": k} for k, v in params.items()], eps=1e-15,
+                           fused=fused or None)
     return params, opt
 
 
@@ -54,9 +44,8 @@ def state_with_grads(n: int, grads: list[float], radii: list[float] | None = Non
     return st
 
 
-CFG = DensifyConfig(
-    start=1, stop=1000, every=1, grad_threshold=0.001, dense_percent=0.05, reset_every=0, max_gaussians=100
-)
+CFG = DensifyConfig(start=1, stop=1000, every=1, grad_threshold=0.001, dense_percent=0.05,
+                    reset_every=0, max_gaussians=100)
 
 
 def test_config_rejects_unknown_keys():
@@ -138,9 +127,8 @@ def test_prune_low_opacity_and_too_large_after_reset():
         params["opacity_logits"][0] = math.log(0.001 / 0.999)
         params["log_scales"][3] = math.log(0.3)  # > 0.1 * extent in the world
     take_adam_step(params, opt)
-    cfg = DensifyConfig(
-        start=1, stop=1000, every=1, grad_threshold=1.0, reset_every=0, prune_size_from=100, max_gaussians=100
-    )
+    cfg = DensifyConfig(start=1, stop=1000, every=1, grad_threshold=1.0, reset_every=0, prune_size_from=100,
+                        max_gaussians=100)
     st = state_with_grads(5, [0.0] * 5, radii=[0.0, 0.0, 0.5, 0.0, 0.0])  # 2 too large on screen
     means = params["means"].detach().clone()
     new = refine(params, opt, st, step=50, cfg=cfg, scene_extent=1.0)  # before prune_size_from: only opacity
@@ -205,17 +193,8 @@ def test_with_rasterizer_meta():
     params, opt = make_params(50, scale=0.05, seed=1)
     K = torch.tensor(intrinsics_from_fov(60, 64, 48), dtype=torch.float32)
     V = torch.tensor(look_at((0, -5, 0), (0, 0, 0)), dtype=torch.float32)
-    rgb, _, meta = rasterize(
-        params["means"],
-        params["quats"],
-        params["log_scales"].exp(),
-        torch.sigmoid(params["opacity_logits"]),
-        params["sh_dc"][:, 0],
-        V,
-        K,
-        64,
-        48,
-    )
+    rgb, _, meta = rasterize(params["means"], params["quats"], params["log_scales"].exp(),
+                             torch.sigmoid(params["opacity_logits"]), params["sh_dc"][:, 0], V, K, 64, 48)
     meta["means2d"].retain_grad()
     (rgb - 0.3).abs().mean().backward()
     st = DensifyState.empty(50)

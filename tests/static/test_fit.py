@@ -1,5 +1,4 @@
 """Static 3DGS fit: initialisation, hard cases (1 point, duplicates, all pruned, NaN), end-to-end fit, CLI."""
-
 from __future__ import annotations
 
 import json
@@ -20,18 +19,8 @@ pytestmark = pytest.mark.usefixtures("one_thread")
 
 def _texture(p: np.ndarray) -> np.ndarray:
     u, v, w = p[:, 0], p[:, 1], p[:, 2]
-    return np.clip(
-        np.stack(
-            [
-                0.5 + 0.35 * np.sin(4 * u + 2 * w),
-                0.5 + 0.35 * np.cos(5 * v - 3 * w),
-                0.45 + 0.3 * np.sin(3 * (u + v) + 1),
-            ],
-            1,
-        ),
-        0,
-        1,
-    )
+    return np.clip(np.stack([0.5 + 0.35 * np.sin(4 * u + 2 * w), 0.5 + 0.35 * np.cos(5 * v - 3 * w),
+                             0.45 + 0.3 * np.sin(3 * (u + v) + 1)], 1), 0, 1)
 
 
 def make_scene(n_cams: int = 16, width: int = 64, height: int = 48, spacing: float = 0.12, seed: int = 0):
@@ -45,10 +34,9 @@ def make_scene(n_cams: int = 16, width: int = 64, height: int = 48, spacing: flo
     n = len(pts)
     scales = np.full((n, 3), spacing * 0.7)
     scales[: len(ground), 2] = 0.01
-    scales[len(ground) :, 1] = 0.01
-    g = Gaussians.from_points(
-        torch.tensor(pts).float(), torch.tensor(_texture(pts)).float(), torch.tensor(scales).float(), opacity=0.95
-    )
+    scales[len(ground):, 1] = 0.01
+    g = Gaussians.from_points(torch.tensor(pts).float(), torch.tensor(_texture(pts)).float(),
+                              torch.tensor(scales).float(), opacity=0.95)
     K = intrinsics_from_fov(70, width, height)
     cams = []
     for i in range(n_cams):
@@ -69,13 +57,8 @@ def sfm_points(g: Gaussians, every: int = 3, noise: float = 0.03, seed: int = 1)
     return p + rng.normal(0, noise, p.shape), g.rgb.numpy()[::every]
 
 
-FAST = {
-    "iterations": 40,
-    "eval_every": 20,
-    "checkpoint_every": 10,
-    "sh_increase_every": 10,
-    "densify": {"start": 10, "stop": 30, "every": 10, "reset_every": 0},
-}
+FAST = {"iterations": 40, "eval_every": 20, "checkpoint_every": 10, "sh_increase_every": 10,
+        "densify": {"start": 10, "stop": 30, "every": 10, "reset_every": 0}}
 
 
 @pytest.fixture(scope="module")
@@ -140,9 +123,8 @@ def test_scene_extent_from_cameras(scene):
 # ---------------------------------------------------------------------------- hard cases
 def test_fit_from_a_single_point(scene):
     _, cams, imgs = scene
-    g, m = fit_static(
-        imgs, cams, np.array([[0.0, 0.0, 0.3]]), np.array([[0.5, 0.5, 0.5]]), FitConfig.from_dict(FAST), progress=False
-    )
+    g, m = fit_static(imgs, cams, np.array([[0.0, 0.0, 0.3]]), np.array([[0.5, 0.5, 0.5]]),
+                      FitConfig.from_dict(FAST), progress=False)
     assert m["init_gaussians"] == 1
     assert g.num >= 1 and torch.isfinite(g.means).all()
     assert math.isfinite(m["test_psnr"])
@@ -161,14 +143,8 @@ def test_fit_from_duplicate_points(scene):
 def test_all_pruned_stops_with_clear_error(scene):
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=6)
-    cfg = FitConfig.from_dict(
-        {
-            **FAST,
-            "init_opacity": 0.01,
-            "lr_opacity": 0.0,
-            "densify": {"start": 5, "every": 5, "prune_opacity": 0.5, "reset_every": 0},
-        }
-    )
+    cfg = FitConfig.from_dict({**FAST, "init_opacity": 0.01, "lr_opacity": 0.0,
+                               "densify": {"start": 5, "every": 5, "prune_opacity": 0.5, "reset_every": 0}})
     with pytest.raises(AllPrunedError, match=r"all \d+ Gaussians would be pruned at step 5"):
         fit_static(imgs, cams, p, c, cfg, progress=False)
 
@@ -221,15 +197,9 @@ def test_nan_gradient_is_detected(scene, monkeypatch):
 def test_fit_end_to_end_improves_held_out_psnr(scene):
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=3, noise=0.03)
-    cfg = FitConfig.from_dict(
-        {
-            "iterations": 300,
-            "eval_every": 100,
-            "sh_degree": 1,
-            "sh_increase_every": 150,
-            "densify": {"start": 50, "stop": 250, "every": 50, "reset_every": 0, "max_gaussians": 3000},
-        }
-    )
+    cfg = FitConfig.from_dict({"iterations": 300, "eval_every": 100, "sh_degree": 1, "sh_increase_every": 150,
+                               "densify": {"start": 50, "stop": 250, "every": 50, "reset_every": 0,
+                                           "max_gaussians": 3000}})
     g, m = fit_static(imgs, cams, p, c, cfg, progress=False)
     assert m["test_views"] == 2 and m["train_views"] == 14
     assert m["test_psnr"] > m["init_test_psnr"] + 6, m["curve"]
@@ -242,9 +212,8 @@ def test_fit_end_to_end_improves_held_out_psnr(scene):
 def test_fit_is_deterministic(scene):
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=4)
-    cfg = FitConfig.from_dict(
-        {**FAST, "densify": {"start": 5, "stop": 30, "every": 5, "grad_threshold": 0.00005, "reset_every": 20}}
-    )
+    cfg = FitConfig.from_dict({**FAST, "densify": {"start": 5, "stop": 30, "every": 5, "grad_threshold": 0.00005,
+                                                   "reset_every": 20}})
     g1, m1 = fit_static(imgs, cams, p, c, cfg, progress=False)
     g2, m2 = fit_static(imgs, cams, p, c, cfg, progress=False)
     assert m1["num_gaussians"] > m1["init_gaussians"]  # densification ran
@@ -266,36 +235,15 @@ def test_cli_writes_ply_and_metrics(scene, tmp_path):
     p, c = sfm_points(gt, every=4)
     write_npz(tmp_path / "points.npz", xyz=p.astype(np.float32), rgb=c.astype(np.float32))
     out = tmp_path / "static"
-    rc = main(
-        [
-            "static",
-            "--images",
-            str(img_dir),
-            "--cameras",
-            str(tmp_path / "cameras.json"),
-            "--points",
-            str(tmp_path / "points.npz"),
-            "--out",
-            str(out),
-            "--no-progress",
-            "--params",
-            json.dumps({**FAST, "sh_degree": 2}),
-        ]
-    )
+    rc = main(["static", "--images", str(img_dir), "--cameras", str(tmp_path / "cameras.json"),
+               "--points", str(tmp_path / "points.npz"), "--out", str(out), "--no-progress",
+               "--params", json.dumps({**FAST, "sh_degree": 2})])
     assert rc == 0
     g = load_ply(out / "canonical.ply")
     assert g.sh_degree == 2
     m = json.loads((out / "metrics.json").read_text())
-    for key in (
-        "train_psnr",
-        "train_ssim",
-        "test_psnr",
-        "test_ssim",
-        "num_gaussians",
-        "iterations",
-        "seconds",
-        "curve",
-    ):
+    for key in ("train_psnr", "train_ssim", "test_psnr", "test_ssim", "num_gaussians", "iterations", "seconds",
+                "curve"):
         assert key in m, key
     assert m["num_gaussians"] == g.num and m["iterations"] == 40
     assert [r["iteration"] for r in m["curve"]] == [0, 20, 40]
@@ -303,20 +251,8 @@ def test_cli_writes_ply_and_metrics(scene, tmp_path):
     assert not (out / "checkpoint.ply").exists()
     # a camera without an image is a clear error naming it
     save_cameras(tmp_path / "more.json", cams + [Camera(cams[0].K, cams[0].viewmat, 64, 48, "missing.png")])
-    rc = main(
-        [
-            "static",
-            "--images",
-            str(img_dir),
-            "--cameras",
-            str(tmp_path / "more.json"),
-            "--points",
-            str(tmp_path / "points.npz"),
-            "--out",
-            str(out),
-            "--no-progress",
-        ]
-    )
+    rc = main(["static", "--images", str(img_dir), "--cameras", str(tmp_path / "more.json"),
+               "--points", str(tmp_path / "points.npz"), "--out", str(out), "--no-progress"])
     assert rc == 1
 
 
@@ -368,9 +304,8 @@ def test_nan_loss_is_detected_with_a_non_fused_optimizer(scene, monkeypatch):
         return loss * float("nan") if calls["n"] == 7 else loss
 
     def foreach_adam(params, lr):
-        return torch.optim.Adam(
-            [{"params": [params[k]], "lr": lr[k], "name": k} for k in params], lr=0.0, eps=1e-15, foreach=True
-        )
+        return torch.optim.Adam([{"params": [params[k]], "lr": lr[k], "name": k} for k in params], lr=0.0,
+                                eps=1e-15, foreach=True)
 
     monkeypatch.setattr(fit_mod, "loss_fn", nan_at_7)
     monkeypatch.setattr(fit_mod, "make_optimizer", foreach_adam)
@@ -419,26 +354,13 @@ def test_render_passes_only_the_active_sh_bands(scene):
     cam = cams[0]
     for deg in (0, 1, 3):
         rgb, _, _ = _render(params, cam, deg, torch.zeros(3), "auto")
-        full, _, _ = rasterize(
-            g.means,
-            g.quats,
-            g.scales,
-            g.opacities,
-            g.sh,
-            cam.torch_viewmat(),
-            cam.torch_K(),
-            cam.width,
-            cam.height,
-            sh_degree=deg,
-            background=torch.zeros(3),
-        )
+        full, _, _ = rasterize(g.means, g.quats, g.scales, g.opacities, g.sh, cam.torch_viewmat(), cam.torch_K(),
+                               cam.width, cam.height, sh_degree=deg, background=torch.zeros(3))
         assert torch.equal(rgb, full), deg
     rgb, _, _ = _render(params, cam, 1, torch.zeros(3), "auto")
     rgb.sum().backward()
     assert params["sh_rest"].grad.shape == params["sh_rest"].shape
-    assert torch.count_nonzero(params["sh_rest"].grad[:, 3:]) == 0 and torch.count_nonzero(
-        params["sh_rest"].grad[:, :3]
-    )
+    assert torch.count_nonzero(params["sh_rest"].grad[:, 3:]) == 0 and torch.count_nonzero(params["sh_rest"].grad[:, :3])
 
 
 def test_fit_reports_step_times_and_skips_statistics_after_the_last_densification(scene, monkeypatch):

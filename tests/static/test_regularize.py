@@ -1,5 +1,4 @@
 """Needle and unresolved-Gaussian control of the static fit (anigs.static.regularize)."""
-
 from __future__ import annotations
 
 import math
@@ -10,7 +9,8 @@ import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.static.fit import FitConfig, _to_params, fit_static, make_optimizer
-from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, last_densify_step, limit_needles, prune_rows
+from anigs.static.regularize import (NeedleRegularizer, RegularizeConfig, last_densify_step, limit_needles,
+                                     prune_rows)
 from anigs.gaussians import Gaussians
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -18,16 +18,8 @@ pytestmark = pytest.mark.usefixtures("one_thread")
 
 def _ring(n: int = 8, width: int = 80, height: int = 60) -> list[Camera]:
     K = intrinsics_from_fov(60, width, height)
-    return [
-        Camera(
-            K,
-            look_at((4 * math.cos(2 * math.pi * i / n), 4 * math.sin(2 * math.pi * i / n), 1.0), (0, 0, 0.3)),
-            width,
-            height,
-            f"c{i}",
-        )
-        for i in range(n)
-    ]
+    return [Camera(K, look_at((4 * math.cos(2 * math.pi * i / n), 4 * math.sin(2 * math.pi * i / n), 1.0), (0, 0, 0.3)),
+                   width, height, f"c{i}") for i in range(n)]
 
 
 def _scene_with_needle() -> Gaussians:
@@ -39,12 +31,8 @@ def _scene_with_needle() -> Gaussians:
     scales[::2, 2] = 0.004  # flat disks: two large axes, ratio 12.5 against the smallest, 1 against the middle
     pts = np.vstack([pts, [[0.0, 0.0, 1.2], [0.2, 0.0, 1.5]]])
     scales = np.vstack([scales, [[1.5, 1.5, 1.5], [2.0, 0.02, 0.02]]])
-    return Gaussians.from_points(
-        torch.tensor(pts).float(),
-        torch.rand(len(pts), 3, generator=torch.Generator().manual_seed(0)),
-        torch.tensor(scales).float(),
-        opacity=0.8,
-    )
+    return Gaussians.from_points(torch.tensor(pts).float(), torch.rand(len(pts), 3, generator=torch.Generator().manual_seed(0)),
+                                 torch.tensor(scales).float(), opacity=0.8)
 
 
 def test_needle_limit_shrinks_needles_and_leaves_disks_and_blobs():
@@ -54,8 +42,8 @@ def test_needle_limit_shrinks_needles_and_leaves_disks_and_blobs():
     limit_needles(ls, 10.0)
     s = ls.exp()
     assert s[-1].max() == pytest.approx(0.2, rel=1e-4)  # 10 x its middle scale 0.02
-    assert torch.equal(ls[:-1], before[:-1])  # disks (ratio 1 to the middle axis) and blobs untouched
-    limit_needles(ls, 0.0)  # 0: off
+    assert torch.equal(ls[:-1], before[:-1])            # disks (ratio 1 to the middle axis) and blobs untouched
+    limit_needles(ls, 0.0)                               # 0: off
     assert s[-1].max() == pytest.approx(0.2, rel=1e-4)
 
 
@@ -63,12 +51,8 @@ def test_unresolved_flags_the_needle_and_the_huge_blob_only():
     g = _scene_with_needle()
     cams = _ring()
     params = _to_params(g, torch.device("cpu"))
-    reg = NeedleRegularizer(
-        RegularizeConfig(max_world_fraction=0.1, max_share=1.0),
-        extent=4.4,
-        cameras=cams,
-        mats=[(c.torch_viewmat(), c.torch_K()) for c in cams],
-    )
+    reg = NeedleRegularizer(RegularizeConfig(max_world_fraction=0.1, max_share=1.0), extent=4.4, cameras=cams,
+                            mats=[(c.torch_viewmat(), c.torch_K()) for c in cams])
     bad = reg.unresolved(params)
     assert bad[-2:].all() and not bad[:-2].any()
     op_before = params["opacity_logits"].detach().clone()
@@ -87,13 +71,12 @@ def test_the_last_densification_step_prunes_what_is_unresolved():
     g = _scene_with_needle()
     cams = _ring()
     params = _to_params(g, torch.device("cpu"))
-    reg = NeedleRegularizer(
-        RegularizeConfig(max_share=1.0), extent=4.4, cameras=cams, mats=[(c.torch_viewmat(), c.torch_K()) for c in cams]
-    )
+    reg = NeedleRegularizer(RegularizeConfig(max_share=1.0), extent=4.4, cameras=cams,
+                            mats=[(c.torch_viewmat(), c.torch_K()) for c in cams])
     assert reg.decay(params, 700, last=True) == 2
     op = torch.sigmoid(params["opacity_logits"].detach())
     assert (op[-2:] < 1e-6).all() and (op[:-2] == pytest.approx(0.8, abs=1e-5))  # below any prune opacity
-    assert reg.final_keep(params) is None  # nothing left for the end
+    assert reg.final_keep(params) is None                                          # nothing left for the end
     assert reg.report(params)["final_pruned"] == 2
     assert last_densify_step(300, 800, 100, 1000) == 700
     assert last_densify_step(300, 1200, 100, 1000) == 1000
@@ -102,8 +85,8 @@ def test_the_last_densification_step_prunes_what_is_unresolved():
 
 def test_a_coarse_model_loses_at_most_max_share_its_least_resolved_first():
     g = _scene_with_needle()
-    g.log_scales[:] = math.log(0.6)  # every splat large: unresolved in every photo
-    g.log_scales[7] = math.log(2.0)  # the two worst
+    g.log_scales[:] = math.log(0.6)          # every splat large: unresolved in every photo
+    g.log_scales[7] = math.log(2.0)          # the two worst
     g.log_scales[9] = math.log(1.5)
     cams = _ring()
     params = _to_params(g, torch.device("cpu"))
@@ -135,8 +118,7 @@ def test_fit_keeps_every_gaussian_within_the_needle_limit():
     s = g.scales.sort(1).values
     assert float((s[:, 2] / s[:, 1]).max()) <= 10.0 + 1e-3
     assert m["regularize"]["max_needle_ratio_after"] <= 10.0 + 1e-3
-    off = FitConfig.from_dict(
-        {**FAST, "iterations": 60, "densify": {"start": 20, "stop": 50, "every": 10}, "regularize": {"enabled": False}}
-    )
+    off = FitConfig.from_dict({**FAST, "iterations": 60, "densify": {"start": 20, "stop": 50, "every": 10},
+                               "regularize": {"enabled": False}})
     g0, m0 = fit_static(imgs, cams, pts, cols, off, progress=False)
     assert m0["regularize"]["enabled"] is False

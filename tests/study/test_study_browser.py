@@ -5,7 +5,6 @@ side, not from what the page says about them), reloads the page halfway and once
 of a pair, finishes, downloads the answers; the posted JSONL and the downloaded file must both tally
 into the table the policy implies. Skipped only when the browser, the driver or Selenium is missing.
 """
-
 from __future__ import annotations
 
 import json
@@ -27,11 +26,8 @@ def chrome(download_dir: Path):
 
 def policy(trial: dict, question: str) -> str:
     """The variant the simulated participant prefers: ours, except in three cells of the table."""
-    if (trial["scene"], trial["other"], question) in {
-        ("garden", "gs2life", "quality"),
-        ("trail", "physdreamer", "motion"),
-        ("trail", "gs2life", "quality"),
-    }:
+    if (trial["scene"], trial["other"], question) in {("garden", "gs2life", "quality"), ("trail", "physdreamer", "motion"),
+                                                      ("trail", "gs2life", "quality")}:
         return trial["other"]
     return trial["ours"]
 
@@ -50,9 +46,8 @@ def test_participant_answers_every_pair_with_reloads_and_the_answers_tally(tmp_p
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
 
-    videos = find_final_videos(
-        make_videos(tmp_path / "results", scenes=("garden", "trail"), views=("v0",)), ["garden", "trail"]
-    )
+    videos = find_final_videos(make_videos(tmp_path / "results", scenes=("garden", "trail"), views=("v0",)),
+                               ["garden", "trail"])
     m = build_study(videos, tmp_path / "study", StudyOptions(seed=7, min_plays=1))
     n = len(m["trials"])
     assert n == 4
@@ -78,10 +73,8 @@ def test_participant_answers_every_pair_with_reloads_and_the_answers_tally(tmp_p
                 srcs = [d.find_element(By.ID, f"video-{s}").get_dom_attribute("src") for s in ("left", "right")]
                 trial = by_videos[frozenset(srcs)]
                 left, right = (v for s in srcs for v, p in trial["videos"].items() if p == s)
-                decoded = d.execute_script(
-                    "return [0, 1].map(i => [document.querySelectorAll('video')[i].videoWidth,"
-                    " document.querySelectorAll('video')[i].readyState])"
-                )
+                decoded = d.execute_script("return [0, 1].map(i => [document.querySelectorAll('video')[i].videoWidth,"
+                                           " document.querySelectorAll('video')[i].readyState])")
                 assert [w for w, _ in decoded] == [32, 32] and all(r >= 2 for _, r in decoded)  # decoded, playing
                 seen.append((trial["id"], left))
                 assert d.find_element(By.ID, "next").is_enabled() is False
@@ -131,9 +124,8 @@ def test_page_works_from_the_file_system_without_a_server(tmp_path):
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
 
-    videos = find_final_videos(
-        make_videos(tmp_path / "results", variants=["full", "gs2life"], views=("v0",)), ["garden"]
-    )
+    videos = find_final_videos(make_videos(tmp_path / "results", variants=["full", "gs2life"], views=("v0",)),
+                               ["garden"])
     m = build_study(videos, tmp_path / "study", StudyOptions(min_plays=1))
     d = chrome(tmp_path)
     try:

@@ -1,5 +1,4 @@
 """Export (frame sequence, compact animated PLY) and final-render helpers."""
-
 from __future__ import annotations
 
 import json
@@ -17,13 +16,8 @@ from anigs.gaussians import Gaussians, load_ply
 
 def _scene(n=40, seed=0):
     g = torch.Generator().manual_seed(seed)
-    return Gaussians(
-        torch.randn(n, 3, generator=g),
-        torch.randn(n, 4, generator=g),
-        torch.randn(n, 3, generator=g) - 3,
-        torch.randn(n, generator=g),
-        torch.randn(n, 4, 3, generator=g),
-    )
+    return Gaussians(torch.randn(n, 3, generator=g), torch.randn(n, 4, generator=g), torch.randn(n, 3, generator=g) - 3,
+                     torch.randn(n, generator=g), torch.randn(n, 4, 3, generator=g))
 
 
 def _deformation(n=40, T=9, K=4):
@@ -71,8 +65,7 @@ def test_export_cli(tmp_path):
     meta2 = json.loads((tmp_path / "exp2" / "animated.json").read_text())
     assert meta2["frames"] == [] and not (tmp_path / "exp2" / "frames").exists()
     assert (tmp_path / "exp2" / "scene.anigs").stat().st_size < sum(
-        p.stat().st_size for p in (tmp_path / "exp" / "frames").glob("*.ply")
-    )
+        p.stat().st_size for p in (tmp_path / "exp" / "frames").glob("*.ply"))
 
 
 def test_pingpong_is_continuous_and_in_range():

@@ -4,7 +4,6 @@ WebGL runs on SwiftShader, Chromium's software renderer. Frames are read back fr
 and compared with ``anigs.render`` at the same camera and time. Skipped only when chromium,
 chromedriver or selenium is missing; with ANIGS_REQUIRE_BROWSER=1 (CI) a missing one is an error.
 """
-
 from __future__ import annotations
 
 import base64
@@ -31,9 +30,8 @@ def site(tmp_path_factory):
     from anigs.viewer.serve import start_server
 
     tmp = tmp_path_factory.mktemp("viewer")
-    canonical, deformation = animated_scene(
-        n=1500, d=300, T=9, K=4, sh_degree=3, limits=True, seed=3, scale_range=(0.01, 0.15)
-    )
+    canonical, deformation = animated_scene(n=1500, d=300, T=9, K=4, sh_degree=3, limits=True, seed=3,
+                                            scale_range=(0.01, 0.15))
     save_compact(tmp / "scene.anigs", canonical, deformation)
     views = _views_json(tmp / "views.json")
     build_viewer(tmp / "scene.anigs", tmp / "viewer", views, background=BACKGROUND)
@@ -53,8 +51,7 @@ def browser():
 def _open(driver, url: str) -> dict:
     driver.get(url + "?scale=1&paused=1")
     info = driver.execute_async_script(
-        "const done = arguments[0]; window.anigsViewer.ready.then(v => done(v.info()), e => done('ERROR ' + e));"
-    )
+        "const done = arguments[0]; window.anigsViewer.ready.then(v => done(v.info()), e => done('ERROR ' + e));")
     assert isinstance(info, dict), info
     return info
 
@@ -63,10 +60,7 @@ def _frame(driver, view: int, t: float, shape: tuple[int, int]) -> np.ndarray:
     """The canvas [H,W,3] in [0,1] after drawing view ``view`` at time t with its own depth order."""
     b64 = driver.execute_async_script(
         "const [view, t, done] = arguments; const v = window.anigsViewer; v.setView(view); v.setTime(t);"
-        "v.renderExact().then(() => done(v.pixelsBase64()));",
-        view,
-        t,
-    )
+        "v.renderExact().then(() => done(v.pixelsBase64()));", view, t)
     px = np.frombuffer(base64.b64decode(b64), np.uint8).reshape(shape[0], shape[1], 4)
     return px[..., :3].astype(np.float64) / 255.0
 
@@ -144,9 +138,8 @@ def test_controls_play_scrub_toggle_orbit_fly(site, browser):
         time.sleep(0.1)
     assert viewer_t() != t0 and browser.execute_script("return window.anigsViewer.playing")
     # scrubbing the slider pauses and sets the time
-    browser.execute_script(
-        "const s = document.getElementById('time'); s.value = '3.5';s.dispatchEvent(new Event('input'));"
-    )
+    browser.execute_script("const s = document.getElementById('time'); s.value = '3.5';"
+                           "s.dispatchEvent(new Event('input'));")
     assert browser.execute_script("return window.anigsViewer.playing") is False
     assert viewer_t() == pytest.approx(3.5)
     plain = _frame(browser, 0, 3.5, (72, 96))
@@ -162,9 +155,8 @@ def test_controls_play_scrub_toggle_orbit_fly(site, browser):
     ActionChains(browser).drag_and_drop_by_offset(canvas, 30, 10).perform()
     orbited = camera()
     assert not np.allclose(orbited, start)
-    moved = browser.execute_async_script(
-        "const d = arguments[0], v = window.anigsViewer;v.renderExact().then(() => d(v.pixelsBase64()));"
-    )
+    moved = browser.execute_async_script("const d = arguments[0], v = window.anigsViewer;"
+                                         "v.renderExact().then(() => d(v.pixelsBase64()));")
     assert moved != base64.b64encode((plain * 255).round().astype(np.uint8)).decode()
     ActionChains(browser).key_down("w").pause(0.5).key_up("w").perform()
     flown = camera()

@@ -1,5 +1,4 @@
 """Compact animated format (anigs.viewer.compact), viewer folder, server and CLI."""
-
 from __future__ import annotations
 
 import argparse
@@ -32,17 +31,9 @@ from anigs.viewer.serve import start_server
 FIELDS = ("means", "quats", "log_scales", "opacity_logits", "sh")
 
 
-def animated_scene(
-    n: int = 600,
-    d: int = 90,
-    T: int = 9,
-    K: int = 4,
-    sh_degree: int = 3,
-    rotation: bool = True,
-    limits: bool = False,
-    seed: int = 0,
-    scale_range: tuple[float, float] = (0.01, 0.06),
-) -> tuple[Gaussians, DCTDeformation]:
+def animated_scene(n: int = 600, d: int = 90, T: int = 9, K: int = 4, sh_degree: int = 3, rotation: bool = True,
+                   limits: bool = False, seed: int = 0, scale_range: tuple[float, float] = (0.01, 0.06),
+                   ) -> tuple[Gaussians, DCTDeformation]:
     """Random canonical scene [n] in [-1,1]^3 with d dynamic Gaussians carrying random DCT coefficients."""
     g = torch.Generator().manual_seed(seed)
     means = torch.rand(n, 3, generator=g) * 2 - 1
@@ -51,9 +42,8 @@ def animated_scene(
     canonical = Gaussians(means, torch.randn(n, 4, generator=g), log_scales, torch.randn(n, generator=g), sh)
     idx = torch.randperm(n, generator=g)[:d]
     lim = (lambda v: torch.full((d,), v)) if limits else (lambda v: None)
-    deformation = DCTDeformation(
-        idx, T, K, rotation=rotation, max_offset=lim(0.03), max_angle=lim(0.2), num_gaussians=n
-    )
+    deformation = DCTDeformation(idx, T, K, rotation=rotation, max_offset=lim(0.03), max_angle=lim(0.2),
+                                 num_gaussians=n)
     with torch.no_grad():
         deformation.pos_coeffs.copy_(torch.randn(d, 3, K, generator=g) * 0.05)
         if rotation:
@@ -89,9 +79,8 @@ def test_round_trip_is_exact_at_integer_and_fractional_times(rotation, limits, s
 def test_round_trip_through_model_checkpoint(tmp_path):
     """model.pt + canonical PLY -> compact file -> frames equal the library's frames of model.pt."""
     canonical, deformation = animated_scene(n=400, d=50)
-    trained = Gaussians(
-        canonical.means + 0.01, canonical.quats, canonical.log_scales, canonical.opacity_logits, canonical.sh
-    )  # trained positions differ from the PLY
+    trained = Gaussians(canonical.means + 0.01, canonical.quats, canonical.log_scales,
+                        canonical.opacity_logits, canonical.sh)  # trained positions differ from the PLY
     canonical.save_ply(tmp_path / "canonical.ply")
     save_model(tmp_path / "model.pt", deformation, trained)
     lib_canonical, lib_deformation, _ = load_model(tmp_path / "model.pt", tmp_path / "canonical.ply")
@@ -141,15 +130,14 @@ def test_layout_is_documented_little_endian(tmp_path):
     blob = encode_compact(canonical, deformation)
     assert blob[:8] == b"ANIGSCMP"
     hlen = int.from_bytes(blob[12:16], "little")
-    header = json.loads(blob[16 : 16 + hlen])
+    header = json.loads(blob[16:16 + hlen])
     start = 16 + hlen
     assert start % 16 == 0
     for spec in header["arrays"].values():
         assert spec["offset"] % 16 == 0 and spec["dtype"] in ("<f4", "<u4")
     spec = header["arrays"]["pos_coeffs"]
-    raw = torch.frombuffer(
-        bytearray(blob[start + spec["offset"] : start + spec["offset"] + spec["nbytes"]]), dtype=torch.float32
-    ).reshape(spec["shape"])
+    raw = torch.frombuffer(bytearray(blob[start + spec["offset"]:start + spec["offset"] + spec["nbytes"]]),
+                           dtype=torch.float32).reshape(spec["shape"])
     assert torch.equal(raw, deformation.pos_coeffs.detach())
 
 
@@ -170,15 +158,10 @@ def _views_json(path: Path) -> Path:
     from anigs.cameras import Camera, intrinsics_from_fov, look_at
 
     K = intrinsics_from_fov(60, 96, 72)
-    cams = [
-        Camera(K, look_at([0.5, -3.5, 1.2], [0, 0, 0]), 96, 72, "L0_yaw+0"),
-        Camera(K, look_at([3.0, 0.5, 0.8], [0, 0, 0]), 96, 72, "L0_yaw+90"),
-    ]
-    path.write_text(
-        json.dumps(
-            {"views": [{"id": c.name, "camera": c.to_dict()} for c in cams], "up": [0, 0, 1], "roi_centroid": [0, 0, 0]}
-        )
-    )
+    cams = [Camera(K, look_at([0.5, -3.5, 1.2], [0, 0, 0]), 96, 72, "L0_yaw+0"),
+            Camera(K, look_at([3.0, 0.5, 0.8], [0, 0, 0]), 96, 72, "L0_yaw+90")]
+    path.write_text(json.dumps({"views": [{"id": c.name, "camera": c.to_dict()} for c in cams],
+                                "up": [0, 0, 1], "roi_centroid": [0, 0, 0]}))
     return path
 
 
@@ -188,9 +171,8 @@ def test_build_viewer_folder(tmp_path):
     save_model(tmp_path / "model.pt", deformation, canonical)
     views = _views_json(tmp_path / "views.json")
     out = tmp_path / "viewer"
-    summary = build_viewer(
-        tmp_path / "model.pt", out, views, canonical=tmp_path / "canonical.ply", background=[0.1, 0.2, 0.3], fps=8.0
-    )
+    summary = build_viewer(tmp_path / "model.pt", out, views, canonical=tmp_path / "canonical.ply",
+                           background=[0.1, 0.2, 0.3], fps=8.0)
     for name in ("index.html", "viewer.js", "sort-worker.js", "renderer.js", "scene.anigs", "scene.js", "config.js"):
         assert (out / name).is_file(), name
     html = (out / "index.html").read_text()
@@ -242,25 +224,13 @@ def test_cli_builds_viewer(tmp_path, capsys):
     _views_json(tmp_path / "views" / "views.json")
     parser = argparse.ArgumentParser()
     viewer_cli.add_arguments(parser)
-    args = parser.parse_args(
-        [
-            "--model",
-            str(tmp_path / "model"),
-            "--static",
-            str(tmp_path / "static"),
-            "--views",
-            str(tmp_path / "views"),
-            "--out",
-            str(tmp_path / "v"),
-            "--params",
-            '{"fps": 6, "embed": false}',
-        ]
-    )
+    args = parser.parse_args(["--model", str(tmp_path / "model"), "--static", str(tmp_path / "static"),
+                              "--views", str(tmp_path / "views"), "--out", str(tmp_path / "v"),
+                              "--params", '{"fps": 6, "embed": false}'])
     assert viewer_cli.main(args) == 0
     assert json.loads(capsys.readouterr().out)["num_dynamic"] == 10
     assert (tmp_path / "v" / "index.html").is_file() and not (tmp_path / "v" / "scene.js").exists()
-    bad = parser.parse_args(
-        ["--model", str(tmp_path / "model"), "--out", str(tmp_path / "w"), "--params", '{"colour": 1}']
-    )
+    bad = parser.parse_args(["--model", str(tmp_path / "model"), "--out", str(tmp_path / "w"),
+                             "--params", '{"colour": 1}'])
     with pytest.raises(KeyError, match="colour"):
         viewer_cli.main(bad)

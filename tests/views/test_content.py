@@ -1,5 +1,4 @@
 """The content figure of a view (anigs.views.content): sky needles and blur fail, content passes."""
-
 from __future__ import annotations
 
 import math
@@ -12,7 +11,8 @@ import torch
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.synth.floaters import with_floaters
 from anigs.views import ViewsConfig, plan_views, scene_coverage
-from anigs.views.content import ContentRule, content_fraction, edge_share, footprint_ratio, render_rgb, sharp_gaussians
+from anigs.views.content import (ContentRule, content_fraction, edge_share, footprint_ratio, render_rgb,
+                                 sharp_gaussians)
 from anigs.views.coverage import observation_counts
 from tests.masks.test_lift import toy_scene
 
@@ -40,11 +40,11 @@ def test_sky_needles_are_not_sharp_and_scene_gaussians_are(needled):
 
 def test_a_view_of_needled_sky_fails_that_the_coverage_rule_passes(needled):
     g, flo, cams, pts, ss = needled
-    sky = _cam((0.0, -4.0, 1.5), (0.0, 0.0, 3.2))  # looks up at the needles
-    scene = _cam((0.0, -4.0, 1.5), (-0.3, 0.0, 0.6))  # looks at the blobs and the wall
+    sky = _cam((0.0, -4.0, 1.5), (0.0, 0.0, 3.2))       # looks up at the needles
+    scene = _cam((0.0, -4.0, 1.5), (-0.3, 0.0, 0.6))    # looks at the blobs and the wall
     obs = observation_counts(g, cams)
     g_obs = g.subset(torch.from_numpy(np.nonzero(obs >= 2)[0]))
-    assert scene_coverage(g_obs, sky) >= 0.8  # the needles are seen from everywhere
+    assert scene_coverage(g_obs, sky) >= 0.8           # the needles are seen from everywhere
     assert content_fraction(g, ss.sharp, sky) < 0.2
     assert content_fraction(g, ss.sharp, scene) >= ViewsConfig().min_content
     # the image figure does not see it: the needles are thin and crisp across, full of edges
@@ -69,25 +69,16 @@ def test_edge_share_separates_texture_blur_and_sky():
     assert edge_share(sky) == 0.0
     half = sky.copy()
     half[48:] = tex[48:]
-    assert 0.5 < edge_share(half) < 0.6  # the textured half plus 4 px above it
+    assert 0.5 < edge_share(half) < 0.6             # the textured half plus 4 px above it
     assert edge_share((half * 255).astype(np.uint8)) == pytest.approx(edge_share(half), abs=0.02)
 
 
 def test_the_plan_replaces_needled_sky_views_and_records_why(needled):
     g, flo, cams, pts, _ = needled
-    base = dict(
-        layout="walk",
-        width=64,
-        height=48,
-        num_locations=3,
-        fov_deg=60.0,
-        forward="centroid",
-        pitch_deg=35.0,
-        max_pitch_drop_deg=40.0,
-    )
-    old = plan_views(
-        g, np.ones(g.num, bool), cams, ViewsConfig(**base, min_content=0.0), keep_all="whole scene", points=pts
-    )
+    base = dict(layout="walk", width=64, height=48, num_locations=3, fov_deg=60.0, forward="centroid",
+                pitch_deg=35.0, max_pitch_drop_deg=40.0)
+    old = plan_views(g, np.ones(g.num, bool), cams, ViewsConfig(**base, min_content=0.0), keep_all="whole scene",
+                     points=pts)
     new = plan_views(g, np.ones(g.num, bool), cams, ViewsConfig(**base), keep_all="whole scene", points=pts)
     assert min(v["content"] for v in old.views) < 0.5  # without the test, a sky view is queued
     assert new.views and all(v["content"] >= 0.5 for v in new.views)
@@ -100,9 +91,7 @@ def test_the_plan_replaces_needled_sky_views_and_records_why(needled):
 
     img = draw_topdown(new, g.means.numpy(), np.ones(g.num, bool))
     assert (img == np.array(_NO_CONTENT, np.uint8)).all(-1).sum() > 10
-    assert (
-        not (draw_topdown(old, g.means.numpy(), np.ones(g.num, bool)) == np.array(_NO_CONTENT, np.uint8)).all(-1).any()
-    )
+    assert not (draw_topdown(old, g.means.numpy(), np.ones(g.num, bool)) == np.array(_NO_CONTENT, np.uint8)).all(-1).any()
 
 
 def test_config_validation():
@@ -140,9 +129,8 @@ def test_a_view_closer_than_any_photo_shows_magnified_content_and_fails(needled)
     assert magnified(g, ss.photo_footprint, close, 5.0)[wall].mean() < 0.2
     assert not magnified(g, ss.photo_footprint, close, 0.0).any()  # 0: off
     # off, the figure is the one without the term
-    assert content_fraction(
-        g, ss.sharp, close, photo_footprint=ss.photo_footprint, max_sampling_ratio=0.0
-    ) == content_fraction(g, ss.sharp, close)
+    assert content_fraction(g, ss.sharp, close, photo_footprint=ss.photo_footprint,
+                            max_sampling_ratio=0.0) == content_fraction(g, ss.sharp, close)
 
 
 def test_photo_footprint_is_the_finest_of_the_photos_that_see_a_gaussian(needled):

@@ -5,7 +5,6 @@ anigs.synth.capture (walk, forward-facing flower bed close-up, orbit around a tr
 looking up at the facade), optionally with photos stored sideways (``roll``). The point cloud
 is what the capture observes: the Gaussian centres inside >= 2 camera frusta.
 """
-
 from __future__ import annotations
 
 import logging
@@ -36,9 +35,8 @@ def seen(points: np.ndarray, cams) -> np.ndarray:
     return points[observed_points(points, cams)]
 
 
-@pytest.mark.parametrize(
-    "layout,kind", [("walk", "walk"), ("forward", "forward"), ("orbit", "orbit"), ("facade", "forward")]
-)
+@pytest.mark.parametrize("layout,kind", [("walk", "walk"), ("forward", "forward"), ("orbit", "orbit"),
+                                         ("facade", "forward")])
 def test_layout_classification(garden, layout, kind):
     pts, _ = garden
     cams = capture(layout)
@@ -57,19 +55,12 @@ def test_orbit_needs_an_object_at_the_focus(garden):
     assert classify_layout(cams, Z, seen(pts[far], cams)).kind == "walk"
 
 
-@pytest.mark.parametrize(
-    "layout,roll,bound",
-    [
-        ("walk", "none", 3.0),
-        ("walk", "portrait", 3.0),
-        ("walk", "mixed", 3.0),
-        ("orbit", "portrait", 3.0),
-        ("orbit", "mixed", 3.0),
-        ("facade", "none", 3.0),
-        ("facade", "mixed", 3.0),  # looking up at a building
-        ("forward", "none", 5.0),
-    ],
-)
+@pytest.mark.parametrize("layout,roll,bound", [
+    ("walk", "none", 3.0), ("walk", "portrait", 3.0), ("walk", "mixed", 3.0),
+    ("orbit", "portrait", 3.0), ("orbit", "mixed", 3.0),
+    ("facade", "none", 3.0), ("facade", "mixed", 3.0),   # looking up at a building
+    ("forward", "none", 5.0),
+])
 def test_up_in_hard_cases(garden, layout, roll, bound):
     pts, _ = garden
     cams = capture(layout, roll)
@@ -125,7 +116,7 @@ def test_ground_looking_up_at_a_building(garden, caplog):
     cams = capture("facade")
     facade = pts[(lab == LABEL_IDS["building"]) & (pts[:, 2] > 2.0)]
     ground = pts[(lab == LABEL_IDS["ground"]) & (pts[:, 1] > 2.0)][:60]
-    rng = np.random.default_rng(1)  # a window ledge / balcony slab 2.6 m up: the densest layer
+    rng = np.random.default_rng(1)   # a window ledge / balcony slab 2.6 m up: the densest layer
     ledge = np.c_[rng.uniform(-4, 4, 400), rng.uniform(4.6, 5.2, 400), np.full(400, 2.6)]
     cloud = np.concatenate([facade, ground, ledge])
     with caplog.at_level(logging.WARNING, logger="anigs.geometry"):
@@ -135,9 +126,8 @@ def test_ground_looking_up_at_a_building(garden, caplog):
     assert any("not below the cameras" in r.getMessage() for r in caplog.records)
     # the former algorithm (densest layer below the median) takes the ledge: cameras below it
     h = cloud[:, 2]
-    assert np.median([c.center[2] for c in cams]) < geometry.ground._densest_layer(
-        h, np.percentile(h, 0.5), np.median(h), np.ptp(np.percentile(h, [0.5, 99.5])) / 400
-    )
+    assert np.median([c.center[2] for c in cams]) < geometry.ground._densest_layer(h, np.percentile(h, 0.5), np.median(h),
+                                                                          np.ptp(np.percentile(h, [0.5, 99.5])) / 400)
     # the former masks.vegetation.estimate_ground (now geometry.ground.ground_plane) raised here; it now delegates
     from anigs.geometry.ground import ground_plane as veg_ground
 
@@ -147,7 +137,7 @@ def test_ground_looking_up_at_a_building(garden, caplog):
 def test_ground_fallback_logs_and_does_not_raise(caplog):
     """Nothing below the cameras at all: fallback plane under all content, flagged and logged."""
     rng = np.random.default_rng(0)
-    cloud = rng.normal(0, 0.3, (500, 3)) + [0, 5, 4.0]  # content entirely above the cameras
+    cloud = rng.normal(0, 0.3, (500, 3)) + [0, 5, 4.0]     # content entirely above the cameras
     cams = capture("facade", n=6)
     with caplog.at_level(logging.WARNING, logger="anigs.geometry"):
         gr = estimate_ground(cloud, Z, cams)

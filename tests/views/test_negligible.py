@@ -1,5 +1,4 @@
 """Views whose dynamic region is negligible are not queued (views.min_dynamic_fraction)."""
-
 from __future__ import annotations
 
 import json
@@ -18,50 +17,13 @@ from tests.masks.test_lift import toy_scene
 
 # cameras on a ring facing the centre: yaw 0 faces the ROI (centroid heading), and with a 60 deg
 # FOV the +-90 views look along the ring, away from the blobs in the middle
-SIDEWAYS = dict(
-    layout="walk",
-    min_coverage=0.0,
-    min_content=0.0,
-    width=64,
-    height=48,
-    num_locations=3,
-    fov_deg=60.0,
-    forward="centroid",
-)
-OLD_TOP_KEYS = [
-    "views",
-    "layout",
-    "scene_coverage",
-    "up_estimate",
-    "coverage_after",
-    "frustum_coverage_after",
-    "roi_reachable_fraction",
-    "locations",
-    "roi_centroid",
-    "up",
-    "num_candidates",
-    "convention",
-]
-OLD_VIEW_KEYS = {
-    "id",
-    "location",
-    "candidate",
-    "yaw",
-    "pitch",
-    "heading_deg",
-    "camera",
-    "roi_visible",
-    "roi_visible_fraction",
-    "visible",
-    "coverage",
-    "requested_yaw",
-    "fov_deg",
-    "replaced",
-    "overlap_prev",
-    "overlap_prev_roi",
-    "coverage_after",
-    "frustum_coverage_after",
-}
+SIDEWAYS = dict(layout="walk", min_coverage=0.0, min_content=0.0, width=64, height=48, num_locations=3, fov_deg=60.0,
+                forward="centroid")
+OLD_TOP_KEYS = ["views", "layout", "scene_coverage", "up_estimate", "coverage_after", "frustum_coverage_after",
+                "roi_reachable_fraction", "locations", "roi_centroid", "up", "num_candidates", "convention"]
+OLD_VIEW_KEYS = {"id", "location", "candidate", "yaw", "pitch", "heading_deg", "camera", "roi_visible",
+                 "roi_visible_fraction", "visible", "coverage", "requested_yaw", "fov_deg", "replaced",
+                 "overlap_prev", "overlap_prev_roi", "coverage_after", "frustum_coverage_after"}
 
 
 @pytest.fixture(scope="module")
@@ -137,9 +99,8 @@ def test_threshold_zero_is_the_old_queue(scene, plans, monkeypatch):
     assert list(old) == OLD_TOP_KEYS
     assert all(set(v) == OLD_VIEW_KEYS for v in old["views"])
     monkeypatch.setattr(plan_mod, "dynamic_fraction", lambda g, roi, cam: 0.5)
-    every = _without_content(
-        plan_views(gs, lab == 4, cams, ViewsConfig(**SIDEWAYS, min_dynamic_fraction=0.5)).to_json()
-    )
+    every = _without_content(plan_views(gs, lab == 4, cams,
+                                        ViewsConfig(**SIDEWAYS, min_dynamic_fraction=0.5)).to_json())
     sec = every.pop("dynamic_fraction")
     assert sec["dropped"] == [] and sec["per_view"] == [0.5] * 9
     for v in every["views"]:
@@ -167,24 +128,9 @@ def _cli(tmp_path, gs, cams, roi, params) -> dict:
     eff.root.mkdir(exist_ok=True)
     np.save(eff.path("dynamic"), roi)
     out = ViewsOutputs(tmp_path / "views")
-    assert (
-        main(
-            [
-                "views",
-                "--canonical",
-                str(tmp_path / "canonical.ply"),
-                "--cameras",
-                str(tmp_path / "cameras.json"),
-                "--effects",
-                str(eff.root),
-                "--out",
-                str(out.root),
-                "--params",
-                json.dumps({**params, "topdown_size": 200}),
-            ]
-        )
-        == 0
-    )
+    assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+                 "--effects", str(eff.root), "--out", str(out.root),
+                 "--params", json.dumps({**params, "topdown_size": 200})]) == 0
     assert queued_view_count(out.path("views")) == out.count() == len(out.report()["views"])
     return out.report()
 
@@ -195,13 +141,8 @@ def test_stage_drops_but_not_under_the_roi_fallback(tmp_path, scene):
     assert len(data["views"]) == 2 and len(data["dynamic_fraction"]["dropped"]) == 4
     assert data["config"]["min_dynamic_fraction"] == 0.005
     # nothing to animate: the views look at the whole scene and none is dropped
-    data = _cli(
-        tmp_path / "b",
-        gs,
-        cams[:4],
-        np.zeros(gs.num, bool),
-        {**SIDEWAYS, "num_locations": 2, "min_dynamic_fraction": 1.0},
-    )
+    data = _cli(tmp_path / "b", gs, cams[:4], np.zeros(gs.num, bool),
+                {**SIDEWAYS, "num_locations": 2, "min_dynamic_fraction": 1.0})
     assert data["roi_fallback"] and len(data["views"]) == 6
     sec = data["dynamic_fraction"]
     assert not sec["applied"] and "roi_fallback" in sec["not_applied"] and sec["dropped"] == []

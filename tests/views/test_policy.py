@@ -1,6 +1,5 @@
 """The view policy per capture layout (anigs.views.policy): a walk keeps the paper's schedule,
 other layouts face the ROI centroid at the capture's pitch with the photos' FOV at most."""
-
 from __future__ import annotations
 
 import numpy as np

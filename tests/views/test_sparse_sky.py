@@ -7,7 +7,6 @@ seen by every photo. A view "of sky" is one where more than half of the pixels s
 the real scene (ground-truth alpha < 0.5). The coverage rule alone queues such views; the
 content test does not.
 """
-
 from __future__ import annotations
 
 import numpy as np
@@ -33,13 +32,12 @@ def test_sparse_capture_with_sky_floaters_gets_no_view_of_sky():
     cams = camera_path(cfg.capture, cfg.seed)
     assert len(cams) == 11
     g, floaters = with_floaters(gt, seed=0, needles=400, blobs=40)
-    points = gt.means.numpy()[::10]  # SfM finds points on the scene, none in the sky
+    points = gt.means.numpy()[::10]          # SfM finds points on the scene, none in the sky
     common = dict(num_locations=3, background=list(cfg.capture.background), width=128, height=96)
     fallback = "roi_fallback: the ROI is the whole scene"
-    old = plan_views(
-        g, np.ones(g.num, bool), cams, ViewsConfig(**common, min_content=0.0), keep_all=fallback, points=points
-    )
-    assert max(_sky_share(gt, c) for c in old.cameras) > 0.5  # the coverage rule alone queues sky
+    old = plan_views(g, np.ones(g.num, bool), cams, ViewsConfig(**common, min_content=0.0), keep_all=fallback,
+                     points=points)
+    assert max(_sky_share(gt, c) for c in old.cameras) > 0.5   # the coverage rule alone queues sky
     new = plan_views(g, np.ones(g.num, bool), cams, ViewsConfig(**common), keep_all=fallback, points=points)
     assert new.views
     shares = [_sky_share(gt, c) for c in new.cameras]

@@ -1,5 +1,4 @@
 """Incremental viewpoint expansion (anigs.views, anigs.views.topdown, `anigs views`)."""
-
 from __future__ import annotations
 
 import json
@@ -13,7 +12,8 @@ import pytest
 from anigs.cameras import save_cameras
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
-from anigs.views import ViewsConfig, azimuth_deg, ccw_order, farthest_point_order, in_wedges, plan_views, view_camera
+from anigs.views import (ViewsConfig, azimuth_deg, ccw_order, farthest_point_order, in_wedges, plan_views,
+                         view_camera)
 from tests.masks.test_lift import toy_scene
 
 # the queue mechanics (order, yaws, overlap) on the toy ring, whose level views see mostly sky:
@@ -58,7 +58,7 @@ def test_view_camera_yaw_turns_left_and_fov():
     c90 = view_camera(np.zeros(3), fwd, up, 90, 0, 95, 64, 48)
     cm90 = view_camera(np.zeros(3), fwd, up, -90, 0, 95, 64, 48)
     assert np.allclose(c0.forward, [1, 0, 0], atol=1e-9)
-    assert np.allclose(c90.forward, [0, 1, 0], atol=1e-9)  # CCW seen from above = left turn
+    assert np.allclose(c90.forward, [0, 1, 0], atol=1e-9)    # CCW seen from above = left turn
     assert np.allclose(cm90.forward, [0, -1, 0], atol=1e-9)
     assert c0.fov_x == pytest.approx(95.0)
     assert np.allclose(-c0.R[1], up, atol=1e-9)  # level: image up is world up
@@ -121,9 +121,8 @@ def test_plan_errors(scene):
 def test_non_overlapping_view_warns(scene, caplog):
     """Two opposite narrow views see disjoint content: the second one is flagged with its numbers."""
     gs, lab, cams = scene
-    cfg = ViewsConfig(
-        width=48, height=36, num_locations=1, directions=[0, 180], fov_deg=40, forward="centroid", **SCHEDULE
-    )
+    cfg = ViewsConfig(width=48, height=36, num_locations=1, directions=[0, 180], fov_deg=40, forward="centroid",
+                      **SCHEDULE)
     with caplog.at_level(logging.WARNING, logger="anigs.views"):
         p = plan_views(gs, lab == 4, cams[:2], cfg)
     assert p.views[1]["overlap_prev"] == 0.0
@@ -137,7 +136,7 @@ def test_jittered_candidates(scene):
     gs, lab, cams = scene
     cand, fwd = make_candidates(cams, np.array([0, 0, 1.0]), ViewsConfig(jitter_copies=2, jitter_std=0.3))
     assert cand.shape == (3 * len(cams), 3) and fwd.shape == cand.shape
-    assert np.allclose(cand[len(cams) :, 2], np.repeat([c.center[2] for c in cams], 2))  # horizontal jitter only
+    assert np.allclose(cand[len(cams):, 2], np.repeat([c.center[2] for c in cams], 2))  # horizontal jitter only
 
 
 def test_topdown_png(tmp_path, scene, plan):
@@ -158,29 +157,13 @@ def test_cli_views(tmp_path, scene):
     gs.save_ply(tmp_path / "canonical.ply")
     save_cameras(tmp_path / "cameras.json", cams)
     np.save(tmp_path / "labels.npy", lab)
-    motion = {
-        "labels": {"0": "ground", "1": "building", "4": "foliage"},
-        "label_effects": {"ground": [], "building": [], "foliage": ["foliage_sway"]},
-    }
+    motion = {"labels": {"0": "ground", "1": "building", "4": "foliage"},
+              "label_effects": {"ground": [], "building": [], "foliage": ["foliage_sway"]}}
     (tmp_path / "motion.json").write_text(json.dumps(motion))
     out = tmp_path / "views"
-    rc = main(
-        [
-            "views",
-            "--canonical",
-            str(tmp_path / "canonical.ply"),
-            "--cameras",
-            str(tmp_path / "cameras.json"),
-            "--labels",
-            str(tmp_path / "labels.npy"),
-            "--motion",
-            str(tmp_path / "motion.json"),
-            "--out",
-            str(out),
-            "--params",
-            json.dumps({**SMALL, "num_locations": 2, "topdown_size": 200}),
-        ]
-    )
+    rc = main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+               "--labels", str(tmp_path / "labels.npy"), "--motion", str(tmp_path / "motion.json"),
+               "--out", str(out), "--params", json.dumps({**SMALL, "num_locations": 2, "topdown_size": 200})])
     assert rc == 0
     data = ViewsOutputs(out).report()
     assert len(data["views"]) == 6 and len(data["coverage_after"]) == 6
@@ -190,62 +173,18 @@ def test_cli_views(tmp_path, scene):
     eff = EffectsOutputs(tmp_path / "effects")
     eff.root.mkdir()
     np.save(eff.path("dynamic"), lab == 4)
-    assert (
-        main(
-            [
-                "views",
-                "--canonical",
-                str(tmp_path / "canonical.ply"),
-                "--cameras",
-                str(tmp_path / "cameras.json"),
-                "--effects",
-                str(eff.root),
-                "--out",
-                str(tmp_path / "v1"),
-                "--params",
-                json.dumps({**SMALL, "num_locations": 2, "topdown_size": 200}),
-            ]
-        )
-        == 0
-    )
+    assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+                 "--effects", str(eff.root), "--out", str(tmp_path / "v1"),
+                 "--params", json.dumps({**SMALL, "num_locations": 2, "topdown_size": 200})]) == 0
     again = ViewsOutputs(tmp_path / "v1").report()
     assert again["views"] == data["views"] and again["roi_source"] == f"effects:{eff.root}"
     # a bad key is a clear error (exit code 1), not a crash; so is a ROI of the wrong size
-    assert (
-        main(
-            [
-                "views",
-                "--canonical",
-                str(tmp_path / "canonical.ply"),
-                "--cameras",
-                str(tmp_path / "cameras.json"),
-                "--effects",
-                str(eff.root),
-                "--out",
-                str(tmp_path / "v2"),
-                "--params",
-                '{"bogus": 1}',
-            ]
-        )
-        == 1
-    )
+    assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+                 "--effects", str(eff.root), "--out", str(tmp_path / "v2"),
+                 "--params", '{"bogus": 1}']) == 1
     np.save(eff.path("dynamic"), np.zeros(gs.num + 1, bool))
-    assert (
-        main(
-            [
-                "views",
-                "--canonical",
-                str(tmp_path / "canonical.ply"),
-                "--cameras",
-                str(tmp_path / "cameras.json"),
-                "--effects",
-                str(eff.root),
-                "--out",
-                str(tmp_path / "v3"),
-            ]
-        )
-        == 1
-    )
+    assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+                 "--effects", str(eff.root), "--out", str(tmp_path / "v3")]) == 1
 
 
 def test_nothing_dynamic_gives_views_of_the_whole_scene(tmp_path, scene):
@@ -260,24 +199,9 @@ def test_nothing_dynamic_gives_views_of_the_whole_scene(tmp_path, scene):
     eff.root.mkdir()
     np.save(eff.path("dynamic"), np.zeros(gs.num, bool))
     out = tmp_path / "views"
-    assert (
-        main(
-            [
-                "views",
-                "--canonical",
-                str(tmp_path / "canonical.ply"),
-                "--cameras",
-                str(tmp_path / "cameras.json"),
-                "--effects",
-                str(eff.root),
-                "--out",
-                str(out),
-                "--params",
-                json.dumps({**SMALL, "num_locations": 2, "topdown_size": 200}),
-            ]
-        )
-        == 0
-    )
+    assert main(["views", "--canonical", str(tmp_path / "canonical.ply"), "--cameras", str(tmp_path / "cameras.json"),
+                 "--effects", str(eff.root), "--out", str(out),
+                 "--params", json.dumps({**SMALL, "num_locations": 2, "topdown_size": 200})]) == 0
     data = ViewsOutputs(out).report()
     assert data["num_roi"] == 0 and "nothing will move" in data["roi_fallback"]
     assert len(data["views"]) >= 1
@@ -310,15 +234,8 @@ def test_every_queued_view_sees_the_scene(garden_gs, layout, kind):
     g, lab = garden_gs
     cams = _layout_cams(layout)
     roi = np.isin(lab, [4, 5, 6])
-    cfg = ViewsConfig(
-        width=64,
-        height=48,
-        num_locations=2,
-        max_candidates=10,
-        extra_locations=4,
-        min_dynamic_fraction=0.0,
-        min_content=0.0,
-    )  # the coverage test alone (negligible
+    cfg = ViewsConfig(width=64, height=48, num_locations=2, max_candidates=10, extra_locations=4,
+                      min_dynamic_fraction=0.0, min_content=0.0)  # the coverage test alone (negligible
     # views: test_negligible.py; content: test_content.py)
     plan = plan_views(g, roi, cams, cfg)
     assert plan.layout.kind == kind
@@ -345,11 +262,10 @@ def test_forward_facing_views_face_the_roi(garden_gs):
     packs the most ROI into the three wedges; +-90 directions that fail are recorded as rejected."""
     g, lab = garden_gs
     cams = _layout_cams("forward")
-    roi = (lab == 6) & (g.means.numpy()[:, 0] < -1.0)  # the west bed, the one photographed
+    roi = (lab == 6) & (g.means.numpy()[:, 0] < -1.0)   # the west bed, the one photographed
     # the coverage test alone: this coarse 4000-Gaussian garden at 80x60 has little sharp content
-    plan = plan_views(
-        g, roi, cams, ViewsConfig(width=64, height=48, num_locations=2, max_candidates=10, min_content=0.0)
-    )
+    plan = plan_views(g, roi, cams, ViewsConfig(width=64, height=48, num_locations=2, max_candidates=10,
+                                                min_content=0.0))
     centroid = g.means.numpy()[roi].mean(0)
     zero = [cam for v, cam in zip(plan.views, plan.cameras) if v["requested_yaw"] == 0]
     assert zero
@@ -369,20 +285,14 @@ def test_sideways_photos_give_upright_views(garden_gs):
     views are level with world up (not rolled by 90 degrees)."""
     g, lab = garden_gs
     cams = _layout_cams("walk", roll="portrait")
-    plan = plan_views(
-        g,
-        np.isin(lab, [4]),
-        cams,
-        ViewsConfig(
-            width=48, height=36, num_locations=1, up="auto", max_candidates=6, min_coverage=0.0, min_content=0.0
-        ),
-    )
-    assert plan.up_estimate is not None and plan.up_estimate["roll_counts"]["90"] + plan.up_estimate["roll_counts"][
-        "270"
-    ] == len(cams)
+    plan = plan_views(g, np.isin(lab, [4]), cams, ViewsConfig(width=48, height=36, num_locations=1, up="auto",
+                                                               max_candidates=6, min_coverage=0.0,
+                                                               min_content=0.0))
+    assert plan.up_estimate is not None and plan.up_estimate["roll_counts"]["90"] + \
+        plan.up_estimate["roll_counts"]["270"] == len(cams)
     assert geometry_angle(plan.up, [0, 0, 1]) < 3
     for cam in plan.cameras:
-        assert -cam.R[1] @ np.array([0, 0, 1.0]) > 0.9  # image up is world up
+        assert -cam.R[1] @ np.array([0, 0, 1.0]) > 0.9   # image up is world up
 
 
 def test_replacement_directions_order():
@@ -401,7 +311,7 @@ def test_topdown_shows_rejected(garden_gs):
     plan = plan_views(g, lab == 6, cams, ViewsConfig(width=48, height=36, num_locations=1, max_candidates=6))
     assert plan.rejected
     img = draw_topdown(plan, g.means.numpy(), lab == 6, size=300)
-    assert (np.abs(img.astype(int) - [40, 40, 140]).sum(-1) == 0).sum() > 5  # rejected rays drawn
+    assert (np.abs(img.astype(int) - [40, 40, 140]).sum(-1) == 0).sum() > 5   # rejected rays drawn
 
 
 def test_views_command_accepts_only_the_views_section(tmp_path, caplog):
@@ -411,22 +321,7 @@ def test_views_command_accepts_only_the_views_section(tmp_path, caplog):
 
     with pytest.raises(ValueError, match="lift"):
         ViewsConfig.from_dict({"lift": {}})
-    assert (
-        main(
-            [
-                "views",
-                "--canonical",
-                str(tmp_path / "c.ply"),
-                "--cameras",
-                str(tmp_path / "c.json"),
-                "--effects",
-                str(tmp_path / "e"),
-                "--out",
-                str(tmp_path / "v"),
-                "--params",
-                '{"vegetation": {}}',
-            ]
-        )
-        == 1
-    )
+    assert main(["views", "--canonical", str(tmp_path / "c.ply"), "--cameras", str(tmp_path / "c.json"),
+                 "--effects", str(tmp_path / "e"), "--out", str(tmp_path / "v"),
+                 "--params", '{"vegetation": {}}']) == 1
     assert "unknown keys ['vegetation']" in caplog.text

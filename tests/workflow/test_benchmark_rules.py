@@ -1,5 +1,4 @@
 """Per-rule breakdown of a run's Snakemake benchmark TSVs (anigs.tradeoff, benchmarks/rules.py)."""
-
 from __future__ import annotations
 
 import importlib.util
@@ -8,14 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from anigs.benchmark_tsv import (
-    benchmark_files,
-    breakdown_total,
-    compare_breakdowns,
-    read_benchmark,
-    rule_breakdown,
-    rule_name,
-)
+from anigs.benchmark_tsv import (benchmark_files, breakdown_total, compare_breakdowns, read_benchmark, rule_breakdown,
+                                  rule_name)
 
 HEAD = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
 
@@ -58,24 +51,15 @@ def test_breakdown_sums_jobs_per_rule_sorted_by_wall(tmp_path):
     rows = rule_breakdown(files)
     assert [r["rule"] for r in rows] == ["update", "static", "render_clip", "final", "round"]
     by = {r["rule"]: r for r in rows}
-    assert by["render_clip"] == {
-        "rule": "render_clip",
-        "jobs": 6,
-        "seconds": 60.0,
-        "cpu_seconds": 12.0,
-        "max_rss_mb": 300.0,
-    }
+    assert by["render_clip"] == {"rule": "render_clip", "jobs": 6, "seconds": 60.0, "cpu_seconds": 12.0,
+                                 "max_rss_mb": 300.0}
     assert by["update"]["max_rss_mb"] == 800.0 and by["update"]["cpu_seconds"] == 80.0
     assert by["final"]["max_rss_mb"] is None  # NA in the file
     total = breakdown_total(rows)
     assert total == {"rule": "total", "jobs": 12, "seconds": 257.0, "cpu_seconds": 158.0, "max_rss_mb": 800.0}
     # a sub-folder of the tree, and a benchmarks folder itself
     assert {r["rule"] for r in rule_breakdown(benchmark_files(res / "demo" / "full"))} == {
-        "update",
-        "render_clip",
-        "final",
-        "round",
-    }
+        "update", "render_clip", "final", "round"}
     assert len(benchmark_files(res / "demo" / "full" / "benchmarks" / "round1")) == 5
 
 
@@ -128,9 +112,8 @@ def test_script_prints_the_table_compare_and_json(tmp_path, capsys):
     assert lines[1].split() == ["rule", "jobs", "wall", "s", "wall", "%", "CPU", "s", "peak", "RSS", "MB"]
     assert lines[3].split()[:3] == ["update", "2", "100.0"]
     assert any(ln.split()[:3] == ["total", "12", "257.0"] for ln in lines)
-    assert "after/before" in text and any(
-        ln.split()[:2] == ["update", "2/2"] and ln.split()[4] == "0.50" for ln in lines
-    )
+    assert "after/before" in text and any(ln.split()[:2] == ["update", "2/2"] and ln.split()[4] == "0.50"
+                                          for ln in lines)
     data = json.loads(out_json.read_text())
     assert data["total"]["seconds"] == 257.0 and data["before_total"]["seconds"] > 257.0
     assert data["compare"][-1]["rule"] == "total"

@@ -1,5 +1,4 @@
 """The config schema is generated from the stages' dataclasses, and bad config is caught early."""
-
 from __future__ import annotations
 
 import subprocess
@@ -15,9 +14,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_schema_is_in_sync_with_the_code():
-    res = subprocess.run(
-        [sys.executable, str(ROOT / "workflow/scripts/make_schema.py"), "--check"], capture_output=True, text=True
-    )
+    res = subprocess.run([sys.executable, str(ROOT / "workflow/scripts/make_schema.py"), "--check"],
+                         capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
 
 
@@ -88,9 +86,8 @@ def test_photo_scene_folder_from_an_environment_variable(tmp_path, monkeypatch):
 
 
 def test_config_docs_are_in_sync_with_the_schema():
-    res = subprocess.run(
-        [sys.executable, str(ROOT / "workflow/scripts/make_config_docs.py"), "--check"], capture_output=True, text=True
-    )
+    res = subprocess.run([sys.executable, str(ROOT / "workflow/scripts/make_config_docs.py"), "--check"],
+                         capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
 
 
@@ -119,22 +116,8 @@ def test_scene_file_typo_fails_when_the_workflow_is_parsed(tmp_path):
     scenes.mkdir()
     (scenes / "typo.yaml").write_text("source: synthetic\nstatic: {iteratons: 5}\n")
     exe = Path(sys.executable).with_name("snakemake")
-    res = subprocess.run(
-        [
-            str(exe),
-            "-n",
-            "--cores",
-            "1",
-            "--config",
-            f"scene_dir={scenes}",
-            "scenes=[typo]",
-            f"results={tmp_path / 'results'}",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    res = subprocess.run([str(exe), "-n", "--cores", "1", "--config", f"scene_dir={scenes}", "scenes=[typo]",
+                          f"results={tmp_path / 'results'}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert res.returncode != 0
     out = res.stdout + res.stderr
     assert "iteratons" in out and "typo.yaml" in out, out[-3000:]
@@ -192,26 +175,9 @@ def test_a_scene_sections_own_device_is_kept(tmp_path):
     scenes.mkdir()
     (scenes / "dev.yaml").write_text("source: synthetic\nsynthetic: {}\nstatic: {device: cpu}\n")
     exe = Path(sys.executable).with_name("snakemake")
-    res = subprocess.run(
-        [
-            str(exe),
-            "-n",
-            "-p",
-            "--cores",
-            "1",
-            "--config",
-            f"scene_dir={scenes}",
-            "scenes=[dev]",
-            "device=auto",
-            f"results={tmp_path / 'results'}",
-            "--",
-            f"{tmp_path}/results/dev/static/canonical.ply",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    res = subprocess.run([str(exe), "-n", "-p", "--cores", "1", "--config", f"scene_dir={scenes}", "scenes=[dev]",
+                          "device=auto", f"results={tmp_path / 'results'}", "--", f"{tmp_path}/results/dev/static/canonical.ply"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr[-3000:]
     static_cmd = next(line for line in res.stdout.splitlines() if " static --images" in line)
     assert '"device": "cpu"' in static_cmd, static_cmd
@@ -233,26 +199,10 @@ def test_photo_scenes_pair_the_sfm_cameras_with_the_undistorted_images(tmp_path)
     scenes.mkdir()
     (scenes / "ph.yaml").write_text(f"source: photos\nphotos: {photos}\neffects: [foliage_sway]\n")
     exe = Path(sys.executable).with_name("snakemake")
-    res = subprocess.run(
-        [
-            str(exe),
-            "-n",
-            "-p",
-            "--cores",
-            "1",
-            "--config",
-            f"scene_dir={scenes}",
-            "scenes=[ph]",
-            f"results={tmp_path / 'results'}",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    res = subprocess.run([str(exe), "-n", "-p", "--cores", "1", "--config", f"scene_dir={scenes}", "scenes=[ph]",
+                          f"results={tmp_path / 'results'}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr[-3000:]
     cmds = [line for line in res.stdout.splitlines() if "--cameras" in line and "--images" in line]
-
     def stage(cmd: str) -> str:  # the word after `anigs [--threads N]`
         words = cmd.split("anigs ", 1)[1].split()
         return words[2] if words[0] == "--threads" else words[0]
@@ -263,9 +213,8 @@ def test_photo_scenes_pair_the_sfm_cameras_with_the_undistorted_images(tmp_path)
         assert images.endswith("/sfm/images"), c
     # the eval stage takes the sfm stage's folder: its cameras with its own (undistorted) images
     evals = [line for line in res.stdout.splitlines() if "--part model" in line]
-    assert evals and all(
-        c.split("--sfm ", 1)[1].split()[0].endswith("/ph/sfm") and "--images" not in c for c in evals
-    ), evals
+    assert evals and all(c.split("--sfm ", 1)[1].split()[0].endswith("/ph/sfm") and "--images" not in c
+                         for c in evals), evals
     # the region of interest is computed once, by the effects stage, and the views stage takes it
     views = next(line for line in res.stdout.splitlines() if " views --canonical" in line)
     assert "--effects " in views and views.split("--effects ", 1)[1].split()[0].endswith("/ph/effects"), views
@@ -279,13 +228,10 @@ def test_one_scene_background_reaches_every_rendering_stage(tmp_path):
     from anigs.config import BACKGROUND_SECTIONS
 
     schema = _schema()["properties"]
-    with_bg = {
-        name for name, sec in schema.items() if isinstance(sec, dict) and "background" in sec.get("properties", {})
-    }
+    with_bg = {name for name, sec in schema.items() if isinstance(sec, dict) and "background" in sec.get("properties", {})}
     assert set(BACKGROUND_SECTIONS) == with_bg
-    (tmp_path / "s.yaml").write_text(
-        "source: synthetic\nsynthetic: {}\nbackground: [0.1, 0.2, 0.3]\nfinal: {background: [1, 1, 1]}\n"
-    )
+    (tmp_path / "s.yaml").write_text("source: synthetic\nsynthetic: {}\nbackground: [0.1, 0.2, 0.3]\n"
+                                     "final: {background: [1, 1, 1]}\n")
     scene = load_scene(tmp_path, "s", _schema())
     cfg = {name: {} for name in schema if isinstance(schema[name], dict) and "properties" in schema[name]}
     cfg["variant_overrides"] = {"full": {}}

@@ -1,5 +1,4 @@
 """Nested config sections are typed dataclasses; the schema and config/README.md are walked from the types."""
-
 from __future__ import annotations
 
 import dataclasses
@@ -19,17 +18,11 @@ from anigs.stages import STAGES, BY_NAME
 ROOT = Path(__file__).resolve().parents[2]
 
 # (section, nested key) -> the dataclass it parses into
-NESTED = {
-    ("masks", "vegetation"): "VegetationConfig",
-    ("masks", "labels"): "LabelsConfig",
-    ("masks", "sam2"): "Sam2Config",
-    ("masks", "lift"): "LiftConfig",
-    ("animate", "lifting"): "LiftingConfig",
-    ("animate", "physics"): "PhysicsConfig",
-    ("refine", "procedural"): "ProceduralConfig",
-    ("refine", "ltx"): "LTXConfig",
-    ("eval", "multiview_fit"): "MultiviewFitConfig",
-}
+NESTED = {("masks", "vegetation"): "VegetationConfig", ("masks", "labels"): "LabelsConfig",
+          ("masks", "sam2"): "Sam2Config", ("masks", "lift"): "LiftConfig",
+          ("animate", "lifting"): "LiftingConfig", ("animate", "physics"): "PhysicsConfig",
+          ("refine", "procedural"): "ProceduralConfig", ("refine", "ltx"): "LTXConfig",
+          ("eval", "multiview_fit"): "MultiviewFitConfig"}
 
 
 def _script(name: str):
@@ -118,9 +111,8 @@ def test_typed_defaults_are_those_the_code_used_before():
     sig = inspect.signature(LabelsBackend)
     assert dataclasses.asdict(LabelsConfig()) == {k: sig.parameters[k].default for k in ("threshold", "min_alpha")}
     # the protocol used to fill these into FitConfig's keys (device: the eval section's when unset)
-    before = FitConfig.from_dict(
-        {"holdout_every": 0, "eval_every": 0, "checkpoint_every": 0, "regularize": {"enabled": False}}
-    )
+    before = FitConfig.from_dict({"holdout_every": 0, "eval_every": 0, "checkpoint_every": 0,
+                                  "regularize": {"enabled": False}})
     now = MultiviewFitConfig.from_dict({})
     assert now.device is None
     assert {**dataclasses.asdict(now), "device": before.device} == dataclasses.asdict(before)
@@ -137,11 +129,8 @@ def test_the_schema_is_the_types():
 
     def tree(cls, skip=()):
         hints, derived = typing.get_type_hints(cls), getattr(cls, "DERIVED", {})
-        return {
-            f.name: tree(hints[f.name], derived.get(f.name, ())) if dataclasses.is_dataclass(hints[f.name]) else {}
-            for f in dataclasses.fields(cls)
-            if f.name not in skip
-        }
+        return {f.name: tree(hints[f.name], derived.get(f.name, ())) if dataclasses.is_dataclass(hints[f.name]) else {}
+                for f in dataclasses.fields(cls) if f.name not in skip}
 
     def defaults(obj, node, path):
         """The schema's defaults are those of the section's default instance, nested ones included
@@ -161,39 +150,31 @@ def test_the_schema_is_the_types():
         if s.section:
             assert _keys(schema[s.name]) == tree(s.config_class()), s.name
             defaults(s.config_class()(), schema[s.name], s.name)
-    assert (
-        schema["eval"]["properties"]["multiview_fit"]["properties"]["regularize"]["properties"]["enabled"]["default"]
-        is False
-    )  # the protocol's fit: no regulariser unless asked
+    assert schema["eval"]["properties"]["multiview_fit"]["properties"]["regularize"]["properties"]["enabled"][
+        "default"] is False  # the protocol's fit: no regulariser unless asked
     for section, key in NESTED:
         assert schema[section]["properties"][key]["properties"], (section, key)
 
 
 def test_every_config_field_has_a_doc():
     docs = _script("make_schema").field_docs
-    missing = [
-        f"{c.__module__}.{c.__name__}.{f.name}"
-        for c in _config_classes()
-        for f in dataclasses.fields(c)
-        if not docs(c).get(f.name)
-    ]
+    missing = [f"{c.__module__}.{c.__name__}.{f.name}" for c in _config_classes()
+               for f in dataclasses.fields(c) if not docs(c).get(f.name)]
     assert not missing, f"fields without a doc (a trailing comment or #: lines above): {missing}"
 
 
 def test_field_docs_reads_trailing_comments_continuations_and_hash_colon_blocks(tmp_path):
     ms = _script("make_schema")
     src = tmp_path / "_doc_fixture.py"
-    src.write_text(
-        "from dataclasses import dataclass, field\n\n\n@dataclass\nclass Fixture:\n"
-        "    a: int = 1  # one line\n"
-        "    b: int = 2  # first part\n"
-        "                # second part\n"
-        "    #: above, line one\n"
-        "    #: line two\n"
-        "    c: list = field(default_factory=list)\n"
-        "    # a plain comment above documents nothing\n"
-        "    d: int = 4\n"
-    )
+    src.write_text('from dataclasses import dataclass, field\n\n\n@dataclass\nclass Fixture:\n'
+                   '    a: int = 1  # one line\n'
+                   '    b: int = 2  # first part\n'
+                   '                # second part\n'
+                   '    #: above, line one\n'
+                   '    #: line two\n'
+                   '    c: list = field(default_factory=list)\n'
+                   '    # a plain comment above documents nothing\n'
+                   '    d: int = 4\n')
     try:
         spec = importlib.util.spec_from_file_location("_doc_fixture", src)
         mod = importlib.util.module_from_spec(spec)
@@ -218,10 +199,8 @@ def test_the_results_layout_lists_each_outputs_file_under_its_stage_folder():
 
     class MasksOut(Outputs):
         FOLDER = "{scene}/masks"
-        LAYOUT = {
-            "mask": File("{view}.png", "uint8 [H, W]: the mask"),
-            "labels": File("effect_labels.npy", "int8 [N]: a|b", optional=True),
-        }
+        LAYOUT = {"mask": File("{view}.png", "uint8 [H, W]: the mask"),
+                  "labels": File("effect_labels.npy", "int8 [N]: a|b", optional=True)}
 
     class RoundOut(MasksOut):
         FOLDER = "{scene}/{variant}/round{round}"

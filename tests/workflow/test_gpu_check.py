@@ -1,6 +1,5 @@
 """benchmarks/gpu_check.sh without a GPU: the CUDA parts reported as skipped, exit 0; and its
 measured parts (benchmarks/gpu_check_parts.py) and table run on the CPU at small sizes."""
-
 from __future__ import annotations
 
 import json
@@ -30,17 +29,11 @@ def _rows(table: str) -> dict[str, list[str]]:
 def test_without_cuda_every_cuda_part_is_skipped(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
-    env = {
-        **os.environ,
-        "PYTHON": sys.executable,
-        "ANIGS_GPU_CHECK_WORK": str(tmp_path / "work"),
-        "ANIGS_GPU_CHECK_WHEELS": str(tmp_path / "no-wheels"),
-        "OUT": str(out),
-    }
+    env = {**os.environ, "PYTHON": sys.executable, "ANIGS_GPU_CHECK_WORK": str(tmp_path / "work"),
+           "ANIGS_GPU_CHECK_WHEELS": str(tmp_path / "no-wheels"), "OUT": str(out)}
     env.pop("ANIGS_GPU_CHECK_DEVICE", None)
-    res = subprocess.run(
-        ["bash", "benchmarks/gpu_check.sh"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300
-    )
+    res = subprocess.run(["bash", "benchmarks/gpu_check.sh"], cwd=ROOT, env=env, capture_output=True, text=True,
+                         timeout=300)
     assert res.returncode == 0, res.stdout + res.stderr
     rows = _rows(res.stdout)
     assert rows["install"][0] == "SKIPPED" and "no wheels" in rows["install"][2]
@@ -63,29 +56,10 @@ def test_parts_and_table_on_the_cpu(tmp_path):
     res, cap = work / "res", work / "capture"
     run = lambda *a: parts.main([str(x) for x in a])  # noqa: E731
     assert run("capture", res / "capture.json", "--dir", cap, "--small") == 0
-    assert (
-        run(
-            "static",
-            res / "static.json",
-            "--dir",
-            cap,
-            "--device",
-            "cpu",
-            "--backend",
-            "cpu",
-            "--iterations",
-            20,
-            "--eval-every",
-            10,
-            "--ply",
-            work / "fitted.ply",
-        )
-        == 0
-    )
-    assert (
-        run("agree", res / "agree.json", "--dir", cap, "--ply", work / "fitted.ply", "--device", "cpu", "--views", 2)
-        == 0
-    )
+    assert run("static", res / "static.json", "--dir", cap, "--device", "cpu", "--backend", "cpu",
+               "--iterations", 20, "--eval-every", 10, "--ply", work / "fitted.ply") == 0
+    assert run("agree", res / "agree.json", "--dir", cap, "--ply", work / "fitted.ply", "--device", "cpu",
+               "--views", 2) == 0
     assert run("update", res / "update.json", "--device", "cpu", "--steps", 2, "--small") == 0
     agree = json.loads((res / "agree.json").read_text())
     # the torch backend against the CPU kernel: the same renderer, so far inside the tolerance
@@ -95,13 +69,9 @@ def test_parts_and_table_on_the_cpu(tmp_path):
     assert [r["iteration"] for r in static["curve"]] == [0, 10, 20] and static["test_psnr"] > 10
     upd = json.loads((res / "update.json").read_text())
     assert upd["steps"] == 2 and upd["finite"]
-    (res / "gsplat.json").write_text(
-        json.dumps({"seconds": 123.4, "built_before": False, "arch": "9.0", "max_jobs": "16"})
-    )
-    (work / "status.tsv").write_text(
-        "gsplat\tOK\t130.0\t\nstatic\tOK\t1.0\t\nagree\tOK\t1.0\t\nupdate\tOK\t1.0\t\n"
-        "ltx\tFAILED\t2.0\texit 1: boom\ndemo\tSKIPPED\t0\tno time left\n"
-    )
+    (res / "gsplat.json").write_text(json.dumps({"seconds": 123.4, "built_before": False, "arch": "9.0", "max_jobs": "16"}))
+    (work / "status.tsv").write_text("gsplat\tOK\t130.0\t\nstatic\tOK\t1.0\t\nagree\tOK\t1.0\t\nupdate\tOK\t1.0\t\n"
+                                     "ltx\tFAILED\t2.0\texit 1: boom\ndemo\tSKIPPED\t0\tno time left\n")
     rows = _rows(gpu_check_table.table(work))
     assert rows["gsplat"] == ["OK", "130.0", "compiled in 123.4 s (TORCH_CUDA_ARCH_LIST=9.0, MAX_JOBS=16)"]
     assert rows["agree"][0] == "OK" and rows["agree"][2].startswith("PASS: torch vs CPU kernel on the fitted model")

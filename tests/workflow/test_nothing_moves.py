@@ -1,7 +1,6 @@
 """A scene with nothing to animate (the bare courtyard) runs end to end with no round at all:
 the effects stage finds no effect, one job writes a still model, and the final videos are the
 static scene bit for bit (config/scenes/tiny_courtyard.yaml, through real Snakemake jobs)."""
-
 from __future__ import annotations
 
 import json
@@ -25,25 +24,9 @@ def test_bare_courtyard_runs_no_round(tmp_path):
     results = tmp_path / "results"
     exe = Path(sys.executable).with_name("snakemake")
     env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ['PATH']}")
-    res = subprocess.run(
-        [
-            str(exe),
-            "--cores",
-            "2",
-            "--configfile",
-            "config/test.yaml",
-            "--config",
-            f"results={results}",
-            "scenes=[tiny_courtyard]",
-            "--workflow-profile",
-            "workflow/profiles/default",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=1500,
-        env=env,
-    )
+    res = subprocess.run([str(exe), "--cores", "2", "--configfile", "config/test.yaml", "--config",
+                          f"results={results}", "scenes=[tiny_courtyard]", "--workflow-profile",
+                          "workflow/profiles/default"], cwd=ROOT, capture_output=True, text=True, timeout=1500, env=env)
     if res.returncode != 0:
         logs = "\n".join(f"--- {p}\n{p.read_text()[-3000:]}" for p in results.rglob("*.log"))
         pytest.fail(f"snakemake failed:\n{res.stderr[-6000:]}\n{logs[-12000:]}")
@@ -51,11 +34,8 @@ def test_bare_courtyard_runs_no_round(tmp_path):
     effects = EffectsOutputs(scene / "effects").report()
     assert effects["chosen"] == [] and effects["detected"] == []
     variant = scene / "full"
-    ran = {
-        line.split("rule ", 1)[1].rstrip(":")
-        for line in res.stdout.splitlines() + res.stderr.splitlines()
-        if line.startswith("rule ") or line.startswith("localrule ")
-    }
+    ran = {line.split("rule ", 1)[1].rstrip(":") for line in res.stdout.splitlines() + res.stderr.splitlines()
+           if line.startswith("rule ") or line.startswith("localrule ")}
     assert not ran & {"round", "render_clip", "refine", "update"}, ran
     assert "still" in ran
     assert not list(variant.glob("round*"))

@@ -1,6 +1,5 @@
 """config/quality.yaml (`--configfile config/quality.yaml`) validates against the workflow's schema on
 top of the defaults, and raises what it says it raises."""
-
 from __future__ import annotations
 
 import copy

@@ -11,7 +11,6 @@ no format field is declared by a rule that runs its stage (a folder entry by a f
 by its folder). An entry with a format field (``{view}.mp4``: one file per view, while the rule's
 wildcard is the scene) cannot be a rule output, so it need not be declared.
 """
-
 from __future__ import annotations
 
 import re
@@ -49,13 +48,8 @@ def workflow_rules():
     from snakemake.settings.types import ConfigSettings, OutputSettings, ResourceSettings, StorageSettings
 
     with snakemake_api.SnakemakeApi(OutputSettings()) as api:
-        wf = api.workflow(
-            resource_settings=ResourceSettings(),
-            config_settings=ConfigSettings(),
-            storage_settings=StorageSettings(),
-            workdir=ROOT,
-            snakefile=ROOT / "Snakefile",
-        )
+        wf = api.workflow(resource_settings=ResourceSettings(), config_settings=ConfigSettings(),
+                          storage_settings=StorageSettings(), workdir=ROOT, snakefile=ROOT / "Snakefile")
         w = wf._workflow
         rules = {r.name: [_plain(o) for o in r.output] for r in w.rules}
         chaining = {r.name for r in w.rules if _chains(r)}
@@ -95,16 +89,10 @@ def _own_stage(rule: str) -> str | None:
     return max(names, key=len) if names else None
 
 
-def stage_rule_problems(
-    stage,
-    types: tuple[type[Outputs], ...],
-    rules: dict[str, list[str]],
-    results: str,
-    others: dict[str, tuple[type[Outputs], ...]] | None = None,
-) -> list[str]:
+def stage_rule_problems(stage, types: tuple[type[Outputs], ...], rules: dict[str, list[str]],
+                        results: str, others: dict[str, tuple[type[Outputs], ...]] | None = None) -> list[str]:
     """What is wrong with the outputs the rules running ``stage`` declare (empty: nothing).
     ``types``: the stage's Outputs types; ``others``: those of other stages in place of theirs."""
-
     def types_of(name: str) -> list[type[Outputs]]:
         if name == stage.name:
             return list(types)
@@ -117,10 +105,8 @@ def stage_rule_problems(
             hit = _match(o, cands, results)
             if hit is None:
                 names = sorted(f"{results}/{t.FOLDER}/{f.name}" for t in cands for f in t.LAYOUT.values())
-                problems.append(
-                    f"rule {rule}: output {o} is no folder or file of "
-                    f"{[f'{t.STAGE}.{t.__name__}' for t in cands]} ({names})"
-                )
+                problems.append(f"rule {rule}: output {o} is no folder or file of "
+                                f"{[f'{t.STAGE}.{t.__name__}' for t in cands]} ({names})")
                 continue
             t, key = hit
             keys = list(t.LAYOUT) if key is None else [key]
@@ -138,10 +124,8 @@ def stage_rule_problems(
                 continue  # a folder entry declared through a file in it, or a file through its folder
             if inside and all(t.LAYOUT[j].fields for j in inside):
                 continue  # a folder of per-view (...) files: no rule can declare them
-            problems.append(
-                f"{stage.name}: {t.STAGE}.{t.__name__}.LAYOUT file {k!r} ({t.FOLDER}/{f.name}) is not optional "
-                f"but no rule declares it"
-            )
+            problems.append(f"{stage.name}: {t.STAGE}.{t.__name__}.LAYOUT file {k!r} ({t.FOLDER}/{f.name}) is not optional "
+                            f"but no rule declares it")
     return problems
 
 
@@ -152,9 +136,8 @@ def test_every_stage_that_writes_has_outputs_with_a_folder(workflow_rules):
     rules, _, _ = workflow_rules
     writes = [s for s in STAGES if s.command or any(rules[r] for r in rules_of(s.name, rules))]
     assert [s.name for s in writes if not outputs_of(s.load())] == []
-    assert [
-        t.__name__ for s in STAGES_WITH_OUTPUTS for t in outputs_of(s.load()) if not t.FOLDER or t.STAGE not in BY_NAME
-    ] == []
+    assert [t.__name__ for s in STAGES_WITH_OUTPUTS for t in outputs_of(s.load())
+            if not t.FOLDER or t.STAGE not in BY_NAME] == []
 
 
 def test_a_file_belongs_to_one_outputs():
@@ -200,13 +183,10 @@ def test_the_check_finds_a_file_the_layout_does_not_name(workflow_rules):
     moved = type("Moved", (Outputs,), {"FOLDER": "{scene}/elsewhere"})
     assert len(stage_rule_problems(stage, (moved,), rules, results)) == 4  # 2 outputs elsewhere, 2 undeclared
     # the final rule's eval/clip_metrics.json is the chained eval stage's: without it, it is unnamed
-    no_clip = type(
-        "NoClip", (EvalOutputs,), {"LAYOUT": {k: f for k, f in EvalOutputs.LAYOUT.items() if k != "clip_metrics"}}
-    )
-    problems = stage_rule_problems(
-        BY_NAME["final"], outputs_of(BY_NAME["final"].load()), rules, results, others={"eval": (no_clip,)}
-    )
+    no_clip = type("NoClip", (EvalOutputs,), {"LAYOUT": {k: f for k, f in EvalOutputs.LAYOUT.items()
+                                                         if k != "clip_metrics"}})
+    problems = stage_rule_problems(BY_NAME["final"], outputs_of(BY_NAME["final"].load()), rules, results,
+                                   others={"eval": (no_clip,)})
     assert any("clip_metrics.json is no folder or file" in p for p in problems)
     assert {"capture", "sfm", "static", "effects", "views", "masks", "round", "final", "fvd_gt", "tables"} <= {
-        s.name for s in STAGES_WITH_OUTPUTS
-    }
+        s.name for s in STAGES_WITH_OUTPUTS}

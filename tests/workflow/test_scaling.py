@@ -1,6 +1,5 @@
 """benchmarks/scaling.py's machinery at tiny sizes: the per-process measurement, the exponent fit,
 the report, and a --smoke run (three tiny synthetic captures) that resumes without re-running."""
-
 from __future__ import annotations
 
 import json
@@ -26,23 +25,18 @@ def test_exponent_is_the_log_log_slope():
 def _measure_in_small_process(code: str, log: Path) -> dict:
     """scaling.measure from a fresh process without torch (as the benchmark runs it: Linux counts the
     launcher's memory at the fork into the child's peak, and this test process holds torch)."""
-    runner = (
-        "import json, sys; sys.path.insert(0, sys.argv[1]); import scaling; "
-        "print(json.dumps(scaling.measure([sys.executable, '-c', sys.argv[2]], scaling.Path(sys.argv[3]))))"
-    )
-    out = subprocess.run(
-        [sys.executable, "-c", runner, str(ROOT / "benchmarks"), code, str(log)], capture_output=True, text=True
-    )
+    runner = ("import json, sys; sys.path.insert(0, sys.argv[1]); import scaling; "
+              "print(json.dumps(scaling.measure([sys.executable, '-c', sys.argv[2]], scaling.Path(sys.argv[3]))))")
+    out = subprocess.run([sys.executable, "-c", runner, str(ROOT / "benchmarks"), code, str(log)],
+                         capture_output=True, text=True)
     if out.returncode != 0:
         raise RuntimeError(out.stderr)
     return json.loads(out.stdout)
 
 
 def test_measure_sees_the_child_s_memory_and_cpu(tmp_path):
-    code = (
-        "import time; b = bytearray(300 * 2**20); b[::4096] = b'x' * len(b[::4096]); t = time.process_time()\n"
-        "while time.process_time() - t < 0.3: pass"
-    )
+    code = "import time; b = bytearray(300 * 2**20); b[::4096] = b'x' * len(b[::4096]); t = time.process_time()\n" \
+           "while time.process_time() - t < 0.3: pass"
     r = _measure_in_small_process(code, tmp_path / "a.log")
     assert r["rss_mib"] > 290 and r["cpu_s"] >= 0.3 and r["wall_s"] >= r["cpu_s"] * 0.5
     small = _measure_in_small_process("pass", tmp_path / "b.log")
@@ -52,17 +46,9 @@ def test_measure_sees_the_child_s_memory_and_cpu(tmp_path):
 
 
 def test_report_names_the_worst_growing_stage():
-    rows = [
-        {
-            "axis": "frames",
-            "value": v,
-            "stages": {
-                "render_clip": {"cpu_s": v * 0.1, "wall_s": v * 0.2, "rss_mib": 300, "load": 1.0},
-                "update": {"cpu_s": (v / 25) ** 2 * 10, "wall_s": 1, "rss_mib": 300 + v, "load": 1.0},
-            },
-        }
-        for v in (25, 49, 121)
-    ]
+    rows = [{"axis": "frames", "value": v, "stages": {
+        "render_clip": {"cpu_s": v * 0.1, "wall_s": v * 0.2, "rss_mib": 300, "load": 1.0},
+        "update": {"cpu_s": (v / 25) ** 2 * 10, "wall_s": 1, "rss_mib": 300 + v, "load": 1.0}}} for v in (25, 49, 121)]
     text = scaling.report(rows)
     assert "| frames | render_clip | 1.00 | 1.00 | 0.00 | 3 |" in text
     assert "| frames | update | 2.00 | 2.00 |" in text

@@ -19,7 +19,6 @@ override with the environment variable ``ANIGS_SLURM_TEST_CONFIG``).
 
 Run with ``-s`` to see the timing figures (cluster set-up, local vs SLURM, per job).
 """
-
 from __future__ import annotations
 
 import dataclasses
@@ -130,7 +129,8 @@ class Cluster:
 
     def cmd(self, *args: str, timeout: float = 20) -> str:
         out = subprocess.run(
-            ["timeout", "-k", "2", str(timeout), *args], env=self.env, capture_output=True, text=True, check=False
+            ["timeout", "-k", "2", str(timeout), *args],
+            env=self.env, capture_output=True, text=True, check=False,
         )
         if out.returncode != 0:
             raise RuntimeError(f"{' '.join(args)} failed ({out.returncode}): {out.stderr}")
@@ -154,10 +154,7 @@ class Cluster:
 def _script(action: str, state: Path, env: dict[str, str], timeout: float) -> subprocess.CompletedProcess:
     return subprocess.run(
         ["timeout", "-k", "10", str(timeout), "bash", str(SCRIPT), action, str(state)],
-        env=env,
-        capture_output=True,
-        text=True,
-        check=False,
+        env=env, capture_output=True, text=True, check=False,
     )
 
 
@@ -166,19 +163,17 @@ def slurm_cluster(tmp_path_factory) -> Cluster:
     import importlib.util
 
     assert importlib.util.find_spec("snakemake_executor_plugin_slurm") is not None, (
-        "snakemake-executor-plugin-slurm is not installed: pip install -e '.[slurm]'"
-    )
+        "snakemake-executor-plugin-slurm is not installed: pip install -e '.[slurm]'")
     have = all(shutil.which(b) for b in ("munged", "slurmctld", "slurmd", "sbatch", "squeue"))
     if not have and (os.geteuid() != 0 or shutil.which("apt-get") is None):
-        pytest.skip(
-            "SLURM/munge Debian packages are not installed and cannot be installed here "
-            "(needs root and apt-get): apt-get install slurmctld slurmd slurm-client munge"
-        )
+        pytest.skip("SLURM/munge Debian packages are not installed and cannot be installed here "
+                    "(needs root and apt-get): apt-get install slurmctld slurmd slurm-client munge")
     if os.geteuid() != 0:
         pytest.skip("the loopback SLURM cluster needs root (slurmd starts jobs as their users)")
     state = tmp_path_factory.mktemp("slurm-cluster")
     env = dict(os.environ)
-    env.update(ANIGS_SLURM_CTLD_PORT=str(_free_port()), ANIGS_SLURMD_PORT=str(_free_port()), ANIGS_SLURM_KEEP_LOGS="1")
+    env.update(ANIGS_SLURM_CTLD_PORT=str(_free_port()), ANIGS_SLURMD_PORT=str(_free_port()),
+               ANIGS_SLURM_KEEP_LOGS="1")
     t0 = time.monotonic()
     try:
         started = _script("start", state, env, CLUSTER_TIMEOUT_S)
@@ -200,8 +195,7 @@ def slurm_cluster(tmp_path_factory) -> Cluster:
         stopped = _script("stop", state, env, 120)
         still = [f"{n}={p}" for n, p in pids.items() if _alive(p)]
         assert stopped.returncode == 0 and not still, (
-            f"cluster stop failed (rc {stopped.returncode}, alive: {still}):\n{stopped.stderr[-2000:]}"
-        )
+            f"cluster stop failed (rc {stopped.returncode}, alive: {still}):\n{stopped.stderr[-2000:]}")
 
 
 def _alive(pid: int) -> bool:
@@ -228,15 +222,13 @@ def _test_profile(dest: Path) -> Path:
             res["mem_mb"] = min(int(res["mem_mb"]), NODE_MEM_MB)
     ncpu = os.cpu_count() or 1
     prof["set-threads"] = {r: min(int(t), ncpu) for r, t in prof.get("set-threads", {}).items()}
-    prof.update(
-        {
-            "slurm-status-command": "squeue",
-            "slurm-init-seconds-before-status-checks": 1,
-            "slurm-no-account": True,
-            "latency-wait": 5,
-            "jobs": 8,
-        }
-    )
+    prof.update({
+        "slurm-status-command": "squeue",
+        "slurm-init-seconds-before-status-checks": 1,
+        "slurm-no-account": True,
+        "latency-wait": 5,
+        "jobs": 8,
+    })
     dest.mkdir(parents=True, exist_ok=True)
     (dest / "config.yaml").write_text(yaml.safe_dump(prof, sort_keys=False))
     return dest
@@ -249,22 +241,15 @@ def test_profile(tmp_path_factory) -> Path:
 
 def _require(case: Case) -> None:
     if case.configfile is not None and not case.configfile.is_file():
-        pytest.skip(
-            f"{case.configfile} does not exist yet: the workflow's tiny config is added "
-            "with the workflow (set ANIGS_SLURM_TEST_CONFIG to use another file)"
-        )
+        pytest.skip(f"{case.configfile} does not exist yet: the workflow's tiny config is added "
+                    "with the workflow (set ANIGS_SLURM_TEST_CONFIG to use another file)")
 
 
-def _snakemake(
-    case: Case,
-    workdir: Path,
-    env: dict[str, str],
-    *args: str,
-    config: tuple[str, ...] = (),
-    timeout: float | None = None,
-):
+def _snakemake(case: Case, workdir: Path, env: dict[str, str], *args: str,
+               config: tuple[str, ...] = (), timeout: float | None = None):
     """Run snakemake in `workdir`; returns (returncode, combined output, seconds)."""
-    cmd = ["timeout", "-k", "10", str(timeout or case.timeout_s), str(SNAKEMAKE), "--snakefile", str(case.snakefile)]
+    cmd = ["timeout", "-k", "10", str(timeout or case.timeout_s), str(SNAKEMAKE),
+           "--snakefile", str(case.snakefile)]
     if case.configfile is not None:
         cmd += ["--configfile", str(case.configfile)]
     if case.config or config:
@@ -364,7 +349,6 @@ def _ctld_times(cluster: Cluster, jid: str) -> tuple[float, float] | None:
     if not (sub and end):
         return None
     from datetime import datetime
-
     f = "%Y-%m-%dT%H:%M:%S.%f"
     return datetime.strptime(sub.group(1), f).timestamp(), datetime.strptime(end.group(1), f).timestamp()
 
@@ -420,13 +404,11 @@ def test_every_job_runs_through_slurm_and_matches_local(case, slurm_cluster, tes
     assert got == ref
 
     spans = [t[1] - t[0] for t in (_ctld_times(cluster, j) for j in ids) if t]
-    print(
-        f"\n[slurm:{case.name}] {len(ids)} jobs; end-to-end local {local_s:.1f} s ({local_jobs} jobs incl. "
-        f"local rules), through SLURM {slurm_s:.1f} s; overhead per job (e2e difference / jobs) "
-        f"{(slurm_s - local_s) / len(ids):.1f} s; submit->complete per job in slurmctld: mean "
-        f"{sum(spans) / max(len(spans), 1):.1f} s, min {min(spans, default=0):.1f} s, "
-        f"max {max(spans, default=0):.1f} s; cluster set-up {cluster.setup_s:.2f} s"
-    )
+    print(f"\n[slurm:{case.name}] {len(ids)} jobs; end-to-end local {local_s:.1f} s ({local_jobs} jobs incl. "
+          f"local rules), through SLURM {slurm_s:.1f} s; overhead per job (e2e difference / jobs) "
+          f"{(slurm_s - local_s) / len(ids):.1f} s; submit->complete per job in slurmctld: mean "
+          f"{sum(spans) / max(len(spans), 1):.1f} s, min {min(spans, default=0):.1f} s, "
+          f"max {max(spans, default=0):.1f} s; cluster set-up {cluster.setup_s:.2f} s")
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
@@ -437,18 +419,8 @@ def test_cancelled_job_fails_and_rerun_resumes(case, slurm_cluster, test_profile
     workdir = tmp_path_factory.mktemp(f"fault-{case.name}")
     before = set(cluster.jobs())
 
-    cmd = [
-        "timeout",
-        "-k",
-        "10",
-        str(case.timeout_s),
-        str(SNAKEMAKE),
-        "--snakefile",
-        str(case.snakefile),
-        "--nocolor",
-        "--profile",
-        str(test_profile),
-    ]
+    cmd = ["timeout", "-k", "10", str(case.timeout_s), str(SNAKEMAKE), "--snakefile", str(case.snakefile),
+           "--nocolor", "--profile", str(test_profile)]
     if case.configfile is not None:
         cmd += ["--configfile", str(case.configfile)]
     if case.config or case.fault_config:
@@ -507,16 +479,14 @@ def test_cancelled_job_fails_and_rerun_resumes(case, slurm_cluster, test_profile
     _check_local_jobs(case, log1)
     if case.sibling_finishes:  # keep-going (profile): the other jobs of the round completed
         assert any(_rule_of(c) == case.cancel_rule for c in done1), done1
-    files1 = {
-        p: p.stat().st_mtime_ns
-        for p in (workdir / case.results).rglob("*")
-        if p.is_file()
-        and not any(fnmatch.fnmatch(p.relative_to(workdir / case.results).as_posix(), pat) for pat in case.ignore)
-    }
+    files1 = {p: p.stat().st_mtime_ns for p in (workdir / case.results).rglob("*")
+              if p.is_file() and not any(fnmatch.fnmatch(p.relative_to(workdir / case.results).as_posix(), pat)
+                                         for pat in case.ignore)}
 
     # The rerun submits exactly what is missing: the cancelled job and what depends on it.
     planned = _planned_jobs(case, workdir, cluster.env, config=case.rerun_config)
-    rc2, log2, _ = _snakemake(case, workdir, cluster.env, "--profile", str(test_profile), config=case.rerun_config)
+    rc2, log2, _ = _snakemake(case, workdir, cluster.env, "--profile", str(test_profile),
+                              config=case.rerun_config)
     assert rc2 == 0, f"rerun failed:\n{_tail(log2, 120)}"
     _check_local_jobs(case, log2)
     jobs = cluster.jobs()
@@ -530,7 +500,5 @@ def test_cancelled_job_fails_and_rerun_resumes(case, slurm_cluster, test_profile
         assert p.stat().st_mtime_ns == mtime, f"rerun rewrote {p}"
 
     assert _digests(workdir / case.results, case.ignore) == ref
-    print(
-        f"\n[slurm:{case.name}] cancelled job {victim} ({victim_comment}); run 1 finished {len(done1)} jobs, "
-        f"rerun submitted {len(ids2)}: {sorted(comments2)}"
-    )
+    print(f"\n[slurm:{case.name}] cancelled job {victim} ({victim_comment}); run 1 finished {len(done1)} jobs, "
+          f"rerun submitted {len(ids2)}: {sorted(comments2)}")

@@ -1,5 +1,4 @@
 """Accuracy-versus-time sweep: its variants, seconds from benchmark TSVs, the CSV and plots."""
-
 from __future__ import annotations
 
 import csv
@@ -9,35 +8,18 @@ from pathlib import Path
 import cv2
 import pytest
 
-from anigs.tradeoff import (
-    SweepPoint,
-    benchmark_seconds,
-    front_section,
-    mark_fronts,
-    markdown_report,
-    metric_directions,
-    pareto_front,
-    plot_knob,
-    report_fronts,
-    report_rows,
-    stage_owner,
-    sweep_points,
-    variant_name,
-    write_csv,
-)
+from anigs.tradeoff import (SweepPoint, benchmark_seconds, front_section, mark_fronts, markdown_report,
+                            metric_directions, pareto_front, plot_knob, report_fronts, report_rows, stage_owner,
+                            sweep_points, variant_name, write_csv)
 
 OVERRIDES = {"full": {}, "no_composed_v2v": {"refine": {"compose": False}}}
 
 
 def test_sweep_points_merge_the_knob_over_the_base_variant():
-    pts = sweep_points(
-        {"update.steps": [40, 120], "refine.procedural.amplitude_scale": [0.5]}, "no_composed_v2v", OVERRIDES
-    )
-    assert [p.variant for p in pts] == [
-        "tradeoff-update-steps-40",
-        "tradeoff-update-steps-120",
-        "tradeoff-refine-procedural-amplitude_scale-0p5",
-    ]
+    pts = sweep_points({"update.steps": [40, 120], "refine.procedural.amplitude_scale": [0.5]}, "no_composed_v2v",
+                       OVERRIDES)
+    assert [p.variant for p in pts] == ["tradeoff-update-steps-40", "tradeoff-update-steps-120",
+                                        "tradeoff-refine-procedural-amplitude_scale-0p5"]
     assert pts[0].overrides == {"refine": {"compose": False}, "update": {"steps": 40}}
     assert pts[2].overrides == {"refine": {"compose": False, "procedural": {"amplitude_scale": 0.5}}}
     assert OVERRIDES["no_composed_v2v"] == {"refine": {"compose": False}}  # base left untouched
@@ -52,16 +34,13 @@ def test_null_drops_a_knob():
     assert sweep_points({"update.steps": None}, "full", OVERRIDES) == []
 
 
-@pytest.mark.parametrize(
-    "knobs,match",
-    [
-        ({"sfm.max_features": [500]}, "sfm.max_features"),  # SfM is shared by the whole sweep
-        ({"nonsense.key": [1]}, "nonsense.key"),
-        ({"update": [1]}, "update"),  # a bare section takes mappings
-        ({"views": [{}]}, "views"),
-        ({"update.steps": []}, "update.steps"),
-    ],
-)
+@pytest.mark.parametrize("knobs,match", [
+    ({"sfm.max_features": [500]}, "sfm.max_features"),  # SfM is shared by the whole sweep
+    ({"nonsense.key": [1]}, "nonsense.key"),
+    ({"update": [1]}, "update"),  # a bare section takes mappings
+    ({"views": [{}]}, "views"),
+    ({"update.steps": []}, "update.steps"),
+])
 def test_bad_knobs_are_named(knobs, match):
     with pytest.raises(ValueError, match=match):
         sweep_points(knobs, "full", OVERRIDES)
@@ -76,26 +55,19 @@ BASE = {"static.iterations": 1000, "views.width": 256, "views.height": 192, "upd
 
 
 def test_per_scene_knobs_become_derived_scenes_of_the_base_variant():
-    pts = sweep_points(
-        {"static.iterations": [500, 1000], "views": [{"width": 128, "height": 96}]},
-        "no_composed_v2v",
-        OVERRIDES,
-        base_value=BASE.get,
-    )
+    pts = sweep_points({"static.iterations": [500, 1000], "views": [{"width": 128, "height": 96}]}, "no_composed_v2v",
+                       OVERRIDES, base_value=BASE.get)
     assert [(p.scene("demo"), p.variant) for p in pts] == [
-        ("demo--tradeoff-static-iterations-500", "no_composed_v2v"),
-        ("demo", "no_composed_v2v"),
-        ("demo--tradeoff-views-height-96-width-128", "no_composed_v2v"),
-    ]
+        ("demo--tradeoff-static-iterations-500", "no_composed_v2v"), ("demo", "no_composed_v2v"),
+        ("demo--tradeoff-views-height-96-width-128", "no_composed_v2v")]
     assert pts[0].scene_overrides == {"static": {"iterations": 500}}
     assert pts[0].overrides == {"refine": {"compose": False}}  # the base variant's own overrides
     assert pts[2].scene_overrides == {"views": {"width": 128, "height": 96}}
 
 
 def test_a_mapping_equal_to_the_base_settings_reuses_the_base():
-    pts = sweep_points(
-        {"views": [{"width": 256, "height": 192}, {"width": 256, "height": 96}]}, "full", OVERRIDES, base_value=BASE.get
-    )
+    pts = sweep_points({"views": [{"width": 256, "height": 192}, {"width": 256, "height": 96}]}, "full", OVERRIDES,
+                       base_value=BASE.get)
     assert [p.scene("demo") for p in pts] == ["demo", "demo--tradeoff-views-height-96-width-256"]
 
 
@@ -107,14 +79,10 @@ def test_a_mapping_value_of_a_variant_section_sets_several_keys():
 
 def test_derived_scenes_reuse_the_stages_upstream_of_their_knob():
     st, vw = "demo--tradeoff-static-iterations-500", "demo--tradeoff-views-height-96-width-128"
-    assert [stage_owner(st, s) for s in ("capture", "sfm", "static", "views", "masks")] == ["demo", "demo", st, st, st]
+    assert [stage_owner(st, s) for s in ("capture", "sfm", "static", "views", "masks")] == [
+        "demo", "demo", st, st, st]
     assert [stage_owner(vw, s) for s in ("capture", "sfm", "static", "views", "masks")] == [
-        "demo",
-        "demo",
-        "demo",
-        vw,
-        vw,
-    ]
+        "demo", "demo", "demo", vw, vw]
     assert stage_owner("demo", "sfm") == "demo"
 
 
@@ -146,11 +114,8 @@ def test_benchmark_seconds_averages_repeats_and_sums_files(tmp_path):
 
 def _metrics(value: float, psnr: float | None) -> dict:
     m = {"gt/amplitude_w1": {"value": value, "available": True}}
-    m["multiview/psnr_novel"] = (
-        {"value": psnr, "available": True}
-        if psnr is not None
-        else {"value": None, "available": False, "reason": "no weights"}
-    )
+    m["multiview/psnr_novel"] = ({"value": psnr, "available": True} if psnr is not None
+                                 else {"value": None, "available": False, "reason": "no weights"})
     return {"metrics": m}
 
 
@@ -192,9 +157,8 @@ def test_a_derived_scene_counts_its_own_stages_and_the_base_scenes_upstream(tmp_
         _tsv(res / vw / "benchmarks" / f"{s}.tsv", [sec])
     for scene in (st, vw):
         _tsv(res / scene / "full" / "benchmarks" / "round1" / "update.tsv", [10.0])
-    pts = sweep_points(
-        {"static.iterations": [500], "views": [{"width": 128, "height": 96}]}, "full", {"full": {}}, base_value=BASE.get
-    )
+    pts = sweep_points({"static.iterations": [500], "views": [{"width": 128, "height": 96}]}, "full",
+                       {"full": {}}, base_value=BASE.get)
     rows = report_rows(pts, res, "demo", {f"{st}/full": _metrics(0.02, None), f"{vw}/full": _metrics(0.03, None)})
     assert [r["seconds"] for r in rows] == [56.0, 111.5]  # 40+4+2+10; the base's static 100 + 1+0.5+10
     assert [r["run"] for r in rows] == [f"{st}/full", f"{vw}/full"]
@@ -202,7 +166,6 @@ def test_a_derived_scene_counts_its_own_stages_and_the_base_scenes_upstream(tmp_
 
 
 # ---- the Pareto front ----
-
 
 def test_pareto_front_lower_and_higher_is_better():
     times = [10.0, 20.0, 30.0, 40.0, 25.0]
@@ -233,26 +196,15 @@ def test_pareto_front_leaves_out_missing_values():
 
 def _rows() -> list[dict]:
     """Report rows: the base (full) appears under both knobs."""
-
     def row(knob, value, run, sec, w1, psnr, ratio):
-        return {
-            "knob": knob,
-            "value": value,
-            "run": run,
-            "seconds": sec,
-            "cpu_seconds": sec / 2,
-            "gt/amplitude_w1": w1,
-            "multiview/psnr_novel": psnr,
-            "gt/rms_amplitude_ratio": ratio,
-        }
+        return {"knob": knob, "value": value, "run": run, "seconds": sec, "cpu_seconds": sec / 2,
+                "gt/amplitude_w1": w1, "multiview/psnr_novel": psnr, "gt/rms_amplitude_ratio": ratio}
 
-    return [
-        row("update.steps", 40, "demo/t40", 100.0, 0.010, None, 0.6),
-        row("update.steps", 120, "demo/full", 150.0, 0.004, 30.0, 0.9),
-        row("update.num_bases", 6, "demo/k6", 160.0, 0.006, 31.0, 0.8),
-        row("update.num_bases", 12, "demo/full", 150.0, 0.004, 30.0, 0.9),
-        row("static.iterations", 500, "demo--tradeoff-static-iterations-500/full", 90.0, 0.012, 27.0, 1.0),
-    ]
+    return [row("update.steps", 40, "demo/t40", 100.0, 0.010, None, 0.6),
+            row("update.steps", 120, "demo/full", 150.0, 0.004, 30.0, 0.9),
+            row("update.num_bases", 6, "demo/k6", 160.0, 0.006, 31.0, 0.8),
+            row("update.num_bases", 12, "demo/full", 150.0, 0.004, 30.0, 0.9),
+            row("static.iterations", 500, "demo--tradeoff-static-iterations-500/full", 90.0, 0.012, 27.0, 1.0)]
 
 
 DIRS = {"gt/amplitude_w1": False, "multiview/psnr_novel": True, "gt/rms_amplitude_ratio": None}
@@ -260,10 +212,8 @@ SHOWN = ["gt/amplitude_w1", "multiview/psnr_novel", "gt/rms_amplitude_ratio", "m
 
 
 def test_metric_directions_from_metrics_json():
-    metrics = {
-        "a": {"metrics": {"x": {"higher_is_better": False}, "r": {"higher_is_better": None}}},
-        "b": {"metrics": {"y": {"higher_is_better": True}, "r": {"higher_is_better": None}}},
-    }
+    metrics = {"a": {"metrics": {"x": {"higher_is_better": False}, "r": {"higher_is_better": None}}},
+               "b": {"metrics": {"y": {"higher_is_better": True}, "r": {"higher_is_better": None}}}}
     assert metric_directions(metrics) == {"x": False, "r": None, "y": True}
 
 
@@ -274,34 +224,27 @@ def test_report_fronts_mark_rows_and_list_settings():
     assert fronts["gt/amplitude_w1"] == [4, 0, 1, 3]  # 90 s, 100 s, then the base under both knobs
     assert fronts["multiview/psnr_novel"] == [4, 1, 3, 2]
     mark_fronts(rows, fronts)
-    assert [r["front"] for r in rows] == [
-        "gt/amplitude_w1",
-        "gt/amplitude_w1; multiview/psnr_novel",
-        "multiview/psnr_novel",
-        "gt/amplitude_w1; multiview/psnr_novel",
-        "gt/amplitude_w1; multiview/psnr_novel",
-    ]
+    assert [r["front"] for r in rows] == ["gt/amplitude_w1", "gt/amplitude_w1; multiview/psnr_novel",
+                                          "multiview/psnr_novel", "gt/amplitude_w1; multiview/psnr_novel",
+                                          "gt/amplitude_w1; multiview/psnr_novel"]
     text = front_section(rows, fronts, DIRS, SHOWN)
     print(text)
     assert text.startswith("## On the front")
-    w1 = text[text.index("### gt/amplitude_w1") : text.index("### multiview/psnr_novel")]
+    w1 = text[text.index("### gt/amplitude_w1"):text.index("### multiview/psnr_novel")]
     assert "(lower is better)" in w1
     items = [ln for ln in w1.splitlines() if ln.startswith("- ")]
-    assert items == [
-        "- static.iterations = 500 (`demo--tradeoff-static-iterations-500/full`): 90 s (CPU 45 s), "
-        "gt/amplitude_w1 0.012",
-        "- update.steps = 40 (`demo/t40`): 100 s (CPU 50 s), gt/amplitude_w1 0.01",
-        "- update.steps = 120, update.num_bases = 12 (`demo/full`): 150 s (CPU 75 s), gt/amplitude_w1 0.004",
-    ]
+    assert items == ["- static.iterations = 500 (`demo--tradeoff-static-iterations-500/full`): 90 s (CPU 45 s), "
+                     "gt/amplitude_w1 0.012",
+                     "- update.steps = 40 (`demo/t40`): 100 s (CPU 50 s), gt/amplitude_w1 0.01",
+                     "- update.steps = 120, update.num_bases = 12 (`demo/full`): 150 s (CPU 75 s), "
+                     "gt/amplitude_w1 0.004"]
     assert "### multiview/psnr_novel (higher is better)" in text
     assert "### gt/rms_amplitude_ratio: no front, it has no direction" in text
     assert "### missing: no front, no point" in text
     md = markdown_report(rows, SHOWN, fronts, DIRS)
     table = [ln for ln in md.splitlines() if ln.startswith("| ")]
-    assert table[0] == (
-        "| knob | value | run | seconds | cpu_seconds | gt/amplitude_w1 | multiview/psnr_novel | "
-        "gt/rms_amplitude_ratio |"
-    )
+    assert table[0] == ("| knob | value | run | seconds | cpu_seconds | gt/amplitude_w1 | multiview/psnr_novel | "
+                        "gt/rms_amplitude_ratio |")
     assert table[3] == "| update.num_bases | 6 | demo/k6 | 160 | 80 | 0.006 | 31 ✓ | 0.8 |"
     assert table[1].split(" | ")[6] == "n/a"  # t40 has no PSNR
     assert md.rstrip().endswith(text.rstrip())
@@ -338,26 +281,16 @@ def test_stage_writes_the_front_into_csv_markdown_and_log(tmp_path, caplog):
         path = res / "demo" / variant / "eval" / "metrics.json"
         path.parent.mkdir(parents=True)
         path.write_text(json.dumps(m))
-    pts = [
-        SweepPoint("t40", "update.steps", 40, {}),
-        SweepPoint("full", "update.steps", 120, {}),
-        SweepPoint("k6", "update.num_bases", 6, {}),
-        SweepPoint("full", "update.num_bases", 12, {}),
-    ]
+    pts = [SweepPoint("t40", "update.steps", 40, {}), SweepPoint("full", "update.steps", 120, {}),
+           SweepPoint("k6", "update.num_bases", 6, {}), SweepPoint("full", "update.num_bases", 12, {})]
     with caplog.at_level(logging.INFO, logger="anigs.tradeoff"):
         out = report("demo", pts, res, Outputs(tmp_path / "tradeoff"), ["gt/amplitude_w1", "multiview/psnr_novel"])
     with open(out) as f:
         got = list(csv.DictReader(f))
-    assert [g["front"] for g in got] == [
-        "gt/amplitude_w1",
-        "gt/amplitude_w1; multiview/psnr_novel",
-        "multiview/psnr_novel",
-        "gt/amplitude_w1; multiview/psnr_novel",
-    ]
+    assert [g["front"] for g in got] == ["gt/amplitude_w1", "gt/amplitude_w1; multiview/psnr_novel",
+                                         "multiview/psnr_novel", "gt/amplitude_w1; multiview/psnr_novel"]
     md = (tmp_path / "tradeoff" / "demo.md").read_text(encoding="utf-8")
     assert "## On the front" in md and "- update.num_bases = 6 (`demo/k6`): 160 s" in md
-    assert {p.name for p in (tmp_path / "tradeoff").glob("*.png")} == {
-        "demo_update-steps.png",
-        "demo_update-num_bases.png",
-    }
+    assert {p.name for p in (tmp_path / "tradeoff").glob("*.png")} == {"demo_update-steps.png",
+                                                                        "demo_update-num_bases.png"}
     assert "On the front" in caplog.text and "update.steps = 40 (`demo/t40`): 120 s" in caplog.text

@@ -1,5 +1,4 @@
 """The whole workflow end to end on the tiny config (config/test.yaml), through real Snakemake jobs."""
-
 from __future__ import annotations
 
 import csv
@@ -26,18 +25,8 @@ pytestmark = pytest.mark.slow
 def _snakemake(results: Path, *args: str, timeout: int = 1500) -> subprocess.CompletedProcess:
     exe = Path(sys.executable).with_name("snakemake")
     env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ['PATH']}")
-    cmd = [
-        str(exe),
-        "--cores",
-        "2",
-        "--configfile",
-        "config/test.yaml",
-        "--config",
-        f"results={results}",
-        "--workflow-profile",
-        "workflow/profiles/default",
-        *args,
-    ]
+    cmd = [str(exe), "--cores", "2", "--configfile", "config/test.yaml", "--config", f"results={results}",
+           "--workflow-profile", "workflow/profiles/default", *args]
     return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout, env=env)
 
 
@@ -61,9 +50,7 @@ def test_artifacts_exist_and_are_sane(run):
     g.check_finite()
     views = ViewsOutputs(scene / "views").report()["views"]
     assert [v["id"] for v in views] == ["v00", "v01", "v02"]
-    canonical, deformation, _ = load_model(
-        scene / "full" / "round2" / "model.pt", StaticOutputs(scene / "static").path("canonical")
-    )
+    canonical, deformation, _ = load_model(scene / "full" / "round2" / "model.pt", StaticOutputs(scene / "static").path("canonical"))
     assert deformation.num_frames == 9 and deformation.num_dynamic > 0
     assert deformation.num_dynamic < canonical.num, "only the dynamic Gaussians carry coefficients"
     dyn = MasksOutputs(scene / "masks").dynamic()
@@ -100,9 +87,7 @@ def test_static_pixels_still_dynamic_regions_move(run):
     from anigs.video import load_clip
 
     scene = run / "tiny"
-    canonical, deformation, _ = load_model(
-        scene / "full" / "round2" / "model.pt", StaticOutputs(scene / "static").path("canonical")
-    )
+    canonical, deformation, _ = load_model(scene / "full" / "round2" / "model.pt", StaticOutputs(scene / "static").path("canonical"))
     cams = {c.name: c for c in ViewsOutputs(scene / "views").views()}
     moved, checked = 0.0, 0
     for v in ("v00", "v01", "v02"):
@@ -115,9 +100,7 @@ def test_static_pixels_still_dynamic_regions_move(run):
                 reach |= alpha.numpy() > 0
         change = np.abs(clip - clip[:1]).max(axis=(0, 3))
         assert (~reach).any()
-        assert change[~reach].max() == 0.0, (
-            f"{v}: a pixel no dynamic Gaussian reaches changed by {change[~reach].max()}"
-        )
+        assert change[~reach].max() == 0.0, f"{v}: a pixel no dynamic Gaussian reaches changed by {change[~reach].max()}"
         checked += int((~reach).sum())
         mask = np.asarray(imageio.imread(scene / "masks" / f"{v}.png")) > 127
         mask = mask[..., 0] if mask.ndim == 3 else mask
@@ -169,13 +152,8 @@ def test_misspelled_key_fails_before_any_job(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("update:\n  stepz: 3\n")
     exe = Path(sys.executable).with_name("snakemake")
-    res = subprocess.run(
-        [str(exe), "-n", "--cores", "1", "--configfile", str(bad), "--config", f"results={tmp_path / 'r'}"],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    res = subprocess.run([str(exe), "-n", "--cores", "1", "--configfile", str(bad), "--config",
+                          f"results={tmp_path / 'r'}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert res.returncode != 0
     assert "stepz" in res.stdout + res.stderr
     assert not (tmp_path / "r").exists()
@@ -187,23 +165,9 @@ def test_gpu_setting_without_gpu_fails_early(tmp_path):
     if torch.cuda.is_available():
         pytest.skip("this machine has a GPU: the early failure cannot be provoked")
     exe = Path(sys.executable).with_name("snakemake")
-    res = subprocess.run(
-        [
-            str(exe),
-            "-n",
-            "--cores",
-            "1",
-            "--configfile",
-            "config/test.yaml",
-            "--config",
-            f"results={tmp_path / 'r'}",
-            "device=cuda",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    res = subprocess.run([str(exe), "-n", "--cores", "1", "--configfile", "config/test.yaml", "--config",
+                          f"results={tmp_path / 'r'}", "device=cuda"], cwd=ROOT, capture_output=True, text=True,
+                         timeout=300)
     assert res.returncode != 0
     assert "no CUDA device" in res.stdout + res.stderr
 
@@ -253,9 +217,7 @@ def test_round_jobs_and_view_jobs_give_the_same_artifacts(run, tmp_path):
     variant = results / "tiny" / "full"
     for d in variant.glob("round*"):
         shutil.rmtree(d)
-    res = _snakemake(
-        results, "--rerun-triggers", "mtime", "--config", f"results={results}", "round_jobs=view", "--", "animate"
-    )
+    res = _snakemake(results, "--rerun-triggers", "mtime", "--config", f"results={results}", "round_jobs=view", "--", "animate")
     assert res.returncode == 0, res.stderr[-3000:]
     assert "rule round:" not in res.stdout + res.stderr
     bench = variant / "benchmarks" / "round1"
@@ -281,14 +243,8 @@ def test_interrupted_run_resumes_to_the_same_artifacts(run, tmp_path):
     env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ['PATH']}")
     cmd = [str(exe), "--cores", "2", "--configfile", "config/test.yaml", "--config", f"results={results}"]
     # SIGINT default in the child: a shell's background job (nohup ... &) inherits SIGINT ignored
-    proc = subprocess.Popen(
-        cmd,
-        cwd=ROOT,
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     marker = results / "tiny" / "full" / "round1" / "target"
     deadline = time.time() + 900
     while time.time() < deadline and proc.poll() is None and not (marker.exists() and any(marker.iterdir())):
@@ -309,12 +265,10 @@ def test_tradeoff_sweep_reports_accuracy_against_time(run, tmp_path):
     """`snakemake tradeoff` on the tiny scene: a per-variant knob (update.steps) and a per-scene one
     (static.iterations, a derived scene sharing the capture and SfM); base values reuse the finished run."""
     override = tmp_path / "sweep.yaml"
-    override.write_text(
-        "tradeoff:\n  knobs:\n    update.num_bases: null\n    refine.strength: null\n"
-        "    animate.views_per_round: null\n    views: null\n    update.steps: [10, 30]\n"
-        "    static.iterations: [100, 300]\n"
-        "  plot_metrics: [static_abs_diff, dynamic_abs_diff]\n"
-    )
+    override.write_text("tradeoff:\n  knobs:\n    update.num_bases: null\n    refine.strength: null\n"
+                        "    animate.views_per_round: null\n    views: null\n    update.steps: [10, 30]\n"
+                        "    static.iterations: [100, 300]\n"
+                        "  plot_metrics: [static_abs_diff, dynamic_abs_diff]\n")
     res = _snakemake(run, "tradeoff", "--configfile", "config/test.yaml", str(override), "--config", f"results={run}")
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     with open(run / "tradeoff" / "tiny.csv") as f:
@@ -324,8 +278,7 @@ def test_tradeoff_sweep_reports_accuracy_against_time(run, tmp_path):
         ("update.steps", "10", "tradeoff-update-steps-10", "tiny/tradeoff-update-steps-10"),
         ("update.steps", "30", "full", "tiny/full"),
         ("static.iterations", "100", "full", f"{derived}/full"),
-        ("static.iterations", "300", "full", "tiny/full"),
-    ]
+        ("static.iterations", "300", "full", "tiny/full")]
     from anigs.tradeoff import SCENE_STAGES, benchmark_seconds
 
     update = json.loads((run / "tiny" / "tradeoff-update-steps-10" / "round1" / "update.json").read_text())

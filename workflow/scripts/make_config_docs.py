@@ -4,7 +4,6 @@ schema, and the results layout from the stages' ``Outputs`` types (``anigs.stage
     python workflow/scripts/make_config_docs.py          # rewrite
     python workflow/scripts/make_config_docs.py --check  # exit 1 if stale
 """
-
 from __future__ import annotations
 
 import argparse
@@ -84,15 +83,10 @@ def results_layout(stages=None) -> str:
     file of its ``LAYOUT`` (name, optional, what it holds)."""
     from anigs.stages import STAGES
 
-    lines = [
-        "",
-        "## Results layout",
-        "",
-        "Every stage writes one folder; the files below are its `Outputs` contract "
-        "(`anigs/stages/<stage>.py`), the only place that names them. `{round}` is the round, `{view}` a "
-        "queued view (`v00`, ...). Generated from the stages' `Outputs` types.",
-        "",
-    ]
+    lines = ["", "## Results layout", "",
+             "Every stage writes one folder; the files below are its `Outputs` contract "
+             "(`anigs/stages/<stage>.py`), the only place that names them. `{round}` is the round, `{view}` a "
+             "queued view (`v00`, ...). Generated from the stages' `Outputs` types.", ""]
     from anigs.stages.contract import outputs_of
 
     missing, seen = [], set()
@@ -110,11 +104,9 @@ def results_layout(stages=None) -> str:
             lines.append("")
     if missing:
         lines += [f"Stages that write no files of their own: {', '.join(missing)}.", ""]
-    lines += [
-        "Logs and Snakemake benchmark TSVs (time and memory per job) sit beside the stage folders in "
-        "`logs/` and `benchmarks/` folders; `snakemake study` writes the 2AFC study page to `results/study/`.",
-        "",
-    ]
+    lines += ["Logs and Snakemake benchmark TSVs (time and memory per job) sit beside the stage folders in "
+              "`logs/` and `benchmarks/` folders; `snakemake study` writes the 2AFC study page to `results/study/`.",
+              ""]
     return "\n".join(lines)
 
 
@@ -129,13 +121,8 @@ def build() -> str:
     lines += ["### Global", "", "| key | type | default | description |", "|---|---|---|---|"]
     _rows({"properties": dict(top)}, "", lines)
     for key, p in sections:
-        lines += [
-            "",
-            f"### `{key}`: {p.get('description', '')}",
-            "",
-            "| key | type | default | description |",
-            "|---|---|---|---|",
-        ]
+        lines += ["", f"### `{key}`: {p.get('description', '')}", "", "| key | type | default | description |",
+                  "|---|---|---|---|"]
         _rows(p, key + ".", lines)
     return "\n".join(lines) + "\n"
 

@@ -8,7 +8,6 @@ regenerates and compares, and a field without a doc fails the generator.
     python workflow/scripts/make_schema.py          # rewrite the schema
     python workflow/scripts/make_schema.py --check  # exit 1 if the committed schema is stale
 """
-
 from __future__ import annotations
 
 import argparse
@@ -57,11 +56,8 @@ def _own_docs(cls) -> dict[str, str]:
     except (OSError, TypeError):
         return {}
     lines = src.splitlines()
-    comments = {
-        t.start[0]: (t.start[1], t.string.lstrip("#").strip())
-        for t in tokenize.generate_tokens(io.StringIO(src).readline)
-        if t.type == tokenize.COMMENT
-    }
+    comments = {t.start[0]: (t.start[1], t.string.lstrip("#").strip())
+                for t in tokenize.generate_tokens(io.StringIO(src).readline) if t.type == tokenize.COMMENT}
     own = {f.name for f in dataclasses.fields(cls)}
     out = {}
     for node in ast.parse(src).body[0].body:
@@ -89,17 +85,9 @@ def _own_docs(cls) -> dict[str, str]:
 def _type(value, annotation) -> list[str] | str:
     ann = str(annotation)
     types = []
-    for py, js in (
-        ("bool", "boolean"),
-        ("int", "integer"),
-        ("float", "number"),
-        ("str", "string"),
-        ("list", "array"),
-        ("tuple", "array"),
-        ("dict", "object"),
-        ("Mapping", "object"),
-        ("Sequence", "array"),
-    ):
+    for py, js in (("bool", "boolean"), ("int", "integer"), ("float", "number"), ("str", "string"),
+                   ("list", "array"), ("tuple", "array"), ("dict", "object"), ("Mapping", "object"),
+                   ("Sequence", "array")):
         if re.search(rf"\b{py}\b", ann):
             types.append(js)
     if isinstance(value, bool):
@@ -167,103 +155,55 @@ MISSING: list[str] = []
 
 TOP = {
     "results": {"type": "string", "default": "results", "description": "folder where every artifact is written"},
-    "seed": {
-        "type": "integer",
-        "default": 0,
-        "description": "global random seed: the same config and seed give the same artifacts on CPU",
-    },
-    "device": {
-        "type": "string",
-        "default": "auto",
-        "pattern": "^(auto|cpu|cuda(:[0-9]+)?)$",
-        "description": "torch device of every stage: auto picks CUDA when present; cuda on a machine "
-        "without a GPU is an error before any job starts",
-    },
-    "round_jobs": {
-        "type": "string",
-        "enum": ["auto", "round", "view"],
-        "default": "auto",
-        "description": "how a round's work is split into jobs: round = one job per round (render, refine "
-        "and update: one Python start-up, models loaded once), view = one render_clip and one "
-        "refine job per view (a cluster's GPUs take the views in parallel), then an update "
-        "job, auto = round for local runs and view under a cluster executor; the artifacts "
-        "are byte-identical either way",
-    },
-    "scene_dir": {
-        "type": "string",
-        "default": "config/scenes",
-        "description": "folder of the scene files ({name}.yaml)",
-    },
-    "scenes": {
-        "type": "array",
-        "items": {"type": "string", "pattern": "^[A-Za-z0-9_.-]+$"},
-        "minItems": 1,
-        "default": ["demo"],
-        "description": "scenes to process (names of files in scene_dir)",
-    },
-    "variants": {
-        "type": "array",
-        "items": {"type": "string"},
-        "minItems": 1,
-        "default": ["full"],
-        "description": "method variants `snakemake` (rule all) builds; each lands in results/{scene}/{variant}",
-    },
-    "table_variants": {
-        "type": "array",
-        "items": {"type": "string"},
-        "default": ["full", "no_dataset_update", "no_view_expansion", "no_composed_v2v", "opt_all", "opt_deform_only"],
-        "description": "variants `snakemake tables` evaluates for the ablation table (paper Table 5)",
-    },
+    "seed": {"type": "integer", "default": 0,
+             "description": "global random seed: the same config and seed give the same artifacts on CPU"},
+    "device": {"type": "string", "default": "auto", "pattern": "^(auto|cpu|cuda(:[0-9]+)?)$",
+               "description": "torch device of every stage: auto picks CUDA when present; cuda on a machine "
+                              "without a GPU is an error before any job starts"},
+    "round_jobs": {"type": "string", "enum": ["auto", "round", "view"], "default": "auto",
+                   "description": "how a round's work is split into jobs: round = one job per round (render, refine "
+                                  "and update: one Python start-up, models loaded once), view = one render_clip and one "
+                                  "refine job per view (a cluster's GPUs take the views in parallel), then an update "
+                                  "job, auto = round for local runs and view under a cluster executor; the artifacts "
+                                  "are byte-identical either way"},
+    "scene_dir": {"type": "string", "default": "config/scenes", "description": "folder of the scene files ({name}.yaml)"},
+    "scenes": {"type": "array", "items": {"type": "string", "pattern": "^[A-Za-z0-9_.-]+$"}, "minItems": 1,
+               "default": ["demo"], "description": "scenes to process (names of files in scene_dir)"},
+    "variants": {"type": "array", "items": {"type": "string"}, "minItems": 1, "default": ["full"],
+                 "description": "method variants `snakemake` (rule all) builds; each lands in results/{scene}/{variant}"},
+    "table_variants": {"type": "array", "items": {"type": "string"},
+                       "default": ["full", "no_dataset_update", "no_view_expansion", "no_composed_v2v", "opt_all", "opt_deform_only"],
+                       "description": "variants `snakemake tables` evaluates for the ablation table (paper Table 5)"},
     "variant_overrides": {
         "type": "object",
-        "additionalProperties": {
-            "type": "object",
-            "additionalProperties": False,
-            "properties": {k: {"type": "object"} for k in sections_of("variant")},
-        },
+        "additionalProperties": {"type": "object", "additionalProperties": False,
+                                 "properties": {k: {"type": "object"} for k in sections_of("variant")}},
         "default": {},
         "description": "per-variant overrides of the animate/refine/update/final/export/eval sections "
-        "(the paper's ablations are just config)",
-    },
+                       "(the paper's ablations are just config)"},
     "tradeoff": {
-        "type": "object",
-        "additionalProperties": False,
-        "default": {},
+        "type": "object", "additionalProperties": False, "default": {},
         "description": "accuracy-versus-time sweep (`snakemake tradeoff`): one knob at a time around a base variant",
         "properties": {
             "base": {"type": "string", "default": "full", "description": "variant the sweep varies"},
-            "knobs": {
-                "type": "object",
-                "default": {},
-                "propertyNames": {
-                    "pattern": rf"^(({'|'.join(VARIANT_SECTIONS + SCENE_STAGES)})"
-                    r"(\.[A-Za-z0-9_.]+)?)$"
-                },
-                "additionalProperties": {"type": ["array", "null"], "minItems": 1},
-                "description": "section.key -> values, or section -> mappings of its keys; a per-variant section's "
-                "value becomes the variant tradeoff-SECTION-KEY-VALUE, a per-scene stage's (static, "
-                "views, masks) the derived scene SCENE--tradeoff-SECTION-KEY-VALUE; null drops a knob",
-            },
-            "plot_metrics": {
-                "type": "array",
-                "items": {"type": "string"},
-                "default": [],
-                "description": "metrics of metrics.json plotted against seconds, one PNG per knob",
-            },
-        },
-    },
+            "knobs": {"type": "object", "default": {},
+                      "propertyNames": {"pattern": rf"^(({'|'.join(VARIANT_SECTIONS + SCENE_STAGES)})"
+                                                   r"(\.[A-Za-z0-9_.]+)?)$"},
+                      "additionalProperties": {"type": ["array", "null"], "minItems": 1},
+                      "description": "section.key -> values, or section -> mappings of its keys; a per-variant section's "
+                                     "value becomes the variant tradeoff-SECTION-KEY-VALUE, a per-scene stage's (static, "
+                                     "views, masks) the derived scene SCENE--tradeoff-SECTION-KEY-VALUE; null drops a knob"},
+            "plot_metrics": {"type": "array", "items": {"type": "string"}, "default": [],
+                             "description": "metrics of metrics.json plotted against seconds, one PNG per knob"},
+        }},
 }
 
 
 def build() -> dict:
-    schema = {
-        "$schema": "https://json-schema.org/draft/2020-12/schema",
-        "description": "anigs workflow configuration (generated by workflow/scripts/make_schema.py from the "
-        "stages' config dataclasses: do not edit by hand)",
-        "type": "object",
-        "additionalProperties": False,
-        "properties": dict(TOP),
-    }
+    schema = {"$schema": "https://json-schema.org/draft/2020-12/schema",
+              "description": "anigs workflow configuration (generated by workflow/scripts/make_schema.py from the "
+                             "stages' config dataclasses: do not edit by hand)",
+              "type": "object", "additionalProperties": False, "properties": dict(TOP)}
     for name, (cls, desc) in sections().items():
         s = dataclass_schema(cls, (name,))
         s["description"] = desc
@@ -282,10 +222,8 @@ def main() -> int:
     args = ap.parse_args()
     text = dump(build())
     if MISSING:
-        print(
-            "fields without a doc (add a trailing comment, or #: lines above the field):\n  " + "\n  ".join(MISSING),
-            file=sys.stderr,
-        )
+        print("fields without a doc (add a trailing comment, or #: lines above the field):\n  "
+              + "\n  ".join(MISSING), file=sys.stderr)
         return 1
     if args.check:
         if not SCHEMA.exists() or SCHEMA.read_text() != text:

@@ -3,7 +3,6 @@
 - ``procedural`` (default): stochastic motion textures per effect type, offline, CPU.
 - ``ltx``: LTX-Video through diffusers with weights from a local folder (GPU; CPU for tests).
 """
-
 from __future__ import annotations
 
 from typing import Any, Mapping

@@ -11,7 +11,6 @@ when a scene lists several effect types.
   score (``has_score = True``); ``rendered_subclip`` is a torch tensor [T,H,W,3] that
   carries gradients to the renderer.
 """
-
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
@@ -30,7 +29,8 @@ def check_mask(mask: np.ndarray, height: int, width: int, what: str = "mask") ->
     if m.ndim != 2:
         raise ValueError(f"{what}: expected [H,W], got shape {m.shape}")
     if m.shape != (height, width):
-        raise ValueError(f"{what}: size {m.shape[1]}x{m.shape[0]} (WxH) does not match the clip {width}x{height}")
+        raise ValueError(f"{what}: size {m.shape[1]}x{m.shape[0]} (WxH) does not match the clip "
+                         f"{width}x{height}")
     m = m.astype(np.float32)
     if m.size and m.max() > 1.0:
         m = m / 255.0
@@ -60,15 +60,14 @@ class VideoPrior(ABC):
         """Refine a clip [T,H,W,3] -> [T,H,W,3] (same shape, float32 in [0,1])."""
 
     @abstractmethod
-    def generate(self, first_frame: np.ndarray, mask: MaskLike, prompt: str, seed: int, num_frames: int) -> np.ndarray:
+    def generate(self, first_frame: np.ndarray, mask: MaskLike, prompt: str, seed: int,
+                 num_frames: int) -> np.ndarray:
         """Animate one frame [H,W,3] -> clip [num_frames,H,W,3] whose frame 0 is the input."""
 
     def sds_loss(self, rendered_subclip, prompt: str, generator=None):
         """Score-distillation loss of a rendered clip (torch [T,H,W,3]) -> scalar tensor."""
-        raise NotImplementedError(
-            f"video prior {self.name!r} has no score: it cannot provide an SDS loss "
-            "(set lambda_sds: 0 or use prior: ltx)"
-        )
+        raise NotImplementedError(f"video prior {self.name!r} has no score: it cannot provide an SDS loss "
+                                  "(set lambda_sds: 0 or use prior: ltx)")
 
 
 def check_strength(strength: float) -> float:

@@ -40,7 +40,6 @@ mild 60° at 2 Hz), ``view_amplitude_log = 0.25`` (±28% per view), ``view_direc
 To measure them with LTX-Video on a GPU: refine one rendered clip with several seeds and compare
 the flows (:mod:`anigs.flow`) of the results in the dynamic and static regions.
 """
-
 from __future__ import annotations
 
 import logging
@@ -53,15 +52,8 @@ import numpy as np
 from anigs.typed_config import from_dict
 from anigs.flow import clip_backward_flow, identity_grid, warp
 from anigs.refine.prior.base import MaskLike, VideoPrior, check_mask, check_strength
-from anigs.refine.prior.spectral import (
-    EFFECTS,
-    MotionField,
-    effect_spec,
-    effects_from_prompt,
-    prompt_gain,
-    smooth_noise,
-    synthesize_effect,
-)
+from anigs.refine.prior.spectral import (EFFECTS, MotionField, effect_spec, effects_from_prompt, prompt_gain, smooth_noise,
+                                  synthesize_effect)
 from anigs.video import check_clip
 
 log = logging.getLogger(__name__)
@@ -72,20 +64,20 @@ class ProceduralConfig:
     """Config of the procedural prior (section ``procedural`` of the refine stage)."""
 
     effects: list[str] = field(default_factory=lambda: ["foliage_sway", "leaf_flutter"])  # effect types to synthesise
-    fps: float = 24.0  # frames per second of the clips (frequencies are in Hz)
+    fps: float = 24.0                 # frames per second of the clips (frequencies are in Hz)
     effect_params: dict[str, dict[str, Any]] = field(default_factory=dict)  # per-effect EffectSpec overrides
-    amplitude_scale: float = 1.0  # global amplitude multiplier
-    edge: float = 0.03  # mask-edge taper width, fraction of the shorter side
-    flow_preset: str = "medium"  # DIS preset for the motion estimate: ultrafast | fast | medium
+    amplitude_scale: float = 1.0      # global amplitude multiplier
+    edge: float = 0.03                # mask-edge taper width, fraction of the shorter side
+    flow_preset: str = "medium"       # DIS preset for the motion estimate: ultrafast | fast | medium
     #: effects from prompt keywords when `effects` is empty; intensity words scale amplitude
     use_prompt: bool = True
     # diffusion-prior flaws (module docstring); 0 = off, the clean prior
-    view_phase_frames: float = 0.0  # std of a per-view time shift of the motion kept from the clip (frames)
-    view_amplitude_log: float = 0.0  # std of the per-view log-gain of the refined motion
-    view_direction_deg: float = 0.0  # std of a per-view image-plane rotation of the refined motion (degrees)
-    static_drift_px: float = 0.0  # RMS drift of static pixels at the last frame (px), linear from frame 0
-    static_shimmer: float = 0.0  # std of per-frame intensity noise in static pixels ([0,1] units)
-    shimmer_corr_px: float = 1.5  # spatial correlation length of the shimmer (px)
+    view_phase_frames: float = 0.0    # std of a per-view time shift of the motion kept from the clip (frames)
+    view_amplitude_log: float = 0.0   # std of the per-view log-gain of the refined motion
+    view_direction_deg: float = 0.0   # std of a per-view image-plane rotation of the refined motion (degrees)
+    static_drift_px: float = 0.0      # RMS drift of static pixels at the last frame (px), linear from frame 0
+    static_shimmer: float = 0.0       # std of per-frame intensity noise in static pixels ([0,1] units)
+    shimmer_corr_px: float = 1.5      # spatial correlation length of the shimmer (px)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "ProceduralConfig":
@@ -128,11 +120,8 @@ class ViewFlaws:
         """Deterministic for the seed; independent of the motion texture's random stream."""
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, zlib.crc32(b"diffusion-flaws")])
         z = rng.standard_normal(3)
-        return ViewFlaws(
-            float(z[0] * cfg.view_phase_frames),
-            float(np.exp(z[1] * cfg.view_amplitude_log)),
-            float(np.deg2rad(z[2] * cfg.view_direction_deg)),
-        )
+        return ViewFlaws(float(z[0] * cfg.view_phase_frames), float(np.exp(z[1] * cfg.view_amplitude_log)),
+                         float(np.deg2rad(z[2] * cfg.view_direction_deg)))
 
     def transform(self, d: np.ndarray) -> np.ndarray:
         """Gain and rotation of a displacement field [...,2]."""
@@ -199,15 +188,8 @@ class ProceduralPrior(VideoPrior):
         m = check_mask(mask, height, width)
         return {name: m for name in effects}
 
-    def motion_field(
-        self,
-        masks: Mapping[str, np.ndarray],
-        height: int,
-        width: int,
-        seed: int,
-        prompt: str = "",
-        fps: float | None = None,
-    ) -> MotionField:
+    def motion_field(self, masks: Mapping[str, np.ndarray], height: int, width: int, seed: int,
+                     prompt: str = "", fps: float | None = None) -> MotionField:
         """Sample the displacement field of all effects (deterministic for ``seed``)."""
         motion = MotionField(height, width, float(fps or self.cfg.fps))
         gain = self.cfg.amplitude_scale * (prompt_gain(prompt) if self.cfg.use_prompt else 1.0)
@@ -217,15 +199,8 @@ class ProceduralPrior(VideoPrior):
         return motion
 
     # -- interface ----------------------------------------------------------------------
-    def refine(
-        self,
-        clip: np.ndarray,
-        mask: MaskLike,
-        prompt: str = "",
-        seed: int = 0,
-        strength: float = 0.5,
-        fps: float | None = None,
-    ) -> np.ndarray:
+    def refine(self, clip: np.ndarray, mask: MaskLike, prompt: str = "", seed: int = 0,
+               strength: float = 0.5, fps: float | None = None) -> np.ndarray:
         """Refine a clip [T,H,W,3] (see module docstring); returns float32 [T,H,W,3]."""
         clip = check_clip(clip).astype(np.float32, copy=False)
         s = check_strength(strength)
@@ -234,12 +209,11 @@ class ProceduralPrior(VideoPrior):
         region = np.zeros((H, W), bool)
         for m in masks.values():
             region |= m > 0.5
-        self.last_info = {"effects": sorted(masks), "region_fraction": float(region.mean()), "strength": s, "frames": T}
+        self.last_info = {"effects": sorted(masks), "region_fraction": float(region.mean()), "strength": s,
+                          "frames": T}
         if not region.any() or T == 1:
-            log.info(
-                "procedural refine: %s: clip passes through unchanged",
-                "empty dynamic mask" if not region.any() else "single-frame clip",
-            )
+            log.info("procedural refine: %s: clip passes through unchanged",
+                     "empty dynamic mask" if not region.any() else "single-frame clip")
             return clip.copy()
         motion = self.motion_field(masks, H, W, seed, prompt, fps)
         est = clip_backward_flow(clip, self.cfg.flow_preset) if s < 1.0 else None
@@ -262,24 +236,12 @@ class ProceduralPrior(VideoPrior):
         self.last_info["max_displacement_px"] = max_disp
         if flaws is not None:
             self._static_flaws(out, clip, region, seed)
-            self.last_info["flaws"] = {
-                "phase_frames": flaws.phase,
-                "gain": flaws.gain,
-                "angle_deg": float(np.rad2deg(flaws.angle)),
-                "static_drift_px": self.cfg.static_drift_px,
-                "static_shimmer": self.cfg.static_shimmer,
-            }
-        log.info(
-            "procedural refine: T=%d %dx%d effects=%s strength=%.2f seed=%d region=%.1f%% max|d|=%.2fpx",
-            T,
-            W,
-            H,
-            sorted(masks),
-            s,
-            seed,
-            100 * region.mean(),
-            max_disp,
-        )
+            self.last_info["flaws"] = {"phase_frames": flaws.phase, "gain": flaws.gain,
+                                       "angle_deg": float(np.rad2deg(flaws.angle)),
+                                       "static_drift_px": self.cfg.static_drift_px,
+                                       "static_shimmer": self.cfg.static_shimmer}
+        log.info("procedural refine: T=%d %dx%d effects=%s strength=%.2f seed=%d region=%.1f%% max|d|=%.2fpx",
+                 T, W, H, sorted(masks), s, seed, 100 * region.mean(), max_disp)
         return np.clip(out, 0.0, 1.0)
 
     def _static_flaws(self, out: np.ndarray, clip: np.ndarray, region: np.ndarray, seed: int) -> None:
@@ -294,7 +256,7 @@ class ProceduralPrior(VideoPrior):
         drift = None
         if cfg.static_drift_px > 0:
             field = np.stack(list(smooth_noise(rng, H, W, 0.25 * min(H, W), 2)), -1)  # unit variance per component
-            field *= cfg.static_drift_px / max(float(np.sqrt((field**2).sum(-1).mean())), 1e-12)
+            field *= cfg.static_drift_px / max(float(np.sqrt((field ** 2).sum(-1).mean())), 1e-12)
             drift = field.astype(np.float32)
         for t in range(1, T):
             frame = clip[t]
@@ -305,15 +267,8 @@ class ProceduralPrior(VideoPrior):
                 frame = frame + cfg.static_shimmer * noise
             out[t] = np.where(still, np.clip(frame, 0.0, 1.0), out[t])
 
-    def generate(
-        self,
-        first_frame: np.ndarray,
-        mask: MaskLike,
-        prompt: str = "",
-        seed: int = 0,
-        num_frames: int = 49,
-        fps: float | None = None,
-    ) -> np.ndarray:
+    def generate(self, first_frame: np.ndarray, mask: MaskLike, prompt: str = "", seed: int = 0,
+                 num_frames: int = 49, fps: float | None = None) -> np.ndarray:
         """Animate one frame [H,W,3] into a clip [num_frames,H,W,3] (frame 0 = input)."""
         if num_frames < 1:
             raise ValueError(f"num_frames must be >= 1, got {num_frames}")

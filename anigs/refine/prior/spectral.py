@@ -17,7 +17,6 @@ frequencies are in Hz at ``fps`` frames per second. The field is exactly 0 outsi
 effect's mask and tapers smoothly to 0 at the mask boundary (``edge`` in px, at least
 ``edge_amp_ratio`` x the amplitude) so the warp never folds or tears.
 """
-
 from __future__ import annotations
 
 import zlib
@@ -36,17 +35,17 @@ KINDS = ("oscillate", "travel", "ripple")
 class EffectSpec:
     """Parameters of one effect type (lengths/amplitudes as fractions of the shorter image side)."""
 
-    band_hz: tuple[float, float]  # temporal band [lo, hi] of the oscillators, Hz
-    amplitude: float  # RMS displacement where the profile is 1
-    corr_len: float  # spatial correlation length (Gaussian filter sigma)
-    kind: str = "oscillate"  # oscillate | travel (waves along wind_dir) | ripple (water)
+    band_hz: tuple[float, float]     # temporal band [lo, hi] of the oscillators, Hz
+    amplitude: float                 # RMS displacement where the profile is 1
+    corr_len: float                  # spatial correlation length (Gaussian filter sigma)
+    kind: str = "oscillate"          # oscillate | travel (waves along wind_dir) | ripple (water)
     axis_weights: tuple[float, float] = (1.0, 1.0)  # x, y weight (oscillate) / along, across (travel)
-    profile: str = "uniform"  # uniform | anchor (grows away from the region's bottom)
-    anchor_floor: float = 0.15  # profile value at the anchor (bottom) for profile=anchor
-    n_modes: int = 4  # oscillators per component
-    wind_dir_deg: float = 0.0  # travel: wind direction in the image, 0 = +x, 90 = +y (down)
-    wave_speed: float = 0.3  # travel: phase speed, shorter sides per second
-    wavelength: float = 0.06  # ripple: wavelength
+    profile: str = "uniform"         # uniform | anchor (grows away from the region's bottom)
+    anchor_floor: float = 0.15       # profile value at the anchor (bottom) for profile=anchor
+    n_modes: int = 4                 # oscillators per component
+    wind_dir_deg: float = 0.0        # travel: wind direction in the image, 0 = +x, 90 = +y (down)
+    wave_speed: float = 0.3          # travel: phase speed, shorter sides per second
+    wavelength: float = 0.06         # ripple: wavelength
 
     def __post_init__(self) -> None:
         lo, hi = self.band_hz
@@ -62,21 +61,19 @@ class EffectSpec:
 
 EFFECTS: dict[str, EffectSpec] = {
     # large coherent crowns, slow, amplitude grows with height above the anchor, mostly horizontal
-    "foliage_sway": EffectSpec(
-        band_hz=(0.3, 0.9), amplitude=0.008, corr_len=0.25, profile="anchor", axis_weights=(1.0, 0.35), n_modes=3
-    ),
+    "foliage_sway": EffectSpec(band_hz=(0.3, 0.9), amplitude=0.008, corr_len=0.25, profile="anchor",
+                               axis_weights=(1.0, 0.35), n_modes=3),
     # small-scale fast jitter of leaves
     "leaf_flutter": EffectSpec(band_hz=(2.0, 5.0), amplitude=0.002, corr_len=0.02, n_modes=4),
     # waves travelling across the grass along the wind direction
-    "grass_wave": EffectSpec(
-        band_hz=(0.5, 1.5), amplitude=0.005, corr_len=0.08, kind="travel", axis_weights=(1.0, 0.2), n_modes=3
-    ),
+    "grass_wave": EffectSpec(band_hz=(0.5, 1.5), amplitude=0.005, corr_len=0.08, kind="travel",
+                             axis_weights=(1.0, 0.2), n_modes=3),
     # flowers bobbing mostly vertically, neighbours out of phase
-    "flower_bob": EffectSpec(band_hz=(0.8, 2.0), amplitude=0.003, corr_len=0.04, axis_weights=(0.4, 1.0), n_modes=3),
+    "flower_bob": EffectSpec(band_hz=(0.8, 2.0), amplitude=0.003, corr_len=0.04,
+                             axis_weights=(0.4, 1.0), n_modes=3),
     # refraction-like shimmer of a rippling water surface
-    "water_ripple": EffectSpec(
-        band_hz=(0.8, 2.5), amplitude=0.0015, corr_len=0.1, kind="ripple", n_modes=8, wavelength=0.06
-    ),
+    "water_ripple": EffectSpec(band_hz=(0.8, 2.5), amplitude=0.0015, corr_len=0.1, kind="ripple",
+                               n_modes=8, wavelength=0.06),
 }
 
 
@@ -126,11 +123,8 @@ class MotionField:
 
     def sequence(self, num_frames: int) -> np.ndarray:
         """All frames [T,H,W,2]."""
-        return (
-            np.stack([self.at(t) for t in range(num_frames)])
-            if num_frames
-            else np.zeros((0, self.height, self.width, 2), np.float32)
-        )
+        return np.stack([self.at(t) for t in range(num_frames)]) if num_frames else \
+            np.zeros((0, self.height, self.width, 2), np.float32)
 
 
 def smooth_noise(rng: np.random.Generator, height: int, width: int, sigma_px: float, count: int) -> np.ndarray:
@@ -145,7 +139,7 @@ def smooth_noise(rng: np.random.Generator, height: int, width: int, sigma_px: fl
     out = np.empty((count, height, width), np.float32)
     for i in range(count):
         n = rng.standard_normal((hc + 2 * pad, wc + 2 * pad)).astype(np.float32)
-        f = cv2.GaussianBlur(n, (0, 0), sig)[pad : pad + hc, pad : pad + wc]
+        f = cv2.GaussianBlur(n, (0, 0), sig)[pad:pad + hc, pad:pad + wc]
         if step > 1:
             f = cv2.resize(f, (width, height), interpolation=cv2.INTER_CUBIC)
         f = f[:height, :width]
@@ -181,16 +175,8 @@ def edge_taper(region: np.ndarray, edge_px: float) -> np.ndarray:
     return (x * x * (3.0 - 2.0 * x)).astype(np.float32)
 
 
-def synthesize_effect(
-    motion: MotionField,
-    name: str,
-    spec: EffectSpec,
-    mask: np.ndarray,
-    seed: int,
-    edge: float = 0.03,
-    edge_amp_ratio: float = 6.0,
-    gain: float = 1.0,
-) -> None:
+def synthesize_effect(motion: MotionField, name: str, spec: EffectSpec, mask: np.ndarray, seed: int,
+                      edge: float = 0.03, edge_amp_ratio: float = 6.0, gain: float = 1.0) -> None:
     """Add effect ``name`` inside ``mask`` [H,W] (>0.5 = region) to ``motion``.
 
     Deterministic for (seed, effect name). ``edge``: taper width as a fraction of the shorter side.
@@ -220,14 +206,14 @@ def synthesize_effect(
             b[..., c] = scale * spec.axis_weights[c] * nz[:, 2 * c + 1]
     elif spec.kind == "travel":
         th = np.deg2rad(spec.wind_dir_deg)
-        u = np.array([np.cos(th), np.sin(th)], np.float32)  # along the wind
-        v = np.array([-np.sin(th), np.cos(th)], np.float32)  # across
+        u = np.array([np.cos(th), np.sin(th)], np.float32)      # along the wind
+        v = np.array([-np.sin(th), np.cos(th)], np.float32)     # across
         gx, gy = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
         along = gx * u[0] + gy * u[1]
         jitter = smooth_noise(rng, H, W, sigma, 3 * K).reshape(K, 3, H, W)
         speed_px = spec.wave_speed * short
         for k in range(K):
-            lam = speed_px / freqs[k]  # wavelength so that phase speed = wave_speed
+            lam = speed_px / freqs[k]                           # wavelength so that phase speed = wave_speed
             phase = -2 * np.pi * along / lam + 0.6 * jitter[k, 0] + rng.uniform(0, 2 * np.pi)
             mag = weight[0] / np.sqrt(K) * np.clip(1.0 + 0.3 * jitter[k, 1], 0.2, None)
             # cos(wt + phase) = cos(phase) cos(wt) - sin(phase) sin(wt)
