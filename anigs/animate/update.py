@@ -76,7 +76,7 @@ class UpdateConfig:
     max_angle_deg: float | None = None  # smooth limit on rotation offsets in degrees (null = none)
     effect_limits: dict = field(default_factory=dict)  # per-effect-label overrides of the three limits
     #: per-effect capacity, {key: K_e <= num_bases}: the Gaussians of that effect use only the first K_e DCT bases (the
-    #: rest stay zero); key = a label of an int --dynamic mask ("1", "2", ...; with a bool mask every dynamic Gaussian
+    #: rest stay zero); key = a label of the masks stage's effect labels ("1", "2", ...; without them every dynamic Gaussian
     #: is "1") or an effect name (foliage_sway, leaf_flutter: label 1, grass_wave 2, flower_bob 3, water_ripple 4 = 1 +
     #: the effects stage's region index; effects sharing a label take their largest K_e, unnamed ones count as
     #: num_bases); {} = all use num_bases. Default: grass and flowers 6 (demo, labels from the masks stage: their
@@ -97,7 +97,7 @@ class UpdateConfig:
     #: containment: most blending weight (in pixels) a moving Gaussian may put outside, in any frame and view (0.05
     #: left 1-3 levels of change on flower-llff)
     contain_max_outside_px: float = 0.01
-    #: which rounds' updates contain the motion (the workflow passes --masks to them): final (the model that is
+    #: which rounds' updates contain the motion (the update stage decides from --round/--rounds): final (the model that is
     #: rendered, exported and evaluated; an earlier round's model only renders the next round's clips, whose static
     #: pixels ComposedV2V pastes back from frame 0) or every
     contain_rounds: str = "final"
