@@ -95,15 +95,12 @@ def part_capture(args) -> dict:
 def _load_capture(d: Path):
     """(images, cameras, points [P,3], colours [P,3], background) of a capture written by ``capture``."""
     from anigs.images import load_inputs
+    from _pseudo_sfm import pseudo_sfm_points
     from anigs.stages.capture import Outputs as CaptureOutputs
 
     cap = CaptureOutputs(d)
     imgs, cams = load_inputs(cap.path("images"), cap.path("gt_cameras"))
-    g = cap.gt_gaussians()
-    rng = np.random.default_rng(0)
-    pts = g.means.numpy()[::6].astype(np.float64)
-    pts = pts + rng.normal(0, 0.02, pts.shape)
-    cols = g.rgb.clamp(0, 1).numpy()[::6]
+    pts, cols = pseudo_sfm_points(cap)
     return imgs, cams, pts, cols, cap.gt_background() or [0.0, 0.0, 0.0]
 
 

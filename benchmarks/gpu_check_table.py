@@ -28,21 +28,29 @@ def _psnr_at(curve: list[dict], it: int):
     return next((r["test_psnr"] for r in curve if r["iteration"] == it), None)
 
 
-def _static(work: Path) -> str:
-    g, c = _load(work, "static"), _load(work, "static_cpu")
+def _with_cpu(work: Path, name: str, line, cpu_line) -> str:
+    """``line(g)`` of part ``name`` and, where its ``name_cpu`` run exists, ``cpu_line(g, c)`` after it."""
+    g, c = _load(work, name), _load(work, f"{name}_cpu")
     if not g:
         return ""
-    out = (f"{g['device']}/{g['backend']}: {g['iterations']} steps in {_f(g['train_seconds'])} s, step "
-           f"{_f(g['step_ms_median'], '.2f')} ms (median), held-out PSNR {_f(g['test_psnr'], '.2f')} dB, "
-           f"{g['num_gaussians']} Gaussians")
-    if c:
+    return line(g) + (cpu_line(g, c) if c else "")
+
+
+def _static(work: Path) -> str:
+    def line(g: dict) -> str:
+        return (f"{g['device']}/{g['backend']}: {g['iterations']} steps in {_f(g['train_seconds'])} s, step "
+                f"{_f(g['step_ms_median'], '.2f')} ms (median), held-out PSNR {_f(g['test_psnr'], '.2f')} dB, "
+                f"{g['num_gaussians']} Gaussians")
+
+    def cpu_line(g: dict, c: dict) -> str:
         its = [r["iteration"] for r in c["curve"] if r["iteration"] > 0]
         pairs = ", ".join(f"{i}: {_f(_psnr_at(g['curve'], i), '.2f')} vs {_f(_psnr_at(c['curve'], i), '.2f')}"
                           for i in its)
         ratio = c["step_ms_median"] / g["step_ms_median"] if g.get("step_ms_median") and c.get("step_ms_median") else None
-        out += (f"; CPU ({c['torch_threads']} threads, {c['iterations']} steps): step {_f(c['step_ms_median'], '.2f')} ms "
+        return (f"; CPU ({c['torch_threads']} threads, {c['iterations']} steps): step {_f(c['step_ms_median'], '.2f')} ms "
                 f"({_f(ratio)}x); held-out PSNR at step {pairs} dB")
-    return out
+
+    return _with_cpu(work, "static", line, cpu_line)
 
 
 def _static_cpu(work: Path) -> str:
@@ -56,7 +64,9 @@ def _agree(work: Path) -> str:
         return ""
     grads = ", ".join(f"{n} {_f(v['min_cos'], '.4f')}/{_f(v['max_rel'], '.3f')}" for n, v in a["worst_grad"].items())
     tol = a["tolerance"]
-    model = "the ground truth (the fit failed)" if a.get("model", "").endswith("gaussians.ply") else "the fitted model"
+    from anigs.stages.capture import Outputs as CaptureOutputs  # lazy: the table runs even where torch failed
+
+    model = "the ground truth (the fit failed)" if a.get("model", "").endswith(Path(CaptureOutputs.LAYOUT["gt_gaussians"].name).name) else "the fitted model"
     return (f"{'PASS' if a['pass'] else 'OUTSIDE TOLERANCE'}: {a['backend']} vs CPU kernel on {model}, {a['gaussians']} Gaussians, "
             f"{a['views']} views: image PSNR min {_f(a['min_psnr'], '.1f')} / mean {_f(a['mean_psnr'], '.1f')} dB "
             f"(>= {tol['psnr_db']}); gradient worst cosine/relative L2 error {grads} "
@@ -75,16 +85,13 @@ def _ltx(work: Path) -> str:
 
 
 def _update(work: Path) -> str:
-    g, c = _load(work, "update"), _load(work, "update_cpu")
-    if not g:
-        return ""
-    out = (f"{g['device']}/{g['backend']}: {g['steps']} steps in {_f(g['seconds'], '.2f')} s "
-           f"({_f(g['steps_per_s'], '.1f')} steps/s), {g['gaussians']} Gaussians ({g['dynamic']} dynamic), "
-           f"{g['views']} views {g['size']}x{g['frames']} frames, loss {_f(g['first_loss'], '.4f')} -> "
-           f"{_f(g['last_loss'], '.4f')}, finite {g['finite']}")
-    if c:
-        out += f"; CPU: {_f(c['steps_per_s'], '.2f')} steps/s ({c['steps']} steps)"
-    return out
+    def line(g: dict) -> str:
+        return (f"{g['device']}/{g['backend']}: {g['steps']} steps in {_f(g['seconds'], '.2f')} s "
+                f"({_f(g['steps_per_s'], '.1f')} steps/s), {g['gaussians']} Gaussians ({g['dynamic']} dynamic), "
+                f"{g['views']} views {g['size']}x{g['frames']} frames, loss {_f(g['first_loss'], '.4f')} -> "
+                f"{_f(g['last_loss'], '.4f')}, finite {g['finite']}")
+
+    return _with_cpu(work, "update", line, lambda g, c: f"; CPU: {_f(c['steps_per_s'], '.2f')} steps/s ({c['steps']} steps)")
 
 
 def _demo(work: Path) -> str:
@@ -95,11 +102,12 @@ def _demo(work: Path) -> str:
     from anigs.benchmark_tsv import benchmark_files, rule_breakdown
 
     from anigs.stages.final import Outputs as FinalOutputs
+    from anigs.stages.static import Outputs as StaticOutputs
 
     summary = FinalOutputs.LAYOUT["summary"].name
     parts = [f"{len(list(res.glob(f'*/*/final/{summary}')))} {summary}"]
-    for m in sorted(res.glob("*/static/metrics.json")):
-        parts.append(f"static held-out PSNR {_f(json.loads(m.read_text()).get('test_psnr'), '.2f')} dB")
+    for m in sorted(res.glob(StaticOutputs.pattern("metrics", StaticOutputs.FOLDER.format(scene="*")))):
+        parts.append(f"static held-out PSNR {_f(StaticOutputs(m.parent).json('metrics').get('test_psnr'), '.2f')} dB")
     rows = rule_breakdown(benchmark_files(res))
     if rows:
         parts.append("job seconds by rule: " + ", ".join(f"{r['rule']} {r['seconds']:.1f} ({r['jobs']})" for r in rows[:7]))

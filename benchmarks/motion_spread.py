@@ -20,12 +20,19 @@ from pathlib import Path
 
 import numpy as np
 
+from anigs.stages.capture import Outputs as CaptureOutputs
+from anigs.stages.eval import Outputs as EvalOutputs
+from anigs.stages.sfm import Outputs as SfmOutputs
+from anigs.stages.static import Outputs as StaticOutputs
+from anigs.stages.update import Outputs as UpdateOutputs
+
 
 def _final_model(scene_dir: Path, variant: str) -> Path:
-    rounds = sorted((scene_dir / variant).glob("round*/model.pt"), key=lambda p: int(p.parent.name[5:]))
+    rounds = sorted((UpdateOutputs(d) for d in (scene_dir / variant).glob("round*") if UpdateOutputs(d).exists("model")),
+                    key=lambda o: int(o.root.name[5:]))
     if not rounds:
-        raise SystemExit(f"{scene_dir / variant}: no round*/model.pt")
-    return rounds[-1]
+        raise SystemExit(f"{scene_dir / variant}: no round*/{UpdateOutputs.LAYOUT['model'].name}")
+    return rounds[-1].path("model")
 
 
 def analyse(scene_dir: Path, variant: str, boot: int, seed: int) -> dict:
@@ -34,30 +41,29 @@ def analyse(scene_dir: Path, variant: str, boot: int, seed: int) -> dict:
     from scipy.stats import wasserstein_distance
 
     from anigs.animate.deform import load_model
-    from anigs.cameras import load_cameras
-    from anigs.gaussians import Gaussians
     from anigs.geometry.extent import scene_extent
-    from anigs.io import read_json
     from anigs.sfm.align import align_cameras
     from anigs.metrics.motion import trajectory_stats
     from anigs.synth.motion import MotionParams, gt_clip_offsets
 
-    gt_dir = scene_dir / "capture" / "gt"
-    canon, deformation, _ = load_model(_final_model(scene_dir, variant), scene_dir / "static" / "canonical.ply")
+    results, scene = scene_dir.parent, scene_dir.name
+    capture = CaptureOutputs.at(results, scene=scene)
+    canon, deformation, _ = load_model(_final_model(scene_dir, variant),
+                                       StaticOutputs.at(results, scene=scene).path("canonical"))
     T = deformation.num_frames
     with torch.no_grad():
         learned = deformation.trajectories(canon.means, torch.arange(T)).permute(1, 0, 2).double().numpy()
     dyn_idx = deformation.dynamic_index.numpy()
-    gt_g = Gaussians.load_ply(gt_dir / "gaussians.ply")
-    labels = np.load(gt_dir / "labels.npy")
-    params = MotionParams.from_dict(read_json(gt_dir / "motion.json")["params"])
-    names = {int(k): v for k, v in read_json(gt_dir / "motion.json")["labels"].items()}
-    off = gt_clip_offsets(params, gt_g.means, torch.as_tensor(np.load(gt_dir / "anchors.npy")),
+    gt_g = capture.gt_gaussians()
+    labels = capture.gt_labels()
+    params = MotionParams.from_dict(capture.gt_motion()["params"])
+    names = {int(k): v for k, v in capture.gt_motion()["labels"].items()}
+    off = gt_clip_offsets(params, gt_g.means, torch.as_tensor(capture.gt_anchors()),
                           torch.as_tensor(labels).long())
     moving = (off.abs().amax(dim=(0, 2)) > 0).numpy()
     gt_traj = (gt_g.means[moving][None] + off[:, moving]).permute(1, 0, 2).double().numpy()
-    cams = load_cameras(scene_dir / "sfm" / "cameras.json")
-    gt_cams = load_cameras(gt_dir / "cameras.json")
+    cams = SfmOutputs.at(results, scene=scene).cameras()
+    gt_cams = capture.gt_cameras()
     a_l, f_l = trajectory_stats(learned, scene_extent(cams))
     a_g, f_g = trajectory_stats(gt_traj, scene_extent(gt_cams))
     f_g = f_g[np.isfinite(f_g)]
@@ -94,7 +100,7 @@ def analyse(scene_dir: Path, variant: str, boot: int, seed: int) -> dict:
         by[name].update({"gt_n": int(m.sum()), "gt_amp_median": float(np.median(a_gt_all[m])),
                          "gt_freq_median": float(np.nanmedian(f_gt_all[m]))})
     out["by_label"] = by
-    metrics = scene_dir / variant / "eval" / "metrics.json"
+    metrics = EvalOutputs.at(results, scene=scene, variant=variant).path("metrics")
     if metrics.exists():
         m = json.loads(metrics.read_text()).get("metrics", {})
         out["eval"] = {k: m.get(k, {}).get("value") for k in ("gt/amplitude_w1", "gt/frequency_w1", "multiview/psnr_novel")}

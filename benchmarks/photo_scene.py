@@ -165,7 +165,7 @@ def figures(args, scene_dir: Path, variant_dir: Path) -> dict:
     if ev:
         rec = ev["metrics"].get("static_outside_mask_still")
         if rec is None:
-            fig["still"] = {"available": False, "reason": "not in metrics.json (an older eval)"}
+            fig["still"] = {"available": False, "reason": f"not in {EvalOutputs.LAYOUT['metrics'].name} (an older eval)"}
         elif not rec.get("available"):
             fig["still"] = {"available": False, "reason": rec.get("reason")}
         else:

@@ -52,6 +52,9 @@ from pathlib import Path
 
 import numpy as np
 
+from anigs.stages.capture import Outputs as CaptureOutputs  # capture and sfm import no torch (see measure())
+from anigs.stages.sfm import Outputs as SfmOutputs
+
 ROOT = Path(__file__).resolve().parents[1]
 
 # axis -> (the demo's value, the full grid, the default subset, stages)
@@ -139,15 +142,16 @@ def photo_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
     if args.smoke:
         return out  # SfM needs real-sized photos
     sfm = {**sec("sfm"), **json.loads(args.sfm_params)}
-    out["sfm"] = measure(anigs_cmd(args.threads, "sfm", "--images", str(d / "capture" / "images"), "--out",
-                                   str(d / "sfm"), "--gt-cameras", str(d / "capture" / "gt" / "cameras.json"),
+    capture, sfm_out = CaptureOutputs(d / "capture"), SfmOutputs(d / "sfm")
+    out["sfm"] = measure(anigs_cmd(args.threads, "sfm", "--images", str(capture.path("images")), "--out",
+                                   str(sfm_out.root), "--gt-cameras", str(capture.path("gt_cameras")),
                                    "--params", json.dumps(sfm)), d / "sfm.log")
     static = {**sec("static"), "device": config["device"], "seed": config["seed"]}
     if args.static_iterations:
         static["iterations"] = args.static_iterations
-    out["static"] = measure(anigs_cmd(args.threads, "static", "--images", str(d / "sfm" / "images"),
-                                      "--cameras", str(d / "sfm" / "cameras.json"), "--points",
-                                      str(d / "sfm" / "points.npz"), "--out", str(d / "static"),
+    out["static"] = measure(anigs_cmd(args.threads, "static", "--images", str(sfm_out.path("images")),
+                                      "--cameras", str(sfm_out.path("cameras")), "--points",
+                                      str(sfm_out.path("points")), "--out", str(d / "static"),
                                       "--params", json.dumps(static), "--no-progress"), d / "static.log")
     m = json.loads((d / "static" / "metrics.json").read_text())
     out["static"].update(test_psnr=m["test_psnr"], num_gaussians=m["num_gaussians"])

@@ -135,7 +135,7 @@ def bench(capture: Path, out: Path, params: dict, label: str, repeats: int = 1, 
               f"max {e['center_error_pct_extent']['max']:.3f}% of extent ({e['extent']:.2f} world units)")
         print(f"focal error        {e['focal_error_pct']['max']:.3f}%")
     else:
-        print("rotation/centre    no ground truth (gt/cameras.json) in the capture folder")
+        print(f"rotation/centre    no ground truth ({capture_stage.Outputs.LAYOUT['gt_cameras'].name}) in the capture folder")
     if compare_to:
         agree = pose_agreement(sfm_out.cameras(), sfm_stage.Outputs(compare_to).cameras())
         figures["agreement"] = {"reference": str(compare_to), **agree}

@@ -60,8 +60,10 @@ def repeat(args) -> None:
         md5s.append(md5)
         secs.append(s)
         print(f"run {k:2d}  {md5}  {s:6.1f} s  load {os.getloadavg()[0]:.1f}", flush=True)
+    from anigs.stages.sfm import Outputs as SfmOutputs
+
     counts = collections.Counter(md5s)
-    print(f"\n{args.runs} runs, {len(counts)} distinct cameras.json; median {statistics.median(secs):.1f} s per run "
+    print(f"\n{args.runs} runs, {len(counts)} distinct {SfmOutputs.LAYOUT['cameras'].name}; median {statistics.median(secs):.1f} s per run "
           f"(min {min(secs):.1f}, max {max(secs):.1f})")
     for md5, n in counts.most_common():
         print(f"  {md5}  {n} run(s)")

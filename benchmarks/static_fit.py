@@ -50,6 +50,7 @@ from anigs.static.fit import FitConfig, fit_static  # noqa: E402
 
 def load_scene(scene: Path | None):
     """(images [H,W,3] list, cameras, points [P,3], colours [P,3], background, description)."""
+    from _pseudo_sfm import pseudo_sfm_points
     from anigs.images import load_inputs
     from anigs.stages.capture import Outputs as CaptureOutputs
     from anigs.stages.sfm import Outputs as SfmOutputs
@@ -68,11 +69,7 @@ def load_scene(scene: Path | None):
     write_capture(None, tmp)
     cap = CaptureOutputs(tmp)
     imgs, cams = load_inputs(cap.path("images"), cap.path("gt_cameras"))
-    g = cap.gt_gaussians()
-    rng = np.random.default_rng(0)
-    pts = g.means.numpy()[::6].astype(np.float64)
-    pts = pts + rng.normal(0, 0.02, pts.shape)
-    cols = g.rgb.clamp(0, 1).numpy()[::6]
+    pts, cols = pseudo_sfm_points(cap)
     return imgs, cams, pts, cols, _capture_background(cap), "embedded demo capture, GT cameras, pseudo-SfM points"
 
 

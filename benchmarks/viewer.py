@@ -28,6 +28,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from anigs.stages.export import Outputs as ExportOutputs
+from anigs.stages.view import Outputs as ViewOutputs
+
 
 def _driver(width: int, height: int, gpu: bool):
     from selenium import webdriver
@@ -49,13 +52,14 @@ def _sizes(out: Path, canonical, deformation) -> dict:
     from anigs.export import save_animated_ply
     from anigs.viewer.compact import save_compact, write_frame_plys
 
-    save_compact(out / "scene.anigs", canonical, deformation)
-    frames = write_frame_plys(out / "ply_export", canonical, deformation)
-    save_animated_ply(out / "ply_export" / "animated.ply", canonical, deformation)
-    frame_bytes = sum((out / "ply_export" / f).stat().st_size for f in frames)
-    dct_ply = (out / "ply_export" / "animated.ply").stat().st_size
-    compact = (out / "scene.anigs").stat().st_size
-    shutil.rmtree(out / "ply_export")
+    compact_path, ply_export = ExportOutputs(out).path("compact"), ExportOutputs(out / "ply_export")
+    save_compact(compact_path, canonical, deformation)
+    frames = write_frame_plys(ply_export.root, canonical, deformation)
+    save_animated_ply(ply_export.path("ply"), canonical, deformation)
+    frame_bytes = sum((ply_export.root / f).stat().st_size for f in frames)
+    dct_ply = ply_export.path("ply").stat().st_size
+    compact = compact_path.stat().st_size
+    shutil.rmtree(ply_export.root)
     return {"compact_bytes": compact, "frame_plys_bytes": frame_bytes, "num_frame_plys": len(frames),
             "dct_ply_bytes": dct_ply, "today_export_bytes": frame_bytes + dct_ply,
             "ratio_today_over_compact": (frame_bytes + dct_ply) / compact}
@@ -91,7 +95,7 @@ def main() -> int:
     summary = build_viewer(a.model, out / "viewer", a.views, canonical=a.canonical)
     result["build_s"] = time.perf_counter() - t0
     result["viewer_folder_bytes"] = summary["folder_bytes"]
-    bg = torch.tensor(json.loads((out / "viewer" / "config.js").read_text().split("=", 1)[1].rstrip().rstrip(";"))
+    bg = torch.tensor(json.loads(ViewOutputs(out / "viewer").path("config").read_text().split("=", 1)[1].rstrip().rstrip(";"))
                       ["background"])
     cams = cameras_from_views(json.loads(Path(a.views).read_text()))
     times = [min(max(t, 0.0), deformation.num_frames - 1) for t in a.times]

@@ -7,11 +7,11 @@ import pytest
 import torch
 
 from anigs.animate import deform
-from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
+from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.gaussians import Gaussians
-from anigs.io import write_json
 from anigs.metrics.still_labels import KEY, moving_labelled_still
 from anigs.synth import ALL_LABELS, LABEL_IDS
+from tests._gt import write_gt
 
 
 @pytest.mark.parametrize("wrong", [0, 15])
@@ -21,15 +21,9 @@ def test_share_of_moving_gaussians_labelled_still(tmp_path, wrong):
     means = np.concatenate([rng.uniform(-1, 1, (n_leaf, 3)) + [0, 0, 2], rng.uniform(-1, 1, (n_ground, 3)) * [1, 1, 0]])
     labels = np.array([LABEL_IDS["foliage"]] * n_leaf + [LABEL_IDS["ground"]] * n_ground)
     g = Gaussians.from_points(torch.tensor(means, dtype=torch.float32), torch.full((len(means), 3), 0.5))
-    gt = tmp_path / "gt"
-    gt.mkdir()
-    g.save_ply(gt / "gaussians.ply")
-    np.save(gt / "labels.npy", labels.astype(np.int32))
-    write_json(gt / "motion.json", {"labels": {str(k): v for k, v in ALL_LABELS.items()}})
     cams = [Camera(intrinsics_from_fov(60, 32, 24), look_at((5 * np.cos(a), 5 * np.sin(a), 2), (0, 0, 0)), 32, 24,
                    f"c{i}") for i, a in enumerate(np.linspace(0, 2 * np.pi, 6, endpoint=False))]
-    save_cameras(gt / "cameras.json", cams)
-    save_cameras(tmp_path / "cameras.json", cams)
+    gt = write_gt(tmp_path, g, labels, {"labels": {str(k): v for k, v in ALL_LABELS.items()}}, cams)
     ply = tmp_path / "canonical.ply"
     g.save_ply(ply)
     dyn = torch.tensor(list(range(n_leaf)) + list(range(n_leaf, n_leaf + wrong)))  # every leaf, `wrong` ground

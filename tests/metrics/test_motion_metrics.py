@@ -143,11 +143,11 @@ def test_eval_gt_glue_with_synthetic_truth_and_dct_model(tmp_path):
     torch = pytest.importorskip("torch")
     motion = pytest.importorskip("anigs.synth.motion", reason="anigs.synth (GT motion) not in this checkout")
     deform = pytest.importorskip("anigs.animate.deform", reason="anigs.animate.deform (DCT model) not in this checkout")
-    from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
+    from anigs.cameras import Camera, intrinsics_from_fov, look_at
     from anigs.metrics.suite import gt_metrics
     from anigs.gaussians import Gaussians
-    from anigs.io import write_json
     from anigs.synth import LABEL_IDS
+    from tests._gt import write_gt
 
     rng = np.random.default_rng(0)
     n_dyn, n_static = 120, 60
@@ -155,17 +155,10 @@ def test_eval_gt_glue_with_synthetic_truth_and_dct_model(tmp_path):
     means = anchors + np.concatenate([rng.uniform(0.2, 1.0, (n_dyn, 3)) * [0.3, 0.3, 1.5], np.zeros((n_static, 3))])
     labels = np.array([LABEL_IDS["foliage"]] * n_dyn + [LABEL_IDS["ground"]] * n_static)
     gs = Gaussians.from_points(torch.tensor(means, dtype=torch.float32), torch.full((len(means), 3), 0.5))
-    gt = tmp_path / "gt"
-    gt.mkdir()
-    gs.save_ply(gt / "gaussians.ply")
-    np.save(gt / "labels.npy", labels.astype(np.int32))
-    np.save(gt / "anchors.npy", anchors.astype(np.float32))
     params = motion.MotionParams()
-    write_json(gt / "motion.json", {"params": params.to_dict()})
     cams = [Camera(intrinsics_from_fov(60, 32, 24), look_at((4 * np.cos(a), 4 * np.sin(a), 2), (0, 0, 0)), 32, 24, f"c{i}")
             for i, a in enumerate(np.linspace(0, 2 * np.pi, 6, endpoint=False))]
-    save_cameras(gt / "cameras.json", cams)
-    save_cameras(tmp_path / "cameras.json", cams)
+    gt = write_gt(tmp_path, gs, labels, {"params": params.to_dict()}, cams, anchors=anchors)
 
     T = params.frames
     off = motion.gt_clip_offsets(params, gs.means, torch.tensor(anchors, dtype=torch.float32),

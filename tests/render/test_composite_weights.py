@@ -111,6 +111,16 @@ def test_factor_layouts():
             composite_weights_cpu(*scene[:4], viewmat, K, W, H, bad)
 
 
+def _one_then_two_threads(args: tuple, repeats: int = 1) -> list[torch.Tensor]:
+    """``composite_weights_cpu(*args)`` with 1 torch thread, then ``repeats`` times with 2; leaves 1 thread."""
+    torch.set_num_threads(1)
+    out = [composite_weights_cpu(*args)]
+    torch.set_num_threads(2)
+    out += [composite_weights_cpu(*args) for _ in range(repeats)]
+    torch.set_num_threads(1)
+    return out
+
+
 @pytest.mark.parametrize("W,H", SIZES)
 def test_thread_count_gives_identical_bits(W, H):
     """Pair sums reduced per splat in a fixed order: 1 and 2 threads agree bit for bit (also with
@@ -119,13 +129,8 @@ def test_thread_count_gives_identical_bits(W, H):
     f = _factors(H, W, 3, seed=22)
     for eye in EYES[:2]:
         viewmat, K = _camera(eye, W, H)
-        torch.set_num_threads(1)
-        w1 = composite_weights_cpu(*scene[:4], viewmat, K, W, H, f)
-        torch.set_num_threads(2)
-        w2 = composite_weights_cpu(*scene[:4], viewmat, K, W, H, f)
-        w2b = composite_weights_cpu(*scene[:4], viewmat, K, W, H, f)
+        w1, w2, w2b = _one_then_two_threads((*scene[:4], viewmat, K, W, H, f), repeats=2)
         assert torch.equal(w1, w2) and torch.equal(w2, w2b)
-        torch.set_num_threads(1)
         _check(w1, _reference(*scene[:4], viewmat, K, W, H, f), scene, viewmat, K, W, H, f)
 
 
@@ -277,8 +282,7 @@ def test_other_kernel_builds(tmp_path, env):
     code = """
 import torch
 from anigs.render import rasterize, _build
-from anigs.render.cpu_backend import composite_weights_cpu
-from tests.render.test_composite_weights import _camera, _factors, _reference, EYES
+from tests.render.test_composite_weights import _camera, _factors, _one_then_two_threads, _reference, EYES
 from tests._scenes import random_scene
 print(_build.arch_flags(), _build._thread_flags())
 for W, H in ((64, 48), (70, 45)):
@@ -286,11 +290,8 @@ for W, H in ((64, 48), (70, 45)):
     f = _factors(H, W, 2, seed=102)
     for eye in EYES[:2]:
         viewmat, K = _camera(eye, W, H)
-        torch.set_num_threads(1)
-        w1 = composite_weights_cpu(*scene[:4], viewmat, K, W, H, f)
+        w1, w2 = _one_then_two_threads((*scene[:4], viewmat, K, W, H, f))
         ref = _reference(*scene[:4], viewmat, K, W, H, f)
-        torch.set_num_threads(2)
-        w2 = composite_weights_cpu(*scene[:4], viewmat, K, W, H, f)
         assert torch.equal(w1, w2)
         torch.testing.assert_close(w1, ref, rtol=1e-5, atol=1e-6)
 print("ok")

@@ -28,13 +28,16 @@ SPLIT_ORDER = list(range(10)) + list(range(14, 20)) + list(range(10, 14))
 SPLIT_GROUPS = [list(range(10)), list(range(10, 16)), list(range(16, 20))]  # in file-name positions
 
 
-def textured_boxes(seed: int = 0, n_ground: int = 4000, n_box: int = 900) -> Gaussians:
-    """Small flat discs of random colour on a ground plane and on five boxes' faces (a SIFT-rich scene)."""
+BOXES = [((-0.9, -0.5), (0.7, 0.6, 0.9)), ((0.9, 0.7), (0.5, 0.8, 0.6)), ((0.3, -1.2), (0.6, 0.4, 1.2)),
+         ((-0.6, 1.1), (0.4, 0.5, 0.7)), ((1.3, -0.3), (0.3, 0.3, 0.5))]
+
+
+def textured_discs(seed: int, half: float, boxes: list, n_ground: int, n_box: int) -> Gaussians:
+    """Small flat discs of random colour on the ground plane z=0 (``n_ground`` in [-half, half]^2) and
+    ``n_box`` on the faces of each box ``((cx, cy), (sx, sy, sz))`` standing on it (a SIFT-rich scene)."""
     rng = np.random.default_rng(seed)
-    pts = [np.c_[rng.uniform(-3, 3, (n_ground, 2)), np.zeros(n_ground)]]
+    pts = [np.c_[rng.uniform(-half, half, (n_ground, 2)), np.zeros(n_ground)]]
     normals = [np.full(n_ground, 2)]
-    boxes = [((-0.9, -0.5), (0.7, 0.6, 0.9)), ((0.9, 0.7), (0.5, 0.8, 0.6)), ((0.3, -1.2), (0.6, 0.4, 1.2)),
-             ((-0.6, 1.1), (0.4, 0.5, 0.7)), ((1.3, -0.3), (0.3, 0.3, 0.5))]
     for (cx, cy), size in boxes:
         size = np.array(size)
         u = rng.uniform(-0.5, 0.5, (n_box, 3))
@@ -49,6 +52,11 @@ def textured_boxes(seed: int = 0, n_ground: int = 4000, n_box: int = 900) -> Gau
     discs = np.c_[np.exp(rng.uniform(math.log(0.02), math.log(0.07), (len(pts), 2))), np.full(len(pts), 0.003)]
     g.log_scales = torch.tensor(np.log(discs), dtype=torch.float32)
     return g
+
+
+def textured_boxes(seed: int = 0, n_ground: int = 4000, n_box: int = 900) -> Gaussians:
+    """Discs on a 6 m ground and on five boxes' faces (:func:`textured_discs`)."""
+    return textured_discs(seed, 3.0, BOXES, n_ground, n_box)
 
 
 def ring_positions(n: int = 20, seed: int = 0) -> list[np.ndarray]:

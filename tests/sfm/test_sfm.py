@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 pycolmap = pytest.importorskip("pycolmap")
 
@@ -24,35 +23,14 @@ from anigs.sfm.align import (Similarity, estimate_up, pose_errors, rotation_angl
 from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at  # noqa: E402
 from anigs.gaussians import Gaussians  # noqa: E402
 from anigs.sfm.colmap import SfmConfig, SfmError, run_sfm  # noqa: E402
-from _captures import render as render_capture  # noqa: E402
+from _captures import render as render_capture, textured_discs  # noqa: E402
 
 W, H = 320, 240
-# quaternions (w,x,y,z) turning the thin local z axis onto the world x, y, z normals
-_Q_NORMAL = np.array([[math.sqrt(.5), 0, math.sqrt(.5), 0], [math.sqrt(.5), -math.sqrt(.5), 0, 0], [1, 0, 0, 0]])
-
-
 def textured_scene(seed: int = 0, n_ground: int = 3000, n_box: int = 700) -> Gaussians:
-    """Flat random-coloured Gaussians on the ground (z=0) and on four boxes' faces."""
-    rng = np.random.default_rng(seed)
-    pts = [np.c_[rng.uniform(-2.5, 2.5, (n_ground, 2)), np.zeros(n_ground)]]
-    normals = [np.full(n_ground, 2)]
+    """Flat random-coloured Gaussians on the ground (z=0, 5 m) and on four boxes' faces."""
     boxes = [((-0.8, -0.5), (0.7, 0.6, 0.9)), ((0.9, 0.6), (0.5, 0.8, 0.5)),
              ((0.2, -1.2), (0.6, 0.4, 1.3)), ((-0.6, 1.1), (0.4, 0.4, 0.7))]
-    for (cx, cy), size in boxes:
-        size = np.array(size)
-        u = rng.uniform(-0.5, 0.5, (n_box, 3))
-        axis = rng.choice(3, n_box, p=[0.4, 0.4, 0.2])
-        u[np.arange(n_box), axis] = rng.choice([-0.5, 0.5], n_box)
-        pts.append(np.array([cx, cy, size[2] / 2]) + u * size)
-        normals.append(axis)
-    pts, normals = np.concatenate(pts), np.concatenate(normals)
-    n = len(pts)
-    colors = rng.uniform(0, 1, (n, 3)) * rng.uniform(0.1, 1, (n, 1))
-    scales = np.c_[np.exp(rng.uniform(math.log(0.02), math.log(0.07), (n, 2))), np.full(n, 0.003)]
-    g = Gaussians.from_points(torch.tensor(pts), torch.tensor(colors), 0.01, opacity=0.99)
-    g.quats = torch.tensor(_Q_NORMAL[normals], dtype=torch.float32)
-    g.log_scales = torch.tensor(np.log(scales), dtype=torch.float32)
-    return g
+    return textured_discs(seed, 2.5, boxes, n_ground, n_box)
 
 
 def ring_cameras(n: int = 20, seed: int = 0) -> list[Camera]:

@@ -149,20 +149,26 @@ def test_all_pruned_stops_with_clear_error(scene):
         fit_static(imgs, cams, p, c, cfg, progress=False)
 
 
-def test_nan_loss_is_detected_and_last_checkpoint_kept(scene, tmp_path, monkeypatch):
+def _nan_loss_from(monkeypatch, nan_at) -> dict:
+    """Patch the fit's loss to NaN on the calls ``n`` (1-based) where ``nan_at(n)``; the call count."""
     import anigs.static.fit as fit_mod
 
-    gt, cams, imgs = scene
-    p, c = sfm_points(gt, every=6)
     real_loss = fit_mod.loss_fn
     calls = {"n": 0}
 
-    def nan_after_25(pred, target, w):
+    def loss(pred, target, w):
         calls["n"] += 1
-        loss = real_loss(pred, target, w)
-        return loss * float("nan") if calls["n"] >= 25 else loss
+        out = real_loss(pred, target, w)
+        return out * float("nan") if nan_at(calls["n"]) else out
 
-    monkeypatch.setattr(fit_mod, "loss_fn", nan_after_25)
+    monkeypatch.setattr(fit_mod, "loss_fn", loss)
+    return calls
+
+
+def test_nan_loss_is_detected_and_last_checkpoint_kept(scene, tmp_path, monkeypatch):
+    gt, cams, imgs = scene
+    p, c = sfm_points(gt, every=6)
+    _nan_loss_from(monkeypatch, lambda n: n >= 25)
     ckpt = tmp_path / "ckpt" / "last.ply"
     with pytest.raises(FitDivergedError, match=r"iteration 25: loss is nan.*iteration 20\).*last\.ply"):
         fit_static(imgs, cams, p, c, FitConfig.from_dict(FAST), progress=False, checkpoint_path=ckpt)
@@ -295,19 +301,12 @@ def test_nan_loss_is_detected_with_a_non_fused_optimizer(scene, monkeypatch):
 
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=6)
-    real_loss = fit_mod.loss_fn
-    calls = {"n": 0}
-
-    def nan_at_7(pred, target, w):
-        calls["n"] += 1
-        loss = real_loss(pred, target, w)
-        return loss * float("nan") if calls["n"] == 7 else loss
+    calls = _nan_loss_from(monkeypatch, lambda n: n == 7)
 
     def foreach_adam(params, lr):
         return torch.optim.Adam([{"params": [params[k]], "lr": lr[k], "name": k} for k in params], lr=0.0,
                                 eps=1e-15, foreach=True)
 
-    monkeypatch.setattr(fit_mod, "loss_fn", nan_at_7)
     monkeypatch.setattr(fit_mod, "make_optimizer", foreach_adam)
     with pytest.raises(FitDivergedError, match=r"iteration 7: loss is nan"):
         fit_static(imgs, cams, p, c, FitConfig.from_dict(FAST), progress=False)

@@ -13,7 +13,6 @@ from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.render.labels import dynamic_masks
 from anigs.views import ViewsConfig, plan_views, queued_view_count
-from tests.masks.test_lift import toy_scene
 
 # cameras on a ring facing the centre: yaw 0 faces the ROI (centroid heading), and with a 60 deg
 # FOV the +-90 views look along the ring, away from the blobs in the middle
@@ -24,11 +23,6 @@ OLD_TOP_KEYS = ["views", "layout", "scene_coverage", "up_estimate", "coverage_af
 OLD_VIEW_KEYS = {"id", "location", "candidate", "yaw", "pitch", "heading_deg", "camera", "roi_visible",
                  "roi_visible_fraction", "visible", "coverage", "requested_yaw", "fov_deg", "replaced",
                  "overlap_prev", "overlap_prev_roi", "coverage_after", "frustum_coverage_after"}
-
-
-@pytest.fixture(scope="module")
-def scene():
-    return toy_scene(ring=8)
 
 
 @pytest.fixture(scope="module")

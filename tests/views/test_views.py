@@ -14,17 +14,11 @@ from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.views import (ViewsConfig, azimuth_deg, ccw_order, farthest_point_order, in_wedges, plan_views,
                          view_camera)
-from tests.masks.test_lift import toy_scene
 
 # the queue mechanics (order, yaws, overlap) on the toy ring, whose level views see mostly sky:
 # the paper's schedule as is (layout and coverage are tested with the garden layouts below)
 SCHEDULE = dict(layout="walk", min_coverage=0.0, min_dynamic_fraction=0.0, min_content=0.0)
 SMALL = dict(width=64, height=48, num_locations=3, **SCHEDULE)
-
-
-@pytest.fixture(scope="module")
-def scene():
-    return toy_scene(ring=8)
 
 
 @pytest.fixture(scope="module")
