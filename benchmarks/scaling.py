@@ -183,8 +183,9 @@ def split_gaussians(ply: Path, n: int, out: Path, seed: int = 0) -> np.ndarray:
     return idx.numpy()
 
 
-def animation_inputs(axis: str, value: int, args, d: Path) -> tuple[Path, Path, Path, list[str]]:
-    """(canonical.ply, views.json, masks dir, the view ids the update trains on) for one point."""
+def animation_inputs(axis: str, value: int, args, d: Path) -> list[str]:
+    """The point's static, views and masks stage folders under ``d`` (as the stages lay them out); returns
+    the view ids the update trains on."""
     from PIL import Image
 
     scene = Path(args.scene)
@@ -194,14 +195,18 @@ def animation_inputs(axis: str, value: int, args, d: Path) -> tuple[Path, Path, 
     ply = scene / "static" / "canonical.ply"
     dyn = np.load(masks_src / "dynamic.npy")
     labels = np.load(masks_src / "effect_labels.npy")
+    (d / "static").mkdir(exist_ok=True)
+    (d / "views").mkdir(exist_ok=True)
     if axis == "gaussians" and value != AXES["gaussians"][0]:
         # in a child process: this one stays small (torch not imported), see measure()
         code = ("import sys, numpy as np; sys.path.insert(0, sys.argv[1]); from scaling import split_gaussians; "
                 "np.save(sys.argv[4], split_gaussians(sys.argv[2], int(sys.argv[3]), sys.argv[5]))")
         subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), str(ply), str(value),
-                        str(d / "split_index.npy"), str(d / "canonical.ply")], check=True, cwd=ROOT)
+                        str(d / "split_index.npy"), str(d / "static" / "canonical.ply")], check=True, cwd=ROOT)
         idx = np.load(d / "split_index.npy")
-        ply, dyn, labels = d / "canonical.ply", dyn[idx], labels[idx]
+        dyn, labels = dyn[idx], labels[idx]
+    else:
+        shutil.copyfile(ply, d / "static" / "canonical.ply")
     base_views = views["views"]
     if axis == "views":  # the queue repeated under new ids (the same cameras)
         views["views"] = [dict(base_views[i % len(base_views)], id=f"v{i:02d}") for i in range(value)]
@@ -221,9 +226,9 @@ def animation_inputs(axis: str, value: int, args, d: Path) -> tuple[Path, Path, 
         m.save(masks / f"{v['id']}.png")
     np.save(masks / "dynamic.npy", dyn)
     np.save(masks / "effect_labels.npy", labels)
-    (d / "views.json").write_text(json.dumps(views))
+    (d / "views" / "views.json").write_text(json.dumps(views))
     ids = [v["id"] for v in views["views"]]
-    return ply, d / "views.json", masks, (ids if axis == "views" else ids[:3])
+    return ids if axis == "views" else ids[:3]
 
 
 def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
@@ -231,7 +236,7 @@ def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
     config, scene, sec = demo_sections()
     d = work / f"{axis}-{value}"
     shutil.rmtree(d, ignore_errors=True)
-    ply, views_json, masks, ids = animation_inputs(axis, value, args, d)
+    ids = animation_inputs(axis, value, args, d)
     frames = value if axis == "frames" else sec("animate")["frames"]
     render_p = {**sec("render_clip"), "num_frames": frames, "device": config["device"]}
     refine_p = {**sec("refine"), "prompt": scene.get("prompt", ""), "seed": config["seed"],
@@ -239,30 +244,30 @@ def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
     update_p = {**sec("update"), "device": config["device"], "seed": config["seed"] + 1000,
                 "steps": args.update_steps or sec("update")["steps"]}
     out: dict[str, dict] = {}
+    rd = d / "round1"  # the round's folder: render/{view}.npz, target/{view}.npz, model.pt, update.json
     targets = []
     for v in ids[:1]:  # render_clip and refine cost the same for every view: one is measured
-        clip, target = d / "render" / f"{v}.npz", d / "target" / f"{v}.npz"
-        r = measure(anigs_cmd(1, "render_clip", "--canonical", str(ply), "--view-json", str(views_json),
-                              "--view-id", v, "--out", str(clip), "--params", json.dumps(render_p)),
+        r = measure(anigs_cmd(1, "render_clip", "--static", str(d / "static"), "--views", str(d / "views"),
+                              "--view-id", v, "--out", str(rd), "--params", json.dumps(render_p)),
                     d / "logs" / f"render_clip_{v}.log")
-        f = measure(anigs_cmd(1, "refine", "--clip", str(clip), "--mask", str(masks / f"{v}.png"), "--round", "1",
-                              "--view", v, "--out", str(target), "--params", json.dumps(refine_p)),
+        f = measure(anigs_cmd(1, "refine", "--render-clip", str(rd), "--masks", str(d / "masks"), "--round", "1",
+                              "--view", v, "--out", str(rd), "--params", json.dumps(refine_p)),
                     d / "logs" / f"refine_{v}.log")
         _add(out, "render_clip", r)
         _add(out, "refine", f)
-        targets.append(str(target))
+        targets.append(str(rd / "target" / f"{v}.npz"))
     for v in ids[1:]:  # the update trains on every view of the round: the refined clip stands for each
-        dst = d / "target" / f"{v}.npz"
+        dst = rd / "target" / f"{v}.npz"
         shutil.copyfile(targets[0], dst)
         targets.append(str(dst))
-    out["update"] = measure(anigs_cmd(args.threads, "update", "--canonical", str(ply), "--targets", *targets,
-                                      "--view-json", str(views_json), "--dynamic", str(masks / "dynamic.npy"),
-                                      "--effect-labels", str(masks / "effect_labels.npy"), "--out",
-                                      str(d / "model.pt"), "--log-json", str(d / "update.json"), "--params",
+    # round 1 of a plan of several rounds: no containment (the workflow contains only the final round's update)
+    out["update"] = measure(anigs_cmd(args.threads, "update", "--static", str(d / "static"), "--targets", *targets,
+                                      "--views", str(d / "views"), "--masks", str(d / "masks"), "--round", "1",
+                                      "--rounds", "2", "--out", str(rd), "--params",
                                       json.dumps(update_p)), d / "logs" / "update.log")
     if not args.keep:
-        shutil.rmtree(d / "render", ignore_errors=True)
-        shutil.rmtree(d / "target", ignore_errors=True)
+        shutil.rmtree(rd / "render", ignore_errors=True)
+        shutil.rmtree(rd / "target", ignore_errors=True)
     return out
 
 
