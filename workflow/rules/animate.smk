@@ -27,6 +27,8 @@ rule render_clip:
         runtime=20,
     params:
         cmd=render_clip_command,
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
+        p=jparams("render_clip", _frames),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
@@ -52,6 +54,8 @@ rule refine:
         gpu=lambda wc: wants_gpu(wc.scene, wc.variant),
     params:
         cmd=refine_command,
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
+        p=jparams("refine", _refine_extra),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
@@ -84,6 +88,12 @@ rule round:
         gpu=lambda wc: wants_gpu(wc.scene, wc.variant),
     params:
         cmd=lambda wc, input: f"{round_command(wc, input)} --then {update_command(wc, input)}",
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
+        render=jparams("render_clip", _frames),
+        refine=jparams("refine", _refine_extra),
+        up=jparams("update", _update_extra),
+        animate=jparams("animate"),
+        views=lambda wc: ",".join(round_views(wc.scene, wc.variant, int(wc.round))),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
@@ -123,6 +133,9 @@ rule update:
         gpu=lambda wc: int(str(config["device"]).startswith("cuda")),
     params:
         cmd=update_command,
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
+        p=jparams("update", _update_extra),
+        animate=jparams("animate"),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
@@ -152,6 +165,10 @@ rule still:
             still=_still_reason(wc),
             frames=sec(wc.scene, "animate", wc.variant)["frames"],
         ),
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
+        p=jparams("update", lambda wc: {"device": config["device"], "seed": config["seed"]}),
+        frames=lambda wc: sec(wc.scene, "animate", wc.variant)["frames"],
+        reason=_still_reason,
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"

@@ -33,6 +33,8 @@ rule eval_model:
             sfm=stage_dir(wc.scene, "sfm"),
             capture=stage_dir(wc.scene, "capture") if is_synthetic(wc.scene) else None,
         ),
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
+        p=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"

@@ -54,6 +54,9 @@ rule final:
             static=stage_dir(wc.scene, "static"),
             sfm=stage_dir(wc.scene, "sfm"),
         ),
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
+        p=jparams("final", lambda wc: {"device": config["device"]}),
+        ep=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
         version=ANIGS_VERSION,
     # the final clips' metrics (the eval stage's clips half) in the same process: one start-up less
     shell:
@@ -86,6 +89,8 @@ rule export:
             model=_folder([input.model]),
             out=f"{R}/{wc.scene}/{wc.variant}/export",
         ),
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
+        p=jparams("export"),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
@@ -123,6 +128,8 @@ rule view:
             static=stage_dir(wc.scene, "static"),
             views=stage_dir(wc.scene, "views"),
         ),
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
+        p=jparams("view"),
         version=ANIGS_VERSION,
     shell:
         "anigs {params.cmd} > {log} 2>&1"

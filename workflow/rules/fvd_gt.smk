@@ -73,6 +73,9 @@ rule fvd_gt:
             method=_table_row(wc)[0],
             variant=_table_row(wc)[1],
         ),
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
+        p=jparams("fvd_gt", lambda wc: {"seed": config["seed"]}),
+        ep=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
