@@ -68,6 +68,7 @@ def _snakemake(args, scene_dir: Path, variant_dir: Path, *extra: str) -> tuple[l
 
     exe = Path(sys.executable).with_name("snakemake")
     cmd = [str(exe) if exe.exists() else "snakemake", "--cores", str(args.cores), *extra,
+           *(["--configfile", str(Path(args.configfile).resolve())] if args.configfile else []),
            "--config", f'scenes=["{args.scene}"]', f"results={args.results}", *args.config,
            "--", str(EvalOutputs(variant_dir / "eval").path("metrics")), str(EffectsOutputs(scene_dir / "effects").path("effects"))]
     env = {**os.environ}
@@ -261,6 +262,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--results", type=Path, default=Path("/tmp/photo-bench/results"), help="workflow results folder")
     ap.add_argument("--variant", default="full")
     ap.add_argument("--cores", default="1", help="snakemake --cores")
+    ap.add_argument("--configfile", default=None, help="a preset on top of the defaults, e.g. config/quality.yaml")
     ap.add_argument("--config", nargs="*", default=[], metavar="KEY=VALUE", help="more snakemake --config entries")
     ap.add_argument("--min-coverage", type=float, default=0.8, help="coverage a queued view counts from")
     ap.add_argument("--no-run", action="store_true", help="report on the results that are there")
