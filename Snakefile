@@ -47,7 +47,7 @@ rule all:
 
 rule all_static:
     input:
-        [f"{R}/{s}/static/canonical.ply" for s in SCENES],
+        [stage_out("static", "canonical", scene=s) for s in SCENES],
 
 
 rule animate:
@@ -57,14 +57,14 @@ rule animate:
 
 rule all_final:
     input:
-        [f"{R}/{s}/{v}/final/final.json" for s in SCENES for v in config["variants"]],
+        [stage_out("final", "summary", scene=s, variant=v) for s in SCENES for v in config["variants"]],
 
 
 rule all_export:
     input:
-        [f"{R}/{s}/{v}/export/animated.json" for s in SCENES for v in config["variants"]],
+        [stage_out("export", "sidecar", scene=s, variant=v) for s in SCENES for v in config["variants"]],
 
 
 rule all_eval:
     input:
-        [f"{R}/{s}/{v}/eval/metrics.json" for s in SCENES for v in config["variants"]],
+        [stage_out("eval", "metrics", scene=s, variant=v) for s in SCENES for v in config["variants"]],

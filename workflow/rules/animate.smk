@@ -10,11 +10,11 @@
 
 rule render_clip:
     input:
-        ply=stage_path("static", "canonical.ply"),
-        views=stage_path("views", "views.json"),
+        ply=stage_file("static", "canonical"),
+        views=stage_file("views", "views"),
         model=_render_model,
     output:
-        f"{VARIANT_DIR}/round{{round}}/render/{{view}}.npz",
+        stage_out("render_clip", "clip"),
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/render_clip_{{view}}.log",
     benchmark:
@@ -36,11 +36,11 @@ rule render_clip:
 
 rule refine:
     input:
-        clip=f"{VARIANT_DIR}/round{{round}}/render/{{view}}.npz",
-        masks=stage_path("masks"),
+        clip=stage_out("render_clip", "clip"),
+        masks=stage_folder("masks"),
         effects=_effects_json,
     output:
-        f"{VARIANT_DIR}/round{{round}}/target/{{view}}.npz",
+        stage_out("refine", "target"),
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/refine_{{view}}.log",
     benchmark:
@@ -63,18 +63,18 @@ rule refine:
 
 rule round:
     input:
-        ply=stage_path("static", "canonical.ply"),
-        views=stage_path("views", "views.json"),
+        ply=stage_file("static", "canonical"),
+        views=stage_file("views", "views"),
         model=_render_model,
-        masks=stage_path("masks"),
+        masks=stage_folder("masks"),
         effects=_effects_json,
         earlier=_earlier_targets,
         init=_init_model,
     output:
-        render=directory(f"{VARIANT_DIR}/round{{round}}/render"),
-        target=directory(f"{VARIANT_DIR}/round{{round}}/target"),
-        model=f"{VARIANT_DIR}/round{{round}}/model.pt",
-        log_json=f"{VARIANT_DIR}/round{{round}}/update.json",
+        render=directory(stage_out("render_clip", "clips")),
+        target=directory(stage_out("refine", "targets")),
+        model=stage_out("update", "model"),
+        log_json=stage_out("update", "log"),
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/round.log",
     benchmark:
@@ -112,14 +112,14 @@ else:
 
 rule update:
     input:
-        ply=stage_path("static", "canonical.ply"),
-        views=stage_path("views", "views.json"),
-        masks=stage_path("masks"),
+        ply=stage_file("static", "canonical"),
+        views=stage_file("views", "views"),
+        masks=stage_folder("masks"),
         targets=_targets,
         init=_init_model,
     output:
-        model=f"{VARIANT_DIR}/round{{round}}/model.pt",
-        log_json=f"{VARIANT_DIR}/round{{round}}/update.json",
+        model=stage_out("update", "model"),
+        log_json=stage_out("update", "log"),
     log:
         f"{VARIANT_DIR}/logs/round{{round}}/update.log",
     benchmark:
@@ -145,10 +145,10 @@ rule update:
 # nothing moves, and the final renders, export, viewer and evaluation use it; no round runs.
 rule still:
     input:
-        ply=stage_path("static", "canonical.ply"),
-        effects=stage_path("effects", "effects.json"),
+        ply=stage_file("static", "canonical"),
+        effects=stage_file("effects", "effects"),
     output:
-        f"{VARIANT_DIR}/still/model.pt",
+        still_model(),
     log:
         f"{VARIANT_DIR}/logs/still.log",
     benchmark:

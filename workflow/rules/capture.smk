@@ -25,7 +25,7 @@ rule capture_synthetic:
         runtime=20,
     params:
         p=lambda wc: json.dumps(SCENES[wc.scene]["synthetic"] or {}, sort_keys=True),
-        out=lambda wc: f"{R}/{wc.scene}/capture",
+        out=lambda wc: job_out("capture", wc),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} capture --source synthetic --params {params.p:q} --out {params.out:q} > {log} 2>&1"
@@ -50,7 +50,7 @@ rule capture_photos:
     params:
         p=jparams("capture"),
         photos=lambda wc: SCENES[wc.scene]["photos"],
-        out=lambda wc: f"{R}/{wc.scene}/capture",
+        out=lambda wc: job_out("capture", wc),
         version=ANIGS_VERSION,
     shell:
         "anigs capture --source photos --photos {params.photos:q} --params {params.p:q} --out {params.out:q} > {log} 2>&1"

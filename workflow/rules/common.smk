@@ -88,7 +88,7 @@ def is_synthetic(scene):
 
 
 def num_views(scene):
-    """The views the queue holds, read from views.json once that checkpoint has run: the views stage
+    """The views the queue holds, read from the views stage's queue once that checkpoint has run: it
     leaves out views whose dynamic region is negligible (views.min_dynamic_fraction)."""
     return queued_view_count(checkpoints.views.get(scene=stage_owner(scene, "views")).output.views)
 
@@ -107,33 +107,28 @@ def method_of(scene, variant):
 
 
 def round_dir(scene, variant, r):
-    return f"{R}/{scene}/{variant}/round{r}"
+    """Round r's folder (the render_clip, refine and update stages write into it)."""
+    return stage_out("update", scene=scene, variant=variant, round=r)
 
 
 def out_path(stage, root, key, **fields):
     """A file of ``stage``'s folder ``root`` (its Outputs' layout; imported when a job's inputs are asked)."""
-    import importlib
-
-    return str(importlib.import_module(f"anigs.stages.{stage}").Outputs(root).path(key, **fields))
+    return str(stage_outputs(stage)(root).path(key, **fields))
 
 
 def model_path(scene, variant, r):
-    return out_path("update", f"{R}/{scene}/{variant}/round{r}", "model")
+    return stage_out("update", "model", scene=scene, variant=variant, round=r)
 
 
 def stage_dir(scene, stage):
     """Output folder of per-scene ``stage`` (capture, sfm, static, views, masks) that ``scene`` uses:
     its own, or for a derived scene of the sweep its base scene's upstream of the swept stage."""
-    return f"{R}/{stage_owner(scene, stage)}/{stage}"
+    return stage_out(stage, scene=stage_owner(scene, stage))
 
 
-def stage_path(stage, rel=""):
-    """Input function: ``stage_dir(wildcards.scene, stage)/rel``."""
-    return lambda wc: f"{stage_dir(wc.scene, stage)}/{rel}".rstrip("/")
-
-
-def gt_file(scene, name):
-    return f"{stage_dir(scene, 'capture')}/gt/{name}"
+def stage_folder(stage):
+    """Input function: the ``stage`` folder the job's scene uses (:func:`stage_dir`)."""
+    return lambda wc: stage_dir(wc.scene, stage)
 
 
 def wants_gpu(scene, variant="full"):
@@ -147,12 +142,12 @@ def final_targets():
     for s in SCENES:
         for v in config["variants"]:
             out += [
-                f"{R}/{s}/{v}/final/final.json",
-                f"{R}/{s}/{v}/export/animated.json",
-                f"{R}/{s}/{v}/eval/metrics.json",
-                f"{R}/{s}/{v}/viewer",
+                stage_out("final", "summary", scene=s, variant=v),
+                stage_out("export", "sidecar", scene=s, variant=v),
+                stage_out("eval", "metrics", scene=s, variant=v),
+                stage_out("view", scene=s, variant=v),
             ]
-        out.append(stage_out("effects", "effects", s))
+        out.append(stage_out("effects", "effects", scene=s))
     return out
 
 
@@ -264,7 +259,7 @@ def stage_command(stage, params=None, **inputs):
 
 
 def _folder(files):
-    """The folder of an input's first file (a model.pt: its round's folder), None when there is none."""
+    """The folder of an input's first file (a model: its round's folder), None when there is none."""
     return os.path.dirname(files[0]) if files else None
 
 
@@ -351,10 +346,15 @@ def animates(scene):
     return bool(_chosen_effects(scene)["chosen"])
 
 
+def still_model(scene="{scene}", variant="{variant}"):
+    """The still model (the update stage's model file in the variant's ``still`` folder: the still rule)."""
+    return out_path("update", f"{R}/{scene}/{variant}/still", "model")
+
+
 def final_model_of(scene, variant):
     """The model the final stages use: the last round's, or the still model when nothing moves."""
     if not animates(scene):
-        return out_path("update", f"{R}/{scene}/{variant}/still", "model")
+        return still_model(scene, variant)
     return model_path(scene, variant, plan(scene, variant).num_rounds)
 
 
@@ -381,7 +381,7 @@ def eval_command(wc, part, **inputs):
     return stage_command(
         "eval",
         params,
-        out=f"{R}/{wc.scene}/{wc.variant}/eval",
+        out=job_out("eval", wc),
         scene=wc.scene,
         method=method,
         variant=variant,
@@ -414,23 +414,46 @@ def tradeoff_points():
     return TRADEOFF
 
 
-# ---- the scene stages' files, named by their Outputs (anigs/stages/<name>.py: LAYOUT) ----
+# ---- the stages' files, named by their Outputs (anigs/stages/<name>.py: FOLDER, LAYOUT): the
+# rules spell no file name of a stage's folder ----
 import importlib as _importlib
 
 
-def stage_outputs(stage):
-    """The ``Outputs`` type of ``stage`` (its folder's layout and loaders)."""
-    return _importlib.import_module(f"anigs.stages.{stage}").Outputs
+def stage_outputs(stage, kind="Outputs"):
+    """The ``Outputs`` type of ``stage`` (its folder's layout and loaders); ``kind``: another
+    ``Outputs`` type of the stage module (``fvd_gt``'s ``ReferenceOutputs``)."""
+    return getattr(_importlib.import_module(f"anigs.stages.{stage}"), kind)
 
 
-def stage_out(stage, key, scene="{scene}"):
-    """Rule output: file ``key`` of ``stage``'s folder of ``scene`` (a wildcard by default)."""
-    return stage_outputs(stage).pattern(key, f"{R}/{scene}/{stage}").rstrip("/")
+class _Wildcards(dict):
+    """A field that is not given stays a Snakemake wildcard (``{scene}``)."""
+
+    def __missing__(self, key):
+        return f"{{{key}}}"
+
+
+def stage_out(stage, key=None, kind="Outputs", **fields):
+    """File ``key`` (None: the folder) of ``stage``'s Outputs under the results root: its ``FOLDER`` and
+    ``LAYOUT`` name with ``fields`` filled in, the others left as wildcards (``{scene}``, ``{variant}``,
+    ``{round}``, ``{view}``): a rule's output pattern, or a path when every field is given."""
+    t = stage_outputs(stage, kind)
+    rel = t.FOLDER if key is None else f"{t.FOLDER}/{t.LAYOUT[key].name}"
+    return f"{R}/{rel}".rstrip("/").format_map(_Wildcards(fields))
+
+
+def job_out(stage, wc, key=None, kind="Outputs"):
+    """:func:`stage_out` with the job's wildcards filled in (its own folder: no derived-scene mapping)."""
+    return stage_out(stage, key, kind, **dict(wc.items()))
+
+
+def layout_name(stage, key, kind="Outputs"):
+    """The name of file ``key`` in ``stage``'s folder (``{view}_overlay.png``)."""
+    return stage_outputs(stage, kind).LAYOUT[key].name
 
 
 def stage_file_of(scene, stage, key):
     """File ``key`` of the ``stage`` folder that ``scene`` uses (:func:`stage_dir`)."""
-    return stage_outputs(stage).pattern(key, stage_dir(scene, stage)).rstrip("/")
+    return stage_out(stage, key, scene=stage_owner(scene, stage))
 
 
 def stage_file(stage, key):

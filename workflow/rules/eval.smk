@@ -6,13 +6,13 @@
 # final clips' metrics run in the final job (final.smk); the eval rule merges them.
 rule eval_model:
     input:
-        ply=stage_path("static", "canonical.ply"),
+        ply=stage_file("static", "canonical"),
         model=final_model,
-        cameras=stage_path("sfm", "cameras.json"),
-        points=stage_path("sfm", "points.npz"),
-        images=stage_path("sfm", "images"),  # undistorted: the images sfm/cameras.json describes
+        cameras=stage_file("sfm", "cameras"),
+        points=stage_file("sfm", "points"),
+        images=stage_file("sfm", "images"),  # undistorted: the images the sfm cameras describe
     output:
-        f"{R}/{{scene}}/{{variant}}/eval/model_metrics.json",
+        stage_out("eval", "model_metrics"),
     log:
         f"{R}/{{scene}}/{{variant}}/logs/eval_model.log",
     benchmark:
@@ -40,15 +40,15 @@ rule eval_model:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
-# metrics.json: the two halves merged (inside Snakemake: a JSON merge, no process start-up).
+# the evaluation: the two halves merged (inside Snakemake: a JSON merge, no process start-up).
 rule eval:
     input:
-        clips=f"{R}/{{scene}}/{{variant}}/eval/clip_metrics.json",
-        model=f"{R}/{{scene}}/{{variant}}/eval/model_metrics.json",
+        clips=stage_out("eval", "clip_metrics"),
+        model=stage_out("eval", "model_metrics"),
         fvd_gt=lambda wc: _fvd_gt_eval_input(wc),  # fvd_gt.when: always (workflow/rules/fvd_gt.smk)
     output:
         report(
-            f"{R}/{{scene}}/{{variant}}/eval/metrics.json",
+            stage_out("eval", "metrics"),
             caption="../report/metrics.rst",
             category="Metrics",
             subcategory="{scene} {variant}",
@@ -63,10 +63,10 @@ rule eval:
 
 rule tables:
     input:
-        [f"{R}/{s}/{v}/eval/metrics.json" for s in SCENES for v in config["table_variants"]],
-        fvd_gt_table_inputs(),  # FVD-GT records (synthetic scenes), joined to their metrics.json by anigs tables
+        [stage_out("eval", "metrics", scene=s, variant=v) for s in SCENES for v in config["table_variants"]],
+        fvd_gt_table_inputs(),  # FVD-GT records (synthetic scenes), joined to their evaluation by anigs tables
     output:
-        f"{R}/tables/tables.json",
+        stage_out("tables", "index"),
     log:
         f"{R}/logs/tables.log",
     conda:
@@ -84,10 +84,14 @@ rule tradeoff:
         _tradeoff_metrics,
     output:
         csv=[
-            report(f"{R}/tradeoff/{s}.csv", caption="../report/tradeoff.rst", category="Accuracy versus time")
+            report(
+                stage_out("tradeoff", "csv", scene=s),
+                caption="../report/tradeoff.rst",
+                category="Accuracy versus time",
+            )
             for s in SCENES
         ],
-        md=[f"{R}/tradeoff/{s}.md" for s in SCENES],
+        md=[stage_out("tradeoff", "md", scene=s) for s in SCENES],
         plots=_tradeoff_plots(),
     log:
         f"{R}/logs/tradeoff.log",
@@ -98,7 +102,7 @@ rule tradeoff:
             "tradeoff",
             results=R,
             points=_tradeoff_points(wc),
-            out=f"{R}/tradeoff",
+            out=stage_out("tradeoff"),
             plot_metrics=list(config.get("tradeoff", {}).get("plot_metrics", [])),
         ),
         version=ANIGS_VERSION,
@@ -110,7 +114,7 @@ rule tradeoff:
 # side. Collect answers with `anigs study serve --dir results/study`; `anigs study tally` makes Table 4.
 rule study:
     input:
-        [f"{R}/{s}/{v}/final/final.json" for s in SCENES for v in ["full", *_study_variants()]],
+        [stage_out("final", "summary", scene=s, variant=v) for s in SCENES for v in ["full", *_study_variants()]],
     output:
         f"{R}/study/manifest.json",
     log:

@@ -3,27 +3,27 @@
 
 rule final:
     input:
-        ply=stage_path("static", "canonical.ply"),
+        ply=stage_file("static", "canonical"),
         model=final_model,
-        views=stage_path("views", "views.json"),
-        cameras=stage_path("sfm", "cameras.json"),
-        masks=stage_path("masks"),
+        views=stage_file("views", "views"),
+        cameras=stage_file("sfm", "cameras"),
+        masks=stage_folder("masks"),
     output:
-        summary=f"{R}/{{scene}}/{{variant}}/final/final.json",
+        summary=stage_out("final", "summary"),
         slices=report(
-            directory(f"{R}/{{scene}}/{{variant}}/final/slices"),
+            directory(stage_out("final", "slices")),
             patterns=["{name}.png"],
             caption="../report/slices.rst",
             category="Space-time slices",
             subcategory="{scene} {variant}",
         ),
         path=report(
-            f"{R}/{{scene}}/{{variant}}/final/path.mp4",
+            stage_out("final", "path"),
             caption="../report/final.rst",
             category="Videos",
             subcategory="{scene} {variant}",
         ),
-        clip_metrics=f"{R}/{{scene}}/{{variant}}/eval/clip_metrics.json",
+        clip_metrics=stage_out("eval", "clip_metrics"),
     log:
         f"{R}/{{scene}}/{{variant}}/logs/final.log",
     benchmark:
@@ -40,7 +40,7 @@ rule final:
             jparams("final", lambda wc: {"device": config["device"]})(wc),
             static=stage_dir(wc.scene, "static"),
             views=stage_dir(wc.scene, "views"),
-            out=f"{R}/{wc.scene}/{wc.variant}/final",
+            out=job_out("final", wc),
             model=_folder([input.model]),
             sfm=stage_dir(wc.scene, "sfm"),
             masks=stage_dir(wc.scene, "masks"),
@@ -48,7 +48,7 @@ rule final:
         eval=lambda wc, input: eval_command(
             wc,
             "clips",
-            final=f"{R}/{wc.scene}/{wc.variant}/final",
+            final=job_out("final", wc),
             masks=stage_dir(wc.scene, "masks"),
             model=_folder([input.model]),
             static=stage_dir(wc.scene, "static"),
@@ -65,12 +65,12 @@ rule final:
 
 rule export:
     input:
-        ply=stage_path("static", "canonical.ply"),
+        ply=stage_file("static", "canonical"),
         model=final_model,
     output:
-        sidecar=f"{R}/{{scene}}/{{variant}}/export/animated.json",
-        ply=f"{R}/{{scene}}/{{variant}}/export/animated.ply",
-        compact=f"{R}/{{scene}}/{{variant}}/export/scene.anigs",
+        sidecar=stage_out("export", "sidecar"),
+        ply=stage_out("export", "ply"),
+        compact=stage_out("export", "compact"),
     log:
         f"{R}/{{scene}}/{{variant}}/logs/export.log",
     benchmark:
@@ -87,7 +87,7 @@ rule export:
             jparams("export")(wc),
             static=stage_dir(wc.scene, "static"),
             model=_folder([input.model]),
-            out=f"{R}/{wc.scene}/{wc.variant}/export",
+            out=job_out("export", wc),
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         p=jparams("export"),
@@ -98,13 +98,13 @@ rule export:
 
 rule view:
     input:
-        ply=stage_path("static", "canonical.ply"),
+        ply=stage_file("static", "canonical"),
         model=final_model,
-        views=stage_path("views", "views.json"),
+        views=stage_file("views", "views"),
     output:
         report(
-            directory(f"{R}/{{scene}}/{{variant}}/viewer"),
-            htmlindex="index.html",
+            directory(stage_out("view")),
+            htmlindex=layout_name("view", "index"),
             caption="../report/viewer.rst",
             category="Viewer",
             subcategory="{scene} {variant}",

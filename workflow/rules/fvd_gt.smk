@@ -4,19 +4,16 @@
 # always (also the default target, merged into metrics.json), never.
 
 
-FVD_GT_REF = f"{R}/{{scene}}/fvd_gt"
-
-
 rule fvd_gt_reference:
     input:
         gt=lambda wc: [
-            gt_file(wc.scene, n) for n in ("gaussians.ply", "labels.npy", "anchors.npy", "motion.json", "cameras.json")
+            gt_of(wc.scene, k) for k in ("gt_gaussians", "gt_labels", "gt_anchors", "gt_motion", "gt_cameras")
         ],
-        cameras=stage_path("sfm", "cameras.json"),
-        ply=stage_path("static", "canonical.ply"),
+        cameras=stage_file("sfm", "cameras"),
+        ply=stage_file("static", "canonical"),
     output:
-        ref=f"{FVD_GT_REF}/reference.json",
-        views=f"{FVD_GT_REF}/views.json",
+        ref=stage_out("fvd_gt", "reference", "ReferenceOutputs"),
+        views=stage_out("fvd_gt", "views", "ReferenceOutputs"),
     log:
         f"{R}/{{scene}}/logs/fvd_gt_reference.log",
     benchmark:
@@ -32,7 +29,7 @@ rule fvd_gt_reference:
             "fvd_gt",
             jparams("fvd_gt", lambda wc: {"seed": config["seed"]})(wc),
             **_fvd_gt_scene(wc),
-            out=f"{R}/{wc.scene}/fvd_gt",
+            out=job_out("fvd_gt", wc, kind="ReferenceOutputs"),
             reference=True,
             frames=sec(wc.scene, "animate")["frames"],
         ),
@@ -43,14 +40,14 @@ rule fvd_gt_reference:
 
 rule fvd_gt:
     input:
-        ref=f"{FVD_GT_REF}/reference.json",
-        views=f"{FVD_GT_REF}/views.json",
-        ply=stage_path("static", "canonical.ply"),
+        ref=stage_out("fvd_gt", "reference", "ReferenceOutputs"),
+        views=stage_out("fvd_gt", "views", "ReferenceOutputs"),
+        ply=stage_file("static", "canonical"),
         model=final_model,
-        cameras=stage_path("sfm", "cameras.json"),
-        gt=lambda wc: [gt_file(wc.scene, "cameras.json")],
+        cameras=stage_file("sfm", "cameras"),
+        gt=lambda wc: [gt_of(wc.scene, "gt_cameras")],
     output:
-        f"{R}/{{scene}}/{{variant}}/eval/fvd_gt.json",
+        stage_out("fvd_gt", "record"),
     log:
         f"{R}/{{scene}}/{{variant}}/logs/fvd_gt.log",
     benchmark:
@@ -66,8 +63,8 @@ rule fvd_gt:
             "fvd_gt",
             jparams("fvd_gt", lambda wc: {"seed": config["seed"]})(wc),
             **_fvd_gt_scene(wc),
-            out=f"{R}/{wc.scene}/{wc.variant}/eval",
-            reference_dir=f"{R}/{wc.scene}/fvd_gt",
+            out=job_out("fvd_gt", wc),
+            reference_dir=stage_out("fvd_gt", kind="ReferenceOutputs", scene=wc.scene),
             model=_folder([input.model]),
             scene=wc.scene,
             method=_table_row(wc)[0],

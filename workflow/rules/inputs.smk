@@ -25,14 +25,19 @@ def fvd_gt_wanted(scene, variant="full", target="tables"):
 
 
 def _fvd_gt_eval_input(wc):
-    """eval: the FVD-GT record joins metrics.json with fvd_gt.when: always."""
+    """eval: the FVD-GT record joins the merged metrics with fvd_gt.when: always."""
     if not fvd_gt_wanted(wc.scene, wc.variant, "eval"):
         return []
-    return [out_path("fvd_gt", f"{R}/{wc.scene}/{wc.variant}/eval", "record")]
+    return [job_out("fvd_gt", wc, "record")]
 
 
 def fvd_gt_table_inputs():
-    return [f"{R}/{s}/{v}/eval/fvd_gt.json" for s in SCENES for v in config["table_variants"] if fvd_gt_wanted(s, v)]
+    return [
+        stage_out("fvd_gt", "record", scene=s, variant=v)
+        for s in SCENES
+        for v in config["table_variants"]
+        if fvd_gt_wanted(s, v)
+    ]
 
 
 def _fvd_gt_scene(wc):
@@ -51,7 +56,7 @@ def _fvd_gt_scene(wc):
 
 def _tradeoff_metrics(wc):
     return [
-        out_path("eval", f"{R}/{p.scene(s)}/{p.variant}/eval", "metrics")
+        stage_out("eval", "metrics", scene=p.scene(s), variant=p.variant)
         for s, pts in tradeoff_points().items()
         for p in pts
     ]
@@ -71,7 +76,7 @@ def _tradeoff_plots():
     knobs = [k for k, v in config.get("tradeoff", {}).get("knobs", {}).items() if v]
     return [
         plot(
-            f"{R}/tradeoff/{s}_{knob_filename(k)}.png",
+            stage_out("tradeoff", "plot", scene=s, knob=knob_filename(k)),
             caption="../report/tradeoff.rst",
             category="Accuracy versus time",
         )
@@ -86,7 +91,7 @@ def _study_variants():
 
 
 def merge_eval_halves(metrics, input, log):
-    """The eval rule's job (in Snakemake: a JSON merge, no process start-up): ``metrics`` (metrics.json)
+    """The eval rule's job (in Snakemake: a JSON merge, no process start-up): ``metrics`` (the merged file)
     from the clips and model halves beside it and the FVD-GT records of ``input.fvd_gt``."""
     from anigs.stages.eval import Outputs, merge_parts
 

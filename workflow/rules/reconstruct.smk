@@ -24,7 +24,7 @@ rule sfm:
         runtime=60,
     params:
         p=jparams("sfm"),
-        out=lambda wc: f"{R}/{wc.scene}/sfm",
+        out=lambda wc: job_out("sfm", wc),
         gt=lambda wc: f"--gt-cameras {gt_of(wc.scene, 'gt_cameras')}" if is_synthetic(wc.scene) else "",
         version=ANIGS_VERSION,
     shell:
@@ -52,7 +52,7 @@ rule static:
         runtime=120,
     params:
         p=jparams("static", lambda wc: {"device": config["device"], "seed": config["seed"]}),
-        out=lambda wc: f"{R}/{wc.scene}/static",
+        out=lambda wc: job_out("static", wc),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} static --images {input.images:q} --cameras {input.cameras:q} "

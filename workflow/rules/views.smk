@@ -25,7 +25,7 @@ checkpoint effects:
         runtime=30,
     params:
         p=jparams("effects", _effects_prompt),
-        out=lambda wc: f"{R}/{wc.scene}/effects",
+        out=lambda wc: job_out("effects", wc),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} effects --canonical {input.ply:q} --cameras {input.cameras:q} "
@@ -56,7 +56,7 @@ checkpoint views:
     params:
         p=jparams("views"),
         roi=_roi_args,
-        out=lambda wc: f"{R}/{wc.scene}/views",
+        out=lambda wc: job_out("views", wc),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} views --canonical {input.ply:q} --cameras {input.cameras:q} "
@@ -77,8 +77,8 @@ rule masks:
         # the whole folder: a mask (+ overlay, per-effect masks) per queued view, the dynamic set, the
         # report (anigs.stages.masks.Outputs)
         masks=report(
-            directory(f"{R}/{{scene}}/masks"),
-            patterns=[stage_outputs("masks").pattern("overlay").replace("{view}", "{name}")],
+            directory(stage_out("masks")),
+            patterns=[layout_name("masks", "overlay").replace("{view}", "{name}")],
             caption="../report/masks.rst",
             category="Masks",
             subcategory="{scene}",
@@ -97,7 +97,7 @@ rule masks:
         p=jparams("masks"),
         effects=lambda wc: stage_dir(wc.scene, "effects"),
         gt=gt_args,
-        out=lambda wc: f"{R}/{wc.scene}/masks",
+        out=lambda wc: job_out("masks", wc),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} masks --canonical {input.ply:q} --views {input.views:q} "
