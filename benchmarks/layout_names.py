@@ -4,10 +4,10 @@
 
 Takes every file name of every stage's ``Outputs.LAYOUT`` (:func:`anigs.stages.contract.outputs_of`)
 and greps anigs/, benchmarks/, workflow/ and the Snakefile for them. Hits inside a ``File(...)``
-of a stage module (the contract itself), docstrings and comments are not counted; what is left is
-printed by file with the line: string literals in code that name another stage's file. Generic
-names that are also words of prose (``images``, ``gt``, ``render``, ...) are skipped. Exit status 0;
-the count is the figure.
+of a stage module (the contract itself), docstrings (a rule file's triple-quoted strings) and
+comments are not counted; what is left is printed with the line and counted per file: string
+literals in code that name a stage's file. Generic names that are also words of prose (``images``,
+``gt``, ``render``, ...) are skipped. The last line is the total (the issue's grep). Exit status 0.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from anigs.stages import STAGES
 from anigs.stages.contract import outputs_of
 
 ROOT = Path(__file__).resolve().parents[1]
+DIRS = ("anigs", "benchmarks", "workflow", "Snakefile")
 GENERIC = {"images", "gt", "work", "sparse", "render", "target", "clips", "slices", "logs"}
 
 
@@ -51,28 +52,32 @@ def string_lines(path: Path, names: set[str]) -> set[int]:
 
 
 def doc_lines(path: Path) -> set[int]:
-    """Line numbers of ``path`` that are docstrings or comments."""
+    """Line numbers of ``path`` that are docstrings or comments (a rule file, which is not Python: its
+    triple-quoted strings count as docstrings)."""
     src = path.read_text()
     lines: set[int] = set()
-    for node in ast.walk(ast.parse(src)):
-        if isinstance(node, (ast.Module, ast.FunctionDef, ast.ClassDef, ast.AsyncFunctionDef)) and node.body:
-            b = node.body[0]
-            if isinstance(b, ast.Expr) and isinstance(b.value, ast.Constant) and isinstance(b.value.value, str):
-                lines.update(range(b.lineno, b.end_lineno + 1))
-    for tok in tokenize.generate_tokens(io.StringIO(src).readline):
-        if tok.type == tokenize.COMMENT:
-            lines.add(tok.start[0])
+    tokens = list(tokenize.generate_tokens(io.StringIO(src).readline))
+    if path.suffix == ".py":
+        for node in ast.walk(ast.parse(src)):
+            if isinstance(node, (ast.Module, ast.FunctionDef, ast.ClassDef, ast.AsyncFunctionDef)) and node.body:
+                b = node.body[0]
+                if isinstance(b, ast.Expr) and isinstance(b.value, ast.Constant) and isinstance(b.value.value, str):
+                    lines.update(range(b.lineno, b.end_lineno + 1))
+    else:
+        for tok in tokens:
+            if tok.type == tokenize.STRING and tok.string.lstrip("rbuRBU").startswith(('"""', "'''")):
+                lines.update(range(tok.start[0], tok.end[0] + 1))
+    lines.update(tok.start[0] for tok in tokens if tok.type == tokenize.COMMENT)
     return lines
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--all", action="store_true", help="also print the docstring/comment hits per file")
-    args = ap.parse_args()
+def hits(root: Path = ROOT, dirs: tuple[str, ...] = DIRS) -> tuple[dict[str, str], list[str], list[str]]:
+    """(layout names, ``path:line:text`` of string literals in code that spell one outside its
+    ``Outputs``, the other hits: docstrings, comments)."""
     names = layout_names()
     pat = "|".join(re.escape(n) for n in sorted(names, key=len, reverse=True))
-    grep = ["grep", "-rnE", "--include=*.py", "--include=*.smk", pat, "anigs", "benchmarks", "workflow", "Snakefile"]
-    out = subprocess.run(grep, cwd=ROOT, capture_output=True, text=True).stdout.splitlines()
+    grep = ["grep", "-rnE", "--include=*.py", "--include=*.smk", "--include=Snakefile", pat, *dirs]
+    out = subprocess.run(grep, cwd=root, capture_output=True, text=True).stdout.splitlines()
     cache: dict[str, set[int]] = {}  # path -> lines with a string literal naming a layout file
     code, docs = [], []
     for line in out:
@@ -81,19 +86,30 @@ def main() -> int:
             continue  # the contract itself
         if path == "benchmarks/layout_names.py":
             continue
-        if path.endswith(".py"):
-            d = cache.setdefault(path, string_lines(ROOT / path, set(names)))
-            (code if int(no) in d else docs).append(line)
-        else:
-            (docs if text.strip().startswith("#") else code).append(line)
+        d = cache.setdefault(path, string_lines(root / path, set(names)))
+        (code if int(no) in d else docs).append(line)
+    return names, code, docs
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--all", action="store_true", help="also print the docstring/comment hits per file")
+    args = ap.parse_args()
+    names, code, docs = hits()
     print(f"layout names ({len(names)}): {', '.join(sorted(names))}")
     print(f"\nin code outside the Outputs: {len(code)} lines")
     for line in code:
         print("  " + line[:160])
+    print("\nper file:")
+    for p, c in sorted(Counter(d.split(":", 1)[0] for d in code).items(), key=lambda pc: (-pc[1], pc[0])):
+        print(f"  {c:4d}  {p}")
     print(f"\nelsewhere (docstrings, comments, identifiers): {len(docs)} lines in {len({d.split(':', 1)[0] for d in docs})} files")
     if args.all:
         for p, c in sorted(Counter(d.split(":", 1)[0] for d in docs).items()):
             print(f"  {p}: {c}")
+    outside = sum(not d.startswith("anigs/stages/") for d in code)
+    print(f"\ntotal: {len(code)} code lines spell a layout file name outside its Outputs "
+          f"({len(code) - outside} in anigs/stages, {outside} elsewhere)")
     return 0
 
 
