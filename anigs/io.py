@@ -1,6 +1,8 @@
 """Atomic artifact writes: write to a temporary name in the same folder, then rename.
 
 An interrupted job therefore never leaves a half-written artifact under its final name.
+A library writer that fills a stage's folder takes it as a :class:`Layout` (the stage's ``Outputs``),
+so the file names stay with the stage.
 """
 from __future__ import annotations
 
@@ -9,9 +11,18 @@ import os
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Iterator, Protocol
 
 import numpy as np
+
+
+class Layout(Protocol):
+    """A stage's output folder as a library writer sees it (:class:`anigs.stages.contract.Outputs`):
+    its ``root`` and ``path(key, **fields)`` of each file; the names are the stage's."""
+
+    root: Path
+
+    def path(self, key: str, **fields: Any) -> Path: ...
 
 
 @contextmanager

@@ -76,7 +76,7 @@ def bench(capture: Path, out: Path, params: dict, label: str, repeats: int = 1, 
     load_start = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
     runs = []
     for _ in range(max(1, repeats)):
-        res = run_sfm(images, out, cfg, gt_cameras=gt if gt.exists() else None, threads=threads)
+        res = run_sfm(images, sfm_out, cfg, gt_cameras=gt if gt.exists() else None, threads=threads)
         runs.append(res.report)
     r = runs[-1]
     wall = {k: statistics.median(x["timings_s"][k] for x in runs) for k in r["timings_s"]}
@@ -185,7 +185,7 @@ def side_by_side(before: dict, after: dict) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("capture", help="capture folder with images/ (and gt/cameras.json), or a folder of photos")
+    ap.add_argument("capture", help="capture folder (the capture stage's: images, maybe ground-truth cameras), or a folder of photos")
     ap.add_argument("--out", default=None, help="output folder (default: a temporary folder)")
     ap.add_argument("--params", default=None, help="sfm config section as JSON or @file (on top of --before)")
     ap.add_argument("--before", action="store_true", help="the settings before the stage chose them from the capture")

@@ -37,11 +37,12 @@ the scale makes the mean camera height ``camera_height`` (eye height: roughly me
 them with a similarity (Umeyama on camera centres) and the pose errors are reported.
 
 Output folder (laid out like a COLMAP project, so 3DGS tools open it directly):
-``sparse/0/`` (COLMAP binary model in the output frame, PINHOLE cameras after
-undistortion), ``images/`` (the images the cameras describe: undistorted, or copies),
-``cameras.json`` (project convention, one camera per registered image, ``name`` = file
-name), ``points.npz`` (``xyz`` [P,3] float32, ``rgb`` [P,3] float32 in [0,1], ``error``
-[P] float32 reprojection error in px, ``track_length`` [P] int32), ``report.json``.
+the sfm stage's ``Outputs`` (:mod:`anigs.stages.sfm`) name its files: ``sparse`` (``0/``: COLMAP
+binary model in the output frame, PINHOLE cameras after undistortion), ``images`` (the images the
+cameras describe: undistorted, or copies), ``cameras`` (project convention, one camera per
+registered image, ``name`` = file name), ``points`` (``xyz`` [P,3] float32, ``rgb`` [P,3] float32
+in [0,1], ``error`` [P] float32 reprojection error in px, ``track_length`` [P] int32), ``report``,
+``work`` (kept with ``keep_work``).
 """
 from __future__ import annotations
 
@@ -59,27 +60,29 @@ import numpy as np
 
 from anigs.sfm.align import pose_errors, umeyama, upright_similarity
 from anigs.cameras import Camera, load_cameras, save_cameras
-from anigs.io import write_json, write_npz
+from anigs.io import Layout, write_json, write_npz
 from anigs.photos import check_images, image_headers, list_images, report_unreadable, require_min_images
 from anigs.sfm.config import MAPPERS, MATCHERS, UNDISTORTED_MODELS, SfmConfig
 from anigs.sfm.escalate import Source, SfmError, map_escalating, rescale_model
 from anigs.sfm.model import (find_model_dir, reconstruction_cameras, reconstruction_points, replace_dir,
                              to_sim3d)
 from anigs.sfm.bundle import adjust_intrinsics
+from anigs.sfm import steps
 from anigs.sfm.plan import resolve_threads
-from anigs.sfm.steps import (_device, camera_mode, cpu_seconds, extract_and_match, larger_originals, refine_model,
-                             run_mapper, select_model)
+from anigs.sfm.steps import _device, camera_mode, cpu_seconds, larger_originals, refine_model, select_model
 
+# COLMAP's extraction, matching and mapping are called through their module (steps.extract_and_match,
+# steps.run_mapper: here and in anigs.sfm.escalate), so a test replaces them there, once, for both
 __all__ = ["MAPPERS", "MATCHERS", "UNDISTORTED_MODELS", "SfmConfig", "SfmError", "SfmResult", "camera_mode",
-           "cpu_seconds", "extract_and_match", "larger_originals", "reconstruction_cameras", "reconstruction_points",
-           "refine_model", "resolve_config", "run_mapper", "run_sfm", "select_model"]
+           "cpu_seconds", "larger_originals", "reconstruction_cameras", "reconstruction_points",
+           "refine_model", "resolve_config", "run_sfm", "select_model"]
 
 log = logging.getLogger(__name__)
 
 
 @dataclass
 class SfmResult:
-    """What :func:`run_sfm` produced (also written to ``out_dir``)."""
+    """What :func:`run_sfm` produced (also written to its ``out``)."""
 
     cameras: list[Camera]
     xyz: np.ndarray  # [P,3] float32
@@ -90,7 +93,7 @@ class SfmResult:
 def resolve_config(cfg: SfmConfig, cli_threads: int | None = None) -> tuple[SfmConfig, dict]:
     """``cfg`` with the thread counts resolved (:func:`anigs.sfm.plan.resolve_threads`).
 
-    ``matcher: auto`` needs the keypoint count (:func:`extract_and_match` resolves it) and
+    ``matcher: auto`` needs the keypoint count (:func:`anigs.sfm.steps.extract_and_match` resolves it) and
     ``init_min_tri_angle: auto`` the matches (:func:`anigs.sfm.escalate.map_escalating`). Returns the config and
     the report entry.
     """
@@ -102,19 +105,19 @@ def resolve_config(cfg: SfmConfig, cli_threads: int | None = None) -> tuple[SfmC
 
 # ---- the stage -----------------------------------------------------------------------------------
 
-def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = None,
+def run_sfm(image_dir: str | Path, out: Layout, cfg: SfmConfig | None = None,
             gt_cameras: str | Path | None = None, model_dir: str | Path | None = None,
             keep_work: bool = False, threads: int | None = None, originals: str | Path | None = None) -> SfmResult:
     """Run the whole stage; see the module docstring for steps, failures and outputs.
 
     Args:
         image_dir: folder of JPEG/PNG images.
-        out_dir: output folder (created).
+        out: the sfm stage's folder (:class:`anigs.stages.sfm.Outputs`; created): where each file goes.
         cfg: parameters (defaults when None).
         gt_cameras: ground-truth cameras JSON (synthetic capture): align to them and report errors.
         model_dir: an existing COLMAP sparse model of these images: skips extraction, matching
             and mapping (registration is still checked against the images in ``image_dir``).
-        keep_work: keep the COLMAP database and raw models in ``out_dir/work``.
+        keep_work: keep the COLMAP database and raw models in ``out``'s ``work`` folder.
         threads: ``anigs --threads`` (what Snakemake gives the job): the count ``num_threads: -1`` means.
         originals: folder of the photos ``image_dir`` was downscaled from (same stems): the
             escalation's ``original_resolution`` step (:mod:`anigs.sfm.escalate`) uses them.
@@ -123,13 +126,13 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
 
     cfg = cfg or SfmConfig()
     t_start, c_start = time.perf_counter(), cpu_seconds()
-    image_dir, out_dir = Path(image_dir), Path(out_dir)
+    image_dir, out_dir = Path(image_dir), Path(out.root)
     names, bad, headers, mode = _check_capture(image_dir, cfg, model_dir)
     total = len(names)
     gt = load_cameras(gt_cameras) if gt_cameras else None
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    work = out_dir / "work" if keep_work else Path(tempfile.mkdtemp(prefix=".sfm_work.", dir=out_dir))
+    work = out.path("work") if keep_work else Path(tempfile.mkdtemp(prefix=".sfm_work.", dir=out_dir))
     if keep_work and work.exists():
         shutil.rmtree(work)
     work.mkdir(parents=True, exist_ok=True)
@@ -153,13 +156,13 @@ def run_sfm(image_dir: str | Path, out_dir: str | Path, cfg: SfmConfig | None = 
         sparse_tmp = Path(tempfile.mkdtemp(prefix=".sparse.", dir=out_dir))
         (sparse_tmp / "0").mkdir()
         rec.write(sparse_tmp / "0")
-        replace_dir(sparse_tmp, out_dir / "sparse")
-        replace_dir(images_tmp, out_dir / "images")
-        save_cameras(out_dir / "cameras.json", cams, extra={"source": "colmap", "frame": report["frame"]["mode"]})
-        write_npz(out_dir / "points.npz", **pts)
+        replace_dir(sparse_tmp, out.path("sparse"))
+        replace_dir(images_tmp, out.path("images"))
+        save_cameras(out.path("cameras"), cams, extra={"source": "colmap", "frame": report["frame"]["mode"]})
+        write_npz(out.path("points"), **pts)
         report["timings_s"]["total"], report["cpu_s"]["total"] = time.perf_counter() - t_start, cpu_seconds() - c_start
         report["load_average"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
-        write_json(out_dir / "report.json", report)
+        write_json(out.path("report"), report)
     finally:
         if not keep_work:
             shutil.rmtree(work, ignore_errors=True)
@@ -218,7 +221,7 @@ def _map(work: Path, image_dir: Path, names: list[str], cfg: SfmConfig, mode: st
          originals: str | Path | None, report: dict):
     """Extraction, matching, mapping with escalation (:mod:`anigs.sfm.escalate`) and refinement;
     fills ``report`` (timings, features, mapping, status, refine); returns the model."""
-    stats = extract_and_match(work / "database.db", image_dir, names, cfg, mode)
+    stats = steps.extract_and_match(work / "database.db", image_dir, names, cfg, mode)
     report["camera_mode"] = mode
     report["timings_s"].update(extract=stats.pop("extract_s"), match=stats.pop("match_s"))
     report["cpu_s"].update(extract=stats.pop("extract_cpu_s", None), match=stats.pop("match_cpu_s", None))

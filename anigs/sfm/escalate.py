@@ -3,7 +3,7 @@
 When a mapping registers fewer than ``min_registered_fraction`` of the photos, the next step of
 the ladder runs (with ``sfm.escalate: true``; each step adds to what the earlier ones matched):
 
-1. ``first``: the matching :func:`anigs.sfm.colmap.extract_and_match` ran (``matcher``, ``auto``);
+1. ``first``: the matching :func:`anigs.sfm.steps.extract_and_match` ran (``matcher``, ``auto``);
 2. ``loops`` (after a sequential matching): loop detection on a vocabulary tree of the capture's
    own descriptors and look-alike pairs (:func:`anigs.sfm.rematch.match_loops`);
 3. ``exhaustive`` (after a sequential or spatial matching, at most ``exhaustive_max_images``
@@ -31,7 +31,7 @@ from typing import Any, Optional
 import numpy as np
 
 from anigs.photos import import_photos
-from anigs.sfm import rematch
+from anigs.sfm import rematch, steps
 from anigs.sfm.config import SfmConfig
 from anigs.sfm.diagnose import likely_causes
 from anigs.sfm.plan import initial_pair_angle
@@ -89,31 +89,24 @@ class Outcome:
     report: dict
 
 
-def _colmap():
-    from anigs.sfm import colmap  # late: tests replace colmap.run_mapper / extract_and_match
-
-    return colmap
-
-
 def _stats(database: Path) -> dict:
     return database_stats(database) if Path(database).exists() else {}
 
 
 def _map(src: Source, step: str, work: Path, cfg: SfmConfig, names: list[str], mapper: str,
          angle: float, k: int, match_s: float) -> tuple[Attempt, Any]:
-    c = _colmap()
-    t0, c0 = time.perf_counter(), c.cpu_seconds()
+    t0, c0 = time.perf_counter(), steps.cpu_seconds()
     a = Attempt(step, src.matcher, src.resolution, mapper, angle if mapper == "incremental" else None, len(names),
                 match_seconds=match_s, **{k_: v for k_, v in _stats(src.database).items()})
     try:
-        models, error = c.run_mapper(src.database, src.image_dir, work / f"mapping{k}", cfg, names, mapper, angle), None
+        models, error = steps.run_mapper(src.database, src.image_dir, work / f"mapping{k}", cfg, names, mapper, angle), None
     except Exception as exc:  # COLMAP raises RuntimeError / ValueError on failures
         models, error = {}, f"{type(exc).__name__}: {exc}"
-    chosen, sizes = c.select_model(models)
+    chosen, sizes = steps.select_model(models)
     a.models, a.registered = sizes, (sizes[0] if sizes else 0)
     a.shared_with_largest = shared_images(models, chosen)
     a.seconds = match_s + time.perf_counter() - t0
-    a.cpu_seconds = c.cpu_seconds() - c0
+    a.cpu_seconds = steps.cpu_seconds() - c0
     a.result = error or ("no model" if not sizes else f"registered {a.registered}/{len(names)}")
     log.info("sfm attempt %d (%s: %s matches, %s resolution, init_min_tri_angle=%s): %s, models %s, %.1f s",
              k + 1, step, a.matcher, a.resolution, a.init_min_tri_angle, a.result, sizes, a.seconds)
@@ -238,7 +231,7 @@ def original_source(originals: Path, names: list[str], work: Path, cfg: SfmConfi
     db = work / "original" / "database.db"
     n = len(names)
     matcher = "exhaustive" if n <= cfg.exhaustive_max_images else "sequential"
-    _colmap().extract_and_match(db, folder, names, dataclasses.replace(cfg, matcher=matcher), mode)
+    steps.extract_and_match(db, folder, names, dataclasses.replace(cfg, matcher=matcher), mode)
     return Source(db, folder, "original", matcher)
 
 

@@ -77,7 +77,7 @@ def run(inputs: Inputs, cfg: SfmConfig, threads: int | None = None) -> Outputs:
     from anigs.stages.capture import Outputs as CaptureOutputs
 
     originals = CaptureOutputs(Path(inputs.images).parent).original_photos()
-    run_sfm(inputs.images, inputs.out.root, cfg, gt_cameras=inputs.gt_cameras, model_dir=inputs.model,
+    run_sfm(inputs.images, inputs.out, cfg, gt_cameras=inputs.gt_cameras, model_dir=inputs.model,
             keep_work=inputs.keep_work, threads=threads, originals=originals)
     return inputs.out
 

@@ -17,6 +17,7 @@ pycolmap = pytest.importorskip("pycolmap")
 from _captures import SPLIT_GROUPS, split_ring_capture  # noqa: E402
 from anigs.sfm import rematch  # noqa: E402
 from anigs.sfm.colmap import SfmConfig, SfmError, run_sfm  # noqa: E402
+from anigs.stages.sfm import Outputs as SfmOutputs  # noqa: E402
 from anigs.sfm.diagnose import groups, likely_causes  # noqa: E402
 
 # sequential pairs (i, i+1) only, no look-alike pairs: what leaves the split capture in groups
@@ -39,7 +40,7 @@ def test_sequential_groups_escalate_until_every_photo_registers(split, tmp_path,
     """Sequential matching registers one group; the escalation adds pairs and registers all 20.
     (Before the escalation this capture stopped with SfmError after the 4-degree retry.)"""
     with caplog.at_level(logging.INFO, logger="anigs.sfm"):
-        res = run_sfm(split["images"], tmp_path / "sfm", _cfg(), gt_cameras=split["gt"])
+        res = run_sfm(split["images"], SfmOutputs(tmp_path / "sfm"), _cfg(), gt_cameras=split["gt"])
     attempts = res.report["mapping"]["attempts"]
     assert attempts[0]["step"] == "first" and attempts[0]["matcher"] == "sequential"
     assert attempts[0]["registered"] <= 12, attempts[0]  # one group (10) at most, plus a stray pair
@@ -58,7 +59,7 @@ def test_sequential_groups_escalate_until_every_photo_registers(split, tmp_path,
 def test_exhaustive_step_joins_what_the_loop_step_leaves(split, tmp_path, monkeypatch):
     """With the loop step adding nothing, matching every pair is the step that joins the groups."""
     monkeypatch.setattr(rematch, "match_loops", lambda *a, **k: {"match_s": 0.0})
-    res = run_sfm(split["images"], tmp_path / "sfm", _cfg())
+    res = run_sfm(split["images"], SfmOutputs(tmp_path / "sfm"), _cfg())
     steps = [(a["step"], a["registered"]) for a in res.report["mapping"]["attempts"]]
     assert [s for s, _ in steps] == ["first", "loops", "exhaustive"], steps
     assert steps[1][1] == steps[0][1] and steps[2][1] == 20
@@ -69,7 +70,7 @@ def test_partial_run_continues_with_the_largest_model(split, tmp_path, caplog):
     """No escalation: the best model holds half the photos (>= partial_min_fraction): the run goes on
     with it, says partial, and lists the photos left out; the outputs hold the registered ones only."""
     with caplog.at_level(logging.WARNING, logger="anigs.sfm"):
-        res = run_sfm(split["images"], tmp_path / "sfm", _cfg(escalate=False, partial_min_fraction=0.45))
+        res = run_sfm(split["images"], SfmOutputs(tmp_path / "sfm"), _cfg(escalate=False, partial_min_fraction=0.45))
     r = res.report
     assert r["status"] == "partial" and r["partial"] is True
     assert [a["step"] for a in r["mapping"]["attempts"]] == ["first", "lower_angle"]
@@ -88,7 +89,7 @@ def test_partial_run_continues_with_the_largest_model(split, tmp_path, caplog):
 
 def test_below_half_is_an_error_naming_cause_and_settings(split, tmp_path):
     with pytest.raises(SfmError) as err:
-        run_sfm(split["images"], tmp_path / "sfm", _cfg(escalate=False, partial_min_fraction=0.6))
+        run_sfm(split["images"], SfmOutputs(tmp_path / "sfm"), _cfg(escalate=False, partial_min_fraction=0.6))
     msg = str(err.value)
     assert "registered 10/20" in msg and "partial_min_fraction=0.6" in msg
     assert "too little overlap" in msg and "groups of [10, 6, 4]" in msg
@@ -129,7 +130,7 @@ def test_original_resolution_step_uses_the_full_size_photos(split, tmp_path, mon
         Image.open(p).resize((160, 120), Image.Resampling.LANCZOS).save(small / p.name)
     monkeypatch.setattr(rematch, "match_loops", lambda *a, **k: {"match_s": 0.0})
     monkeypatch.setattr(rematch, "match_every_pair", lambda *a, **k: {"match_s": 0.0})
-    res = run_sfm(small, tmp_path / "sfm", _cfg(), originals=split["images"])
+    res = run_sfm(small, SfmOutputs(tmp_path / "sfm"), _cfg(), originals=split["images"])
     attempts = res.report["mapping"]["attempts"]
     assert [a["step"] for a in attempts][-1] == "original_resolution", attempts
     assert attempts[-1]["resolution"] == "original" and attempts[-1]["registered"] == 20

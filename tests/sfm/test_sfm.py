@@ -17,12 +17,13 @@ import pytest
 pycolmap = pytest.importorskip("pycolmap")
 
 from anigs.sfm import colmap as sfm_mod  # noqa: E402
-from anigs.sfm import plan  # noqa: E402
+from anigs.sfm import plan, steps  # noqa: E402
 from anigs.sfm.align import (Similarity, estimate_up, pose_errors, rotation_angle_deg, rotation_between,  # noqa: E402
                          umeyama)
 from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at  # noqa: E402
 from anigs.gaussians import Gaussians  # noqa: E402
 from anigs.sfm.colmap import SfmConfig, SfmError, run_sfm  # noqa: E402
+from anigs.stages.sfm import Outputs as SfmOutputs  # noqa: E402
 from _captures import render as render_capture, textured_discs  # noqa: E402
 
 W, H = 320, 240
@@ -67,7 +68,7 @@ def ring(tmp_path_factory, scene):
     root = tmp_path_factory.mktemp("ring")
     images, gt = render_capture(root, ring_cameras(), scene)
     cfg = SfmConfig(camera_model="SIMPLE_RADIAL")
-    res = run_sfm(images, root / "sfm", cfg, gt_cameras=gt, keep_work=True)
+    res = run_sfm(images, SfmOutputs(root / "sfm"), cfg, gt_cameras=gt, keep_work=True)
     return {"root": root, "images": images, "gt": gt, "res": res, "out": root / "sfm"}
 
 
@@ -122,7 +123,7 @@ def test_ring_outputs_follow_the_contract(ring):
 
 def test_upright_frame_without_ground_truth(ring, tmp_path):
     """From the existing model (no GT): up must be +z and the ground z = 0, up to scale."""
-    res = run_sfm(ring["images"], tmp_path / "sfm", SfmConfig(camera_model="SIMPLE_RADIAL"),
+    res = run_sfm(ring["images"], SfmOutputs(tmp_path / "sfm"), SfmConfig(camera_model="SIMPLE_RADIAL"),
                   model_dir=ring["out"] / "work" / "selected")
     assert res.report["frame"]["mode"] == "upright"
     gt = {c.name: c for c in load_cameras(ring["gt"])}
@@ -158,13 +159,13 @@ def test_cli_from_existing_model(ring, tmp_path, capsys):
 
 def test_existing_project_sparse_folder(ring, tmp_path):
     """--model accepts a COLMAP project's sparse/ folder (with 0/ inside), e.g. our own output."""
-    res = run_sfm(ring["out"] / "images", tmp_path / "again", SfmConfig(camera_model="PINHOLE"),
+    res = run_sfm(ring["out"] / "images", SfmOutputs(tmp_path / "again"), SfmConfig(camera_model="PINHOLE"),
                   gt_cameras=ring["gt"], model_dir=ring["out"] / "sparse")
     assert res.report["registered"] == 20 and res.report["undistorted"] is False
     assert res.report["gt_errors"]["rotation_error_deg"]["max"] < 0.5
     (tmp_path / "nothing").mkdir()
     with pytest.raises(FileNotFoundError, match="no COLMAP model"):
-        run_sfm(ring["out"] / "images", tmp_path / "x", model_dir=tmp_path / "nothing")
+        run_sfm(ring["out"] / "images", SfmOutputs(tmp_path / "x"), model_dir=tmp_path / "nothing")
 
 
 # ---- fine-scale refinement (anigs.sfm.bundle) on the ring's database and raw model ---------------
@@ -248,8 +249,8 @@ def _patch_colmap(monkeypatch, models_for_angle):
             raise result
         return result
 
-    monkeypatch.setattr(sfm_mod, "extract_and_match", fake_extract)
-    monkeypatch.setattr(sfm_mod, "run_mapper", fake_mapper)
+    monkeypatch.setattr(steps, "extract_and_match", fake_extract)
+    monkeypatch.setattr(steps, "run_mapper", fake_mapper)
     return calls
 
 
@@ -269,7 +270,7 @@ def test_several_models_keep_the_largest(ring, ring_model, tmp_path, monkeypatch
     small = _partial(ring_model, 5)
     calls = _patch_colmap(monkeypatch, lambda angle: {0: small, 1: pycolmap.Reconstruction(ring_model)})
     with caplog.at_level(logging.WARNING, logger="anigs.sfm.colmap"):
-        res = run_sfm(ring["out"] / "images", tmp_path / "sfm", SfmConfig(camera_model="PINHOLE"))
+        res = run_sfm(ring["out"] / "images", SfmOutputs(tmp_path / "sfm"), SfmConfig(camera_model="PINHOLE"))
     assert calls == [16.0]
     assert res.report["mapping"]["models_found"] == [20, 5]
     assert res.report["mapping"]["other_models"] == [5]
@@ -281,19 +282,19 @@ def test_several_models_keep_the_largest(ring, ring_model, tmp_path, monkeypatch
 def test_too_few_registered_goes_on_partial_or_fails_after_retry(ring, ring_model, tmp_path, monkeypatch):
     part = _partial(ring_model, 14)  # 14/20 = 0.7: below 0.8, at least half
     calls = _patch_colmap(monkeypatch, lambda angle: {0: pycolmap.Reconstruction(part)})
-    res = run_sfm(ring["out"] / "images", tmp_path / "sfm", SfmConfig(camera_model="PINHOLE"))
+    res = run_sfm(ring["out"] / "images", SfmOutputs(tmp_path / "sfm"), SfmConfig(camera_model="PINHOLE"))
     assert calls == [16.0, 4.0]
     assert res.report["status"] == "partial" and res.report["registered"] == 14
     assert len(res.report["unregistered_images"]) == 6 and len(res.cameras) == 14
     # below partial_min_fraction it is an error naming registered/total and both attempts
     calls = _patch_colmap(monkeypatch, lambda angle: {0: pycolmap.Reconstruction(_partial(ring_model, 9))})
     with pytest.raises(SfmError, match=r"registered 9/20 images") as err:
-        run_sfm(ring["out"] / "images", tmp_path / "sfm2", SfmConfig(camera_model="PINHOLE"))
+        run_sfm(ring["out"] / "images", SfmOutputs(tmp_path / "sfm2"), SfmConfig(camera_model="PINHOLE"))
     assert calls == [16.0, 4.0]
     assert "init_min_tri_angle=4.0" in str(err.value) and "Settings to try" in str(err.value)
     assert not (tmp_path / "sfm2" / "cameras.json").exists()
     # a lower threshold accepts the same model as complete
-    res = run_sfm(ring["out"] / "images", tmp_path / "sfm3",
+    res = run_sfm(ring["out"] / "images", SfmOutputs(tmp_path / "sfm3"),
                   SfmConfig(camera_model="PINHOLE", min_registered_fraction=0.4))
     assert res.report["registered"] == 9 and res.report["status"] == "complete"
     assert len(res.report["unregistered_images"]) == 11
@@ -305,7 +306,7 @@ def test_mapping_failure_retries_with_lower_angle(ring, ring_model, tmp_path, mo
 
     calls = _patch_colmap(monkeypatch, models)
     with caplog.at_level(logging.WARNING, logger="anigs.sfm.colmap"):
-        res = run_sfm(ring["out"] / "images", tmp_path / "sfm", SfmConfig(camera_model="PINHOLE"))
+        res = run_sfm(ring["out"] / "images", SfmOutputs(tmp_path / "sfm"), SfmConfig(camera_model="PINHOLE"))
     assert calls == [16.0, 4.0]
     attempts = res.report["mapping"]["attempts"]
     assert res.report["mapping"]["retries"] == 1 and "no good initial image pair" in attempts[0]["result"]
@@ -315,7 +316,7 @@ def test_mapping_failure_retries_with_lower_angle(ring, ring_model, tmp_path, mo
     # a failure with the retry disabled is an error naming 0/20
     _patch_colmap(monkeypatch, lambda a: RuntimeError("boom"))
     with pytest.raises(SfmError, match=r"registered 0/20"):
-        run_sfm(ring["out"] / "images", tmp_path / "sfm3",
+        run_sfm(ring["out"] / "images", SfmOutputs(tmp_path / "sfm3"),
                 SfmConfig(camera_model="PINHOLE", retry_init_min_tri_angle=None))
 
 
@@ -325,7 +326,7 @@ def _forbid_colmap(monkeypatch):
     def boom(*a, **k):
         raise AssertionError("COLMAP must not run")
 
-    monkeypatch.setattr(sfm_mod, "extract_and_match", boom)
+    monkeypatch.setattr(steps, "extract_and_match", boom)
 
 
 def test_corrupt_images_listed_or_skipped(ring, tmp_path, monkeypatch, caplog):
@@ -338,7 +339,7 @@ def test_corrupt_images_listed_or_skipped(ring, tmp_path, monkeypatch, caplog):
     (folder / "noise.jpg").write_bytes(np.random.default_rng(0).bytes(3000))
     _forbid_colmap(monkeypatch)
     with pytest.raises(ValueError) as err:
-        run_sfm(folder, tmp_path / "sfm")
+        run_sfm(folder, SfmOutputs(tmp_path / "sfm"))
     assert "2 unreadable" in str(err.value)
     assert "truncated.png" in str(err.value) and "noise.jpg" in str(err.value)
 
@@ -348,9 +349,9 @@ def test_corrupt_images_listed_or_skipped(ring, tmp_path, monkeypatch, caplog):
         seen["names"] = names
         raise RuntimeError("stop here")
 
-    monkeypatch.setattr(sfm_mod, "extract_and_match", record)
+    monkeypatch.setattr(steps, "extract_and_match", record)
     with caplog.at_level(logging.WARNING), pytest.raises(RuntimeError, match="stop here"):
-        run_sfm(folder, tmp_path / "sfm", SfmConfig(skip_unreadable=True))
+        run_sfm(folder, SfmOutputs(tmp_path / "sfm"), SfmConfig(skip_unreadable=True))
     assert seen["names"] == [f"ring_{i:03d}.png" for i in range(4)]
     assert "truncated.png" in caplog.text and "noise.jpg" in caplog.text
     assert not list((tmp_path / "sfm").glob(".sfm_work.*"))  # work folder cleaned up
@@ -363,14 +364,14 @@ def test_fewer_than_three_images(ring, tmp_path, monkeypatch):
         (folder / p.name).write_bytes(p.read_bytes())
     _forbid_colmap(monkeypatch)
     with pytest.raises(ValueError, match="at least 3"):
-        run_sfm(folder, tmp_path / "sfm")
+        run_sfm(folder, SfmOutputs(tmp_path / "sfm"))
     assert not (tmp_path / "sfm").exists()  # failed before creating anything
     (tmp_path / "empty").mkdir()
     (tmp_path / "empty" / "notes.txt").write_text("not an image")
     with pytest.raises(FileNotFoundError, match="no JPEG/PNG"):
-        run_sfm(tmp_path / "empty", tmp_path / "out")
+        run_sfm(tmp_path / "empty", SfmOutputs(tmp_path / "out"))
     with pytest.raises(FileNotFoundError, match="not found"):
-        run_sfm(tmp_path / "missing", tmp_path / "out")
+        run_sfm(tmp_path / "missing", SfmOutputs(tmp_path / "out"))
 
 
 def test_mixed_sizes_and_exif_rotation_checked_first(ring, tmp_path, monkeypatch, caplog):
@@ -388,7 +389,7 @@ def test_mixed_sizes_and_exif_rotation_checked_first(ring, tmp_path, monkeypatch
         im.resize((160, 120)).save(folder / "small.png")
     _forbid_colmap(monkeypatch)
     with caplog.at_level(logging.WARNING), pytest.raises(ValueError, match="2 sizes.*single_camera"):
-        run_sfm(folder, tmp_path / "sfm")
+        run_sfm(folder, SfmOutputs(tmp_path / "sfm"))
     assert "EXIF rotation" in caplog.text and "turned.jpg" in caplog.text
 
 
@@ -398,7 +399,7 @@ def test_spatial_matcher_needs_location_priors(ring, tmp_path):
     for p in sorted(ring["images"].iterdir())[:3]:
         (folder / p.name).write_bytes(p.read_bytes())
     with pytest.raises(ValueError, match="spatial.*EXIF GPS"):
-        run_sfm(folder, tmp_path / "sfm", SfmConfig(matcher="spatial"))
+        run_sfm(folder, SfmOutputs(tmp_path / "sfm"), SfmConfig(matcher="spatial"))
 
 
 def test_config_rejects_unknown_and_bad_values():
@@ -434,8 +435,8 @@ def test_same_seed_same_output_for_any_extraction_thread_count(ring, tmp_path):
     folder.mkdir()
     for p in sorted(ring["images"].iterdir())[:7]:  # 7 neighbouring views: a quick reconstruction
         (folder / p.name).write_bytes(p.read_bytes())
-    a = run_sfm(folder, tmp_path / "a", SfmConfig(camera_model="SIMPLE_RADIAL", num_threads=1), keep_work=True)
-    b = run_sfm(folder, tmp_path / "b", SfmConfig(camera_model="SIMPLE_RADIAL", num_threads=2), keep_work=True)
+    a = run_sfm(folder, SfmOutputs(tmp_path / "a"), SfmConfig(camera_model="SIMPLE_RADIAL", num_threads=1), keep_work=True)
+    b = run_sfm(folder, SfmOutputs(tmp_path / "b"), SfmConfig(camera_model="SIMPLE_RADIAL", num_threads=2), keep_work=True)
     assert a.report["registered"] == 7
     assert (a.report["auto"]["num_threads"], b.report["auto"]["num_threads"]) == (1, 2)
     assert a.report["auto"]["mapper_num_threads"] == b.report["auto"]["mapper_num_threads"] == 1
@@ -520,7 +521,7 @@ def test_auto_sequential_matching_of_an_orbit(ring, tmp_path):
     """Forced to sequential (tiny comparison budget), the orbit still registers every view: the
     similar-thumbnail pairs close the loop that COLMAP's sequential pairs leave open."""
     cfg = SfmConfig(camera_model="SIMPLE_PINHOLE", exhaustive_max_comparisons=1.0, refine=False)
-    r = run_sfm(ring["images"], tmp_path / "sfm", cfg, gt_cameras=ring["gt"]).report
+    r = run_sfm(ring["images"], SfmOutputs(tmp_path / "sfm"), cfg, gt_cameras=ring["gt"]).report
     assert r["auto"]["matcher"] == "sequential" and "ordered" in r["auto"]["matcher_choice"]["reason"]
     assert r["features"]["similar_pairs"] > 0
     assert r["registered"] == r["images"] == 20
@@ -537,7 +538,7 @@ def test_held_distortion_is_estimated_without_refinement(ring, tmp_path):
     folder.mkdir()
     for p in sorted(ring["images"].iterdir())[:7]:
         (folder / p.name).write_bytes(p.read_bytes())
-    r = run_sfm(folder, tmp_path / "sfm", SfmConfig(camera_model="SIMPLE_RADIAL", refine=False), keep_work=True).report
+    r = run_sfm(folder, SfmOutputs(tmp_path / "sfm"), SfmConfig(camera_model="SIMPLE_RADIAL", refine=False), keep_work=True).report
     adj = r["refine"]["intrinsics_adjustment"]
     assert adj["mean_reprojection_error_after_px"] <= adj["mean_reprojection_error_before_px"] + 1e-9
     raw = pycolmap.Reconstruction(tmp_path / "sfm" / "work" / "selected")
@@ -551,7 +552,7 @@ def test_held_distortion_is_estimated_without_refinement(ring, tmp_path):
 
 def test_forward_facing_capture(tmp_path, scene):
     images, gt = render_capture(tmp_path, forward_cameras(), scene)
-    res = run_sfm(images, tmp_path / "sfm", SfmConfig(camera_model="SIMPLE_PINHOLE", matcher="sequential"),
+    res = run_sfm(images, SfmOutputs(tmp_path / "sfm"), SfmConfig(camera_model="SIMPLE_PINHOLE", matcher="sequential"),
                   gt_cameras=gt)
     r = res.report
     assert r["registered"] == r["images"] == 16
@@ -673,7 +674,7 @@ def test_portrait_and_landscape_photos_need_no_config(ring, tmp_path):
     for i, p in enumerate(srcs):
         img = cv2.imread(str(p))
         cv2.imwrite(str(folder / p.name), np.ascontiguousarray(np.rot90(img)) if i % 3 == 0 else img)
-    res = run_sfm(folder, tmp_path / "sfm")
+    res = run_sfm(folder, SfmOutputs(tmp_path / "sfm"))
     assert res.report["camera_mode"] == "AUTO"
     assert res.report["registered"] == len(srcs), res.report["registered"]
     cams = load_cameras(tmp_path / "sfm" / "cameras.json")  # undistorted: sizes within a few pixels
