@@ -85,10 +85,11 @@ def _synth_cfg(small: bool):
 
 def part_capture(args) -> dict:
     """Render the demo capture (ground truth at t=0) into ``--dir``."""
+    from anigs.stages.capture import Outputs as CaptureOutputs
     from anigs.synth import write_capture
 
     t0 = time.perf_counter()
-    summary = write_capture(_synth_cfg(args.small), args.dir)
+    summary = write_capture(_synth_cfg(args.small), CaptureOutputs(args.dir))
     return {"seconds": time.perf_counter() - t0, "images": len(summary.get("images", [])) or summary.get("num_images")}
 
 

@@ -66,8 +66,8 @@ def load_scene(scene: Path | None):
 
     tmp = Path(tempfile.mkdtemp(prefix="anigs_bench_static_"))
     print(f"no SfM outputs given: rendering the embedded demo capture to {tmp}")
-    write_capture(None, tmp)
     cap = CaptureOutputs(tmp)
+    write_capture(None, cap)
     imgs, cams = load_inputs(cap.path("images"), cap.path("gt_cameras"))
     pts, cols = pseudo_sfm_points(cap)
     return imgs, cams, pts, cols, _capture_background(cap), "embedded demo capture, GT cameras, pseudo-SfM points"

@@ -149,7 +149,7 @@ def run(inputs: Inputs, cfg) -> Outputs:
         raise ValueError("--photos is only used with --source photos")
     from anigs.synth.capture import write_capture
 
-    summary = write_capture(cfg, out.root)
+    summary = write_capture(cfg, out)
     write_json(out.path("summary"), {"source": "synthetic", **summary})
     log.info("synthetic capture: %d Gaussians %s, %d images %dx%d in %.1f s -> %s",
              summary["num_gaussians"], summary["label_counts"], summary["num_images"],

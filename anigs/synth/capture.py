@@ -1,14 +1,15 @@
 """The synthetic capture: a casual hand-held camera path through the garden, rendered at t=0.
 
-``write_capture(cfg, out_dir)`` writes
+``write_capture(cfg, out)`` writes into the capture stage's folder (``out``: its ``Outputs``,
+:mod:`anigs.stages.capture`, which names the files), by key:
 
-    out_dir/images/img_000.png ...        the photos (what SfM sees)
-    out_dir/gt/cameras.json               ground-truth cameras (anigs.cameras format)
-    out_dir/gt/gaussians.ply              ground-truth Gaussians (standard 3DGS layout, SH degree 0)
-    out_dir/gt/labels.npy                 [N] int32 semantic label per Gaussian (scene.LABELS)
-    out_dir/gt/anchors.npy                [N,3] float32 sway anchor per Gaussian
-    out_dir/gt/motion.json                motion parameters + label/effect tables
-    out_dir/gt/scene.json                 the full config used, label counts, timing
+    images          img_000.png ...: the photos (what SfM sees)
+    gt_cameras      ground-truth cameras (anigs.cameras format)
+    gt_gaussians    ground-truth Gaussians (standard 3DGS layout, SH degree 0)
+    gt_labels       [N] int32 semantic label per Gaussian (scene.LABELS)
+    gt_anchors      [N,3] float32 sway anchor per Gaussian
+    gt_motion       motion parameters + label/effect tables
+    gt_scene        the full config used, label counts, timing
 
 all atomically. The path (``capture.layout``):
 
@@ -37,7 +38,7 @@ import torch
 
 from anigs.typed_config import from_dict
 from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
-from anigs.io import atomic_path, write_json
+from anigs.io import Layout, atomic_path, write_json
 from anigs.render import render_gaussians
 from anigs.synth.motion import MotionParams, motion_tables
 from anigs.synth.build import build_scene
@@ -266,14 +267,13 @@ def _save_npy(path: Path, arr: np.ndarray) -> None:
             np.save(fh, arr)
 
 
-def write_capture(cfg: SynthConfig | None, out_dir: str | Path) -> dict:
+def write_capture(cfg: SynthConfig | None, out: Layout) -> dict:
     """Build the scene, render the capture at t=0 and write images + ground truth (see module doc).
 
     Returns a summary dict (counts, timing, image names).
     """
     cfg = cfg or SynthConfig()
-    out = Path(out_dir)
-    img_dir, gt_dir = out / "images", out / "gt"
+    img_dir = out.path("images")
     t0 = time.perf_counter()
     g = build_scene(cfg.scene, cfg.seed)
     t_build = time.perf_counter() - t0
@@ -289,11 +289,11 @@ def write_capture(cfg: SynthConfig | None, out_dir: str | Path) -> dict:
         log.warning("removed %d stale images from %s: %s", len(stale), img_dir, stale[:5])
     labels = g.extras["label"].numpy().astype(np.int32)
     counts = {name: int((labels == i).sum()) for i, name in LABELS.items()}
-    save_cameras(gt_dir / "cameras.json", cams, extra={"background": list(cfg.capture.background), "time": 0.0})
-    g.save_ply(gt_dir / "gaussians.ply")
-    _save_npy(gt_dir / "labels.npy", labels)
-    _save_npy(gt_dir / "anchors.npy", g.extras["anchor"].numpy().astype(np.float32))
-    write_json(gt_dir / "motion.json", {"params": cfg.motion.to_dict(), **motion_tables()})
+    save_cameras(out.path("gt_cameras"), cams, extra={"background": list(cfg.capture.background), "time": 0.0})
+    g.save_ply(out.path("gt_gaussians"))
+    _save_npy(out.path("gt_labels"), labels)
+    _save_npy(out.path("gt_anchors"), g.extras["anchor"].numpy().astype(np.float32))
+    write_json(out.path("gt_motion"), {"params": cfg.motion.to_dict(), **motion_tables()})
     summary = {
         "num_gaussians": g.num, "label_counts": counts, "num_images": len(cams),
         "image_size": [cfg.capture.width, cfg.capture.height],
@@ -301,5 +301,5 @@ def write_capture(cfg: SynthConfig | None, out_dir: str | Path) -> dict:
                     "total": round(time.perf_counter() - t0, 3)},
         "images": [c.name for c in cams],
     }
-    write_json(gt_dir / "scene.json", {"config": cfg.to_dict(), **summary})
+    write_json(out.path("gt_scene"), {"config": cfg.to_dict(), **summary})
     return summary

@@ -216,8 +216,10 @@ def test_write_capture_files_roundtrip_and_determinism(tmp_path, small_cfg):
     out1, out2 = tmp_path / "a", tmp_path / "b"
     (out1 / "images").mkdir(parents=True)
     (out1 / "images" / "img_999.png").write_bytes(b"stale")
-    summary = write_capture(small_cfg, out1)
-    write_capture(small_cfg, out2)
+    from anigs.stages.capture import Outputs as CaptureOutputs
+
+    summary = write_capture(small_cfg, CaptureOutputs(out1))
+    write_capture(small_cfg, CaptureOutputs(out2))
     import imageio.v2 as imageio
 
     names = sorted(p.name for p in (out1 / "images").glob("*.png"))

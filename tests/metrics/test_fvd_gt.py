@@ -27,7 +27,8 @@ def gt_dir(tmp_path_factory):
     from anigs.synth import CaptureConfig, SceneConfig, SynthConfig, write_capture
 
     out = tmp_path_factory.mktemp("capture")
-    write_capture(SynthConfig(0, SceneConfig(num_gaussians=3000), CaptureConfig(num_images=6, width=64, height=48)), out)
+    cfg = SynthConfig(0, SceneConfig(num_gaussians=3000), CaptureConfig(num_images=6, width=64, height=48))
+    write_capture(cfg, CaptureOutputs(out))
     return out / "gt"
 
 
