@@ -92,14 +92,14 @@ def main() -> int:
               "num_frames": deformation.num_frames, "num_bases": deformation.num_bases,
               "sh_degree": canonical.sh_degree, "sizes": _sizes(out, canonical, deformation)}
     t0 = time.perf_counter()
-    summary = build_viewer(a.model, out / "viewer", a.views, canonical=a.canonical)
+    summary = build_viewer(a.model, ViewOutputs(out / "viewer"), a.views, canonical=a.canonical)
     result["build_s"] = time.perf_counter() - t0
     result["viewer_folder_bytes"] = summary["folder_bytes"]
     bg = torch.tensor(json.loads(ViewOutputs(out / "viewer").path("config").read_text().split("=", 1)[1].rstrip().rstrip(";"))
                       ["background"])
     cams = cameras_from_views(json.loads(Path(a.views).read_text()))
     times = [min(max(t, 0.0), deformation.num_frames - 1) for t in a.times]
-    server = start_server(out / "viewer")
+    server = start_server(ViewOutputs(out / "viewer"))
     drv = _driver(1280, 860, a.gpu)
     try:
         t0 = time.perf_counter()

@@ -74,7 +74,7 @@ def build(inputs: Inputs, cfg: ViewConfig) -> dict[str, Any]:
     if (inputs.model is None) == (inputs.compact is None):
         raise ValueError("view: give --model DIR (a model's folder) or --compact FILE (.anigs)")
     model = inputs.model.path("model") if inputs.model is not None else inputs.compact
-    summary = build_viewer(model, inputs.out, views_json=inputs.views.path("views") if inputs.views else None,
+    summary = build_viewer(model, Outputs(inputs.out), views_json=inputs.views.path("views") if inputs.views else None,
                            canonical=inputs.static.path("canonical") if inputs.static else None,
                            background=cfg.background, fps=cfg.fps, embed=cfg.embed, title=cfg.title)
     summary = {k: v for k, v in summary.items() if k != "files"}
@@ -105,5 +105,5 @@ def main(args: argparse.Namespace) -> int:
     if inputs.serve:
         from anigs.viewer.serve import serve_folder
 
-        serve_folder(inputs.out, port=inputs.port, duration=inputs.serve_seconds)
+        serve_folder(Outputs(inputs.out), port=inputs.port, duration=inputs.serve_seconds)
     return 0

@@ -1,4 +1,5 @@
-"""Serve a viewer folder on the loopback interface (``anigs view --serve``).
+"""Serve a viewer folder (the view stage's ``Outputs``: its ``index`` is the page) on the loopback
+interface (``anigs view --serve``).
 
 Only 127.0.0.1 (or "localhost") is accepted: the viewer is meant for the local machine, never
 the network. :func:`start_server` runs in a background thread and is stopped with ``stop()``
@@ -11,8 +12,9 @@ import http.server
 import logging
 import threading
 import time
-from pathlib import Path
 from typing import Any, ClassVar
+
+from anigs.io import Layout
 
 log = logging.getLogger("anigs.viewer")
 
@@ -39,16 +41,16 @@ class _Server(http.server.ThreadingHTTPServer):
 class ViewerServer:
     """A running server: ``url``, ``port``, ``stop()``."""
 
-    def __init__(self, folder: str | Path, port: int = 0, host: str = "127.0.0.1") -> None:
+    def __init__(self, folder: Layout, port: int = 0, host: str = "127.0.0.1") -> None:
         if host not in LOOPBACK:
             raise ValueError(f"the viewer is served on the loopback interface only, not {host!r}")
-        folder = Path(folder)
-        if not (folder / "index.html").is_file():
-            raise FileNotFoundError(f"no index.html in {folder}: build the viewer first")
-        handler = functools.partial(_Handler, directory=str(folder))
+        page = folder.path("index")
+        if not page.is_file():
+            raise FileNotFoundError(f"no viewer page ({page.name}) in {folder.root}: build the viewer first")
+        handler = functools.partial(_Handler, directory=str(folder.root))
         self._httpd = _Server(("127.0.0.1", int(port)), handler)
         self.port = int(self._httpd.server_address[1])
-        self.url = f"http://127.0.0.1:{self.port}/index.html"
+        self.url = f"http://127.0.0.1:{self.port}/{page.relative_to(folder.root).as_posix()}"
         self._thread = threading.Thread(target=self._httpd.serve_forever, kwargs={"poll_interval": 0.2},
                                         name="anigs-viewer-server", daemon=True)
         self._thread.start()
@@ -67,12 +69,12 @@ class ViewerServer:
         self.stop()
 
 
-def start_server(folder: str | Path, port: int = 0, host: str = "127.0.0.1") -> ViewerServer:
+def start_server(folder: Layout, port: int = 0, host: str = "127.0.0.1") -> ViewerServer:
     """Serve ``folder`` in a background thread (port 0: any free port)."""
     return ViewerServer(folder, port, host)
 
 
-def serve_folder(folder: str | Path, port: int = 8000, host: str = "127.0.0.1",
+def serve_folder(folder: Layout, port: int = 8000, host: str = "127.0.0.1",
                  duration: float | None = None) -> None:
     """Serve until Ctrl-C, or for ``duration`` seconds when given."""
     server = start_server(folder, port, host)

@@ -25,6 +25,7 @@ TIMES = (0.0, 2.5, 8.0)
 @pytest.fixture(scope="module")
 def site(tmp_path_factory):
     """A small animated scene (SH degree 3, rotation, smooth limits) in a served viewer folder."""
+    from anigs.stages.view import Outputs as ViewOutputs
     from anigs.viewer.build import build_viewer
     from anigs.viewer.compact import load_compact, save_compact
     from anigs.viewer.serve import start_server
@@ -34,8 +35,8 @@ def site(tmp_path_factory):
                                             scale_range=(0.01, 0.15))
     save_compact(tmp / "scene.anigs", canonical, deformation)
     views = _views_json(tmp / "views.json")
-    build_viewer(tmp / "scene.anigs", tmp / "viewer", views, background=BACKGROUND)
-    server = start_server(tmp / "viewer")
+    build_viewer(tmp / "scene.anigs", ViewOutputs(tmp / "viewer"), views, background=BACKGROUND)
+    server = start_server(ViewOutputs(tmp / "viewer"))
     yield {"dir": tmp / "viewer", "url": server.url, "scene": load_compact(tmp / "scene.anigs"), "views": views}
     server.stop()
 

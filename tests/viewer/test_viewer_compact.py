@@ -17,6 +17,7 @@ from anigs.animate.deform import DCTDeformation, load_model, save_model
 from anigs.animate.frames import deformed
 from anigs.gaussians import Gaussians, load_ply
 from anigs.stages import view as viewer_cli
+from anigs.stages.view import Outputs as ViewOutputs
 from anigs.viewer.build import build_viewer
 from anigs.viewer.compact import (
     CompactFormatError,
@@ -171,7 +172,7 @@ def test_build_viewer_folder(tmp_path):
     save_model(tmp_path / "model.pt", deformation, canonical)
     views = _views_json(tmp_path / "views.json")
     out = tmp_path / "viewer"
-    summary = build_viewer(tmp_path / "model.pt", out, views, canonical=tmp_path / "canonical.ply",
+    summary = build_viewer(tmp_path / "model.pt", ViewOutputs(out), views, canonical=tmp_path / "canonical.ply",
                            background=[0.1, 0.2, 0.3], fps=8.0)
     for name in ("index.html", "viewer.js", "sort-worker.js", "renderer.js", "scene.anigs", "scene.js", "config.js"):
         assert (out / name).is_file(), name
@@ -188,22 +189,22 @@ def test_build_viewer_folder(tmp_path):
     assert_same(decode_compact(blob).frame(2.5), deformation(canonical, 2.5))
     assert summary["num_views"] == 2 and summary["scene_bytes"] == len(blob)
     # a compact file is also accepted as the input, and embed=False drops scene.js
-    build_viewer(out / "scene.anigs", tmp_path / "v2", None, embed=False)
+    build_viewer(out / "scene.anigs", ViewOutputs(tmp_path / "v2"), None, embed=False)
     assert not (tmp_path / "v2" / "scene.js").exists()
     assert_same(load_compact(tmp_path / "v2" / "scene.anigs").frame(1), deformation(canonical, 1))
     with pytest.raises(ValueError, match="canonical PLY"):
-        build_viewer(tmp_path / "model.pt", tmp_path / "v3")  # positions only: needs the PLY
+        build_viewer(tmp_path / "model.pt", ViewOutputs(tmp_path / "v3"))  # positions only: needs the PLY
 
 
 def test_server_serves_folder_on_loopback_and_stops(tmp_path):
     canonical, deformation = animated_scene(n=100, d=10)
     save_compact(tmp_path / "scene.anigs", canonical, deformation)
-    build_viewer(tmp_path / "scene.anigs", tmp_path / "viewer")
+    build_viewer(tmp_path / "scene.anigs", ViewOutputs(tmp_path / "viewer"))
     with pytest.raises(ValueError, match="loopback"):
-        start_server(tmp_path / "viewer", host="0.0.0.0")
+        start_server(ViewOutputs(tmp_path / "viewer"), host="0.0.0.0")
     with pytest.raises(FileNotFoundError):
-        start_server(tmp_path)
-    server = start_server(tmp_path / "viewer")
+        start_server(ViewOutputs(tmp_path))
+    server = start_server(ViewOutputs(tmp_path / "viewer"))
     try:
         assert server.url.startswith("http://127.0.0.1:")
         with urllib.request.urlopen(server.url, timeout=10) as r:
