@@ -166,7 +166,7 @@ def main() -> int:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--variants", default=",".join(VARIANTS))
     ap.add_argument("--identity-tree", type=Path, default=None,
-                    help="a copy of the package before effect_num_bases: its K12 model.pt must be byte-identical")
+                    help="a copy of the package before effect_num_bases: its K12 model must be byte-identical")
     ap.add_argument("--no-eval", action="store_true", help="skip final + eval (the per-effect GT metrics remain)")
     ap.add_argument("--seed-delta", type=int, default=0, help="add this to the recorded update seed (seed noise)")
     a = ap.parse_args()
@@ -249,7 +249,7 @@ def _print(rows: dict, R: int, threads: int, seed: int) -> None:
     line("  of it: containment s", [r["contain_s"] for r in rows.values()])
     line("load before update", ["/".join(f"{x:.1f}" for x in r["update"]["load"]) for r in rows.values()])
     line("dynamic after containment", [r["dynamic_after"] for r in rows.values()])
-    line("model.pt bytes", [r["model_bytes"] for r in rows.values()])
+    line("model file bytes", [r["model_bytes"] for r in rows.values()])
     from anigs.stages.export import Outputs as ExportOutputs
 
     for f in (ExportOutputs.LAYOUT["ply"].name, ExportOutputs.LAYOUT["compact"].name):
@@ -271,8 +271,8 @@ def _print(rows: dict, R: int, threads: int, seed: int) -> None:
         line(f"  {region} hf share (GT)", [f"{x['hf']:.4f} ({x['hf_gt']:.3f})" for x in e])
     for n, r in rows.items():
         if "identical_to_before" in r:
-            print(f"{n}: model.pt byte-identical to the code before the key: {r['identical_to_before']}; "
-                  f"to the demo's own round-{R} model.pt: {r['same_bytes_as_demo']}")
+            print(f"{n}: model file byte-identical to the code before the key: {r['identical_to_before']}; "
+                  f"to the demo's own round-{R} model: {r['same_bytes_as_demo']}")
 
 
 if __name__ == "__main__":

@@ -23,7 +23,8 @@
    ``--print-test-figures`` prints the reference's top-5 classes and logits of the pattern
    clip, which tests/metrics/test_i3d.py holds.
 
-A contact sheet of the demo clips as the network sees them goes to ``--out``/demo_clips.png.
+A contact sheet of the demo clips as the network sees them goes to ``--out``/demo_clips.png, the figures
+to ``--out``/i3d_reference.json.
 """
 from __future__ import annotations
 
@@ -214,7 +215,7 @@ def main(argv: list[str] | None = None) -> dict:
         p = ref_logits[len(groups["random"])]
         top = [int(k) for k in np.argsort(-p)[:5]]
         print(f"REF_TOP5 = {top}\nREF_LOGITS = {[float(np.float32(p[k])) for k in top]}")
-    (args.out / "report.json").write_text(json.dumps(report, indent=1, default=str))
+    (args.out / "i3d_reference.json").write_text(json.dumps(report, indent=1, default=str))
     return report
 
 

@@ -153,7 +153,7 @@ def photo_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
                                       "--cameras", str(sfm_out.path("cameras")), "--points",
                                       str(sfm_out.path("points")), "--out", str(d / "static"),
                                       "--params", json.dumps(static), "--no-progress"), d / "static.log")
-    m = json.loads((d / "static" / "metrics.json").read_text())
+    m = in_child("static_metrics", str(d / "static"))
     out["static"].update(test_psnr=m["test_psnr"], num_gaussians=m["num_gaussians"])
     if not args.keep:
         for sub in ("capture/images", "sfm/images"):
@@ -183,36 +183,51 @@ def split_gaussians(ply: Path, n: int, out: Path, seed: int = 0) -> np.ndarray:
     return idx.numpy()
 
 
-def animation_inputs(axis: str, value: int, args, d: Path) -> list[str]:
-    """The point's static, views and masks stage folders under ``d`` (as the stages lay them out); returns
-    the view ids the update trains on."""
+def in_child(func: str, *args):
+    """``func(*args)`` of this module run in a child process, its JSON result: the stages' ``Outputs``
+    of the animation import torch, and this process stays small (see :func:`measure`)."""
+    code = ("import json, sys; sys.path.insert(0, sys.argv[1]); import scaling; "
+            "print(json.dumps(getattr(scaling, sys.argv[2])(*json.loads(sys.argv[3]))))")
+    res = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), func, json.dumps(args)],
+                         check=True, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    return json.loads(res.stdout.splitlines()[-1])
+
+
+def static_metrics(folder: str) -> dict:
+    """The static stage's metrics in ``folder`` (through its ``Outputs``; run by :func:`in_child`)."""
+    from anigs.stages.static import Outputs as StaticOutputs
+
+    return StaticOutputs(folder).metrics()
+
+
+def animation_inputs(axis: str, value: int, scene_dir: str, point_dir: str) -> dict[str, list[str]]:
+    """The point's static, views and masks stage folders under ``point_dir`` (through the stages'
+    ``Outputs``), from the demo's in ``scene_dir``; returns the view ids the update trains on and
+    their target clips in the round's folder (run by :func:`in_child`)."""
     from PIL import Image
 
-    scene = Path(args.scene)
-    views = json.loads((scene / "views" / "views.json").read_text())
-    masks_src = scene / "masks"
-    d.mkdir(parents=True, exist_ok=True)
-    ply = scene / "static" / "canonical.ply"
-    dyn = np.load(masks_src / "dynamic.npy")
-    labels = np.load(masks_src / "effect_labels.npy")
-    (d / "static").mkdir(exist_ok=True)
-    (d / "views").mkdir(exist_ok=True)
+    from anigs.stages.masks import Outputs as MasksOutputs
+    from anigs.stages.refine import Outputs as RefineOutputs
+    from anigs.stages.static import Outputs as StaticOutputs
+    from anigs.stages.views import Outputs as ViewsOutputs
+
+    scene, d = Path(scene_dir), Path(point_dir)
+    src_views, src_masks = ViewsOutputs(scene / "views"), MasksOutputs(scene / "masks")
+    static, views_out, masks = StaticOutputs(d / "static"), ViewsOutputs(d / "views"), MasksOutputs(d / "masks")
+    views = src_views.json("views")
+    ply = StaticOutputs(scene / "static").path("canonical")
+    dyn, labels = src_masks.dynamic(), src_masks.effect_labels()
+    for folder in (static, views_out, masks):
+        folder.root.mkdir(parents=True, exist_ok=True)
     if axis == "gaussians" and value != AXES["gaussians"][0]:
-        # in a child process: this one stays small (torch not imported), see measure()
-        code = ("import sys, numpy as np; sys.path.insert(0, sys.argv[1]); from scaling import split_gaussians; "
-                "np.save(sys.argv[4], split_gaussians(sys.argv[2], int(sys.argv[3]), sys.argv[5]))")
-        subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), str(ply), str(value),
-                        str(d / "split_index.npy"), str(d / "static" / "canonical.ply")], check=True, cwd=ROOT)
-        idx = np.load(d / "split_index.npy")
+        idx = split_gaussians(ply, value, static.path("canonical"))
         dyn, labels = dyn[idx], labels[idx]
     else:
-        shutil.copyfile(ply, d / "static" / "canonical.ply")
+        shutil.copyfile(ply, static.path("canonical"))
     base_views = views["views"]
     if axis == "views":  # the queue repeated under new ids (the same cameras)
         views["views"] = [dict(base_views[i % len(base_views)], id=f"v{i:02d}") for i in range(value)]
     scale = value / 256 if axis == "view_res" else 1.0
-    masks = d / "masks"
-    masks.mkdir(exist_ok=True)
     for v in views["views"]:
         src = [b for b in base_views if b["camera"]["name"] == v["camera"]["name"]][0]["id"]
         cam = dict(v["camera"])
@@ -220,15 +235,17 @@ def animation_inputs(axis: str, value: int, args, d: Path) -> list[str]:
             cam["width"], cam["height"] = round(cam["width"] * scale), round(cam["height"] * scale)
             cam["K"] = [[x * scale for x in cam["K"][0]], [x * scale for x in cam["K"][1]], cam["K"][2]]
         v["camera"] = cam
-        m = Image.open(masks_src / f"{src}.png")
+        m = Image.open(src_masks.path("mask", view=src))
         if scale != 1.0:
             m = m.resize((cam["width"], cam["height"]), Image.NEAREST)
-        m.save(masks / f"{v['id']}.png")
-    np.save(masks / "dynamic.npy", dyn)
-    np.save(masks / "effect_labels.npy", labels)
-    (d / "views" / "views.json").write_text(json.dumps(views))
+        m.save(masks.path("mask", view=v["id"]))
+    np.save(masks.path("dynamic"), dyn)
+    np.save(masks.path("effect_labels"), labels)
+    views_out.path("views").write_text(json.dumps(views))
     ids = [v["id"] for v in views["views"]]
-    return ids if axis == "views" else ids[:3]
+    ids = ids if axis == "views" else ids[:3]
+    round_dir = RefineOutputs(d / "round1")
+    return {"ids": ids, "targets": [str(round_dir.path("target", view=v)) for v in ids]}
 
 
 def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
@@ -236,7 +253,8 @@ def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
     config, scene, sec = demo_sections()
     d = work / f"{axis}-{value}"
     shutil.rmtree(d, ignore_errors=True)
-    ids = animation_inputs(axis, value, args, d)
+    point = in_child("animation_inputs", axis, value, str(args.scene), str(d))
+    ids, targets = point["ids"], point["targets"]
     frames = value if axis == "frames" else sec("animate")["frames"]
     render_p = {**sec("render_clip"), "num_frames": frames, "device": config["device"]}
     refine_p = {**sec("refine"), "prompt": scene.get("prompt", ""), "seed": config["seed"],
@@ -244,8 +262,7 @@ def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
     update_p = {**sec("update"), "device": config["device"], "seed": config["seed"] + 1000,
                 "steps": args.update_steps or sec("update")["steps"]}
     out: dict[str, dict] = {}
-    rd = d / "round1"  # the round's folder: render/{view}.npz, target/{view}.npz, model.pt, update.json
-    targets = []
+    rd = d / "round1"  # the round's folder (the render_clip, refine and update stages' files)
     for v in ids[:1]:  # render_clip and refine cost the same for every view: one is measured
         r = measure(anigs_cmd(1, "render_clip", "--static", str(d / "static"), "--views", str(d / "views"),
                               "--view-id", v, "--out", str(rd), "--params", json.dumps(render_p)),
@@ -255,11 +272,8 @@ def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
                     d / "logs" / f"refine_{v}.log")
         _add(out, "render_clip", r)
         _add(out, "refine", f)
-        targets.append(str(rd / "target" / f"{v}.npz"))
-    for v in ids[1:]:  # the update trains on every view of the round: the refined clip stands for each
-        dst = rd / "target" / f"{v}.npz"
+    for dst in targets[1:]:  # the update trains on every view of the round: the refined clip stands for each
         shutil.copyfile(targets[0], dst)
-        targets.append(str(dst))
     # round 1 of a plan of several rounds: no containment (the workflow contains only the final round's update)
     out["update"] = measure(anigs_cmd(args.threads, "update", "--static", str(d / "static"), "--targets", *targets,
                                       "--views", str(d / "views"), "--masks", str(d / "masks"), "--round", "1",
@@ -267,7 +281,7 @@ def animation_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
                                       json.dumps(update_p)), d / "logs" / "update.log")
     if not args.keep:
         shutil.rmtree(rd / "render", ignore_errors=True)
-        shutil.rmtree(rd / "target", ignore_errors=True)
+        shutil.rmtree(Path(targets[0]).parent, ignore_errors=True)
     return out
 
 
@@ -378,8 +392,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.points and len(axes) != 1:
         ap.error("--points needs exactly one axis in --axes")
     if not args.report:
-        if any(a not in PHOTO_AXES for a in axes) and not (Path(args.scene) / "masks" / "dynamic.npy").exists():
-            ap.error(f"--scene {args.scene}: no finished demo run there (masks/dynamic.npy); run `snakemake` first")
+        if any(a not in PHOTO_AXES for a in axes) and not (Path(args.scene) / "masks").is_dir():
+            ap.error(f"--scene {args.scene}: no finished demo run there (no masks folder); run `snakemake` first")
         done = {(r["axis"], r["value"], r.get("setup")) for r in load_results(results)}
         setup = json.dumps({k: getattr(args, k) for k in ("smoke", "static_iterations", "update_steps", "res_photos",
                                                             "sfm_params", "threads")}, sort_keys=True)

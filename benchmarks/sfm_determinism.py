@@ -125,7 +125,7 @@ def compare_databases(a: Path, b: Path) -> int:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("capture", nargs="?", help="capture folder with images/ (and gt/cameras.json)")
+    ap.add_argument("capture", nargs="?", help="the capture stage's folder (its images, and ground-truth cameras if any)")
     ap.add_argument("--runs", type=int, default=20)
     ap.add_argument("--out", default="/tmp/sfm-determinism")
     ap.add_argument("--params", default='{"camera_model": "SIMPLE_PINHOLE", "sift_peak_threshold": 0.004}',
