@@ -106,7 +106,7 @@ def load_metrics(paths: Iterable[str | Path]) -> list[dict[str, Any]]:
             raise ValueError(f"{p}: 'metrics' must be an object")
         if rec.get("part", "all") == "model":
             raise ValueError(f"{p}: holds only the model's metrics (`anigs eval --part model`); give the "
-                             f"metrics.json of the evaluation that merged it (--model-metrics)")
+                             f"evaluation's merged record (`anigs eval --merge`)")
         rec.setdefault("dataset", "default")
         rec.setdefault("variant", "full")
         rec["_path"] = str(p)

@@ -43,7 +43,7 @@ def bases_from_config(mask: torch.Tensor, cfg: UpdateConfig, num_bases: int) -> 
     by_name = {k: v for k, v in cfg.effect_num_bases.items() if k in names}
     if by_name and mask.dtype == torch.bool:
         log.warning("update: effect_num_bases names effects %s but the dynamic mask is bool (no per-Gaussian effect "
-                    "labels: the masks stage wrote no effect_labels.npy, run it with the effects stage's folder): every "
+                    "labels: the masks stage wrote none, run it with the effects stage's folder): every "
                     "dynamic Gaussian uses %d bases", sorted(by_name), num_bases)
         by_name = {}
         if not any(k not in names for k in cfg.effect_num_bases):

@@ -66,7 +66,7 @@ def apply_corrections(res, means: np.ndarray, drop: Sequence[int] = (), force: S
 
     def cand(n, key):
         if n not in by_num:
-            raise ValueError(f"effects.{key}: there is no candidate {n} (overview.png numbers 1 to {len(by_num)})")
+            raise ValueError(f"effects.{key}: there is no candidate {n} (the overview sheet numbers 1 to {len(by_num)})")
         return by_num[n]
 
     for n in force:

@@ -118,7 +118,7 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
         lines.append(f"  #{c.number} {c.region} ({len(c.indices)} Gaussians) "
                      f"{'-> ' + c.moved_to if c.moved_to else 'rejected'}: {c.reason}")
     if len(changed) > 12:
-        lines.append(f"  ... and {len(changed) - 12} more (effects.json: rejected)")
+        lines.append(f"  ... and {len(changed) - 12} more (the effects record: rejected)")
     for note in getattr(res, "notes", []):
         lines.append(note)
     rows.append(_text_block(lines, width))

@@ -84,7 +84,7 @@ def roi_from_labels(g: Gaussians, labels_path: str, motion_path: str | None, dyn
     elif dynamic_labels:
         ids = [int(i) for i in dynamic_labels]
     else:
-        raise ValueError("--labels needs --motion motion.json or params dynamic_labels [ids] to know what moves")
+        raise ValueError("--labels needs --motion (the ground-truth motion tables) or params dynamic_labels [ids] to know what moves")
     label_means, sim = None, None
     if gt_gaussians:
         label_means = load_ply(gt_gaussians).means.detach().double().numpy()

@@ -44,7 +44,7 @@ def _capture_votes(cfg, g: Gaussians, backend, veg, ground, images: str | Path,
     from anigs.masks.capture import capture_frames
 
     if capture_cams is None:
-        raise ValueError("--images needs --cameras (the cameras of the capture photos, sfm/cameras.json)")
+        raise ValueError("--images needs --cameras (the cameras of the capture photos: the sfm stage's)")
     cap_frames = capture_frames(images, capture_cams, g)
     cap_masks = [r["dynamic"] for r in compute_masks(capture_backend(cfg, backend, veg, ground), cap_frames)]
     info["capture"] = {"images": len(cap_frames), "fraction": float(np.mean([m.mean() for m in cap_masks]))}

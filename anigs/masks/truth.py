@@ -36,7 +36,7 @@ class GroundTruth:
     def effects(self) -> dict[str, list[int]]:
         """Effect -> the label ids it moves."""
         if self.motion is None:
-            raise ValueError("--labels needs --motion motion.json to know which labels move")
+            raise ValueError("--labels needs --motion (the ground-truth motion tables) to know which labels move")
         return effects_from_motion(read_json(self.motion))
 
     def backend(self, g: Gaussians, recon_cameras: Sequence[Camera] | None, opts: dict) -> LabelsBackend:

@@ -176,7 +176,7 @@ def labels_for(means: np.ndarray, labels: np.ndarray, label_means: np.ndarray | 
     if label_means is None:
         if len(labels) != len(means):
             raise ValueError(f"{len(labels)} labels for {len(means)} Gaussians: give the Gaussians the labels "
-                             "belong to (e.g. --gt-gaussians gt/gaussians.ply) to transfer them")
+                             "belong to (e.g. --gt-gaussians: the capture's ground-truth Gaussians) to transfer them")
         return labels
     if len(label_means) != len(labels):
         raise ValueError(f"{len(labels)} labels for {len(label_means)} labelled Gaussians")

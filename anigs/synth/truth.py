@@ -19,7 +19,7 @@ def effects_from_motion(motion: dict) -> dict[str, list[int]]:
             return {k: sorted(v) for k, v in out.items()}
     if motion.get("movable_labels"):
         return {"dynamic": [int(i) for i in motion["movable_labels"]]}
-    raise KeyError("motion.json names no moving labels: expected 'labels' + 'label_effects' or 'movable_labels'")
+    raise KeyError("the motion tables name no moving labels: expected 'labels' + 'label_effects' or 'movable_labels'")
 
 
 def dynamic_label_ids(effects: dict[str, Sequence[int]]) -> list[int]:

@@ -221,7 +221,7 @@ def content_check(g: Gaussians, cameras: Sequence[Camera], cfg: ViewsConfig,
 def cameras_from_views(data: dict) -> list[Camera]:
     """The queue's cameras from a loaded ``views.json`` (named by view id)."""
     if "views" not in data:
-        raise KeyError("views.json lacks key 'views'")
+        raise KeyError("the views stage's queue lacks key 'views'")
     cams = []
     for v in data["views"]:
         cam = Camera.from_dict(v["camera"])

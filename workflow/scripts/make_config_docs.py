@@ -67,7 +67,7 @@ VOCABULARY = """## What the prompt names
 
 With `effects: auto` the `effects` stage localises only the kinds of motion the scene's `prompt`
 names, by these words (whole words, any case; a word after "no", "not" or "without" names
-nothing). `effects.json` records which words matched which kinds under `prompt`. The table is
+nothing). The effects stage's record keeps which words matched which kinds under `prompt`. The table is
 generated from `anigs/effects/vocabulary.py`.
 
 """

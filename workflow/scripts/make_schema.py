@@ -194,7 +194,7 @@ TOP = {
                                      "value becomes the variant tradeoff-SECTION-KEY-VALUE, a per-scene stage's (static, "
                                      "views, masks) the derived scene SCENE--tradeoff-SECTION-KEY-VALUE; null drops a knob"},
             "plot_metrics": {"type": "array", "items": {"type": "string"}, "default": [],
-                             "description": "metrics of metrics.json plotted against seconds, one PNG per knob"},
+                             "description": "metrics of the evaluation (eval stage) plotted against seconds, one PNG per knob"},
         }},
 }
 
