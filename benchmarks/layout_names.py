@@ -41,12 +41,18 @@ def layout_names() -> dict[str, str]:
     return names
 
 
+def name_pattern(names) -> str:
+    """A regex of ``names`` as whole file names (``labels.npy``, not ``dynamic_labels.npy``)."""
+    return "(^|[^A-Za-z0-9_])(" + "|".join(re.escape(n) for n in sorted(names, key=len, reverse=True)) + ")"
+
+
 def string_lines(path: Path, names: set[str]) -> set[int]:
     """Line numbers of ``path`` where a string literal (not a docstring) holds one of ``names``."""
     src, docs, found = path.read_text(), doc_lines(path), set()
+    pat = re.compile(name_pattern(names))
     for tok in tokenize.generate_tokens(io.StringIO(src).readline):
         if tok.type == tokenize.STRING or tok.type == getattr(tokenize, "FSTRING_MIDDLE", -1):
-            if tok.start[0] not in docs and any(n in tok.string for n in names):
+            if tok.start[0] not in docs and pat.search(tok.string):
                 found.update(range(tok.start[0], tok.end[0] + 1))
     return found
 
@@ -75,8 +81,7 @@ def hits(root: Path = ROOT, dirs: tuple[str, ...] = DIRS) -> tuple[dict[str, str
     """(layout names, ``path:line:text`` of string literals in code that spell one outside its
     ``Outputs``, the other hits: docstrings, comments)."""
     names = layout_names()
-    pat = "|".join(re.escape(n) for n in sorted(names, key=len, reverse=True))
-    grep = ["grep", "-rnE", "--include=*.py", "--include=*.smk", "--include=Snakefile", pat, *dirs]
+    grep = ["grep", "-rnE", "--include=*.py", "--include=*.smk", "--include=Snakefile", name_pattern(names), *dirs]
     out = subprocess.run(grep, cwd=root, capture_output=True, text=True).stdout.splitlines()
     cache: dict[str, set[int]] = {}  # path -> lines with a string literal naming a layout file
     code, docs = [], []
