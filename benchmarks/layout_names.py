@@ -81,7 +81,7 @@ def hits(root: Path = ROOT, dirs: tuple[str, ...] = DIRS) -> tuple[dict[str, str
     """(layout names, ``path:line:text`` of string literals in code that spell one outside its
     ``Outputs``, the other hits: docstrings, comments)."""
     names = layout_names()
-    grep = ["grep", "-rnE", "--include=*.py", "--include=*.smk", "--include=Snakefile", name_pattern(names), *dirs]
+    grep = ["grep", "-rnHE", "--include=*.py", "--include=*.smk", "--include=Snakefile", name_pattern(names), *dirs]
     out = subprocess.run(grep, cwd=root, capture_output=True, text=True).stdout.splitlines()
     cache: dict[str, set[int]] = {}  # path -> lines with a string literal naming a layout file
     code, docs = [], []

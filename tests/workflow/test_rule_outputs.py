@@ -190,3 +190,47 @@ def test_the_check_finds_a_file_the_layout_does_not_name(workflow_rules):
     assert any("clip_metrics.json is no folder or file" in p for p in problems)
     assert {"capture", "sfm", "static", "effects", "views", "masks", "round", "final", "fvd_gt", "tables"} <= {
         s.name for s in STAGES_WITH_OUTPUTS}
+
+
+def test_a_rule_writing_another_stage_s_file_is_reported(workflow_rules):
+    """Rules are generated from the Outputs (common.smk: stage_out), so the check compares them with
+    what a rule declares: a rule of the views stage that also wrote the masks stage's dynamic set
+    (built from the masks Outputs, as a rule would) is reported."""
+    from anigs.stages.masks import Outputs as MasksOutputs
+
+    rules, results, _ = workflow_rules
+    stray = f"{results}/{MasksOutputs.FOLDER}/{MasksOutputs.LAYOUT['dynamic'].name}"
+    views = BY_NAME["views"]
+    assert stage_rule_problems(views, outputs_of(views.load()), rules, results) == []
+    problems = stage_rule_problems(views, outputs_of(views.load()), {**rules, "views": [*rules["views"], stray]},
+                                   results)
+    assert len(problems) == 1 and "masks" in problems[0] and "is no folder or file" in problems[0]
+
+
+def _layout_names():
+    import importlib
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        return importlib.import_module("layout_names")
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+
+
+def test_rules_spell_no_layout_file_name():
+    """Rules name their files through their stages' Outputs (stage_out, stage_file, layout_name in
+    common.smk); no string in a rule file or the Snakefile spells a layout file name
+    (benchmarks/layout_names.py, the issue's grep)."""
+    _, code, _ = _layout_names().hits(ROOT, ("workflow/rules", "Snakefile"))
+    assert code == []
+
+
+def test_the_layout_name_grep_finds_a_spelled_name(tmp_path):
+    """The grep above is not vacuous: a rule output spelled as a string is found, a comment is not."""
+    from anigs.stages.static import Outputs as StaticOutputs
+
+    name = StaticOutputs.LAYOUT["canonical"].name
+    (tmp_path / "x.smk").write_text(f'# {name} in a comment\nrule x:\n    output:\n        f"{{R}}/s/static/{name}",\n')
+    _, code, docs = _layout_names().hits(tmp_path, ("x.smk",))
+    assert [c.split(":")[:2] for c in code] == [["x.smk", "4"]] and len(docs) == 1
