@@ -3,7 +3,7 @@
     python benchmarks/layout_names.py [--all]
 
 Takes every file name of every stage's ``Outputs.LAYOUT`` (:func:`anigs.stages.contract.outputs_of`)
-and greps anigs/, benchmarks/, workflow/ and the Snakefile for them. Hits inside a ``File(...)``
+and of the study folder's (:mod:`anigs.study.layout`, not a pipeline stage) and greps anigs/, benchmarks/, workflow/ and the Snakefile for them. Hits inside a ``File(...)``
 of a stage module (the contract itself), docstrings (a rule file's triple-quoted strings) and
 comments are not counted; what is left is printed with the line and counted per file: string
 literals in code that name a stage's file. Generic names that are also words of prose (``images``,
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import importlib
 import io
 import re
 import subprocess
@@ -26,19 +27,26 @@ from anigs.stages.contract import outputs_of
 
 ROOT = Path(__file__).resolve().parents[1]
 DIRS = ("anigs", "benchmarks", "workflow", "Snakefile")
+OWNERS = ("anigs.study.layout",)  # Outputs outside anigs/stages
 GENERIC = {"images", "gt", "work", "sparse", "render", "target", "clips", "slices", "logs"}
 
 
 def layout_names() -> dict[str, str]:
     """file name (last path part, format fields kept) -> the stage whose Outputs names it."""
     names: dict[str, str] = {}
-    for s in STAGES:
-        for o in outputs_of(s.load()):
+    modules = [(s.name, s.load()) for s in STAGES] + [(m, importlib.import_module(m)) for m in OWNERS]
+    for owner, module in modules:
+        for o in outputs_of(module):
             for f in o.LAYOUT.values():
                 n = f.name.rstrip("/").split("/")[-1]
                 if n not in GENERIC and "." in n and "{" not in n.split(".")[0]:
-                    names.setdefault(n, s.name)
+                    names.setdefault(n, owner)
     return names
+
+
+def _contract_file(path: str) -> bool:
+    """Whether ``path`` holds ``Outputs`` types (a stage module, or one of :data:`OWNERS`)."""
+    return path.startswith("anigs/stages/") or path in {m.replace(".", "/") + ".py" for m in OWNERS}
 
 
 def name_pattern(names) -> str:
@@ -87,7 +95,7 @@ def hits(root: Path = ROOT, dirs: tuple[str, ...] = DIRS) -> tuple[dict[str, str
     code, docs = [], []
     for line in out:
         path, no, text = line.split(":", 2)
-        if path.startswith("anigs/stages/") and "File(" in text:
+        if _contract_file(path) and "File(" in text:
             continue  # the contract itself
         if path == "benchmarks/layout_names.py":
             continue

@@ -1,13 +1,9 @@
 """``anigs study build``: a self-contained 2AFC study folder from the camera-fixed final videos.
 
-Layout written to ``out``::
-
-    index.html       the page (the manifest is inlined, so it also works from file://)
-    study.js         the page logic (order, answers, localStorage, export, posting)
-    study.css
-    manifest.json    the same manifest, for ``anigs study serve`` and ``anigs study tally``
-    videos/<hash>.mp4  each distinct video once, named by content hash (names do not reveal the method)
-    README.txt
+Written to ``out``, laid out as :class:`anigs.study.layout.Outputs` says: the page (the manifest
+inlined, so it also works from file://), its script and style (package data ``assets/``), the
+manifest (for ``anigs study serve`` and ``anigs study tally``), each distinct video once, named by
+content hash (names do not reveal the method), and a README.
 
 Each trial pairs ours (variant ``full`` by default) with one other variant on the same scene and
 view; the page shuffles the trials and counterbalances left/right per participant from a seed
@@ -26,10 +22,12 @@ from typing import Any, Mapping, Sequence
 
 from anigs.io import atomic_write_text, write_json
 from anigs.study.catch import CATCH, make_catch_video
+from anigs.study.layout import Outputs
 from anigs.study.schema import MANIFEST_SCHEMA, QUESTIONS
 from anigs.tables import variant_label
 
-ASSETS = Path(__file__).with_name("assets")
+ASSETS = Path(__file__).with_name("assets")  # the page (study.html), its script and style
+PAGE = "study.html"
 
 
 @dataclass
@@ -167,8 +165,9 @@ def build_study(videos: Mapping[tuple[str, str], Mapping[str, str | Path]], out:
         raise ValueError(f"study: min_plays must be >= 0, got {opts.min_plays}")
     vids = {k: {view: Path(p) for view, p in d.items()} for k, d in videos.items()}
     trials = plan_trials(vids, opts)
-    out = Path(out)
-    (out / "videos").mkdir(parents=True, exist_ok=True)
+    layout = Outputs(out)
+    out = layout.root
+    layout.path("videos").mkdir(parents=True, exist_ok=True)
     temp: list[Path] = []
     try:
         for t in trials:
@@ -182,7 +181,7 @@ def build_study(videos: Mapping[tuple[str, str], Mapping[str, str | Path]], out:
     finally:
         for f in temp:
             f.unlink(missing_ok=True)
-    for stale in (out / "videos").iterdir():  # a rebuild leaves no video of an earlier study behind
+    for stale in layout.path("videos").iterdir():  # a rebuild leaves no video of an earlier study behind
         if f"videos/{stale.name}" not in infos:
             stale.unlink()
     variants = list(dict.fromkeys([opts.ours] + [t["other"] for t in trials if not t.get("catch")]))
@@ -200,25 +199,27 @@ def build_study(videos: Mapping[tuple[str, str], Mapping[str, str | Path]], out:
         "comparisons": [v for v in variants if v != opts.ours],
         "trials": trials,
     }
-    write_json(out / "manifest.json", manifest)
-    for asset in ("study.js", "study.css"):
-        atomic_write_text(out / asset, (ASSETS / asset).read_text())
+    write_json(layout.path("manifest"), manifest)
+    for key in ("script", "style"):
+        atomic_write_text(layout.path(key), (ASSETS / layout.path(key).name).read_text())
     inline = json.dumps(manifest, indent=1).replace("</", "<\\/")  # safe inside <script>
-    html = (ASSETS / "index.html").read_text()
+    html = (ASSETS / PAGE).read_text()
     html = html.replace("{{TITLE}}", escape(opts.title)).replace("{{MANIFEST}}", inline)
-    atomic_write_text(out / "index.html", html)
-    atomic_write_text(out / "README.txt", README.format(n=len(trials), q=len(QUESTIONS), sid=manifest["study_id"]))
-    written = ["index.html", "study.js", "study.css", "manifest.json", "README.txt"]
-    for f in [*(out / n for n in written), *(out / "videos").iterdir()]:
+    atomic_write_text(layout.path("page"), html)
+    atomic_write_text(layout.path("readme"), README.format(
+        n=len(trials), q=len(QUESTIONS), sid=manifest["study_id"],
+        **{k: layout.LAYOUT[k].name for k in ("answers", "page", "manifest")}))
+    written = [layout.path(k) for k in ("page", "script", "style", "manifest", "readme")]
+    for f in [*written, *layout.path("videos").iterdir()]:
         f.chmod(0o644)  # readable by any web server (temporary files are created private)
     return manifest
 
 
 README = """anigs 2AFC study ({n} pairs x {q} questions, study id {sid})
 
-Serve it (answers are posted to answers.jsonl next to this file):
+Serve it (answers are posted to {answers} next to this file):
     anigs study serve --dir . --port 8000      then open http://127.0.0.1:8000/
-or open index.html directly and collect the files participants download at the end.
+or open {page} directly and collect the files participants download at the end.
 Tally (Table 4):
-    anigs study tally answers.jsonl *.json --manifest manifest.json --out tables/
+    anigs study tally {answers} *.json --manifest {manifest} --out tables/
 """

@@ -32,13 +32,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     s = sub.add_parser("serve", help="serve a study folder on 127.0.0.1 and collect posted answers")
     s.add_argument("--dir", required=True, help="built study folder")
-    s.add_argument("--answers", default=None, help="JSONL file to append to (default: DIR/answers.jsonl)")
+    s.add_argument("--answers", default=None, help="JSONL file to append to (default: the study folder's answers file)")
     s.add_argument("--port", type=int, default=8000, help="port (0: a free one)")
     s.add_argument("--seconds", type=float, default=0, help="stop after this many seconds (0: on Ctrl-C/SIGTERM)")
 
     t = sub.add_parser("tally", help="answer files -> Table 4 (CSV, Markdown, LaTeX)")
     t.add_argument("answers", nargs="+", help="exported .json and/or server .jsonl files")
-    t.add_argument("--manifest", default=None, help="the study's manifest.json (checks pairs, completeness)")
+    t.add_argument("--manifest", default=None, help="the study's manifest file (checks pairs, completeness)")
     t.add_argument("--out", required=True, help="output folder (e.g. results/tables)")
     t.add_argument("--min-time-ms", type=float, default=1000.0, help="faster answers are excluded")
     t.add_argument("--max-fast-fraction", type=float, default=0.5,
@@ -65,6 +65,7 @@ def main(args: argparse.Namespace) -> int:
 
 def _build(args: argparse.Namespace) -> int:
     from anigs.study.build import StudyOptions, build_study, find_final_videos
+    from anigs.study.layout import Outputs as StudyOutputs
 
     variants = None if args.others is None else [args.ours] + args.others
     videos = find_final_videos(args.results, args.scenes, variants)
@@ -72,8 +73,8 @@ def _build(args: argparse.Namespace) -> int:
                         min_plays=args.min_plays, catch_trials=args.catch_trials, post_url=None if args.post_url == "none" else args.post_url,
                         title=args.title, labels=_labels(args.label))
     m = build_study(videos, args.out, opts)
-    log.info("study: %d pairs (%s vs %s) on %s -> %s/index.html (study id %s)", len(m["trials"]), m["ours"],
-             ", ".join(m["comparisons"]), ", ".join(m["scenes"]), args.out, m["study_id"])
+    log.info("study: %d pairs (%s vs %s) on %s -> %s (study id %s)", len(m["trials"]), m["ours"],
+             ", ".join(m["comparisons"]), ", ".join(m["scenes"]), StudyOutputs(args.out).path("page"), m["study_id"])
     return 0
 
 

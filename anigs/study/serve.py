@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from anigs.io import read_json
+from anigs.study.layout import Outputs
 from anigs.study.schema import answer_key, answer_problems
 
 log = logging.getLogger("anigs.study")
@@ -124,7 +125,7 @@ def parse_post(body: bytes) -> list[Any]:
 def _public(url_path: str) -> bool:
     """Only the page, its script and style, and the videos are served."""
     p = url_path.split("?")[0].split("#")[0]
-    if p in ("/", "/index.html", "/study.js", "/study.css"):
+    if p in Outputs.public():
         return True
     parts = p.split("/")
     return len(parts) == 3 and parts[1] == "videos" and parts[2].endswith(".mp4") and ".." not in parts[2]
@@ -186,7 +187,7 @@ class StudyHandler(SimpleHTTPRequestHandler):
 
     def send_head(self):  # noqa: ANN201 - single byte ranges, so the browser can seek in videos
         self._range_left: int | None = None
-        if not _public(self.path):  # e.g. answers.jsonl: participants must not read each other's answers
+        if not _public(self.path):  # e.g. the answers: participants must not read each other's answers
             self.send_error(404, "not part of the study page")
             return None
         rng = self.headers.get("Range", "")
@@ -260,9 +261,10 @@ class StudyServer:
     """
 
     def __init__(self, folder: str | Path, answers: str | Path | None = None, port: int = 0, host: str = "127.0.0.1"):
-        self.folder = Path(folder)
-        manifest = read_json(self.folder / "manifest.json")
-        self.store = AnswerStore(answers or self.folder / "answers.jsonl", manifest)
+        layout = Outputs(folder)
+        self.folder = layout.root
+        manifest = read_json(layout.path("manifest"))
+        self.store = AnswerStore(answers or layout.path("answers"), manifest)
         handler = type("BoundStudyHandler", (StudyHandler,), {"store": self.store})
         self.httpd = _BoundedServer((host, port), partial(handler, directory=str(self.folder)))
         self.thread: threading.Thread | None = None

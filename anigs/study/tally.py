@@ -120,7 +120,7 @@ def select_answers(records: Sequence[tuple[str, Any]], manifest: dict[str, Any] 
     if manifest is None:
         ids = sorted({a["study_id"] for _, a in valid})
         if len(ids) > 1:
-            raise ValueError(f"answers of several studies {ids}: give the study's manifest.json to pick one")
+            raise ValueError(f"answers of several studies {ids}: give the study's manifest to pick one")
     kept: list[tuple[str, dict[str, Any]]] = []
     for src, a in valid:
         if manifest is not None and a["study_id"] != manifest["study_id"]:

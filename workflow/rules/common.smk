@@ -419,10 +419,14 @@ def tradeoff_points():
 import importlib as _importlib
 
 
+STUDY = "anigs.study.layout"  # the study folder's Outputs (`anigs study build`: not a pipeline stage)
+
+
 def stage_outputs(stage, kind="Outputs"):
-    """The ``Outputs`` type of ``stage`` (its folder's layout and loaders); ``kind``: another
-    ``Outputs`` type of the stage module (``fvd_gt``'s ``ReferenceOutputs``)."""
-    return getattr(_importlib.import_module(f"anigs.stages.{stage}"), kind)
+    """The ``Outputs`` type of ``stage`` (its folder's layout and loaders; a dotted name: that
+    module's, e.g. :data:`STUDY`); ``kind``: another ``Outputs`` type of the stage module
+    (``fvd_gt``'s ``ReferenceOutputs``)."""
+    return getattr(_importlib.import_module(stage if "." in stage else f"anigs.stages.{stage}"), kind)
 
 
 class _Wildcards(dict):

@@ -116,7 +116,7 @@ rule study:
     input:
         [stage_out("final", "summary", scene=s, variant=v) for s in SCENES for v in ["full", *_study_variants()]],
     output:
-        f"{R}/study/manifest.json",
+        stage_out(STUDY, "manifest"),
     log:
         f"{R}/logs/study.log",
     conda:
@@ -128,8 +128,9 @@ rule study:
             f"--label {v}={METHODS[method_of(next(iter(SCENES)), v)]}" for v in _study_variants()
         ),
         seed=config["seed"],
-        results=lambda wc, output: os.path.dirname(os.path.dirname(output[0])),
+        results=R,
+        out=stage_out(STUDY),
         version=ANIGS_VERSION,
     shell:
         "anigs study build --results {params.results:q} --scenes {params.scenes} --ours full --others {params.others} "
-        "{params.labels} --catch-trials 2 --seed {params.seed} --out {params.results:q}/study > {log} 2>&1"
+        "{params.labels} --catch-trials 2 --seed {params.seed} --out {params.out:q} > {log} 2>&1"
