@@ -418,7 +418,6 @@ def tradeoff_points():
 # rules spell no file name of a stage's folder ----
 import importlib as _importlib
 
-
 STUDY = "anigs.study.layout"  # the study folder's Outputs (`anigs study build`: not a pipeline stage)
 
 

@@ -128,8 +128,8 @@ rule study:
             f"--label {v}={METHODS[method_of(next(iter(SCENES)), v)]}" for v in _study_variants()
         ),
         seed=config["seed"],
-        results=R,
-        out=stage_out(STUDY),
+        results=lambda wc, output: os.path.dirname(os.path.dirname(output[0])),
+        out=lambda wc, output: os.path.dirname(output[0]),  # the study folder (its manifest is at the top)
         version=ANIGS_VERSION,
     shell:
         "anigs study build --results {params.results:q} --scenes {params.scenes} --ours full --others {params.others} "
