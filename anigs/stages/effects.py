@@ -34,8 +34,6 @@ log = logging.getLogger("anigs.effects")
 class Outputs(contract.Outputs):
     """The effects stage's folder: what the scene contains and its region of interest."""
 
-    STAGE = "effects"
-    FOLDER = "{scene}/effects"
     LAYOUT = {
         "effects": File("effects.json", "per effect: detected, pixel_fraction, gaussian_fraction, confidence, "
                                         "reason; requested, chosen, requested_not_found, prompt, corrections, "

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from anigs.stages import contract, refine, render_clip
+from anigs.stages.command import parse_params
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.static import Outputs as StaticOutputs
@@ -31,7 +32,6 @@ class Outputs(contract.Outputs):
     """A round's folder (``round{r}/``): the rendered clips and the targets of its new views. Its
     files are the render_clip and refine stages' (``OUTPUTS``), so it names none itself."""
 
-    STAGE = "round"
     FOLDER = "{scene}/{variant}/round{round}"
 
     @property
@@ -67,7 +67,6 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
     """Render each view of ``inputs.view_ids`` with the round's model (none: static) and refine it with its
     mask; the configs are ``inputs``' render and refine params (the stage has no section of its own).
     Seconds per view and phase go to the log (and ``--timings-json``), not into the artifacts."""
-    from anigs.cli import parse_params
     from anigs.io import write_json
 
     view_ids = inputs.view_ids

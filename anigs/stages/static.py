@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from anigs.stages import contract
+from anigs.stages.command import parse_params
 from anigs.stages.contract import File
 from anigs.static.fit import FitConfig
 
@@ -26,8 +27,6 @@ log = logging.getLogger("anigs.static")
 class Outputs(contract.Outputs):
     """The static stage's folder: the canonical 3DGS."""
 
-    STAGE = "static"
-    FOLDER = "{scene}/static"
     LAYOUT = {
         "canonical": File("canonical.ply", "the canonical 3DGS, standard 3DGS PLY layout (any 3DGS viewer opens it)"),
         "metrics": File("metrics.json", "held-out and train PSNR/SSIM, Gaussian count, seconds, inputs, config"),
@@ -101,16 +100,7 @@ def _config_dict(cfg) -> dict:
 
 # ---- command line: anigs static ----
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "static")
-
-
 def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
     out = run(Inputs.from_args(args), FitConfig.from_dict(parse_params(args.params)))
     metrics = out.metrics()
     print(f"static fit: {metrics['num_gaussians']} Gaussians, held-out PSNR {metrics['test_psnr']:.2f} dB "
