@@ -71,7 +71,7 @@ class Outputs:
             return
         if "STAGE" not in cls.__dict__:
             cls.STAGE = name
-        if "FOLDER" not in cls.__dict__:
+        if not cls.FOLDER:  # neither set here nor inherited (RoundOutputs)
             cls.FOLDER = scope_folder(cls.STAGE)
 
     def __init__(self, root: str | Path):
@@ -163,6 +163,13 @@ def scope_folder(stage: str) -> str:
     from anigs.stages import BY_NAME
 
     return {"scene": "{scene}/", "variant": "{scene}/{variant}/", "global": ""}[BY_NAME[stage].scope] + stage
+
+
+class RoundOutputs(Outputs):
+    """A round's folder (``round{r}/``), which several stages write into: render_clip (``render/``),
+    refine (``target/``), update (the model) and round (both of the first)."""
+
+    FOLDER = "{scene}/{variant}/round{round}"
 
 
 def outputs_of(module: types.ModuleType) -> tuple[type[Outputs], ...]:

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from anigs.metrics.eval_record import metrics_record, prior_pairs, table_row  # noqa: F401 (table_row: the rules')
+from anigs.stages.record import metrics_record, prior_pairs, table_row  # noqa: F401 (table_row: the rules')
 from anigs.metrics.suite import EvalConfig
 from anigs.stages import contract
 from anigs.stages.command import parse_params
@@ -30,6 +30,7 @@ from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.contract import File
+from anigs.stages.shared_inputs import TableRowInputs
 from anigs.stages.final import Outputs as FinalOutputs
 from anigs.stages.update import Outputs as UpdateOutputs
 
@@ -59,9 +60,8 @@ class Outputs(contract.Outputs):
 
 
 @dataclass
-class Inputs(contract.Inputs):
-    out: Path = field(metadata={"help": "the evaluation folder (metrics.json, or a half's record with --part)"})
-    scene: str | None = field(default=None, metadata={"help": "scene name (table column; required unless --merge)"})
+class Inputs(TableRowInputs):
+    out: Path = contract.output_folder(Outputs, "the evaluation folder (the --part's record)")
     final: FinalOutputs | None = field(default=None, metadata={"help": "the final stage's folder (its clips)"})
     clips: list[str] | None = field(default=None, metadata={"help": "more clip files or folders (.npz/.mp4)"})
     masks: MasksOutputs | None = None
@@ -76,11 +76,8 @@ class Inputs(contract.Inputs):
                                                                    "undistorted images, points (multiview protocol)"})
     capture: CaptureOutputs | None = field(default=None, metadata={"help": "the capture stage's folder: synthetic "
                                                                            "ground truth"})
-    method: str = field(default="Ours", metadata={"help": "method name (table row)"})
-    variant: str = field(default="full", metadata={"help": "ablation variant id (Table 5)"})
-    dataset: str = field(default="anigs", metadata={"help": "scene group (one FVD table per dataset)"})
     part: str = field(default="all", metadata={"help": "all | clips | model: all metrics, or a half's (two jobs)"})
-    merge: bool = field(default=False, metadata={"help": "join the clips and model halves in --out into metrics.json"})
+    merge: bool = field(default=False, metadata={"help": "join the clips and model halves in --out into the --part all record"})
 
 
 def _record_inputs(inputs: Inputs) -> dict[str, Any]:

@@ -115,5 +115,5 @@ def run(inputs: Inputs, cfg: FinalConfig) -> Outputs:
     summary["seconds"] = time.perf_counter() - t0
     write_json(out.path("summary"), summary)
     log.info("final: wrote %d view videos%s in %.1f s to %s", len(summary["views"]),
-             " and path.mp4" if inputs.sfm is not None else "", summary["seconds"], out.root)
+             f" and {out.path('path').name}" if inputs.sfm is not None else "", summary["seconds"], out.root)
     return out

@@ -20,7 +20,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from anigs.metrics.eval_record import metrics_record
+from anigs.stages.record import metrics_record
 from anigs.metrics.fvd_gt_config import FvdGtConfig
 from anigs.metrics.fvd_gt import METRIC, i3d_detector  # noqa: F401  (i3d_detector: the network the stage uses)
 from anigs.stages import contract
@@ -29,6 +29,7 @@ from anigs.stages.capture import Outputs as CaptureOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.contract import File
+from anigs.stages.shared_inputs import TableRowInputs
 from anigs.stages.update import Outputs as UpdateOutputs
 
 log = logging.getLogger("anigs.fvd_gt")
@@ -64,7 +65,7 @@ OUTPUTS = (ReferenceOutputs, Outputs)  # the scene's reference folder and the va
 
 
 @dataclass
-class Inputs(contract.Inputs):
+class Inputs(TableRowInputs):
     capture: CaptureOutputs
     sfm: SfmOutputs
     static: StaticOutputs
@@ -73,10 +74,6 @@ class Inputs(contract.Inputs):
     reference_dir: ReferenceOutputs | None = field(default=None, metadata={"help": "the scene's reference folder"})
     model: UpdateOutputs | None = field(default=None, metadata={"help": "the method's model folder"})
     frames: int | None = field(default=None, metadata={"help": "frames per clip of the models (--reference)"})
-    scene: str | None = field(default=None, metadata={"help": "scene name (table column)"})
-    method: str = field(default="Ours", metadata={"help": "method name (table row)"})
-    variant: str = field(default="full", metadata={"help": "ablation variant id"})
-    dataset: str = field(default="anigs", metadata={"help": "scene group"})
     eval_params: str | None = field(default=None, metadata={"help": "the eval config section as JSON (I3D network)"})
 
 

@@ -33,9 +33,8 @@ from anigs.masks.truth_check import compare_with_truth
 from anigs.stages import contract
 from anigs.stages.contract import File
 from anigs.stages.effects import Outputs as EffectsOutputs
-from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
-from anigs.stages.truth_inputs import GroundTruthInputs
+from anigs.stages.shared_inputs import GroundTruthInputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.views import cameras_from_views
 
@@ -100,7 +99,6 @@ Config = MasksConfig  # the `masks` config section
 class Inputs(GroundTruthInputs):
     """What the masks stage reads (see the module docstring for each)."""
 
-    canonical: Path = contract.upstream(StaticOutputs, "canonical", "canonical 3DGS PLY")
     views: Path = contract.upstream(ViewsOutputs, "views", "the view queue")
     out: Outputs = contract.output_folder(Outputs)
     frames: Path | None = field(default=None, metadata={

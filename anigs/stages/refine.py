@@ -30,10 +30,9 @@ log = logging.getLogger("anigs.refine")
 Config = RefineConfig  # the `refine` config section
 
 
-class Outputs(contract.Outputs):
+class Outputs(contract.RoundOutputs):
     """A round's folder (``round{r}/``): the refined target clips of its views."""
 
-    FOLDER = "{scene}/{variant}/round{round}"
     LAYOUT = {"targets": File("target/", "the round's target clips"),
               "target": File("target/{view}.npz", "refined clip float [T,H,W,3] in [0,1]; metadata: the rendered "
                                                   "clip's + refine (seed, sigmas, view, round)")}

@@ -28,10 +28,9 @@ log = logging.getLogger("anigs.render_clip")
 Config = RenderClipConfig  # the `render_clip` config section
 
 
-class Outputs(contract.Outputs):
+class Outputs(contract.RoundOutputs):
     """A round's folder (``round{r}/``): the rendered clips of its views."""
 
-    FOLDER = "{scene}/{variant}/round{round}"
     LAYOUT = {"clips": File("render/", "the round's rendered clips"),
               "clip": File("render/{view}.npz", "camera-fixed clip float [T,H,W,3] in [0,1] + metadata "
                                                 "(camera, view_id, model, num_frames, background)")}

@@ -28,19 +28,14 @@ from anigs.stages.update import Outputs as UpdateOutputs
 log = logging.getLogger("anigs.round")
 
 
-class Outputs(contract.Outputs):
+class Outputs(contract.RoundOutputs):
     """A round's folder (``round{r}/``): the rendered clips and the targets of its new views. Its
     files are the render_clip and refine stages' (``OUTPUTS``), so it names none itself."""
 
-    FOLDER = "{scene}/{variant}/round{round}"
-
     @property
     def renders(self) -> render_clip.Outputs:
+        """The render_clip stage's files in this folder (the refine stage's input)."""
         return render_clip.Outputs(self.root)
-
-    @property
-    def refined(self) -> refine.Outputs:
-        return refine.Outputs(self.root)
 
 
 OUTPUTS = (render_clip.Outputs, refine.Outputs)  # what the stage writes: both stages' files
@@ -88,11 +83,11 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
     priors: dict = {}
     for v in view_ids:
         t1 = time.perf_counter()
-        render_clip.run(render_clip.Inputs(inputs.static, out.root, inputs.model, inputs.views, v), render_cfg,
-                        scene=scene)
+        render_clip.run(render_clip.Inputs(static=inputs.static, out=out.root, model=inputs.model, views=inputs.views,
+                                           view_id=v), render_cfg, scene=scene)
         t2 = time.perf_counter()
-        refine.run(refine.Inputs(out.renders, v, out.root, inputs.masks, effects=inputs.effects, round=inputs.round),
-                   refine_cfg, priors=priors)
+        refine.run(refine.Inputs(render_clip=out.renders, view=v, out=out.root, masks=inputs.masks,
+                                 effects=inputs.effects, round=inputs.round), refine_cfg, priors=priors)
         timings["views"][v] = {"render_s": round(t2 - t1, 3), "refine_s": round(time.perf_counter() - t2, 3)}
     timings["load_s"] = round(timings["load_s"], 3)
     timings["total_s"] = round(time.perf_counter() - t0, 3)

@@ -17,6 +17,7 @@ from pathlib import Path
 from anigs.stages import contract
 from anigs.stages.command import parse_params
 from anigs.stages.contract import File
+from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.static.fit import FitConfig
 
 Config = FitConfig  # the `static` config section
@@ -51,10 +52,10 @@ class Outputs(contract.Outputs):
 class Inputs(contract.Inputs):
     """What the static stage reads: the sfm stage's posed images and points."""
 
-    images: Path = field(metadata={"help": "folder of the input images (sfm/images)"})
-    cameras: Path = field(metadata={"help": "cameras.json (anigs convention), one entry per used image (sfm)"})
-    points: Path = field(metadata={"help": "points.npz with xyz [P,3] and rgb [P,3] (the sfm stage's points)"})
-    out: Outputs = field(metadata={"help": "output folder (canonical.ply, metrics.json)"})
+    images: Path = contract.upstream(SfmOutputs, "images", "folder of the input images")
+    cameras: Path = contract.upstream(SfmOutputs, "cameras", "cameras (anigs convention), one entry per used image")
+    points: Path = contract.upstream(SfmOutputs, "points", "the SfM points: xyz [P,3] and rgb [P,3]")
+    out: Outputs = contract.output_folder(Outputs)
     no_progress: bool = field(default=False, metadata={"help": "hide the progress bar"})
 
 

@@ -27,7 +27,7 @@ class Outputs(contract.Outputs):
 
 @dataclass
 class Inputs(contract.Inputs):
-    metrics: list[str] = field(metadata={"help": "metrics.json files (one per scene/method/variant)"})
+    metrics: list[str] = field(metadata={"help": "the eval stage's records (one per scene/method/variant)"})
     out: Path = field(metadata={"help": "output folder (e.g. results/tables)"})
 
 

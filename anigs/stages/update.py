@@ -33,10 +33,9 @@ Config = UpdateConfig  # the `update` config section
 log = logging.getLogger("anigs.update")
 
 
-class Outputs(contract.Outputs):
+class Outputs(contract.RoundOutputs):
     """A round's model folder (``round{r}/``; ``still/`` when nothing moves)."""
 
-    FOLDER = "{scene}/{variant}/round{round}"
     LAYOUT = {"model": File("model.pt", "deformation (DCT coefficients [M,K,3]/[M,K,4], dynamic index [M]) + "
                                         "canonical positions [N,3] (anigs.animate.deform.save_model)"),
               "log": File("update.json", "loss history, timing, containment counts", optional=True),
@@ -52,7 +51,7 @@ class Outputs(contract.Outputs):
 @dataclass
 class Inputs(contract.Inputs):
     static: StaticOutputs
-    out: Path = field(metadata={"help": "the round's folder: model.pt, update.json"})
+    out: Path = contract.output_folder(Outputs, "the round's folder")
     masks: MasksOutputs | None = None
     targets: list[str] | None = field(default=None, metadata={"help": "target clips (.npz), one per training view"})
     init: Outputs | None = field(default=None, metadata={"help": "the previous round's folder (omit: start from zero)"})

@@ -42,7 +42,7 @@ class Outputs(contract.Outputs):
 @dataclass
 class Inputs(contract.Inputs):
     out: Path = field(metadata={"help": "viewer folder to write"})
-    model: UpdateOutputs | None = field(default=None, metadata={"help": "the model's folder (model.pt)"})
+    model: UpdateOutputs | None = None
     compact: Path | None = field(default=None, metadata={"help": "a compact .anigs file instead of --model"})
     static: StaticOutputs | None = field(default=None, metadata={"help": "the static stage's folder (the canonical "
                                                                          "scene the model was trained on)"})

@@ -29,8 +29,7 @@ from anigs.stages import contract
 from anigs.stages.contract import File
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
-from anigs.stages.static import Outputs as StaticOutputs
-from anigs.stages.truth_inputs import GroundTruthInputs
+from anigs.stages.shared_inputs import GroundTruthInputs
 from anigs.views import ViewsConfig
 
 Config = ViewsConfig  # the `views` config section
@@ -75,7 +74,6 @@ class Inputs(GroundTruthInputs):
     """What the views stage reads: the canonical model, the candidate cameras, and the region of
     interest: the effects stage's, or ground-truth labels (see the module docstring)."""
 
-    canonical: Path = contract.upstream(StaticOutputs, "canonical", "canonical 3DGS PLY")
     cameras: Path = contract.upstream(SfmOutputs, "cameras", "candidate cameras JSON")
     out: Outputs = contract.output_folder(Outputs)
     effects: EffectsOutputs | None = field(default=None, metadata={

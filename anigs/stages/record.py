@@ -1,10 +1,11 @@
-"""A metrics record (the schema of ``metrics.json``, :data:`anigs.tables.SCHEMA`) and what it is made
-of: the variant's table row (:func:`table_row`) and the ``PRIOR=PATH`` reference options
-(:func:`prior_pairs`). The eval and fvd_gt stages write such records."""
+"""The metrics record the eval and fvd_gt stages write (the schema of ``metrics.json``,
+:data:`anigs.tables.SCHEMA`) and what it is made of: the variant's table row (:func:`table_row`,
+which the rules ask too) and the ``PRIOR=PATH`` reference options (:func:`prior_pairs`)."""
 from __future__ import annotations
 
 from typing import Any
 
+from anigs import __version__
 from anigs.tables import SCHEMA
 
 
@@ -32,7 +33,6 @@ def metrics_record(row: Any, part: str, config: dict, inputs: dict, seconds: flo
     """The record of ``metrics`` (name -> {value, available, reason, ...}) of one table row: ``row`` has
     ``scene``, ``dataset``, ``method`` and ``variant`` (a stage's inputs); ``part``: all, clips, model or
     fvd_gt; ``seconds``: rounded to 0.01."""
-    from anigs import __version__
 
     return {"schema": SCHEMA, "scene": row.scene, "dataset": row.dataset, "method": row.method,
             "variant": row.variant, "part": part, "anigs_version": __version__, "config": config,
