@@ -18,7 +18,7 @@ import importlib
 import logging
 import sys
 
-from anigs.stages.command import add_params, parse_params, stage_arguments, stage_main  # noqa: F401 (parse_params: benchmarks')
+from anigs.stages.command import parse_params, stage_arguments, stage_main  # noqa: F401 (parse_params: benchmarks')
 
 # tools that are not pipeline stages: command -> (module, one-line help)
 TOOLS: dict[str, tuple[str, str]] = {

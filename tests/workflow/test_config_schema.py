@@ -153,7 +153,7 @@ def test_the_stage_list_is_written_once():
     assert all(name in schema for name in STAGE_SECTIONS)
     for s in STAGES:  # one name: module, config class, rule
         mod = s.load()
-        if s.command:  # its own command line, or the default one (anigs.cli.stage_main): Inputs + run
+        if s.command:  # its own command line, or the default one (anigs.stages.command.stage_main): Inputs + run
             own = callable(getattr(mod, "main", None)) and callable(getattr(mod, "add_arguments", None))
             assert own or (callable(mod.run) and issubclass(mod.Inputs, contract.Inputs)), s.name
         if s.section:
