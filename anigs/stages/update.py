@@ -96,7 +96,7 @@ def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
     canonical, init = canonical_ply, None
     if inputs.init is not None:
         canonical, init, _ = inputs.init.load(canonical_ply)
-    sds = sds_term(cfg, inputs.prior, parse_params(inputs.prior_params), inputs.prompt)
+    sds = sds_term(cfg, inputs.prior, parse_params(inputs.prior_params) if cfg.lambda_sds > 0 else {}, inputs.prompt)
     result = run_update(canonical, dynamic, views, cfg, init=init, sds_fn=sds, failure_path=out.path("last_good"))
     contained = None
     if contains(cfg, inputs.round, inputs.rounds) and result.deformation.num_dynamic:
