@@ -1,9 +1,7 @@
 """``anigs`` command line: one subcommand per workflow stage.
 
-Each stage's command is its module ``anigs/stages/<name>.py``: by default its flags are its
-``Inputs``' fields plus ``--params`` (its ``Config``) and the command calls
-``run(Inputs.from_args(args), Config.from_dict(params))``; a module that needs more (a summary line,
-extra modes) defines ``add_arguments(parser)`` and ``main(args) -> int`` itself. The command table
+Each stage's command is its module ``anigs/stages/<name>.py``, run by :mod:`anigs.stages.command`
+(by default its flags are its ``Inputs``' fields plus ``--params``, its ``Config``). The command table
 derives from the stage registry :data:`anigs.stages.STAGES`. Stage parameters come as the config
 section in JSON (``--params '{...}'`` or ``--params @file.json``) so Snakemake can pass
 its ``params:`` verbatim; paths are explicit options.
@@ -17,11 +15,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import logging
 import sys
-from pathlib import Path
-from typing import Any
+
+from anigs.stages.command import parse_params, stage_arguments, stage_main  # noqa: F401 (parse_params: benchmarks')
 
 # tools that are not pipeline stages: command -> (module, one-line help)
 TOOLS: dict[str, tuple[str, str]] = {
@@ -37,61 +34,7 @@ def commands() -> dict[str, tuple[str, str]]:
     return {**{s.name: (s.module, s.help) for s in STAGES if s.command}, **TOOLS}
 
 
-def add_params(p: argparse.ArgumentParser, section: str) -> None:
-    """``--params``: the stage's config section as JSON, or ``@file.json`` / ``@file.yaml``."""
-    p.add_argument("--params", default=None, help=f"the {section} config section as JSON, or @file.json / @file.yaml")
-
-
-def add_canonical(p: argparse.ArgumentParser, required: bool = True, help: str = "") -> None:
-    """``--canonical``: the canonical 3DGS PLY of the static stage."""
-    p.add_argument("--canonical", required=required, default=None,
-                   help=help or "canonical 3DGS PLY (static/canonical.ply)")
-
-
-def add_out(p: argparse.ArgumentParser, what: str) -> None:
-    """``--out`` (required): where the stage writes ``what``."""
-    p.add_argument("--out", required=True, help=what)
-
-
-def parse_params(value: str | None) -> dict[str, Any]:
-    """Parse ``--params``: inline JSON, or ``@path`` to a JSON/YAML file; empty -> {}."""
-    if not value:
-        return {}
-    if value.startswith("@"):
-        path = Path(value[1:])
-        text = path.read_text()
-        if path.suffix in (".yaml", ".yml"):
-            import yaml
-
-            return yaml.safe_load(text) or {}
-        return json.loads(text)
-    return json.loads(value)
-
-
 THEN = "--then"
-
-
-def stage_arguments(module, name: str, p: argparse.ArgumentParser) -> None:
-    """The command's flags: the module's ``add_arguments``, else its ``Inputs``' flags (derived from the
-    fields) and ``--params`` when it has a ``Config``."""
-    if hasattr(module, "add_arguments"):
-        module.add_arguments(p)
-        return
-    module.Inputs.add_arguments(p)
-    if getattr(module, "Config", None) is not None:
-        add_params(p, name)
-
-
-def stage_main(module, args: argparse.Namespace) -> int:
-    """Run the command: the module's ``main``, else ``run(Inputs.from_args(args), Config.from_dict(params))``."""
-    if hasattr(module, "main"):
-        return module.main(args)
-    inputs = module.Inputs.from_args(args)
-    if getattr(module, "Config", None) is None:
-        module.run(inputs)
-    else:
-        module.run(inputs, module.Config.from_dict(parse_params(args.params)))
-    return 0
 
 
 def _split_chain(argv: list[str]) -> list[list[str]]:

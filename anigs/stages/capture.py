@@ -16,29 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.typed_config import from_dict
-from anigs.cli import parse_params
+from anigs.capture_config import PhotosConfig, capture_config
+from anigs.stages.command import parse_params
 from anigs.io import write_json
 from anigs.stages import contract
 from anigs.stages.contract import File
 
 log = logging.getLogger("anigs.capture")
-
-
-@dataclass
-class PhotosConfig:
-    """Photo import parameters (``--params`` in photos mode)."""
-
-    max_side: int = 1600  # downscale so the longest side is at most this (0 = keep the original size)
-    skip_unreadable: bool = False  # leave out corrupt, unreadable or blank photos with a warning instead of failing
-
-    def __post_init__(self) -> None:
-        if self.max_side < 0:
-            raise ValueError(f"photos.max_side must be >= 0 (0 = keep size), got {self.max_side}")
-
-    @staticmethod
-    def from_dict(d: dict | None) -> "PhotosConfig":
-        return from_dict(PhotosConfig, d, "photos", check_types=True)
 
 
 Config = PhotosConfig  # the `capture` config section
@@ -48,8 +32,6 @@ class Outputs(contract.Outputs):
     """The capture stage's folder: the photos, and for the synthetic scene its ground truth
     (:mod:`anigs.synth.capture`)."""
 
-    STAGE = "capture"
-    FOLDER = "{scene}/capture"
     LAYOUT = {
         "images": File("images/", "the photos (PNG; synthetic: img_000.png, ...; photos: {stem}.png)"),
         "summary": File("capture.json", "source (synthetic|photos), image names and count; synthetic: "
@@ -123,7 +105,7 @@ class Outputs(contract.Outputs):
 class Inputs(contract.Inputs):
     """What the capture stage reads: nothing upstream; the source and, for photos, their folder."""
 
-    out: Outputs = field(metadata={"help": "capture folder: writes OUT/images (and OUT/gt), OUT/capture.json"})
+    out: Outputs = contract.output_folder(Outputs, "capture folder")
     source: str = field(default="synthetic", metadata={
         "help": "synthetic: render the embedded demo scene; photos: import a folder of photos"})
     photos: Path | None = field(default=None, metadata={"help": "folder of JPEG/PNG photos (photos mode)"})
@@ -157,15 +139,6 @@ def run(inputs: Inputs, cfg) -> Outputs:
     return out
 
 
-def config(source: str, params: dict | None):
-    """The config ``--params`` gives: the photo import options, or the scene's ``synthetic`` section."""
-    if source == "photos":
-        return PhotosConfig.from_dict(params)
-    from anigs.synth.capture import SynthConfig
-
-    return SynthConfig.from_dict(params)
-
-
 # ---- command line: anigs capture ----
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -176,5 +149,5 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     inputs = Inputs.from_args(args)
-    run(inputs, config(inputs.source, parse_params(args.params)))
+    run(inputs, capture_config(inputs.source, parse_params(args.params)))
     return 0

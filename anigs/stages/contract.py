@@ -17,7 +17,9 @@ Every stage's ``run(inputs, cfg) -> Outputs``.
     EffectsOutputs("results/demo/effects").path("effects")   # results/demo/effects/effects.json
 
 ``FOLDER`` says where the folder lies under the results root (``"{scene}/effects"``,
-``"{scene}/{variant}/round{round}"``), so each file has one location. A stage whose files lie in
+``"{scene}/{variant}/round{round}"``), so each file has one location. A stage module's ``Outputs``
+that sets neither gets ``STAGE`` from its module (``anigs.stages.<name>``) and ``FOLDER`` from the
+stage's scope (:func:`scope_folder`: ``{scene}/<name>``, ``{scene}/{variant}/<name>`` or ``<name>``). A stage whose files lie in
 several folders lists its ``Outputs`` types in the module's ``OUTPUTS`` (:func:`outputs_of`); a
 folder may hold several stages' files (``round{r}/``: render_clip, refine, update), but a file
 belongs to exactly one ``Outputs``.
@@ -61,6 +63,16 @@ class Outputs:
     LAYOUT: ClassVar[dict[str, File]] = {}
     STAGE: ClassVar[str] = ""   # the stage's name (anigs.stages.STAGES)
     FOLDER: ClassVar[str] = ""  # the folder under the results root, with {scene}/{variant}/{round} fields
+
+    def __init_subclass__(cls, **kw: Any) -> None:
+        super().__init_subclass__(**kw)
+        pkg, _, name = cls.__module__.rpartition(".")
+        if pkg != "anigs.stages" or name == "contract":
+            return
+        if "STAGE" not in cls.__dict__:
+            cls.STAGE = name
+        if not cls.FOLDER:  # neither set here nor inherited (RoundOutputs)
+            cls.FOLDER = scope_folder(cls.STAGE)
 
     def __init__(self, root: str | Path):
         self.root = Path(root)
@@ -126,6 +138,39 @@ class Outputs:
         a = np.load(p, allow_pickle=False)
         return check_array(a, str(p), dtype, shape)
 
+    def clip(self, key: str, **fields: Any) -> tuple[np.ndarray, dict]:
+        """(frames float32 [T,H,W,3], metadata) of the clip file ``key`` (:func:`anigs.video.load_clip`)."""
+        from anigs.video import load_clip
+
+        p = self.path(key, **fields)
+        if not p.is_file():
+            raise FileNotFoundError(f"{p}: missing (run the {self.STAGE or 'upstream'} stage)")
+        return load_clip(p)
+
+    def save_array(self, key: str, a: np.ndarray, **fields: Any) -> Path:
+        """Write the ``.npy`` file ``key`` atomically (temp + rename); returns its path."""
+        from anigs.io import atomic_path
+
+        p = self.path(key, **fields)
+        with atomic_path(p) as tmp, open(tmp, "wb") as fh:
+            np.save(fh, a)
+        return p
+
+
+def scope_folder(stage: str) -> str:
+    """The default folder of a stage's files under the results root, from its scope in the registry:
+    ``{scene}/<name>`` (scene), ``{scene}/{variant}/<name>`` (variant), ``<name>`` (global)."""
+    from anigs.stages import BY_NAME
+
+    return {"scene": "{scene}/", "variant": "{scene}/{variant}/", "global": ""}[BY_NAME[stage].scope] + stage
+
+
+class RoundOutputs(Outputs):
+    """A round's folder (``round{r}/``), which several stages write into: render_clip (``render/``),
+    refine (``target/``), update (the model) and round (both of the first)."""
+
+    FOLDER = "{scene}/{variant}/round{round}"
+
 
 def outputs_of(module: types.ModuleType) -> tuple[type[Outputs], ...]:
     """The ``Outputs`` types of a stage module: its ``OUTPUTS`` when it writes into several folders,
@@ -148,6 +193,20 @@ def check_array(a: np.ndarray, where: str, dtype: str | None = None,
 
 
 # ---- inputs: flags derived from fields ----
+
+def upstream(outputs: type[Outputs], key: str, what: str, **kw: Any) -> Any:
+    """An ``Inputs`` field that takes one file of an upstream stage (a path), its help naming the file:
+    ``upstream(StaticOutputs, "canonical", "canonical 3DGS PLY")`` -> "canonical 3DGS PLY (static/canonical.ply)".
+    ``kw``: more ``dataclasses.field`` arguments (``default``)."""
+    name = f"{Path(outputs.FOLDER).name}/{outputs.LAYOUT[key].name}".rstrip("/")
+    return dataclasses.field(metadata={"help": f"{what} ({name})"}, **kw)
+
+
+def output_folder(outputs: type[Outputs], what: str = "output folder") -> Any:
+    """The ``--out`` field of a stage that writes ``outputs``, its help listing the files it always writes."""
+    names = ", ".join(f.name.rstrip("/") for f in outputs.LAYOUT.values() if not f.optional and not f.fields)
+    return dataclasses.field(metadata={"help": f"{what} ({names})" if names else what})
+
 
 def _flag(name: str) -> str:
     return "--" + name.replace("_", "-")

@@ -27,6 +27,8 @@ from anigs.effects.detect import photo_indices
 from anigs.effects.config import Config
 from anigs.stages import contract
 from anigs.stages.contract import File
+from anigs.stages.sfm import Outputs as SfmOutputs
+from anigs.stages.shared_inputs import CanonicalInputs
 
 log = logging.getLogger("anigs.effects")
 
@@ -34,8 +36,6 @@ log = logging.getLogger("anigs.effects")
 class Outputs(contract.Outputs):
     """The effects stage's folder: what the scene contains and its region of interest."""
 
-    STAGE = "effects"
-    FOLDER = "{scene}/effects"
     LAYOUT = {
         "effects": File("effects.json", "per effect: detected, pixel_fraction, gaussian_fraction, confidence, "
                                         "reason; requested, chosen, requested_not_found, prompt, corrections, "
@@ -64,13 +64,12 @@ class Outputs(contract.Outputs):
 
 
 @dataclass
-class Inputs(contract.Inputs):
+class Inputs(CanonicalInputs):
     """What the effects stage reads: the canonical model and the photos the SfM cameras describe."""
 
-    canonical: Path = field(metadata={"help": "canonical 3DGS PLY (static/canonical.ply)"})
-    cameras: Path = field(metadata={"help": "cameras of the photos (sfm/cameras.json)"})
-    images: Path = field(metadata={"help": "the undistorted photos the cameras describe (sfm/images)"})
-    out: Outputs = field(metadata={"help": "output folder (effects.json, regions.npy, dynamic.npy, overview.png)"})
+    cameras: Path = contract.upstream(SfmOutputs, "cameras", "cameras of the photos")
+    images: Path = contract.upstream(SfmOutputs, "images", "the undistorted photos the cameras describe")
+    out: Outputs = contract.output_folder(Outputs)
     requested: list[str] | None = field(default=None, metadata={
         "help": "effects to simulate, instead of the section's `requested` ('auto': the detected kinds the prompt names)"})
     prompt: str | None = field(default=None, metadata={"help": "the scene's prompt, instead of the section's `prompt`"})
@@ -83,7 +82,7 @@ def run(inputs: Inputs, cfg: Config) -> Outputs:
     from anigs.effects import save_overview
     from anigs.gaussians import load_ply
     from anigs.images import find_image, load_image
-    from anigs.io import atomic_path, write_json
+    from anigs.io import write_json
 
     if inputs.prompt is not None:
         cfg.prompt = inputs.prompt
@@ -99,10 +98,8 @@ def run(inputs: Inputs, cfg: Config) -> Outputs:
     decision = decide_effects(photos, cams, g, cfg, requested)
     out = inputs.out
     out.root.mkdir(parents=True, exist_ok=True)
-    with atomic_path(out.path("regions")) as tmp, open(tmp, "wb") as fh:
-        np.save(fh, decision.result.region_of.astype(np.int8))
-    with atomic_path(out.path("dynamic")) as tmp, open(tmp, "wb") as fh:
-        np.save(fh, decision.dynamic)
+    out.save_array("regions", decision.result.region_of.astype(np.int8))
+    out.save_array("dynamic", decision.dynamic)
     save_overview(out.path("overview"), decision.result)
     write_json(out.path("effects"), decision.report)
     return out

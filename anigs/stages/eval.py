@@ -21,13 +21,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from anigs.stages.record import metrics_record, prior_pairs, table_row  # noqa: F401 (table_row: the rules')
 from anigs.metrics.suite import EvalConfig
 from anigs.stages import contract
+from anigs.stages.command import parse_params
 from anigs.stages.capture import Outputs as CaptureOutputs
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.contract import File
+from anigs.stages.shared_inputs import TableRowInputs
 from anigs.stages.final import Outputs as FinalOutputs
 from anigs.stages.update import Outputs as UpdateOutputs
 
@@ -41,8 +44,6 @@ PART_FILE = {"all": "metrics", "clips": "clip_metrics", "model": "model_metrics"
 class Outputs(contract.Outputs):
     """The evaluation folder of a variant (``eval/``; ``fvd_gt``'s record lies beside, its own Outputs)."""
 
-    STAGE = "eval"
-    FOLDER = "{scene}/{variant}/eval"
     LAYOUT = {"metrics": File("metrics.json", "the record of every metric: schema, scene, dataset, method, variant, "
                                               "config, inputs, metrics {name: {value, available, reason, ...}}"),
               "clip_metrics": File("clip_metrics.json", "the record of the final clips' metrics (--part clips)"),
@@ -59,9 +60,8 @@ class Outputs(contract.Outputs):
 
 
 @dataclass
-class Inputs(contract.Inputs):
-    out: Path = field(metadata={"help": "the evaluation folder (metrics.json, or a half's record with --part)"})
-    scene: str | None = field(default=None, metadata={"help": "scene name (table column; required unless --merge)"})
+class Inputs(TableRowInputs):
+    out: Path = contract.output_folder(Outputs, "the evaluation folder (the --part's record)")
     final: FinalOutputs | None = field(default=None, metadata={"help": "the final stage's folder (its clips)"})
     clips: list[str] | None = field(default=None, metadata={"help": "more clip files or folders (.npz/.mp4)"})
     masks: MasksOutputs | None = None
@@ -76,30 +76,8 @@ class Inputs(contract.Inputs):
                                                                    "undistorted images, points (multiview protocol)"})
     capture: CaptureOutputs | None = field(default=None, metadata={"help": "the capture stage's folder: synthetic "
                                                                            "ground truth"})
-    method: str = field(default="Ours", metadata={"help": "method name (table row)"})
-    variant: str = field(default="full", metadata={"help": "ablation variant id (Table 5)"})
-    dataset: str = field(default="anigs", metadata={"help": "scene group (one FVD table per dataset)"})
     part: str = field(default="all", metadata={"help": "all | clips | model: all metrics, or a half's (two jobs)"})
-    merge: bool = field(default=False, metadata={"help": "join the clips and model halves in --out into metrics.json"})
-
-
-def table_row(method: str, variant: str) -> tuple[str, str]:
-    """(method, variant) of a variant's table row: ours under its variant (Table 5), a baseline under
-    its method's name (Tables 1-3). ``method``: ``animate.method``."""
-    from anigs.animate.plan import METHODS
-
-    return ("Ours", variant) if method == "anigs" else (METHODS[method], "full")
-
-
-def _pairs(items: list[str] | None, opt: str) -> dict[str, list[str]]:
-    """``PRIOR=PATH`` options -> {prior: [paths]}."""
-    out: dict[str, list[str]] = {}
-    for item in items or []:
-        if "=" not in item or not item.split("=", 1)[0].strip():
-            raise ValueError(f"{opt} expects PRIOR=PATH, got {item!r}")
-        prior, path = item.split("=", 1)
-        out.setdefault(prior.strip(), []).append(path)
-    return out
+    merge: bool = field(default=False, metadata={"help": "join the clips and model halves in --out into the --part all record"})
 
 
 def _record_inputs(inputs: Inputs) -> dict[str, Any]:
@@ -108,8 +86,8 @@ def _record_inputs(inputs: Inputs) -> dict[str, Any]:
     whole = inputs.part != "clips"
     return {"clips": ([str(inputs.final.path("clips"))] if inputs.final else []) + list(inputs.clips or []),
             "masks": str(inputs.masks.root) if inputs.masks else None,
-            "reference": _pairs(inputs.reference, "--reference"),
-            "fid_reference": _pairs(inputs.fid_reference, "--fid-reference"),
+            "reference": prior_pairs(inputs.reference, "--reference"),
+            "fid_reference": prior_pairs(inputs.fid_reference, "--fid-reference"),
             "model": s(inputs.model, "model"), "canonical": s(inputs.static, "canonical"),
             "cameras": s(inputs.sfm, "cameras"), "images": s(inputs.sfm, "images") if whole else None,
             "points": s(inputs.sfm, "points") if whole else None, "gt_dir": s(inputs.capture, "gt")}
@@ -117,10 +95,8 @@ def _record_inputs(inputs: Inputs) -> dict[str, Any]:
 
 def run(inputs: Inputs, cfg: EvalConfig) -> Outputs:
     """Evaluate and write the record of ``inputs.part`` into the evaluation folder."""
-    from anigs import __version__
     from anigs.io import write_json
     from anigs.metrics.suite import evaluate
-    from anigs.tables import SCHEMA
 
     if inputs.part not in PART_FILE:
         raise ValueError(f"eval: --part {inputs.part!r}; choose {sorted(PART_FILE)}")
@@ -130,10 +106,7 @@ def run(inputs: Inputs, cfg: EvalConfig) -> Outputs:
     i = _record_inputs(inputs)
     metrics = evaluate(cfg, i["clips"], i["masks"], i["reference"], i["model"], i["canonical"], i["cameras"],
                        i["images"], i["points"], i["gt_dir"], i["fid_reference"], part=inputs.part)
-    record = {"schema": SCHEMA, "scene": inputs.scene, "dataset": inputs.dataset, "method": inputs.method,
-              "variant": inputs.variant, "part": inputs.part, "anigs_version": __version__,
-              "config": dataclasses.asdict(cfg), "inputs": i,
-              "seconds": round(time.perf_counter() - t0, 2), "metrics": metrics}
+    record = metrics_record(inputs, inputs.part, dataclasses.asdict(cfg), i, time.perf_counter() - t0, metrics)
     out = Outputs(inputs.out)
     write_json(out.path(PART_FILE[inputs.part]), record)
     n_ok = sum(1 for m in metrics.values() if m["available"])
@@ -152,16 +125,7 @@ def merge_parts(out: Outputs, extra: list[str | Path] | None = None) -> dict:
 
 # ---- command line: anigs eval ----
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(parser)
-    add_params(parser, "eval")
-
-
 def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
     inputs = Inputs.from_args(args)
     if inputs.merge:
         merge_parts(Outputs(inputs.out))

@@ -12,9 +12,9 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import ClassVar
 
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 from anigs.stages import contract
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.contract import File
@@ -26,8 +26,6 @@ log = logging.getLogger("anigs.export")
 class Outputs(contract.Outputs):
     """The export folder of a variant (``export/``)."""
 
-    STAGE = "export"
-    FOLDER = "{scene}/{variant}/export"
     LAYOUT = {"compact": File("scene.anigs", "compact animated scene (anigs.viewer.compact): canonical once, "
                                             "DCT motion of the moving Gaussians"),
               "ply": File("animated.ply", "standard 3DGS PLY + per-Gaussian DCT properties"),
@@ -38,24 +36,24 @@ class Outputs(contract.Outputs):
 @dataclass
 class Inputs(contract.Inputs):
     static: StaticOutputs
-    model: UpdateOutputs = field(metadata={"help": "the model's folder (model.pt)"})
+    model: UpdateOutputs = field(metadata={"help": "the update stage's folder of the model"})
     out: Path = field(metadata={"help": "the export folder"})
 
 
 @dataclass
-class ExportConfig:
+class ExportConfig(Section):
     """``export`` config section."""
 
     frames: bool = False  # also write the per-frame PLY sequence (scene.anigs holds every frame exactly)
     frame_step: int = 1  # every n-th frame of 0..T-1
     fps: float = 12.0  # frames per second of the written videos / sidecar
 
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "ExportConfig":
-        cfg = from_dict(ExportConfig, d, "export", KeyError)
-        if cfg.frame_step < 1:
-            raise ValueError(f"export.frame_step must be >= 1, got {cfg.frame_step}")
-        return cfg
+    WHERE: ClassVar[str] = "export"
+    ERROR: ClassVar[type[Exception]] = KeyError
+
+    def validate(self) -> None:
+        if self.frame_step < 1:
+            raise ValueError(f"export.frame_step must be >= 1, got {self.frame_step}")
 
 
 Config = ExportConfig  # the `export` config section
@@ -76,6 +74,6 @@ def run(inputs: Inputs, cfg: ExportConfig) -> Outputs:
     meta["frames"] = names
     meta["compact"] = Outputs.LAYOUT["compact"].name
     write_json(out.path("sidecar"), meta)
-    log.info("export: %d frame PLYs and animated.ply (%d dynamic of %d Gaussians, K=%d, T=%d) -> %s",
-             len(names), deformation.num_dynamic, canonical.num, deformation.num_bases, deformation.num_frames, out.root)
+    log.info("export: %d frame PLYs and %s (%d dynamic of %d Gaussians, K=%d, T=%d) -> %s",
+             len(names), out.path("ply").name, deformation.num_dynamic, canonical.num, deformation.num_bases, deformation.num_frames, out.root)
     return out

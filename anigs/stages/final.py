@@ -14,11 +14,10 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from anigs.typed_config import from_dict
+from anigs.animate.final_config import FinalConfig
 from anigs.stages import contract
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
@@ -30,33 +29,12 @@ from anigs.stages.update import Outputs as UpdateOutputs
 log = logging.getLogger("anigs.final")
 
 
-@dataclass
-class FinalConfig:
-    """``final`` config section."""
-
-    frames: int = 0  # frames per video (0 = the model's T); fractional times loop the DCT period
-    fps: int = 12  # frames per second of the written videos / sidecar
-    path_frames: int = 96  # frames of the moving-camera video
-    path_loops: int = 2  # how many animation periods the moving camera sees
-    path_views: int = 6  # capture cameras the path passes through (evenly picked)
-    scale: float = 1.0  # resolution factor of the view videos
-    background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # background colour (RGB in [0,1])
-    slice_upsample: int = 4  # each time step becomes this many rows in slice PNGs
-    device: str = "auto"  # torch device: auto picks CUDA when present (the workflow passes the global device)
-
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "FinalConfig":
-        return from_dict(FinalConfig, d, "final", KeyError)
-
-
 Config = FinalConfig  # the `final` config section
 
 
 class Outputs(contract.Outputs):
     """The final folder of a variant (``final/``)."""
 
-    STAGE = "final"
-    FOLDER = "{scene}/{variant}/final"
     LAYOUT = {"summary": File("final.json", "per view: row, col, peak_temporal_std, static_max_change, "
                                             "dynamic_fraction; frames, config, path"),
               "video": File("{view}.mp4", "camera-fixed video of a view (H.264)"),
@@ -75,12 +53,7 @@ class Outputs(contract.Outputs):
 
     def clip(self, view: str) -> tuple[np.ndarray, dict]:
         """(frames float32 [T,H,W,3], metadata) of ``view``'s final clip."""
-        from anigs.video import load_clip
-
-        p = self.path("clip", view=view)
-        if not p.is_file():
-            raise FileNotFoundError(f"{p}: missing (run the final stage)")
-        return load_clip(p)
+        return super().clip("clip", view=view)
 
 
 @dataclass
@@ -142,5 +115,5 @@ def run(inputs: Inputs, cfg: FinalConfig) -> Outputs:
     summary["seconds"] = time.perf_counter() - t0
     write_json(out.path("summary"), summary)
     log.info("final: wrote %d view videos%s in %.1f s to %s", len(summary["views"]),
-             " and path.mp4" if inputs.sfm is not None else "", summary["seconds"], out.root)
+             f" and {out.path('path').name}" if inputs.sfm is not None else "", summary["seconds"], out.root)
     return out

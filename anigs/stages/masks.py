@@ -21,21 +21,21 @@ import numpy as np
 
 from anigs.cameras import load_cameras
 from anigs.gaussians import load_ply
-from anigs.io import atomic_path, read_json, write_json
-from anigs.masks import compute_masks
+from anigs.io import read_json, write_json
 from anigs.pixels import overlay
 from anigs.images import write_mask_png, write_rgb_png
 from anigs.masks.choose import EffectSets
 from anigs.masks.frames import first_frames
-from anigs.masks.labels import LabelsConfig
-from anigs.masks.lift import LiftConfig
-from anigs.masks.sam2 import Sam2Config
-from anigs.masks.vegetation import VegetationConfig
+from anigs.masks.config import MasksConfig
 from anigs.masks.segment import segment_views
-from anigs.masks.truth import GroundTruth, compare
+from anigs.masks.truth import GroundTruth
+from anigs.masks.truth_check import compare_with_truth
 from anigs.stages import contract
 from anigs.stages.contract import File
 from anigs.stages.effects import Outputs as EffectsOutputs
+from anigs.stages.sfm import Outputs as SfmOutputs
+from anigs.stages.shared_inputs import GroundTruthInputs
+from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.views import cameras_from_views
 
 log = logging.getLogger("anigs.masks")
@@ -44,8 +44,6 @@ log = logging.getLogger("anigs.masks")
 class Outputs(contract.Outputs):
     """The masks stage's folder: a dynamic mask per queued view and the dynamic Gaussian set."""
 
-    STAGE = "masks"
-    FOLDER = "{scene}/masks"
     LAYOUT = {
         "mask": File("{view}.png", "uint8 [H, W] 0/255: the view's dynamic mask (its first frame)"),
         "effect_mask": File("{view}_{effect}.png", "uint8 [H, W] 0/255: the part of the mask one effect "
@@ -94,71 +92,22 @@ class Outputs(contract.Outputs):
         return self.array("effect_labels", "i", (n,))
 
 
-@dataclass
-class MasksConfig:
-    """Config section ``masks``."""
-
-    backend: str = "effects"                   # effects (the effects stage's regions) | vegetation | labels | sam2
-    background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # render background (RGB)
-    vegetation: VegetationConfig = field(default_factory=VegetationConfig)  # the vegetation backend
-    labels: LabelsConfig = field(default_factory=LabelsConfig)  # the labels backend (and the effects backend's renders)
-    sam2: Sam2Config = field(default_factory=Sam2Config)        # the SAM2 backend
-    lift: LiftConfig = field(default_factory=LiftConfig)        # lifting the 2D masks to the Gaussians
-    per_effect: bool = True                    # write one mask per effect type when there are several
-    compare: bool = True                       # with --labels: IoU / precision / recall vs ground truth
-    #: with --labels, --gt-*, --cameras: also vs appearance labels (a diagnostic: 0.25 s per photo, 12 s of the demo's
-    #: 24 s masks job; benchmarks/masks.py reports it too)
-    appearance: bool = False
-    capture_ground_layer: float = 0.5          # with --images: vegetation ground_layer on the capture photos
-    complete_masks: bool = True                # add the pixels the lifted dynamic Gaussians dominate to each mask
-    #: move only the Gaussians whose footprint stays inside every view's dilated mask; halos and floaters stay still
-    #: (anigs.masks.contain)
-    contain: bool = True
-    #: containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
-    contain_margin_px: int = 3
-    #: containment: most blending weight (in pixels) a moving Gaussian may put outside the dilated mask of any view
-    contain_max_outside_px: float = 0.05
-
-    @staticmethod
-    def from_dict(d: dict | None) -> "MasksConfig":
-        from anigs.typed_config import from_dict
-
-        cfg = from_dict(MasksConfig, d, "masks config")
-        if cfg.backend not in ("effects", "vegetation", "labels", "sam2"):
-            raise ValueError(f"masks.backend must be effects, vegetation, labels or sam2, got {cfg.backend!r}")
-        if len(cfg.background) != 3:
-            raise ValueError(f"masks.background must be [r, g, b], got {cfg.background}")
-        if cfg.capture_ground_layer < 0:
-            raise ValueError(f"masks.capture_ground_layer must be >= 0, got {cfg.capture_ground_layer}")
-        if cfg.contain_margin_px < 0 or not cfg.contain_max_outside_px >= 0:
-            raise ValueError("masks.contain_margin_px and masks.contain_max_outside_px must be >= 0, got "
-                             f"{cfg.contain_margin_px} and {cfg.contain_max_outside_px}")
-        return cfg
-
-
 Config = MasksConfig  # the `masks` config section
 
 
 @dataclass
-class Inputs(contract.Inputs):
+class Inputs(GroundTruthInputs):
     """What the masks stage reads (see the module docstring for each)."""
 
-    canonical: Path = field(metadata={"help": "canonical 3DGS PLY (static/canonical.ply)"})
-    views: Path = field(metadata={"help": "views.json of the views stage"})
-    out: Outputs = field(metadata={"help": "output folder"})
+    views: Path = contract.upstream(ViewsOutputs, "views", "the view queue")
+    out: Outputs = contract.output_folder(Outputs)
     frames: Path | None = field(default=None, metadata={
         "help": "folder with the first frames ({id}.png or {id}.npz clips); default: render the canonical model"})
-    labels: Path | None = field(default=None, metadata={
-        "help": "per-Gaussian labels .npy: labels backend and/or ground-truth comparison"})
-    motion: Path | None = field(default=None, metadata={"help": "motion.json: which labels move, per effect type (with --labels)"})
-    gt_gaussians: Path | None = field(default=None, metadata={"help": "PLY the labels belong to when it is not the canonical set"})
-    gt_cameras: Path | None = field(default=None, metadata={
-        "help": "cameras in the frame of --gt-gaussians (matched by name to --cameras)"})
-    cameras: Path | None = field(default=None, metadata={
-        "help": "the reconstruction's cameras (sfm/cameras.json), to align with --gt-cameras and to place the --images"})
-    images: Path | None = field(default=None, metadata={
-        "help": "the capture photos (sfm/images, named after the --cameras): segmented too, and the lifting votes "
-                "over them and the queued views"})
+    cameras: Path | None = contract.upstream(SfmOutputs, "cameras", "the reconstruction's cameras, to align with "
+                                             "--gt-cameras and to place the --images", default=None)
+    images: Path | None = contract.upstream(SfmOutputs, "images", "the capture photos, named after the --cameras: "
+                                            "segmented too, and the lifting votes over them and the queued views",
+                                            default=None)
     effects: EffectsOutputs | None = field(default=None, metadata={
         "help": "the effects stage's folder: the effects backend renders its chosen effects' Gaussian sets"})
 
@@ -195,22 +144,13 @@ def run(inputs: Inputs, cfg: MasksConfig) -> Outputs:
                               "effects": {e: float(v.mean()) for e, v in per_effect.items()}})
         log.info("masks: %s dynamic %.1f%%", fr.name, 100 * m.mean())
     if truth is not None and cfg.compare:
-        label_masks = res.masks if cfg.backend == "labels" else compute_masks(truth.backend(g, capture_cams, dataclasses.asdict(cfg.labels)), frames)
-        appearance = None
-        if cfg.appearance and inputs.gt_gaussians and inputs.gt_cameras and capture_cams is not None:
-            appearance = truth.appearance(g, capture_cams, frames, dataclasses.asdict(cfg.labels))
-        compare(info, g, frames, res.masks, res.dynamic, truth, label_masks, appearance,
-                capture_cams if capture_cams is not None else cams)
-    _save_npy(out.path("dynamic"), res.dynamic)
+        compare_with_truth(info, cfg, g, frames, res, truth, capture_cams if capture_cams is not None else cams,
+                           capture_cams)
+    out.save_array("dynamic", res.dynamic)
     if res.effect_labels is not None:
-        _save_npy(out.path("effect_labels"), res.effect_labels)
+        out.save_array("effect_labels", res.effect_labels)
     info["config"] = dataclasses.asdict(cfg)
     write_json(out.path("report"), info)
-    log.info("masks: wrote %d masks, dynamic.npy (%d of %d Gaussians) to %s", len(frames), int(res.dynamic.sum()),
-             g.num, out)
+    log.info("masks: wrote %d masks, %s (%d of %d Gaussians) to %s", len(frames), out.path("dynamic").name,
+             int(res.dynamic.sum()), g.num, out)
     return out
-
-
-def _save_npy(path: Path, a: np.ndarray) -> None:
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.save(fh, a)

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from anigs.stages import contract, refine, render_clip
+from anigs.stages.command import parse_params
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.static import Outputs as StaticOutputs
@@ -27,20 +28,14 @@ from anigs.stages.update import Outputs as UpdateOutputs
 log = logging.getLogger("anigs.round")
 
 
-class Outputs(contract.Outputs):
+class Outputs(contract.RoundOutputs):
     """A round's folder (``round{r}/``): the rendered clips and the targets of its new views. Its
     files are the render_clip and refine stages' (``OUTPUTS``), so it names none itself."""
 
-    STAGE = "round"
-    FOLDER = "{scene}/{variant}/round{round}"
-
     @property
     def renders(self) -> render_clip.Outputs:
+        """The render_clip stage's files in this folder (the refine stage's input)."""
         return render_clip.Outputs(self.root)
-
-    @property
-    def refined(self) -> refine.Outputs:
-        return refine.Outputs(self.root)
 
 
 OUTPUTS = (render_clip.Outputs, refine.Outputs)  # what the stage writes: both stages' files
@@ -67,7 +62,6 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
     """Render each view of ``inputs.view_ids`` with the round's model (none: static) and refine it with its
     mask; the configs are ``inputs``' render and refine params (the stage has no section of its own).
     Seconds per view and phase go to the log (and ``--timings-json``), not into the artifacts."""
-    from anigs.cli import parse_params
     from anigs.io import write_json
 
     view_ids = inputs.view_ids
@@ -89,11 +83,11 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
     priors: dict = {}
     for v in view_ids:
         t1 = time.perf_counter()
-        render_clip.run(render_clip.Inputs(inputs.static, out.root, inputs.model, inputs.views, v), render_cfg,
-                        scene=scene)
+        render_clip.run(render_clip.Inputs(static=inputs.static, out=out.root, model=inputs.model, views=inputs.views,
+                                           view_id=v), render_cfg, scene=scene)
         t2 = time.perf_counter()
-        refine.run(refine.Inputs(out.renders, v, out.root, inputs.masks, effects=inputs.effects, round=inputs.round),
-                   refine_cfg, priors=priors)
+        refine.run(refine.Inputs(render_clip=out.renders, view=v, out=out.root, masks=inputs.masks,
+                                 effects=inputs.effects, round=inputs.round), refine_cfg, priors=priors)
         timings["views"][v] = {"render_s": round(t2 - t1, 3), "refine_s": round(time.perf_counter() - t2, 3)}
     timings["load_s"] = round(timings["load_s"], 3)
     timings["total_s"] = round(time.perf_counter() - t0, 3)

@@ -16,6 +16,7 @@ import numpy as np
 
 from anigs.sfm.config import SfmConfig
 from anigs.stages import contract
+from anigs.stages.command import parse_params
 from anigs.stages.contract import File
 
 Config = SfmConfig  # the `sfm` config section
@@ -24,8 +25,6 @@ Config = SfmConfig  # the `sfm` config section
 class Outputs(contract.Outputs):
     """The sfm stage's folder, laid out like a COLMAP project (see :mod:`anigs.sfm.colmap`)."""
 
-    STAGE = "sfm"
-    FOLDER = "{scene}/sfm"
     LAYOUT = {
         "images": File("images/", "the images the cameras describe (undistorted, or copies), named as the cameras"),
         "sparse": File("sparse/", "sparse/0/: COLMAP binary model in the output frame (PINHOLE after undistortion)"),
@@ -84,16 +83,7 @@ def run(inputs: Inputs, cfg: SfmConfig, threads: int | None = None) -> Outputs:
 
 # ---- command line: anigs sfm ----
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "sfm")
-
-
 def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
     out = run(Inputs.from_args(args), SfmConfig.from_dict(parse_params(args.params)), threads=getattr(args, "threads", None))
     r = out.report()
     line = f"registered {r['registered']}/{r['images']} images, {r['num_points']} points"

@@ -15,7 +15,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from anigs.stages import contract
+from anigs.stages.command import parse_params
 from anigs.stages.contract import File
+from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.static.fit import FitConfig
 
 Config = FitConfig  # the `static` config section
@@ -26,8 +28,6 @@ log = logging.getLogger("anigs.static")
 class Outputs(contract.Outputs):
     """The static stage's folder: the canonical 3DGS."""
 
-    STAGE = "static"
-    FOLDER = "{scene}/static"
     LAYOUT = {
         "canonical": File("canonical.ply", "the canonical 3DGS, standard 3DGS PLY layout (any 3DGS viewer opens it)"),
         "metrics": File("metrics.json", "held-out and train PSNR/SSIM, Gaussian count, seconds, inputs, config"),
@@ -52,10 +52,10 @@ class Outputs(contract.Outputs):
 class Inputs(contract.Inputs):
     """What the static stage reads: the sfm stage's posed images and points."""
 
-    images: Path = field(metadata={"help": "folder of the input images (sfm/images)"})
-    cameras: Path = field(metadata={"help": "cameras.json (anigs convention), one entry per used image (sfm)"})
-    points: Path = field(metadata={"help": "points.npz with xyz [P,3] and rgb [P,3] (the sfm stage's points)"})
-    out: Outputs = field(metadata={"help": "output folder (canonical.ply, metrics.json)"})
+    images: Path = contract.upstream(SfmOutputs, "images", "folder of the input images")
+    cameras: Path = contract.upstream(SfmOutputs, "cameras", "cameras (anigs convention), one entry per used image")
+    points: Path = contract.upstream(SfmOutputs, "points", "the SfM points: xyz [P,3] and rgb [P,3]")
+    out: Outputs = contract.output_folder(Outputs)
     no_progress: bool = field(default=False, metadata={"help": "hide the progress bar"})
 
 
@@ -101,16 +101,7 @@ def _config_dict(cfg) -> dict:
 
 # ---- command line: anigs static ----
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "static")
-
-
 def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
     out = run(Inputs.from_args(args), FitConfig.from_dict(parse_params(args.params)))
     metrics = out.metrics()
     print(f"static fit: {metrics['num_gaussians']} Gaussians, held-out PSNR {metrics['test_psnr']:.2f} dB "

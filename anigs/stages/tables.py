@@ -20,8 +20,6 @@ Config = None  # no config section: the tables follow from the metrics files
 class Outputs(contract.Outputs):
     """The tables folder (``results/tables``)."""
 
-    STAGE = "tables"
-    FOLDER = "tables"
     LAYOUT = {"index": File("tables.json", "records read, the metrics files, the files written"),
               "table": File("{name}.{ext}", "one table (anigs.tables: main, fvd, ablation, weightfree, fvd_gt, ...) "
                                             "as csv, md or tex")}
@@ -29,7 +27,7 @@ class Outputs(contract.Outputs):
 
 @dataclass
 class Inputs(contract.Inputs):
-    metrics: list[str] = field(metadata={"help": "metrics.json files (one per scene/method/variant)"})
+    metrics: list[str] = field(metadata={"help": "the eval stage's records (one per scene/method/variant)"})
     out: Path = field(metadata={"help": "output folder (e.g. results/tables)"})
 
 

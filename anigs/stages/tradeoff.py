@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from anigs.stages import contract
+from anigs.stages.command import parse_params
 from anigs.stages.contract import File
 from anigs.stages.eval import Outputs as EvalOutputs
 
@@ -27,8 +28,6 @@ log = logging.getLogger("anigs.tradeoff")
 class Outputs(contract.Outputs):
     """The report folder of a sweep (``results/tradeoff``)."""
 
-    STAGE = "tradeoff"
-    FOLDER = "tradeoff"
     LAYOUT = {"csv": File("{scene}.csv", "scene, knob, value, variant, seconds, variant_seconds, jobs, every metric, "
                                          "front"),
               "md": File("{scene}.md", "the table and the settings on the front"),
@@ -45,7 +44,6 @@ class Inputs(contract.Inputs):
 
 def run(inputs: Inputs, cfg: None = None) -> Outputs:
     """The report of every scene of the sweep points (the stage has no config section)."""
-    from anigs.cli import parse_params
     from anigs.tradeoff import SweepPoint
 
     raw = parse_params(inputs.points)

@@ -18,10 +18,11 @@ import argparse
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
+from anigs.animate.round_policy import baseline_params, contains, round_seed, still_reason  # noqa: F401 (the rules')
 from anigs.animate.update import UpdateConfig
 from anigs.stages import contract
+from anigs.stages.command import parse_params
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
@@ -32,11 +33,9 @@ Config = UpdateConfig  # the `update` config section
 log = logging.getLogger("anigs.update")
 
 
-class Outputs(contract.Outputs):
+class Outputs(contract.RoundOutputs):
     """A round's model folder (``round{r}/``; ``still/`` when nothing moves)."""
 
-    STAGE = "update"
-    FOLDER = "{scene}/{variant}/round{round}"
     LAYOUT = {"model": File("model.pt", "deformation (DCT coefficients [M,K,3]/[M,K,4], dynamic index [M]) + "
                                         "canonical positions [N,3] (anigs.animate.deform.save_model)"),
               "log": File("update.json", "loss history, timing, containment counts", optional=True),
@@ -52,7 +51,7 @@ class Outputs(contract.Outputs):
 @dataclass
 class Inputs(contract.Inputs):
     static: StaticOutputs
-    out: Path = field(metadata={"help": "the round's folder: model.pt, update.json"})
+    out: Path = contract.output_folder(Outputs, "the round's folder")
     masks: MasksOutputs | None = None
     targets: list[str] | None = field(default=None, metadata={"help": "target clips (.npz), one per training view"})
     init: Outputs | None = field(default=None, metadata={"help": "the previous round's folder (omit: start from zero)"})
@@ -72,35 +71,11 @@ class Inputs(contract.Inputs):
     frames: int | None = field(default=None, metadata={"help": "with --still: frames T (animate.frames)"})
 
 
-def contains(cfg: UpdateConfig, round_: int | None, rounds: int | None) -> bool:
-    """Whether this round's update contains the motion in the masks (``contain``, ``contain_rounds``:
-    the final round, or every round; a lone update, without a round plan, does)."""
-    return cfg.contain and (cfg.contain_rounds == "every" or round_ is None or rounds is None or round_ == rounds)
-
-
-def round_seed(seed: int, round_: int) -> int:
-    """The seed of round ``round_``'s update (each round draws its own view order and noise)."""
-    return seed + 1000 * round_
-
-
-def baseline_params(animate: dict[str, Any], update: dict[str, Any]) -> dict[str, Any] | None:
-    """A baseline variant's fit config (``animate.<method>`` with the update's ``num_bases``); None for ours."""
-    m = animate["method"]
-    return None if m == "anigs" else {"num_bases": update["num_bases"], **animate[m]}
-
-
-def still_reason(effects: dict[str, Any]) -> str:
-    """Why nothing moves, from the effects stage's report (``effects.json``) when it chose no effect."""
-    req = effects.get("requested")
-    return (f"the effects stage chose no effect (requested: {req if isinstance(req, str) else ', '.join(req) or 'none'}; "
-            f"detected: {', '.join(effects.get('detected') or []) or 'none'}), so nothing moves and no round ran")
-
-
 def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
     """Train the round's model on ``inputs.targets``; writes ``model.pt`` and ``update.json``."""
     from anigs.animate.containment import contain_result
     from anigs.animate.deform import save_model
-    from anigs.animate.losses import prior_sds_hook
+    from anigs.animate.update_job import round_record, sds_term
     from anigs.animate.training_views import dynamic_set, training_views
     from anigs.animate.update import run_update
     from anigs.gaussians import Gaussians
@@ -121,15 +96,7 @@ def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
     canonical, init = canonical_ply, None
     if inputs.init is not None:
         canonical, init, _ = inputs.init.load(canonical_ply)
-    sds = None
-    if cfg.lambda_sds > 0:
-        if not inputs.prior:
-            raise ValueError("update: lambda_sds > 0 needs --prior (a video prior with a score, e.g. ltx)")
-        from anigs.cli import parse_params
-        from anigs.refine.prior import get_prior
-
-        sds = prior_sds_hook(get_prior(inputs.prior, parse_params(inputs.prior_params)), inputs.prompt or "",
-                             cfg.sds_frames)
+    sds = sds_term(cfg, inputs.prior, parse_params(inputs.prior_params) if cfg.lambda_sds > 0 else {}, inputs.prompt)
     result = run_update(canonical, dynamic, views, cfg, init=init, sds_fn=sds, failure_path=out.path("last_good"))
     contained = None
     if contains(cfg, inputs.round, inputs.rounds) and result.deformation.num_dynamic:
@@ -145,17 +112,12 @@ def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
                extra={"targets": [str(t) for t in inputs.targets], "init_model": init_model, "skipped": result.skipped})
     d = result.deformation
     log.info("wrote %s (%d dynamic Gaussians, K=%d, T=%d)", out.path("model"), d.num_dynamic, d.num_bases, d.num_frames)
-    info = {"steps": result.steps, "seconds": result.seconds, "skipped": result.skipped, "num_dynamic": d.num_dynamic,
-            "num_bases": d.num_bases, "num_frames": d.num_frames, "history": result.history, "config": cfg.to_dict()}
-    if contained is not None:
-        info["containment"] = contained
-    write_json(out.path("log"), info)
+    write_json(out.path("log"), round_record(result, cfg, contained))
     return out
 
 
 def run_other(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
     """``--still``: the model in which nothing moves; ``--method``: a baseline's fit (same model.pt format)."""
-    from anigs.cli import parse_params
     from anigs.io import write_json
 
     out = Outputs(inputs.out)
@@ -182,16 +144,7 @@ def run_other(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
 
 # ---- command line: anigs update ----
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "update")
-
-
 def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
     inputs = Inputs.from_args(args)
     cfg = UpdateConfig.from_dict(parse_params(args.params))
     if inputs.method not in (None, "anigs", "lifting", "physics"):

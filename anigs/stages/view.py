@@ -15,8 +15,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from anigs.typed_config import from_dict
+from anigs.viewer.config import ViewConfig
 from anigs.stages import contract
+from anigs.stages.command import parse_params
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.stages.contract import File
@@ -25,27 +26,12 @@ from anigs.stages.update import Outputs as UpdateOutputs
 log = logging.getLogger("anigs.view")
 
 
-@dataclass
-class ViewConfig:
-    """The ``view`` config section."""
-
-    background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # RGB behind the splats
-    fps: float = 12.0  # frames per second of the animation at speed 1x
-    embed: bool = True  # also write scene.js, so index.html opens straight from the file system
-    title: str = "anigs"  # page title
-
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "ViewConfig":
-        return from_dict(ViewConfig, d, "view", KeyError)
-
-
 Config = ViewConfig  # the `view` config section
 
 
 class Outputs(contract.Outputs):
     """The viewer folder of a variant (``viewer/``; the names are :mod:`anigs.viewer.build`'s)."""
 
-    STAGE = "view"
     FOLDER = "{scene}/{variant}/viewer"
     LAYOUT = {"index": File("index.html", "the viewer page (with its .js and .css beside it)"),
               "scene": File("scene.anigs", "the compact animated scene the page loads"),
@@ -56,7 +42,7 @@ class Outputs(contract.Outputs):
 @dataclass
 class Inputs(contract.Inputs):
     out: Path = field(metadata={"help": "viewer folder to write"})
-    model: UpdateOutputs | None = field(default=None, metadata={"help": "the model's folder (model.pt)"})
+    model: UpdateOutputs | None = None
     compact: Path | None = field(default=None, metadata={"help": "a compact .anigs file instead of --model"})
     static: StaticOutputs | None = field(default=None, metadata={"help": "the static stage's folder (the canonical "
                                                                          "scene the model was trained on)"})
@@ -90,16 +76,7 @@ def run(inputs: Inputs, cfg: ViewConfig) -> Outputs:
 
 # ---- command line: anigs view ----
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "view")
-
-
 def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
     inputs = Inputs.from_args(args)
     print(json.dumps(build(inputs, ViewConfig.from_dict(parse_params(args.params)))))
     if inputs.serve:

@@ -16,7 +16,6 @@ whole-scene fallback (no ROI) nothing is dropped.
 """
 from __future__ import annotations
 
-import argparse
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +28,8 @@ from anigs.io import write_json
 from anigs.stages import contract
 from anigs.stages.contract import File
 from anigs.stages.effects import Outputs as EffectsOutputs
+from anigs.stages.sfm import Outputs as SfmOutputs
+from anigs.stages.shared_inputs import GroundTruthInputs
 from anigs.views import ViewsConfig
 
 Config = ViewsConfig  # the `views` config section
@@ -39,8 +40,6 @@ log = logging.getLogger("anigs.views")
 class Outputs(contract.Outputs):
     """The views stage's folder: the view queue."""
 
-    STAGE = "views"
-    FOLDER = "{scene}/views"
     LAYOUT = {
         "views": File("views.json", "the queue: per view id (v00, v01, ...), camera (OpenCV, the view's "
                                     "intrinsics and size), location, coverage, content; the dropped views, "
@@ -71,25 +70,16 @@ class Outputs(contract.Outputs):
 
 
 @dataclass
-class Inputs(contract.Inputs):
+class Inputs(GroundTruthInputs):
     """What the views stage reads: the canonical model, the candidate cameras, and the region of
     interest: the effects stage's, or ground-truth labels (see the module docstring)."""
 
-    canonical: Path = field(metadata={"help": "canonical 3DGS PLY (static/canonical.ply)"})
-    cameras: Path = field(metadata={"help": "candidate cameras JSON (sfm/cameras.json)"})
-    out: Outputs = field(metadata={"help": "output folder (views.json, topdown.png)"})
+    cameras: Path = contract.upstream(SfmOutputs, "cameras", "candidate cameras JSON")
+    out: Outputs = contract.output_folder(Outputs)
     effects: EffectsOutputs | None = field(default=None, metadata={
         "help": "the effects stage's folder: its dynamic set is the region of interest"})
-    labels: Path | None = field(default=None, metadata={
-        "help": "per-Gaussian labels .npy (synthetic scenes, capture/gt/labels.npy), with --motion"})
-    motion: Path | None = field(default=None, metadata={"help": "motion.json naming the moving labels (with --labels)"})
-    gt_gaussians: Path | None = field(default=None, metadata={
-        "help": "PLY the --labels belong to when it is not the canonical set"})
-    gt_cameras: Path | None = field(default=None, metadata={
-        "help": "cameras in the frame of --gt-gaussians, matched by name to --cameras to align the frames "
-                "(default: same frame)"})
-    points: Path | None = field(default=None, metadata={
-        "help": "SfM points.npz (xyz): a sharp Gaussian lies near them (views.near_points)"})
+    points: Path | None = contract.upstream(SfmOutputs, "points", "SfM points (xyz): a sharp Gaussian lies near "
+                                            "them (views.near_points)", default=None)
 
 
 def region_of_interest(inputs: Inputs, g: Gaussians, cameras: list[Camera]) -> tuple[np.ndarray, str]:
@@ -133,23 +123,7 @@ def run(inputs: Inputs, cfg: ViewsConfig) -> Outputs:
                     "roi_fallback": fallback, "config": {**cfg.__dict__}})
     save_topdown(out.path("topdown"), plan, g.means.detach().double().numpy(), roi, size=cfg.topdown_size)
     write_json(out.path("views"), payload)
-    log.info("views: wrote %s (%d views queued%s), topdown.png", out.path("views"), len(plan.views),
-             f", {len(plan.dropped)} dropped as negligible" if plan.dropped else "")
+    log.info("views: wrote %s (%d views queued%s), %s", out.path("views"), len(plan.views),
+             f", {len(plan.dropped)} dropped as negligible" if plan.dropped else "", out.path("topdown").name)
     return out
 
-
-# ---- command line: anigs views ----
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from anigs.cli import add_params
-
-    Inputs.add_arguments(p)
-    add_params(p, "views")
-
-
-def main(args: argparse.Namespace) -> int:
-    from anigs.cli import parse_params
-
-    cfg = ViewsConfig.from_dict(parse_params(args.params))  # the views section: nothing else
-    run(Inputs.from_args(args), cfg)
-    return 0

@@ -36,12 +36,13 @@ def test_still_model_needs_a_reason(tmp_path):
 
 def test_update_command_still_needs_no_targets_and_clamps_k(tmp_path):
     from anigs.stages import update
+    from anigs.stages.command import stage_arguments
 
     g, _ = sway_scene()
     (tmp_path / "static").mkdir()
     g.save_ply(tmp_path / "static" / "canonical.ply")
     p = argparse.ArgumentParser()
-    update.add_arguments(p)
+    stage_arguments(update, "update", p)
     args = p.parse_args(["--static", str(tmp_path / "static"), "--still", "no effect", "--frames", "5",
                          "--out", str(tmp_path / "still"), "--params", '{"num_bases": 16}'])
     assert update.main(args) == 0

@@ -17,6 +17,7 @@ from anigs.animate.deform import DCTDeformation, load_model, save_model
 from anigs.animate.frames import deformed
 from anigs.gaussians import Gaussians, load_ply
 from anigs.stages import view as viewer_cli
+from anigs.stages.command import stage_arguments
 from anigs.stages.view import Outputs as ViewOutputs
 from anigs.viewer.build import build_viewer
 from anigs.viewer.compact import (
@@ -224,7 +225,7 @@ def test_cli_builds_viewer(tmp_path, capsys):
     (tmp_path / "views").mkdir()
     _views_json(tmp_path / "views" / "views.json")
     parser = argparse.ArgumentParser()
-    viewer_cli.add_arguments(parser)
+    stage_arguments(viewer_cli, "view", parser)
     args = parser.parse_args(["--model", str(tmp_path / "model"), "--static", str(tmp_path / "static"),
                               "--views", str(tmp_path / "views"), "--out", str(tmp_path / "v"),
                               "--params", '{"fps": 6, "embed": false}'])

@@ -95,17 +95,22 @@ def _schema() -> dict:
     return yaml.safe_load((ROOT / "workflow/schemas/config.schema.yaml").read_text())
 
 
-def test_scene_file_typo_in_a_stage_section_names_the_key_and_the_file(tmp_path):
-    (tmp_path / "typo.yaml").write_text("source: synthetic\nstatic: {iteratons: 5}\n")
-    with pytest.raises(ValueError, match=r"typo\.yaml.*iteratons") as exc:
+@pytest.mark.parametrize("section, text, match", [
+    ("static", "static: {iteratons: 5}", r"typo\.yaml.*iteratons"),
+    ("masks", "masks: {vegetation: {exgr_thresh: 0.1}}", r"masks\.vegetation.*exgr_thresh"),
+    ("masks", "masks: {labels: {treshold: 0.4}}", r"typo\.yaml.*masks\.labels.*treshold"),
+    ("eval", "eval: {multiview_fit: {densify: {evry: 5}}}", r"typo\.yaml.*eval\.multiview_fit\.densify.*evry"),
+    ("update", "update: {steps: many}", r"update\.steps"),
+])
+def test_a_bad_key_in_a_scene_file_names_the_file_and_the_whole_key(tmp_path, section, text, match):
+    """A typo or a wrong type in a stage section of a scene file, at any depth of its nested sections."""
+    (tmp_path / "typo.yaml").write_text(f"source: synthetic\n{text}\n")
+    with pytest.raises(ValueError, match=match) as exc:
         load_scene(tmp_path, "typo", _schema())
-    assert "static" in str(exc.value)
-    (tmp_path / "nested.yaml").write_text("source: synthetic\nmasks: {vegetation: {exgr_thresh: 0.1}}\n")
-    with pytest.raises(ValueError, match=r"masks\.vegetation.*exgr_thresh"):
-        load_scene(tmp_path, "nested", _schema())
-    (tmp_path / "wrongtype.yaml").write_text("source: synthetic\nupdate: {steps: many}\n")
-    with pytest.raises(ValueError, match=r"update\.steps"):
-        load_scene(tmp_path, "wrongtype", _schema())
+    assert section in str(exc.value)
+
+
+def test_a_good_stage_section_of_a_scene_file_is_kept(tmp_path):
     (tmp_path / "ok.yaml").write_text("source: synthetic\nstatic: {iterations: 5}\n")
     assert load_scene(tmp_path, "ok", _schema())["static"] == {"iterations": 5}
 
@@ -148,7 +153,7 @@ def test_the_stage_list_is_written_once():
     assert all(name in schema for name in STAGE_SECTIONS)
     for s in STAGES:  # one name: module, config class, rule
         mod = s.load()
-        if s.command:  # its own command line, or the default one (anigs.cli.stage_main): Inputs + run
+        if s.command:  # its own command line, or the default one (anigs.stages.command.stage_main): Inputs + run
             own = callable(getattr(mod, "main", None)) and callable(getattr(mod, "add_arguments", None))
             assert own or (callable(mod.run) and issubclass(mod.Inputs, contract.Inputs)), s.name
         if s.section:

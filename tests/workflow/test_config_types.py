@@ -12,7 +12,6 @@ from types import SimpleNamespace
 import pytest
 import yaml
 
-from anigs.config import load_scene
 from anigs.stages import STAGES, BY_NAME
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -77,15 +76,6 @@ def test_nested_values_are_checked_by_their_own_class():
         MasksConfig.from_dict({"lift": {"min_views": 0}})
     with pytest.raises(ValueError, match="integrator"):
         AnimateConfig.from_dict({"physics": {"integrator": "rk4"}})
-
-
-def test_a_nested_typo_in_a_scene_file_names_the_file_and_the_whole_key(tmp_path):
-    (tmp_path / "typo.yaml").write_text("source: synthetic\nmasks: {labels: {treshold: 0.4}}\n")
-    with pytest.raises(ValueError, match=r"typo\.yaml.*masks\.labels.*treshold"):
-        load_scene(tmp_path, "typo", _schema())
-    (tmp_path / "deep.yaml").write_text("source: synthetic\neval: {multiview_fit: {densify: {evry: 5}}}\n")
-    with pytest.raises(ValueError, match=r"deep\.yaml.*eval\.multiview_fit\.densify.*evry"):
-        load_scene(tmp_path, "deep", _schema())
 
 
 def test_the_refine_stage_sets_the_priors_derived_keys():

@@ -1,0 +1,21 @@
+"""The ``view`` config section (:class:`ViewConfig`): the interactive viewer's page (:mod:`anigs.viewer.build`;
+the stage: :mod:`anigs.stages.view`)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+from anigs.typed_config import Section
+
+
+@dataclass
+class ViewConfig(Section):
+    """The ``view`` config section."""
+
+    background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # RGB behind the splats
+    fps: float = 12.0  # frames per second of the animation at speed 1x
+    embed: bool = True  # also write scene.js, so index.html opens straight from the file system
+    title: str = "anigs"  # page title
+
+    WHERE: ClassVar[str] = "view"
+    ERROR: ClassVar[type[Exception]] = KeyError
