@@ -17,9 +17,9 @@ def load_reference(path: str | Path) -> torch.Tensor:
     if not p.exists():
         raise FileNotFoundError(f"static reference not found: {p}")
     if p.suffix == ".npz":
-        from anigs.video import load_clip
+        from anigs.animate.target_frames import ClipFrames
 
-        img = load_clip(p)[0][0]
+        img = ClipFrames(p)[0].numpy()
     elif p.suffix == ".npy":
         img = np.load(p).astype(np.float32)
     else:
@@ -55,14 +55,16 @@ def target_cameras(targets: list[str], metas: list[dict], views_json: str | Path
 
 def training_views(canonical, targets: list[str], views_json: str | Path | None, view_ids: list[str] | None,
                    camera_json: list[str] | None, static_refs: list[str] | None, cfg) -> list:
-    """One :class:`anigs.animate.update.ViewData` per target clip: its frames, its camera
-    (:func:`target_cameras`) and its static reference for L_cano (``static_refs``, else renders of the
-    ``canonical`` Gaussians when ``cfg.lambda_cano > 0``, else none). ``cfg``: the update config."""
+    """One :class:`anigs.animate.update.ViewData` per target clip: its frames (a
+    :class:`anigs.animate.target_frames.ClipFrames`, read from disk as the steps sample them: no clip
+    is held in memory), its camera (:func:`target_cameras`) and its static reference for L_cano
+    (``static_refs``, else renders of the ``canonical`` Gaussians when ``cfg.lambda_cano > 0``, else
+    none). ``cfg``: the update config."""
+    from anigs.animate.target_frames import ClipFrames
     from anigs.animate.update import ViewData, static_references
-    from anigs.video import load_clip
 
-    clips, metas = zip(*[load_clip(t) for t in targets])
-    cams = target_cameras(targets, list(metas), views_json, view_ids, camera_json)
+    clips = [ClipFrames(t) for t in targets]
+    cams = target_cameras(targets, [c.meta for c in clips], views_json, view_ids, camera_json)
     refs: list[torch.Tensor | None] = [None] * len(clips)
     if static_refs:
         if len(static_refs) != len(clips):
@@ -70,7 +72,7 @@ def training_views(canonical, targets: list[str], views_json: str | Path | None,
         refs = [load_reference(p) for p in static_refs]
     elif cfg.lambda_cano > 0:
         refs = static_references(canonical, cams, torch.tensor(cfg.background, dtype=torch.float32), cfg.backend)
-    return [ViewData(c, torch.from_numpy(clip), r) for c, clip, r in zip(cams, clips, refs)]
+    return [ViewData(c, clip, r) for c, clip, r in zip(cams, clips, refs)]
 
 
 def dynamic_set(dynamic: np.ndarray, num_gaussians: int, where: str, labels: np.ndarray | None = None,

@@ -37,6 +37,7 @@ from anigs.device import get_device, seed_everything
 from anigs.geometry.extent import box_diagonal
 from anigs.gaussians import Gaussians
 from anigs.animate.losses import SDSContext, SDSHook, animation_loss, canonical_loss
+from anigs.animate.target_frames import ClipFrames
 
 log = logging.getLogger("anigs.animate.update")
 
@@ -159,10 +160,12 @@ class UpdateConfig:
 
 @dataclass
 class ViewData:
-    """One training view: camera, target clip [T,H,W,3] in [0,1], static reference [H,W,3] (optional)."""
+    """One training view: camera, target clip [T,H,W,3] in [0,1] (a tensor of any float dtype, or a
+    :class:`~anigs.animate.target_frames.ClipFrames` read from disk; ``clip[t]`` is one frame), static
+    reference [H,W,3] (optional)."""
 
     camera: Camera
-    clip: torch.Tensor
+    clip: torch.Tensor | ClipFrames
     reference: torch.Tensor | None = None
 
 
@@ -270,7 +273,7 @@ class _Update:
         self.bg = bg = torch.tensor(cfg.background, dtype=torch.float32, device=dev)
         canonical = canonical.to(dev)
         self.deformation = deformation = deformation.to(dev)
-        self.clips = [v.clip.to(torch.float32) for v in views]  # kept where they are; sampled frames move per step
+        self.clips = [v.clip for v in views]  # kept as given (on disk, float16, ...); a step's frames become float32
         refs: list[torch.Tensor | None] = [None if v.reference is None else v.reference.to(dev, torch.float32)
                                            for v in views]
         if cfg.lambda_cano > 0 and any(r is None for r in refs):
@@ -333,7 +336,7 @@ class _Update:
         ts = torch.randint(0, T, (len(sel),), generator=gen).tolist()
         g0 = self.tr.canonical()
         renders = torch.stack([render_frame(g0, deformation, cams[v], t, bg, cfg.backend) for v, t in zip(sel, ts)])
-        targets = torch.stack([self.clips[v][t] for v, t in zip(sel, ts)]).to(self.dev)
+        targets = torch.stack([self.clips[v][t].to(torch.float32) for v, t in zip(sel, ts)]).to(self.dev)
         l_ani = animation_loss(renders, targets)
         loss = l_ani
         rec = {"step": it, "l_ani": l_ani.item()}
