@@ -200,7 +200,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     log.info("static fit: %d train / %d held-out views, %d initial Gaussians, scene extent %.3f, %d iterations, "
              "%s Adam, rasterizer %s, SSIM %s", len(train_idx), len(test_idx), g0.num, extent, cfg.iterations,
              "fused" if optimizer.defaults.get("fused") else "foreach", select_backend(cfg.backend, device),
-             "C++ kernel" if device.type == "cpu" and ssim_kernel.available() else "torch")  # a fallback changes the bits
+             _ssim_path(device))
 
     run = _FitRun(cfg, params, bg, test_imgs, test_cams, checkpoint_path, t_start, c_start)
     curve = [run.checkpoint(0, 0)]
@@ -293,6 +293,14 @@ class _FitRun:
 
     def diverged(self, step: int, what: str) -> None:
         raise_diverged(what, step, self.last_good, self.bar)
+
+
+def _ssim_path(device: torch.device) -> str:
+    """Which SSIM the fit trains with, for its log: the C++ kernel, or the torch path and why (its
+    float bits differ from the kernel's, so the fit differs too)."""
+    if device.type != "cpu":
+        return "torch"
+    return "C++ kernel" if ssim_kernel.available() else f"torch (the C++ kernel is unavailable: {ssim_kernel.failure()})"
 
 
 def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuard, gen: torch.Generator,
