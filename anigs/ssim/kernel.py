@@ -73,6 +73,11 @@ def available() -> bool:
         return False
 
 
+def failure() -> str | None:
+    """Why the kernel is unavailable (the error :func:`available` met), or None."""
+    return _FAILED
+
+
 def _taps() -> torch.Tensor:
     """The float32 window [11], computed as :func:`anigs.ssim.reference._window` does."""
     x = torch.arange(WINDOW, dtype=torch.float32) - (WINDOW - 1) / 2

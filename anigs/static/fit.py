@@ -32,7 +32,9 @@ from anigs.static.evaluate import _render, evaluate, pixels, stored_image
 from anigs.static.init import _to_params, init_gaussians, make_optimizer, params_to_gaussians, split_holdout
 from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, last_densify_step, prune_rows
 from anigs.device import get_device, seed_everything
+from anigs.render.rasterize import select_backend
 from anigs.ssim import fused_ssim
+from anigs.ssim import kernel as ssim_kernel
 from anigs.geometry.extent import scene_extent
 from anigs.gaussians import Gaussians
 from anigs.ssim import psnr
@@ -196,8 +198,9 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     optimizer = make_optimizer(params, lr)
     dstate = DensifyState.empty(g0.num, device)
     log.info("static fit: %d train / %d held-out views, %d initial Gaussians, scene extent %.3f, %d iterations, "
-             "%s Adam", len(train_idx), len(test_idx), g0.num, extent, cfg.iterations,
-             "fused" if optimizer.defaults.get("fused") else "foreach")
+             "%s Adam, rasterizer %s, SSIM %s", len(train_idx), len(test_idx), g0.num, extent, cfg.iterations,
+             "fused" if optimizer.defaults.get("fused") else "foreach", select_backend(cfg.backend, device),
+             _ssim_path(device))
 
     run = _FitRun(cfg, params, bg, test_imgs, test_cams, checkpoint_path, t_start, c_start)
     curve = [run.checkpoint(0, 0)]
@@ -290,6 +293,14 @@ class _FitRun:
 
     def diverged(self, step: int, what: str) -> None:
         raise_diverged(what, step, self.last_good, self.bar)
+
+
+def _ssim_path(device: torch.device) -> str:
+    """Which SSIM the fit trains with, for its log: the C++ kernel, or the torch path and why (its
+    float bits differ from the kernel's, so the fit differs too)."""
+    if device.type != "cpu":
+        return "torch"
+    return "C++ kernel" if ssim_kernel.available() else f"torch (the C++ kernel is unavailable: {ssim_kernel.failure()})"
 
 
 def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuard, gen: torch.Generator,
