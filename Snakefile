@@ -25,7 +25,7 @@ include: "workflow/rules/eval.smk"
 
 
 # Named targets. A stage's rule carries the stage's name (the stages: STAGES in
-# anigs/stages/__init__.py; those that combine scenes are targets themselves); the targets that
+# anigs/registry.py; those that combine scenes are targets themselves); the targets that
 # build one stage for every scene and variant are all_<stage>.
 localrules:
     all,

@@ -13,9 +13,9 @@ from typing import Any
 
 import yaml
 
-from anigs.stages import sections as _stage_sections
+from anigs.registry import sections as _stage_sections
 
-STAGE_SECTIONS = _stage_sections()  # from the stage registry (anigs/stages/__init__.py)
+STAGE_SECTIONS = _stage_sections()  # from the stage registry (anigs/registry.py)
 SCENE_KEYS = {"name", "source", "synthetic", "photos", "colmap", "ply", "effects", "prompt", "background",
               *STAGE_SECTIONS}
 # Where a scene's `background` (the sky colour every rendering stage composites onto) goes: the

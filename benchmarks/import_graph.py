@@ -30,7 +30,7 @@ from pathlib import Path
 LAYERS: list[tuple[str, set[str]]] = [
     ("base: data types, IO, device, math", {
         "io", "device", "config", "configs", "typed_config", "images", "video", "flow", "cameras",
-        "gaussians", "geometry", "benchmark_tsv", "photos", "pixels"}),
+        "gaussians", "geometry", "benchmark_tsv", "photos", "pixels", "registry", "capture_config"}),
     ("compiled kernels: rasterizer, SSIM", {"render", "ssim", "fused_ssim", "ssim_kernel"}),
     ("scene sources: synthetic scene, SfM", {"synth", "sfm"}),
     ("scene analysis: static fit, effects, views", {"static", "effects", "views"}),

@@ -223,7 +223,7 @@ def test_every_stage_with_a_command_is_in_the_results_layout():
 
 
 def test_workflow_comments_do_not_list_the_stages():
-    """The stage list is STAGES (anigs/stages/__init__.py): the comments of the Snakefile and the
+    """The stage list is STAGES (anigs/registry.py): the comments of the Snakefile and the
     profiles refer to it instead of copying it (the copies went stale)."""
     import re
 
