@@ -11,22 +11,32 @@ On x86-64 Linux the kernel targets the best instruction-set level the CPU report
 (x86-64-v4 = AVX-512, v3 = AVX2, else the baseline). The level is part of the cache key,
 so machines sharing a home directory each get a library their CPU can run;
 ``ANIGS_KERNEL_ARCH`` overrides the choice (e.g. ``x86-64-v3``; ``none`` for the baseline).
+
+A build without the ``-march`` level or OpenMP computes other float bits, so it is never cached
+under the full-flag name: it gets its own name (``<name>.no-march.so`` ...), a warning names it,
+and every later run tries the full-flag build again first. Falling back to the torch paths is
+only for a kernel that cannot be built here (:class:`KernelBuildError`); a library that exists
+but does not load, or an OS error while building, raises :class:`KernelLoadError` so the job
+fails (and is rerun) instead of silently training with other numerics.
 """
 from __future__ import annotations
 
 import ctypes
 import hashlib
+import logging
 import os
 import platform
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 SRC = Path(__file__).with_name("csrc") / "raster.cpp"
 ABI_VERSION = 4
 _FLAGS = ["-O3", "-std=c++17", "-shared", "-fPIC", "-pthread", "-ffp-contract=off", "-fno-math-errno"]
 _LIB: ctypes.CDLL | None = None
+log = logging.getLogger("anigs.kernel")
 
 # x86-64 micro-architecture levels and the /proc/cpuinfo flags each needs.
 _X86_LEVELS = [
@@ -36,7 +46,13 @@ _X86_LEVELS = [
 
 
 class KernelBuildError(RuntimeError):
-    pass
+    """The kernel cannot be built on this machine (no compiler, every flag variant rejected):
+    callers fall back to their torch path."""
+
+
+class KernelLoadError(RuntimeError):
+    """The kernel builds here but this attempt failed (a cached library that does not load, an OS
+    error while building): never a reason to fall back, since the fallback has other numerics."""
 
 
 def cache_dir() -> Path:
@@ -96,34 +112,94 @@ def build(verbose: bool = False) -> Path:
 
 
 def compile_cached(src: Path, out: Path, what: str, verbose: bool = False) -> Path:
-    """Compile ``src`` into the shared library ``out`` unless it exists (atomically: a temporary name,
-    then a rename, so parallel jobs never load a half-written file). Tries the instruction-set level
-    and OpenMP first, then without each; all failing raises :class:`KernelBuildError` naming ``what``."""
+    """Compile ``src`` into the shared library ``out`` (keyed by the full flags) unless it exists,
+    atomically (a temporary name, then a rename, so parallel jobs never load a half-written file).
+
+    If the full flags fail, builds without the ``-march`` level and/or OpenMP into a name of its
+    own (:func:`_variant_path`; reused if cached) and warns: never under ``out``, so a later run
+    retries the full flags. All variants failing raises :class:`KernelBuildError` naming ``what``;
+    an OS error (cache folder, launching the compiler) raises :class:`KernelLoadError`."""
     if out.exists():
         return out
-    out.parent.mkdir(parents=True, exist_ok=True)
     cxx = _compiler()
-    fd, tmp = tempfile.mkstemp(prefix=".build.", suffix=".so", dir=out.parent)
-    os.close(fd)
+    arch, omp = arch_flags(), _thread_flags()
+    # fall back to the kernel's own thread pool if OpenMP is missing, and to the baseline
+    # instruction set if the compiler does not know the -march level
+    variants = [(m, o) for m in ([arch, []] if arch else [[]]) for o in ([omp, []] if omp else [[]])]
     errors = []
     try:
-        arch, omp = arch_flags(), _thread_flags()
-        # fall back to the kernel's own thread pool if OpenMP is missing, and to the baseline
-        # instruction set if the compiler does not know the -march level
-        variants = [(m, o) for m in ([arch, []] if arch else [[]]) for o in ([omp, []] if omp else [[]])]
+        out.parent.mkdir(parents=True, exist_ok=True)
         for march, o in variants:
-            cmd = [cxx, *_FLAGS, *march, *o, str(src), "-o", tmp]
-            res = subprocess.run(cmd, capture_output=True, text=True)
-            if res.returncode == 0:
-                if verbose:
-                    print(" ".join(cmd))
-                os.replace(tmp, out)
-                return out
-            errors.append(f"$ {' '.join(cmd)}\n{res.stderr[-2000:]}")
+            flags = [*_FLAGS, *march, *o]
+            target = _variant_path(out, [*(arch if not march else []), *(omp if not o else [])])
+            if target != out and target.exists():
+                return _warn_fallback(target, what, flags, errors)
+            err = _compile(cxx, flags, src, target, verbose)
+            if err is None:
+                return target if target == out else _warn_fallback(target, what, flags, errors)
+            errors.append(err)
+    except OSError as exc:
+        raise KernelLoadError(f"building {what} into {out} failed with an OS error ({exc}); the compiler is "
+                              f"there, so this is not a reason to fall back: check that {out.parent} is "
+                              "writable and memory is free, then rerun") from exc
+    raise KernelBuildError(f"building {what} failed:\n" + "\n".join(errors))
+
+
+def _variant_path(out: Path, dropped: list[str]) -> Path:
+    """Where the build without the ``dropped`` flags is cached: ``out`` itself when none is dropped."""
+    tags = sorted({"no-march" if f.startswith("-march") else "no-openmp" for f in dropped})
+    return out.with_name(".".join([out.stem, *tags, "so"])) if tags else out
+
+
+def _compile(cxx: str, flags: list[str], src: Path, target: Path, verbose: bool) -> str | None:
+    """Compile ``src`` to ``target`` atomically; None on success, else the command and its errors."""
+    fd, tmp = tempfile.mkstemp(prefix=".build.", suffix=".so", dir=target.parent)
+    os.close(fd)
+    try:
+        cmd = [cxx, *flags, str(src), "-o", tmp]
+        res = subprocess.run(cmd, capture_output=True, text=True)
+        if res.returncode != 0:
+            return f"$ {' '.join(cmd)}\n{res.stderr[-2000:]}"
+        if verbose:
+            print(" ".join(cmd))
+        os.replace(tmp, target)
+        return None
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-    raise KernelBuildError(f"building {what} failed:\n" + "\n".join(errors))
+
+
+def _warn_fallback(path: Path, what: str, flags: list[str], errors: list[str]) -> Path:
+    """Log that ``what`` runs a fallback build (``flags``: other float bits than the full flags)."""
+    log.warning("%s: the full-flag build failed; using %s, built with '%s' (other float bits than "
+                "the full flags); the next run tries the full flags again. First error:\n%s",
+                what, path, " ".join(flags), errors[0] if errors else "?")
+    return path
+
+
+def open_library(path: Path, what: str) -> ctypes.CDLL:
+    """``ctypes.CDLL(path)``; a library that exists but does not load raises :class:`KernelLoadError`."""
+    try:
+        return ctypes.CDLL(str(path))
+    except OSError as exc:
+        raise KernelLoadError(f"cannot load {what} from {path} ({exc}): the cached library is damaged or "
+                              f"not for this machine; delete {path} and rerun (it is rebuilt)") from exc
+
+
+def check_abi(lib: ctypes.CDLL, symbol: str, expected: int, path: Path) -> None:
+    """Raise :class:`KernelLoadError` if the library's ABI version function does not return ``expected``."""
+    if getattr(lib, symbol)() != expected:
+        raise KernelLoadError(f"stale kernel library {path} (ABI is not {expected}): delete it and rerun")
+
+
+def unavailable_reason(load: Callable[[], object]) -> str | None:
+    """None if ``load()`` succeeds; why, if the kernel cannot be built here (:class:`KernelBuildError`,
+    the only case a caller may fall back to torch). Every other error propagates."""
+    try:
+        load()
+        return None
+    except KernelBuildError as exc:
+        return str(exc)
 
 
 def load() -> ctypes.CDLL:
@@ -137,9 +213,9 @@ def load() -> ctypes.CDLL:
         # With a separate OpenMP runtime (another torch build), make ours passive so that the
         # two pools do not starve each other on small machines.
         os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    lib = ctypes.CDLL(str(build()))
-    if lib.anigs_abi_version() != ABI_VERSION:
-        raise KernelBuildError(f"stale kernel library {library_path()}: delete it and retry")
+    path = build()
+    lib = open_library(path, "the cpu rasterizer")
+    check_abi(lib, "anigs_abi_version", ABI_VERSION, path)
     P, I = ctypes.c_void_p, ctypes.c_int
     lib.anigs_preprocess.argtypes = [I, P, I, I, P, P, P, P, P, I, I, P, P, P, P, P, P, I, I]
     lib.anigs_preprocess.restype = I
@@ -155,8 +231,6 @@ def load() -> ctypes.CDLL:
 
 
 def available() -> bool:
-    try:
-        load()
-        return True
-    except KernelBuildError:
-        return False
+    """Whether the kernel builds and loads here; False only if it cannot be built (see
+    :func:`unavailable_reason`)."""
+    return unavailable_reason(load) is None

@@ -3,7 +3,8 @@
 Built like the rasterizer kernel (:mod:`anigs.render._build`: same compiler, flags, instruction-set
 level and cache folder; its own library ``anigs_ssim_<hash>.so``, keyed by the source and
 flags, written atomically) on first use. When it cannot be built, :func:`available` is False
-and :func:`anigs.ssim.fused.fused_ssim` takes its torch path.
+and :func:`anigs.ssim.fused.fused_ssim` takes its torch path; when it builds but does not load,
+:func:`available` raises instead (the torch path has other numerics).
 """
 from __future__ import annotations
 
@@ -46,9 +47,9 @@ def load() -> ctypes.CDLL:
         if _LIB is None:
             if _build._thread_flags():
                 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # as anigs.render._build.load
-            lib = ctypes.CDLL(str(build()))
-            if lib.anigs_ssim_abi_version() != ABI_VERSION:
-                raise _build.KernelBuildError(f"stale kernel library {library_path()}: delete it and retry")
+            path = build()
+            lib = _build.open_library(path, "the fused SSIM kernel")
+            _build.check_abi(lib, "anigs_ssim_abi_version", ABI_VERSION, path)
             P, I, Fl = ctypes.c_void_p, ctypes.c_int, ctypes.c_float
             lib.anigs_ssim_forward.argtypes = [I, I, I, I, P, P, P, Fl, Fl, P, P, P, I]
             lib.anigs_ssim_forward.restype = ctypes.c_double
@@ -59,18 +60,14 @@ def load() -> ctypes.CDLL:
 
 
 def available() -> bool:
-    """Whether the kernel builds and loads here (the failure is remembered, not retried)."""
+    """Whether the kernel builds and loads here. False only when it cannot be built on this machine
+    (remembered, not retried); a library that does not load raises (see :func:`_build.unavailable_reason`)."""
     global _FAILED
     if _LIB is not None:
         return True
-    if _FAILED is not None:
-        return False
-    try:
-        load()
-        return True
-    except (_build.KernelBuildError, OSError) as exc:
-        _FAILED = str(exc)
-        return False
+    if _FAILED is None:
+        _FAILED = _build.unavailable_reason(load)
+    return _FAILED is None
 
 
 def failure() -> str | None:
