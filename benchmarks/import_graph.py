@@ -30,14 +30,14 @@ from pathlib import Path
 LAYERS: list[tuple[str, set[str]]] = [
     ("base: data types, IO, device, math", {
         "io", "device", "config", "configs", "typed_config", "images", "video", "flow", "cameras",
-        "gaussians", "geometry", "benchmark_tsv", "photos", "pixels", "registry", "capture_config"}),
+        "gaussians", "geometry", "benchmark_tsv", "photos", "pixels", "registry"}),
     ("compiled kernels: rasterizer, SSIM", {"render", "ssim", "fused_ssim", "ssim_kernel"}),
-    ("scene sources: synthetic scene, SfM", {"synth", "sfm"}),
+    ("scene sources: synthetic scene, photos, SfM", {"synth", "sfm", "capture_config"}),
     ("scene analysis: static fit, effects, views", {"static", "effects", "views"}),
     ("dynamic masks per view", {"masks"}),
     ("animation: prior, update, baselines, export", {"refine", "animate", "baselines", "export"}),
     ("evaluation", {"metrics"}),
-    ("reports and apps", {"tables", "tradeoff", "study", "viewer"}),
+    ("reports and apps", {"tables", "table_format", "tradeoff", "tradeoff_plot", "study", "viewer"}),
     ("stages", {"stages"}),
     ("command line", {"cli", "build_kernel", "__init__"}),
 ]
