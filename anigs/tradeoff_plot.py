@@ -19,6 +19,19 @@ def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[
 
     from anigs.io import atomic_path
 
+    img = knob_image(rows, knob, metric_names, panel, fronts)
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), img):
+            raise OSError(f"could not write {path}")
+    return Path(path)
+
+
+def knob_image(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[str],
+               panel: tuple[int, int] = (360, 260), fronts: dict[str, list[int]] | None = None,
+               x_label: str = "seconds") -> np.ndarray:
+    """The picture of :func:`plot_knob` as a BGR uint8 array [H,W,3] (``x_label``: the x axis' name)."""
+    import cv2
+
     sel = sorted((r for r in rows if r["knob"] == knob), key=lambda r: r["seconds"])
     names = [m for m in metric_names if any(r.get(m) is not None for r in sel)] or ["seconds"]
     pw, ph = panel
@@ -30,7 +43,7 @@ def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[
         front = [rows[j] for j in (fronts or {}).get(m, [])]
         on_front = {id(r) for r in front}
         fpts = [(r["seconds"], r[m]) for r in front]
-        cv2.putText(img, f"{m} vs seconds", (x0 + 8, 18), font, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(img, f"{m} vs {x_label}", (x0 + 8, 18), font, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
         cv2.rectangle(img, (x0 + L, T), (x0 + pw - Rm, ph - B), (0, 0, 0), 1)
         if not pts:
             continue
@@ -51,7 +64,7 @@ def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[
             xv, yv = xlo + frac * (xhi - xlo), ylo + frac * (yhi - ylo)
             cv2.putText(img, f"{xv:.0f}", (to_px(xv, ylo)[0] - 10, ph - B + 14), font, 0.35, (60, 60, 60), 1)
             cv2.putText(img, f"{yv:.3g}", (x0 + 2, to_px(xlo, yv)[1] + 4), font, 0.33, (60, 60, 60), 1)
-        cv2.putText(img, "seconds", (x0 + pw // 2 - 20, ph - 8), font, 0.38, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(img, x_label, (x0 + pw // 2 - 20, ph - 8), font, 0.38, (0, 0, 0), 1, cv2.LINE_AA)
         green = (40, 150, 40)
         fpx = [to_px(x, y) for x, y in fpts]
         if fpx:
@@ -70,7 +83,4 @@ def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[
             if id(r) in on_front:
                 cv2.circle(img, (u, v), 7, green, 2, cv2.LINE_AA)
             cv2.putText(img, str(val), (u + 5, v - 5), font, 0.35, (20, 20, 160), 1, cv2.LINE_AA)
-    with atomic_path(path) as tmp:
-        if not cv2.imwrite(str(tmp), img):
-            raise OSError(f"could not write {path}")
-    return Path(path)
+    return img

@@ -30,7 +30,11 @@ class Outputs(contract.Outputs):
 
     LAYOUT = {
         "canonical": File("canonical.ply", "the canonical 3DGS, standard 3DGS PLY layout (any 3DGS viewer opens it)"),
-        "metrics": File("metrics.json", "held-out and train PSNR/SSIM, Gaussian count, seconds, inputs, config"),
+        "metrics": File("metrics.json", "held-out and train PSNR/SSIM, Gaussian count, seconds, the plan (budget, "
+                                        "steps, estimated time), accuracy (the next level's cost, a too-blurry warning), "
+                                        "inputs, config"),
+        "fit": File("fit.png", "held-out PSNR against training time, what the next level would cost here, "
+                               "the too-blurry warning"),
         "checkpoint": File("checkpoint.ply", "the last good state while the fit runs; removed on success, "
                                              "kept when the fit diverges", optional=True),
     }
@@ -66,6 +70,7 @@ def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
     from anigs.images import load_inputs
     from anigs.io import write_json
     from anigs.static.fit import fit_static
+    from anigs.static.report import draw_fit
 
     from anigs.sfm.model import load_points
 
@@ -85,6 +90,7 @@ def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
                          "num_points": int(len(pts))}
     metrics["config"] = _config_dict(cfg)
     write_json(out.path("metrics"), metrics)
+    draw_fit(metrics, out.path("fit"))
     if ckpt.exists():
         ckpt.unlink()
     log.info("static fit: %d Gaussians -> %s", metrics["num_gaussians"], ply)

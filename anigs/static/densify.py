@@ -50,7 +50,7 @@ class DensifyConfig(Section):
     """Densification hyperparameters (iterations are 1-based training steps)."""
 
     start: int = 300  # first step that clones/splits/prunes
-    stop: int = 1200  # no densification or opacity reset from this step on
+    stop: int | None = None  # no densification or opacity reset from this step on (null: stop_fraction of the steps)
     stop_fraction: float = 0.8  # ... nor after this fraction of the fit's iterations (new splats need steps to settle)
     every: int = 100  # refine interval
     grad_threshold: float = 0.0002  # mean NDC-space gradient norm of means2d that triggers densification
@@ -62,7 +62,7 @@ class DensifyConfig(Section):
     prune_size_from: int = 0  # first step of size-based pruning (0 = never: it punches holes in short schedules)
     reset_every: int = 0  # opacity reset interval (0 = never: short CPU schedules do better without)
     reset_opacity: float = 0.01  # opacities are clamped to at most this on reset
-    max_gaussians: int = 30000  # budget: densification never grows the set beyond this
+    max_gaussians: int | None = None  # densification never grows the set beyond this (null: from static.budget)
 
     WHERE: ClassVar[str] = "densify config"
 
@@ -71,7 +71,7 @@ class DensifyConfig(Section):
             raise ValueError(f"densify.every must be >= 1, got {self.every}")
         if not 0 < self.stop_fraction <= 1:
             raise ValueError(f"densify.stop_fraction must be in (0, 1], got {self.stop_fraction}")
-        if self.max_gaussians < 1:
+        if self.max_gaussians is not None and self.max_gaussians < 1:
             raise ValueError(f"densify.max_gaussians must be >= 1, got {self.max_gaussians}")
         if not 0 <= self.prune_opacity < 1:
             raise ValueError(f"densify.prune_opacity must be in [0,1), got {self.prune_opacity}")
@@ -137,20 +137,26 @@ def update_state(state: DensifyState, meta: dict[str, Any], width: int, height: 
     torch.maximum(state.max_radii, radii / float(max(width, height)), out=state.max_radii)
 
 
+def _stop(cfg: DensifyConfig) -> int:
+    if cfg.stop is None:
+        raise ValueError("densify: stop is not set; resolve the schedule with schedule_for(cfg, iterations) first")
+    return cfg.stop
+
+
 def stats_needed(cfg: DensifyConfig, step: int) -> bool:
     """Whether :func:`update_state` at ``step`` can still matter: some densification step
     ``s >= step`` is scheduled (start <= s < stop, s a multiple of every). After the last one
     the statistics are never read, so the fit skips them (and ``retain_grad``)."""
-    last = ((cfg.stop - 1) // cfg.every) * cfg.every
+    last = ((_stop(cfg) - 1) // cfg.every) * cfg.every
     return cfg.start <= last and step <= last
 
 
 def _densify_due(cfg: DensifyConfig, step: int) -> bool:
-    return cfg.start <= step < cfg.stop and step % cfg.every == 0
+    return cfg.start <= step < _stop(cfg) and step % cfg.every == 0
 
 
 def _reset_due(cfg: DensifyConfig, step: int) -> bool:
-    return cfg.reset_every > 0 and step < cfg.stop and step % cfg.reset_every == 0
+    return cfg.reset_every > 0 and step < _stop(cfg) and step % cfg.reset_every == 0
 
 
 def refine_due(cfg: DensifyConfig, step: int) -> bool:
@@ -202,10 +208,12 @@ def reset_opacity(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimi
 
 
 def schedule_for(cfg: DensifyConfig, iterations: int) -> DensifyConfig:
-    """``cfg`` with ``stop`` at most ``stop_fraction * iterations``: a fit of any length ends with
-    steps free of densification (a split or clone at the last step would leave untrained splats:
-    demo, 500 iterations with stop 1200: held-out 21.6 dB; stopping at 400: 26.3 dB)."""
-    return replace(cfg, stop=min(cfg.stop, int(cfg.stop_fraction * iterations)))
+    """``cfg`` with ``stop`` at most ``stop_fraction * iterations`` (``stop`` unset: exactly that): a
+    fit of any length ends with steps free of densification (a split or clone at the last step
+    would leave untrained splats: demo, 500 iterations with stop 1200: held-out 21.6 dB; stopping
+    at 400: 26.3 dB)."""
+    cap = int(cfg.stop_fraction * iterations)
+    return replace(cfg, stop=cap if cfg.stop is None else min(cfg.stop, cap))
 
 
 @torch.no_grad()
@@ -253,7 +261,7 @@ def _densify_and_prune(params, optimizer, state: DensifyState, step: int, cfg: D
 
     # budget: survivors + clones + split children (2 per split replacing one) <= max_gaussians
     survivors = int((~prune).sum())
-    room = max(0, cfg.max_gaussians - survivors)
+    room = n + int(candidates.sum()) if cfg.max_gaussians is None else max(0, cfg.max_gaussians - survivors)
     cand_idx = torch.nonzero(candidates, as_tuple=False).squeeze(1)
     if cand_idx.numel() > room:  # each candidate adds one row net
         order = torch.argsort(avg_grad[cand_idx], descending=True, stable=True)

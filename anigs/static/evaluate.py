@@ -25,6 +25,14 @@ def _render(params: dict[str, torch.Tensor], cam: Camera, sh_degree: int, bg: to
                      cam.width, cam.height, sh_degree=sh_degree, background=bg, backend=backend)
 
 
+def loss_fn(pred: torch.Tensor, target: torch.Tensor, ssim_weight: float) -> torch.Tensor:
+    """``(1-w) L1 + w (1 - SSIM)`` for images [H,W,3] (SSIM: :func:`anigs.ssim.fused_ssim`)."""
+    l1 = (pred - target).abs().mean()
+    if ssim_weight == 0:
+        return l1
+    return (1 - ssim_weight) * l1 + ssim_weight * (1 - fused_ssim(pred, target))
+
+
 @torch.no_grad()
 def stored_image(img: torch.Tensor, device) -> torch.Tensor:
     """An input image as the fit keeps it: uint8 [H,W,3] stays uint8 (a quarter of the memory of

@@ -25,15 +25,18 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.typed_config import reject_unknown_keys
+from anigs.static.budget import parse_budget
+from anigs.static.planning import flat_curve, plan_fit, resolved
+from anigs.static.report import accuracy_record
 from anigs.static.densify import (DensifyConfig, DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
 from anigs.static.divergence import DivergenceGuard, FitDivergedError, raise_diverged
-from anigs.static.evaluate import _render, evaluate, pixels, stored_image
+from anigs.static.far import far_points
+from anigs.static.evaluate import _render, evaluate, loss_fn, pixels, stored_image
 from anigs.static.init import _to_params, init_gaussians, make_optimizer, params_to_gaussians, split_holdout
 from anigs.static.regularize import NeedleRegularizer, RegularizeConfig, last_densify_step, prune_rows
 from anigs.device import get_device, seed_everything
 from anigs.render.rasterize import select_backend
-from anigs.ssim import fused_ssim
 from anigs.ssim import kernel as ssim_kernel
 from anigs.geometry.extent import scene_extent
 from anigs.gaussians import Gaussians
@@ -52,7 +55,10 @@ LOG_EVERY = 10  # steps between host reads of the loss (progress) and of the div
 class FitConfig:
     """Static fit hyperparameters (the ``static`` config section)."""
 
-    iterations: int = 1500  # optimisation steps
+    #: the one dial: a level (fast, auto, quality: steps and Gaussians follow the capture's photos and pixels)
+    #: or minutes on this machine; the plan and its estimated time are logged before the fit starts
+    budget: str | float = "auto"
+    iterations: int | None = None  # optimisation steps (null: from the budget; the fit may end earlier, plateau_db)
     seed: int = 0  # seeds view order, split sampling and everything else
     sh_degree: int = 3  # final SH degree (0..3)
     sh_increase_every: int = 300  # raise the active SH degree by one every this many steps
@@ -67,7 +73,13 @@ class FitConfig:
     lr_quats: float = 1e-3  # learning rate of the rotations
     ssim_weight: float = 0.2  # loss = (1-w) L1 + w (1 - SSIM)
     init_opacity: float = 0.1  # opacity of the initial Gaussians
-    eval_every: int = 250  # held-out PSNR checkpoints for the accuracy-versus-time curve (0 = end only)
+    #: at most this share of the Gaussian budget starts on a far sphere where photos show what SfM did not
+    #: triangulate (the sky, distant background; not where the photos show the background colour); 0: none
+    far_share: float = 0.1
+    eval_every: int | None = None  # held-out PSNR every this many steps (null: about 8 points over the fit; 0 = end only)
+    #: stop once densification is over and the held-out PSNR gained less than this (dB) since the
+    #: previous evaluation (0: never stop early)
+    plateau_db: float = 0.05
     checkpoint_every: int = 500  # write the last good PLY every this many steps (with checkpoint_path)
     device: str = "auto"  # torch device: auto picks CUDA when present (the workflow passes the global device)
     backend: str = "auto"  # rasterizer backend
@@ -90,8 +102,13 @@ class FitConfig:
         return cfg
 
     def validate(self) -> None:
-        if self.iterations < 0:
+        parse_budget(self.budget)
+        if self.iterations is not None and self.iterations < 0:
             raise ValueError(f"static.iterations must be >= 0, got {self.iterations}")
+        if self.eval_every is not None and self.eval_every < 0:
+            raise ValueError(f"static.eval_every must be >= 0, got {self.eval_every}")
+        if self.plateau_db < 0:
+            raise ValueError(f"static.plateau_db must be >= 0, got {self.plateau_db}")
         if not 0 <= self.sh_degree <= 3:
             raise ValueError(f"static.sh_degree must be in 0..3, got {self.sh_degree}")
         if self.sh_increase_every < 1:
@@ -102,6 +119,8 @@ class FitConfig:
             raise ValueError(f"static.holdout_every must be 0 (no holdout) or >= 2, got {self.holdout_every}")
         if not 0 <= self.ssim_weight <= 1:
             raise ValueError(f"static.ssim_weight must be in [0,1], got {self.ssim_weight}")
+        if not 0 <= self.far_share < 1:
+            raise ValueError(f"static.far_share must be in [0, 1), got {self.far_share}")
         if not 0 < self.init_opacity < 1:
             raise ValueError(f"static.init_opacity must be in (0,1), got {self.init_opacity}")
         self.densify.validate()
@@ -109,14 +128,6 @@ class FitConfig:
 
 
 # ---------------------------------------------------------------------------- helpers
-def loss_fn(pred: torch.Tensor, target: torch.Tensor, ssim_weight: float) -> torch.Tensor:
-    """``(1-w) L1 + w (1 - SSIM)`` for images [H,W,3] (SSIM: :func:`anigs.ssim.fused_ssim`)."""
-    l1 = (pred - target).abs().mean()
-    if ssim_weight == 0:
-        return l1
-    return (1 - ssim_weight) * l1 + ssim_weight * (1 - fused_ssim(pred, target))
-
-
 def train_step(params: dict[str, torch.nn.Parameter], optimizer: torch.optim.Optimizer, cam: Camera,
                target: torch.Tensor, sh_degree: int, bg: torch.Tensor, backend: str, ssim_weight: float,
                mats: tuple[torch.Tensor, torch.Tensor] | None = None, stats: DensifyState | None = None,
@@ -195,12 +206,25 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     bg = torch.tensor(cfg.background, dtype=torch.float32, device=device)
     lr = {"means": cfg.lr_means * extent, "quats": cfg.lr_quats, "log_scales": cfg.lr_scales,
           "opacity_logits": cfg.lr_opacity, "sh_dc": cfg.lr_sh_dc, "sh_rest": cfg.lr_sh_rest}
+    fit_plan, size, cost = plan_fit(cfg, params, train_imgs, train_cams, bg, g0.num)
+    cfg = resolved(cfg, fit_plan)
+    fpts, fcols = far_points(pts, train_cams, [im.cpu().numpy() for im in train_imgs], cfg.background,
+                             int(cfg.far_share * cfg.densify.max_gaussians))
+    if len(fpts):
+        log.info("static fit: %d far points where the photos show what SfM did not triangulate", len(fpts))
+        g0 = init_gaussians(np.concatenate([pts, fpts]), np.concatenate([cols, fcols]), extent, cfg.sh_degree,
+                            cfg.init_opacity)
+        params = _to_params(g0, device)
     optimizer = make_optimizer(params, lr)
     dstate = DensifyState.empty(g0.num, device)
-    log.info("static fit: %d train / %d held-out views, %d initial Gaussians, scene extent %.3f, %d iterations, "
-             "%s Adam, rasterizer %s, SSIM %s", len(train_idx), len(test_idx), g0.num, extent, cfg.iterations,
+    log.info("static fit: %d train / %d held-out views, %d initial Gaussians, scene extent %.3f, %s Adam, "
+             "rasterizer %s, SSIM %s", len(train_idx), len(test_idx), g0.num, extent,
              "fused" if optimizer.defaults.get("fused") else "foreach", select_backend(cfg.backend, device),
              _ssim_path(device))
+    log.info("static fit plan (budget %s%s): at most %d steps, at most %d Gaussians (densifying until step %d), "
+             "held-out PSNR every %d steps; estimated %.1f min of training on this machine",
+             fit_plan.level, f"; set: {', '.join(fit_plan.pinned)}" if fit_plan.pinned else "", fit_plan.iterations,
+             fit_plan.max_gaussians, fit_plan.densify_stop, fit_plan.eval_every, fit_plan.estimated_seconds / 60)
 
     run = _FitRun(cfg, params, bg, test_imgs, test_cams, checkpoint_path, t_start, c_start)
     curve = [run.checkpoint(0, 0)]
@@ -214,8 +238,8 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         # in a log file (no terminal) refresh rarely, so Snakemake logs stay readable
         run.bar = tqdm(total=cfg.iterations, desc="static fit", unit="it", dynamic_ncols=True,
                        mininterval=0.1 if sys.stderr.isatty() else 10.0)
-    deg, reg, step_seconds, last_refine = _train(run, optimizer, guard, gen, train_imgs, train_cams, extent, dstate,
-                                                 curve, device)
+    deg, reg, step_seconds, last_refine, steps = _train(run, optimizer, guard, gen, train_imgs, train_cams, extent,
+                                                        dstate, curve, device)
     if run.bar is not None:
         run.bar.close()
     guard.check()
@@ -225,8 +249,8 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     if keep is not None:
         params = run.params = prune_rows(params, optimizer, keep)
     final_deg = min(cfg.sh_degree, max(deg, 0))
-    if cfg.iterations > 0:
-        curve.append(run.checkpoint(cfg.iterations, final_deg))
+    if steps > 0 and (keep is not None or curve[-1]["iteration"] != steps):  # not yet evaluated as it is now
+        curve.append(run.checkpoint(steps, final_deg))
     train_seconds = curve[-1]["train_seconds"]
     tr = evaluate(params, train_imgs, train_cams, final_deg, bg, cfg.backend)
     te = curve[-1]
@@ -238,7 +262,8 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         "train_psnr": tr["psnr"], "train_ssim": tr["ssim"], "train_views": tr["views"],
         "test_psnr": te["test_psnr"], "test_ssim": te["test_ssim"], "test_views": len(test_idx),
         "init_test_psnr": curve[0]["test_psnr"],
-        "num_gaussians": gaussians.num, "init_gaussians": g0.num, "iterations": cfg.iterations,
+        "num_gaussians": gaussians.num, "init_gaussians": g0.num, "far_points": len(fpts), "iterations": steps,
+        "plan": {**fit_plan.as_dict(), "stopped_early": steps < cfg.iterations},
         "seconds": time.perf_counter() - t_start, "train_seconds": train_seconds, "eval_seconds": run.eval_seconds,
         "train_cpu_seconds": curve[-1]["train_cpu_seconds"], "torch_threads": torch.get_num_threads(),
         "scene_extent": extent, "sh_degree": cfg.sh_degree, "active_sh_degree": final_deg,
@@ -247,6 +272,15 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     }
     log.info("static fit done: %d Gaussians, held-out PSNR %.2f dB, train PSNR %.2f dB, %.1f s",
              gaussians.num, te["test_psnr"], tr["psnr"], metrics["seconds"])
+    metrics["plan"]["estimate_ratio"] = round(train_seconds / max(fit_plan.estimated_seconds, 1e-9), 3)
+    metrics["accuracy"] = acc = accuracy_record(metrics, fit_plan, size, cost, g0.num)
+    if "next" in acc:
+        log.info("the next level, %s (%d steps, %d Gaussians), would take about %.0f min here%s", acc["next"]["level"],
+                 acc["next"]["steps"], acc["next"]["gaussians"], acc["next"]["estimated_minutes"],
+                 "" if acc["next"]["test_psnr_from_curve"] is None else
+                 f"; the held-out curve extrapolates to {acc['next']['test_psnr_from_curve']:.1f} dB with its steps")
+    if acc["warning"]:
+        log.warning("%s", acc["warning"])
     return gaussians, metrics
 
 
@@ -306,10 +340,11 @@ def _ssim_path(device: torch.device) -> str:
 def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuard, gen: torch.Generator,
            train_imgs: list[torch.Tensor], train_cams: list[Camera], extent: float, dstate: DensifyState,
            curve: list[dict[str, Any]], device: torch.device
-           ) -> tuple[int, NeedleRegularizer, list[float], int]:
+           ) -> tuple[int, NeedleRegularizer, list[float], int, int]:
     """The optimisation loop (``run.params`` is replaced by each refinement; held-out rows are
     appended to ``curve``). Returns (last active SH degree, the regulariser, seconds per step,
-    the last step whose refinement changed the set)."""
+    the last step whose refinement changed the set, the steps run: fewer than ``cfg.iterations``
+    when the held-out curve flattened, :func:`anigs.static.planning.flat_curve`)."""
     cfg, bar = run.cfg, run.bar
     order: list[int] = []
     ema_loss = ema_psnr = None
@@ -351,6 +386,12 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
         if eval_due:
             curve.append(run.checkpoint(step, deg))  # before refinement: an opacity reset would hide the progress
         aside = time.perf_counter() - aside
+        if eval_due and flat_curve(curve, last_densify, cfg.plateau_db):
+            log.info("static fit: the held-out curve is flat after step %d (%+.3f dB since step %d < %.3f dB): "
+                     "stopping", step, curve[-1]["test_psnr"] - curve[-2]["test_psnr"], curve[-2]["iteration"],
+                     cfg.plateau_db)
+            step_seconds.append(time.perf_counter() - t_step - aside)
+            return deg, reg, step_seconds, last_refine, step
         reg.after_step(run.params)
         if due and step % densify_cfg.every == 0 and step >= densify_cfg.start:
             reg.decay(run.params, step, last=step == last_densify)
@@ -362,7 +403,7 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
             bar.update(1)
             if log_due:
                 bar.set_postfix(loss=f"{ema_loss:.4f}", psnr=f"{ema_psnr:.2f}", n=int(run.params["means"].shape[0]))
-    return deg, reg, step_seconds, last_refine
+    return deg, reg, step_seconds, last_refine, cfg.iterations
 
 
 def _step_summary(step_seconds: list[float], last_refine: int) -> dict[str, Any]:

@@ -37,6 +37,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar, Sequence
 
+import numpy as np
 import torch
 
 from anigs.cameras import Camera
@@ -57,6 +58,9 @@ class RegularizeConfig(Section):
     final_prune: bool = True           # prune the Gaussians still unresolved at the last densification step
     #: at most this share of the Gaussians is decayed / pruned at a step, least resolved first
     max_share: float = 0.02
+    #: after the fit, prune Gaussians whose blending weight summed over every training photo's pixels is
+    #: below this (pixels): nothing the photos saw constrains them (0: keep them)
+    min_seen_weight: float = 0.01
 
     WHERE: ClassVar[str] = "static.regularize config"
 
@@ -173,15 +177,23 @@ class NeedleRegularizer:
         return n
 
     def final_keep(self, params: dict[str, torch.Tensor]) -> torch.Tensor | None:
-        """bool [N] rows to keep after the fit, when no densification step pruned (None: keep all)."""
-        if not (self.cfg.enabled and self.cfg.final_prune) or self.pruned_at_densify:
+        """bool [N] rows to keep after the fit (None: keep all): not unresolved (when no densification
+        step pruned them) and seen by the photos (:func:`unseen`)."""
+        if not self.cfg.enabled:
             return None
-        bad = self.unresolved(params)
+        bad = torch.zeros(params["means"].shape[0], dtype=torch.bool, device=params["means"].device)
+        if self.cfg.final_prune and not self.pruned_at_densify:
+            bad = self.unresolved(params)
+            self.stats["final_pruned"] = int(bad.sum())
+        if self.cfg.min_seen_weight > 0:
+            hidden = unseen(params, self.cameras, self.cfg.min_seen_weight).to(bad.device)
+            self.stats["unseen_pruned"] = int((hidden & ~bad).sum())
+            bad |= hidden
         n = int(bad.sum())
-        self.stats["final_pruned"] = n
         if n == 0 or n == bad.numel():
             return None
-        log.info("static fit: pruned %d Gaussians no photo resolves", n)
+        log.info("static fit: pruned %d Gaussians no photo resolves (%d of them unseen by every photo)", n,
+                 self.stats.get("unseen_pruned", 0))
         return ~bad
 
     def report(self, params: dict[str, torch.Tensor]) -> dict[str, Any]:
@@ -191,3 +203,16 @@ class NeedleRegularizer:
         ratio = (srt[:, 2] - srt[:, 1]).exp()
         return {**self.cfg.__dict__, **self.stats,
                 "max_needle_ratio_after": float(ratio.max()) if ratio.numel() else None}
+
+
+def unseen(params: dict[str, torch.Tensor], cameras: Sequence[Camera], min_weight: float) -> torch.Tensor:
+    """bool [N]: Gaussians whose blending weight, summed over the pixels of every camera, is below
+    ``min_weight`` (hidden behind nearer surfaces or outside every photo: untrained)."""
+    from anigs.render.visibility import blend_weights
+    from anigs.static.init import params_to_gaussians
+
+    g = params_to_gaussians(params)
+    total = np.zeros(g.num)
+    for cam in cameras:
+        total += blend_weights(g, cam)[0]
+    return torch.from_numpy(total < min_weight)

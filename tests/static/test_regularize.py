@@ -76,8 +76,15 @@ def test_the_last_densification_step_prunes_what_is_unresolved():
     assert reg.decay(params, 700, last=True) == 2
     op = torch.sigmoid(params["opacity_logits"].detach())
     assert (op[-2:] < 1e-6).all() and (op[:-2] == pytest.approx(0.8, abs=1e-5))  # below any prune opacity
-    assert reg.final_keep(params) is None                                          # nothing left for the end
+    # nothing unresolved is left for the end; the two zeroed ones are also unseen (densification's opacity
+    # prune removes them in a fit; here they are still there), everything else is seen
+    keep = reg.final_keep(params)
+    assert keep is not None and keep[:-2].all() and not keep[-2:].any()
     assert reg.report(params)["final_pruned"] == 2
+    off = NeedleRegularizer(RegularizeConfig(max_share=1.0, min_seen_weight=0.0), extent=4.4, cameras=cams,
+                            mats=[(c.torch_viewmat(), c.torch_K()) for c in cams])
+    off.decay(params, 700, last=True)
+    assert off.final_keep(params) is None
     assert last_densify_step(300, 800, 100, 1000) == 700
     assert last_densify_step(300, 1200, 100, 1000) == 1000
     assert last_densify_step(300, 800, 100, 250) is None
@@ -122,3 +129,15 @@ def test_fit_keeps_every_gaussian_within_the_needle_limit():
                                "regularize": {"enabled": False}})
     g0, m0 = fit_static(imgs, cams, pts, cols, off, progress=False)
     assert m0["regularize"]["enabled"] is False
+
+
+def test_unseen_gaussians_are_the_hidden_and_the_outside():
+    from anigs.static.regularize import unseen
+
+    g = _scene_with_needle()
+    cams = _ring()
+    means = torch.cat([g.means, torch.tensor([[0.0, 0.0, 50.0], [0.0, 0.0, 0.0]])])  # far above every camera; the centre
+    g2 = type(g)(means, torch.cat([g.quats, g.quats[:2]]), torch.cat([g.log_scales, g.log_scales[:2]]),
+                 torch.cat([g.opacity_logits, g.opacity_logits[:2]]), torch.cat([g.sh, g.sh[:2]]))
+    hidden = unseen(_to_params(g2, torch.device("cpu")), cams, 0.01)
+    assert hidden[-2] and not hidden[:-2].any()

@@ -40,6 +40,11 @@ rule static:
     output:
         ply=stage_out("static", "canonical"),
         metrics=stage_out("static", "metrics"),
+        fit=report(
+            stage_out("static", "fit"),
+            caption="../report/static.rst",
+            category="Static fit",
+        ),
     log:
         f"{R}/{{scene}}/logs/static.log",
     benchmark:

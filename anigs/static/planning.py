@@ -1,0 +1,57 @@
+"""Planning one static fit: its schedule from ``static.budget`` and the capture, the time estimate
+calibrated on this machine, and the plateau test that ends it early (:mod:`anigs.static.budget`
+holds the levels and the cost model)."""
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any
+
+import torch
+
+from anigs.cameras import Camera
+from anigs.static.budget import CaptureSize, FitPlan, StepCost, plan
+from anigs.static.evaluate import _render, loss_fn, pixels
+
+if TYPE_CHECKING:
+    from anigs.static.fit import FitConfig
+
+
+def flat_curve(curve: list[dict[str, Any]], last_densify: int | None, plateau_db: float) -> bool:
+    """Whether the last two held-out evaluations, both after the last densification, differ by
+    less than ``plateau_db`` dB (a fall counts as flat)."""
+    if plateau_db <= 0 or len(curve) < 2:
+        return False
+    prev, cur = curve[-2], curve[-1]
+    after = prev["iteration"] > (last_densify or 0)
+    return after and cur["test_psnr"] - prev["test_psnr"] < plateau_db
+
+
+def plan_fit(cfg: "FitConfig", params: dict[str, torch.nn.Parameter], imgs: list[torch.Tensor],
+             cams: list[Camera], bg: torch.Tensor, start: int) -> tuple[FitPlan, CaptureSize, StepCost]:
+    """The fit's schedule from ``cfg.budget`` and the training photos, its time estimate calibrated
+    by timing forward+backward passes of the initial Gaussians (parameters unchanged). Returns the
+    plan, the capture's size and the calibrated cost model."""
+    size = CaptureSize.of([(c.width, c.height) for c in cams])
+    times = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        rgb, _, _ = _render(params, cams[0], 0, bg, cfg.backend)
+        loss_fn(rgb, pixels(imgs[0]), cfg.ssim_weight).backward()
+        if rgb.is_cuda:
+            torch.cuda.synchronize()
+        times.append(time.perf_counter() - t0)
+    for p in params.values():
+        p.grad = None
+    # a whole step is the render and loss plus the optimizer and densification statistics: 1.25x
+    # (benchmarks/README.md, "The static fit's step": training step / rasterizer 1.21-1.32)
+    cost = StepCost().calibrated(1.25 * min(times[1:]), size.pixels, start)
+    fit_plan = plan(cfg.budget, size, cost, start, iterations=cfg.iterations, max_gaussians=cfg.densify.max_gaussians,
+                    densify_stop=cfg.densify.stop, stop_fraction=cfg.densify.stop_fraction, eval_every=cfg.eval_every)
+    return fit_plan, size, cost
+
+
+def resolved(cfg: "FitConfig", fit_plan: FitPlan) -> "FitConfig":
+    """``cfg`` with the plan's concrete steps, Gaussian budget, densification stop and evaluation interval."""
+    densify = replace(cfg.densify, max_gaussians=fit_plan.max_gaussians, stop=fit_plan.densify_stop)
+    return replace(cfg, iterations=fit_plan.iterations, eval_every=fit_plan.eval_every, densify=densify)

@@ -1,0 +1,121 @@
+"""What the static fit reached, what more accuracy would cost here, and whether it is good enough to
+animate: the ``accuracy`` record of ``static/metrics.json`` (also logged, and drawn into
+``static/fit.png`` for the Snakemake report).
+
+Too poor to animate: held-out PSNR under :data:`MIN_TEST_PSNR` or train PSNR under
+:data:`MIN_TRAIN_PSNR`. The thresholds sit in the gap between the shared captures whose final views
+a person called smeared or blurred (held-out 13.8-20.3 dB, train 20.6-22.8 dB: the street walk,
+the castle, the tree trunk at anigs 0.7's defaults) and those called sharp (25.6-30.3 dB and
+26.6-31.9 dB: the flower, the fern, the indoor fox, the demo); benchmarks/README.md, "What the
+static fit costs", has the table.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+from anigs.static.budget import CaptureSize, FitPlan, StepCost, next_level, plan
+
+MIN_TEST_PSNR = 21.0  # dB, held out
+MIN_TRAIN_PSNR = 24.0  # dB
+OVERFIT_GAP = 6.0  # train minus held-out PSNR (dB) above which more photos help more than a longer fit
+
+
+def _extrapolate(curve: list[dict[str, Any]], steps: int) -> float | None:
+    """Held-out PSNR at ``steps`` from the curve's last half, linear in log(steps) (None: too few points)."""
+    pts = [(r["iteration"], r["test_psnr"]) for r in curve if r["iteration"] > 0 and math.isfinite(r["test_psnr"])]
+    pts = pts[len(pts) // 2:]
+    if len(pts) < 2 or steps <= pts[-1][0]:
+        return None
+    (s0, p0), (s1, p1) = pts[0], pts[-1]
+    slope = (p1 - p0) / math.log(s1 / s0) if s1 > s0 else 0.0
+    return p1 + max(slope, 0.0) * math.log(steps / s1)
+
+
+def accuracy_record(metrics: dict[str, Any], fit_plan: FitPlan, size: CaptureSize, cost: StepCost,
+                    start_gaussians: int) -> dict[str, Any]:
+    """The ``accuracy`` record: now (held-out PSNR/SSIM, train PSNR, minutes), the next level (its
+    plan and estimated minutes on this machine, the held-out PSNR the curve extrapolates to),
+    and ``warning`` with the cheapest change that helps when the fit is too poor to animate."""
+    now = {"test_psnr": metrics["test_psnr"], "test_ssim": metrics["test_ssim"], "train_psnr": metrics["train_psnr"],
+           "minutes": round(metrics["train_seconds"] / 60.0, 2), "level": fit_plan.level,
+           "gaussians": metrics["num_gaussians"], "steps": metrics["iterations"]}
+    rec: dict[str, Any] = {"now": now, "thresholds": {"test_psnr": MIN_TEST_PSNR, "train_psnr": MIN_TRAIN_PSNR}}
+    nxt = next_level(fit_plan.level)
+    if nxt is not None:
+        p = plan(nxt, size, cost, start_gaussians)
+        est = _extrapolate(metrics.get("curve", []), p.iterations)
+        rec["next"] = {"level": nxt, "steps": p.iterations, "gaussians": p.max_gaussians,
+                       "estimated_minutes": round(p.estimated_seconds / 60.0, 1),
+                       "test_psnr_from_curve": None if est is None else round(est, 2),
+                       "note": "the curve's extrapolation counts more steps only; more Gaussians add to it"}
+    rec["warning"] = _warning(metrics, fit_plan, size, cost, start_gaussians)
+    return rec
+
+
+def _warning(metrics: dict[str, Any], fit_plan: FitPlan, size: CaptureSize, cost: StepCost,
+             start_gaussians: int) -> str | None:
+    """None when the fit is good enough to animate, else what is wrong and the cheapest change that helps."""
+    test, train = metrics["test_psnr"], metrics["train_psnr"]
+    low_test = math.isfinite(test) and test < MIN_TEST_PSNR
+    if not (low_test or train < MIN_TRAIN_PSNR):
+        return None
+    what = (f"the static fit is too blurry to animate: held-out PSNR {test:.1f} dB (under {MIN_TEST_PSNR:g} "
+            f"means smeared views) and train PSNR {train:.1f} dB (under {MIN_TRAIN_PSNR:g})")
+    if train >= MIN_TRAIN_PSNR and low_test and train - test > OVERFIT_GAP:
+        return (f"{what}; it fits the photos but not the views between them: more photos between the existing "
+                "ones help most (a denser walk, 60-80% overlap between neighbours)")
+    options = []
+    nxt = next_level(fit_plan.level)
+    if nxt is not None:
+        p = plan(nxt, size, cost, start_gaussians)
+        options.append((p.estimated_seconds, f"static.budget: {nxt} ({p.iterations} steps, {p.max_gaussians:,} "
+                                             f"Gaussians, about {p.estimated_seconds / 60:.0f} min here)"))
+    if size.width > 700:  # a smaller image size: the same schedule on a quarter of the pixels
+        half = replace(size, width=size.width // 2, height=size.height // 2)
+        p = plan(fit_plan.level if nxt is None else nxt, half, cost, start_gaussians)
+        options.append((p.estimated_seconds, f"photos.max_side: {max(half.width, half.height)} with "
+                                             f"static.budget: {p.level} (about {p.estimated_seconds / 60:.0f} min)"))
+    if not options:
+        return f"{what}; more photos of the scene are the remaining remedy"
+    options.sort()
+    return f"{what}; the cheapest change that helps: {options[0][1]}" + (
+        f"; or {options[1][1]}" if len(options) > 1 else "")
+
+
+def draw_fit(metrics: dict[str, Any], path) -> None:
+    """``static/fit.png``: held-out PSNR against training seconds (points labelled by step), and the
+    accuracy record in words (the plan, now, the next level and its cost, the warning)."""
+    import textwrap
+
+    import cv2
+    import numpy as np
+
+    from anigs.io import atomic_path
+    from anigs.tradeoff_plot import knob_image
+
+    rows = [{"knob": "fit", "seconds": r["train_seconds"], "test_psnr": r["test_psnr"], "value": r["iteration"]}
+            for r in metrics.get("curve", []) if math.isfinite(r["test_psnr"])]
+    plot = knob_image(rows, "fit", ["test_psnr"], panel=(640, 300), x_label="training seconds")
+    acc, pl = metrics.get("accuracy", {}), metrics.get("plan", {})
+    now = acc.get("now", {})
+    lines = [f"budget {pl.get('level')}: {now.get('steps')} steps{' (the held-out curve flattened)' if pl.get('stopped_early') else ''}, "
+             f"{now.get('gaussians', 0):,} Gaussians, {now.get('minutes', 0):.1f} min (estimated {pl.get('estimated_seconds', 0) / 60:.1f})",
+             f"now: held-out PSNR {now.get('test_psnr', float('nan')):.2f} dB, SSIM {now.get('test_ssim', float('nan')):.3f}; "
+             f"train PSNR {now.get('train_psnr', float('nan')):.2f} dB"]
+    nxt = acc.get("next")
+    if nxt:
+        curve = "" if nxt.get("test_psnr_from_curve") is None else f"; the curve extrapolates to {nxt['test_psnr_from_curve']:.1f} dB"
+        lines.append(f"next level {nxt['level']}: {nxt['steps']} steps, {nxt['gaussians']:,} Gaussians, "
+                     f"about {nxt['estimated_minutes']:.0f} min here{curve}")
+    warn = acc.get("warning")
+    text = [(ln, (0, 0, 0)) for ln in lines]
+    if warn:
+        text += [(ln, (0, 0, 190)) for ln in textwrap.wrap("WARNING: " + warn, 100)]
+    block = np.full((18 * len(text) + 10, plot.shape[1], 3), 255, np.uint8)
+    for i, (ln, ink) in enumerate(text):
+        cv2.putText(block, ln, (8, 18 * (i + 1)), cv2.FONT_HERSHEY_SIMPLEX, 0.42, ink, 1, cv2.LINE_AA)
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), np.concatenate([plot, block], 0)):
+            raise OSError(f"could not write {path}")
