@@ -18,7 +18,9 @@ class FinalConfig(Section):
     path_loops: int = 2  # how many animation periods the moving camera sees
     path_views: int = 6  # capture cameras the path passes through (evenly picked)
     scale: float = 1.0  # resolution factor of the view videos
-    background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # background colour (RGB in [0,1])
+    #: RGB in [0,1] behind the splats, where the views show what no photo covered (a neutral grey; a
+    #: synthetic scene's own sky: its scene file's `background`)
+    background: list = field(default_factory=lambda: [0.5, 0.5, 0.5])
     slice_upsample: int = 4  # each time step becomes this many rows in slice PNGs
     device: str = "auto"  # torch device: auto picks CUDA when present (the workflow passes the global device)
 

@@ -17,7 +17,7 @@ class MasksConfig(Section):
     """Config section ``masks``."""
 
     backend: str = "effects"                   # effects (the effects stage's regions) | vegetation | labels | sam2
-    background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # render background (RGB)
+    background: list = field(default_factory=lambda: [0.5, 0.5, 0.5])  # render background (RGB; as final.background)
     vegetation: VegetationConfig = field(default_factory=VegetationConfig)  # the vegetation backend
     labels: LabelsConfig = field(default_factory=LabelsConfig)  # the labels backend (and the effects backend's renders)
     sam2: Sam2Config = field(default_factory=Sam2Config)        # the SAM2 backend

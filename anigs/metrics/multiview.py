@@ -38,6 +38,9 @@ class MultiviewFitConfig(FitConfig):
     """The protocol's fresh static fit (config section ``eval.multiview_fit``): the ``static``
     section's keys, with the defaults of an instrument where they differ from the static stage's."""
 
+    budget: str | float = "fast"  # the protocol's fit stays the size it was measured at (30,000 Gaussians)
+    background: tuple[float, float, float] | str = (0.0, 0.0, 0.0)  # a fixed background (the static stage's: random)
+    far_share: float = 0.0  # no far points: the figures stay comparable with the earlier tables
     holdout_every: int = 0  # no internal hold-out: the protocol splits the cameras itself
     eval_every: int = 0  # no held-out PSNR checkpoints
     checkpoint_every: int = 0  # no checkpoint PLYs
@@ -49,7 +52,8 @@ class MultiviewFitConfig(FitConfig):
     @classmethod
     def from_dict(cls, d: dict[str, Any] | None) -> "MultiviewFitConfig":
         cfg = from_dict(cls, d, "eval.multiview_fit", ValueError)
-        cfg.background = tuple(float(x) for x in cfg.background)
+        if not isinstance(cfg.background, str):
+            cfg.background = tuple(float(x) for x in cfg.background)
         cfg.validate()
         return cfg
 

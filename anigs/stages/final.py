@@ -100,7 +100,8 @@ def run(inputs: Inputs, cfg: FinalConfig) -> Outputs:
     times = pingpong_times(T, period)
     bg = torch.tensor(cfg.background, dtype=torch.float32, device=dev)
     out = Outputs(inputs.out)
-    summary: dict = {"config": dataclasses.asdict(cfg), "frames": T, "views": {}}
+    summary: dict = {"config": dataclasses.asdict(cfg), "frames": T, "views": {},
+                     "background": list(cfg.background)}  # behind the splats: what no photo covered shows it
     if still:
         summary["nothing_moves"] = still
     fit = inputs.static.metrics().get("accuracy", {}) if inputs.static.exists("metrics") else {}

@@ -101,7 +101,7 @@ def _config_dict(cfg) -> dict:
     import dataclasses
 
     d = dataclasses.asdict(cfg)
-    d["background"] = list(cfg.background)
+    d["background"] = cfg.background if isinstance(cfg.background, str) else list(cfg.background)
     return d
 
 

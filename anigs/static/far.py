@@ -57,14 +57,15 @@ def _covered(points: np.ndarray, cam: Camera, gw: int, gh: int) -> np.ndarray:
 
 
 def far_points(points: np.ndarray, cameras: Sequence[Camera], images: Sequence[np.ndarray],
-               background: Sequence[float], limit: int) -> tuple[np.ndarray, np.ndarray]:
+               background: Sequence[float] | None, limit: int) -> tuple[np.ndarray, np.ndarray]:
     """Far points [F,3] and colours [F,3] in [0,1] (F <= ``limit``) where the photos show something
-    no SfM point explains; ``images``: float or uint8 [H,W,3] per camera."""
+    no SfM point explains; ``images``: float or uint8 [H,W,3] per camera; ``background``: the fit's
+    fixed background colour (None: a random one, nothing is left to it)."""
     if limit <= 0 or not cameras:
         return np.zeros((0, 3)), np.zeros((0, 3))
     points = np.asarray(points, np.float64).reshape(-1, 3)
     mid, radius = far_radius(points, cameras)
-    bg = np.asarray(background, np.float64)
+    bg = None if background is None else np.asarray(background, np.float64)
     # one direction cell per grid cell at the photos' median focal length: nearby photos see the same cell
     step = float(np.median([cell_px(c) / c.K[0, 0] for c in cameras]))
     cells: dict[tuple[int, int], list] = {}
@@ -80,8 +81,9 @@ def far_points(points: np.ndarray, cameras: Sequence[Camera], images: Sequence[n
         if not len(ys):
             continue
         col = im[:gh * cell, :gw * cell].reshape(gh, cell, gw, cell, 3).mean((1, 3))[ys, xs]
-        far = np.abs(col - bg).max(1) > BG_TOL
-        ys, xs, col = ys[far], xs[far], col[far]
+        if bg is not None:
+            far = np.abs(col - bg).max(1) > BG_TOL
+            ys, xs, col = ys[far], xs[far], col[far]
         px = np.stack([(xs + 0.5) * cell, (ys + 0.5) * cell, np.ones(len(xs))], 1)
         rays = (np.linalg.inv(cam.K) @ px.T).T @ cam.R  # camera -> world directions
         rays /= np.linalg.norm(rays, axis=1, keepdims=True)

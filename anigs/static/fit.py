@@ -49,6 +49,7 @@ __all__ = ["LOG_EVERY", "DivergenceGuard", "FitConfig", "FitDivergedError", "_re
 log = logging.getLogger(__name__)
 
 LOG_EVERY = 10  # steps between host reads of the loss (progress) and of the divergence record
+EVAL_BACKGROUND = (0.5, 0.5, 0.5)  # behind the evaluation renders of a fit trained on random backgrounds
 
 
 @dataclass
@@ -62,7 +63,10 @@ class FitConfig:
     seed: int = 0  # seeds view order, split sampling and everything else
     sh_degree: int = 3  # final SH degree (0..3)
     sh_increase_every: int = 300  # raise the active SH degree by one every this many steps
-    background: tuple[float, float, float] = (0.0, 0.0, 0.0)  # RGB in [0,1]
+    #: "random": a new random colour behind the splats at every step, so that only what the photos show
+    #: is opaque and unobserved space stays transparent (views composite it onto final.background);
+    #: or a fixed RGB in [0,1] (a synthetic scene's sky: its photos were rendered onto it)
+    background: tuple[float, float, float] | str = "random"
     holdout_every: int = 8  # images i with i % holdout_every == 0 are held out (0 = none)
     lr_means: float = 1.6e-4  # initial position lr, times the scene extent
     lr_means_final: float = 1.6e-6  # final position lr, times the scene extent
@@ -95,7 +99,7 @@ class FitConfig:
             d["densify"] = DensifyConfig.from_dict(d["densify"])
         if "regularize" in d and not isinstance(d["regularize"], RegularizeConfig):
             d["regularize"] = RegularizeConfig.from_dict(d["regularize"])
-        if "background" in d:
+        if "background" in d and not isinstance(d["background"], str):
             d["background"] = tuple(float(x) for x in d["background"])
         cfg = FitConfig(**d)
         cfg.validate()
@@ -113,8 +117,11 @@ class FitConfig:
             raise ValueError(f"static.sh_degree must be in 0..3, got {self.sh_degree}")
         if self.sh_increase_every < 1:
             raise ValueError(f"static.sh_increase_every must be >= 1, got {self.sh_increase_every}")
-        if len(self.background) != 3 or not all(0 <= x <= 1 for x in self.background):
-            raise ValueError(f"static.background must be 3 values in [0,1], got {self.background}")
+        if isinstance(self.background, str):
+            if self.background != "random":
+                raise ValueError(f"static.background must be 'random' or 3 values in [0,1], got {self.background!r}")
+        elif len(self.background) != 3 or not all(0 <= x <= 1 for x in self.background):
+            raise ValueError(f"static.background must be 'random' or 3 values in [0,1], got {self.background}")
         if self.holdout_every < 0 or self.holdout_every == 1:
             raise ValueError(f"static.holdout_every must be 0 (no holdout) or >= 2, got {self.holdout_every}")
         if not 0 <= self.ssim_weight <= 1:
@@ -203,13 +210,14 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     extent = scene_extent(cameras, np.asarray(pts, dtype=np.float64).reshape(-1, 3))
     g0 = init_gaussians(pts, cols, extent, cfg.sh_degree, cfg.init_opacity)
     params = _to_params(g0, device)
-    bg = torch.tensor(cfg.background, dtype=torch.float32, device=device)
+    random_bg = cfg.background == "random"
+    bg = torch.tensor(EVAL_BACKGROUND if random_bg else cfg.background, dtype=torch.float32, device=device)
     lr = {"means": cfg.lr_means * extent, "quats": cfg.lr_quats, "log_scales": cfg.lr_scales,
           "opacity_logits": cfg.lr_opacity, "sh_dc": cfg.lr_sh_dc, "sh_rest": cfg.lr_sh_rest}
     fit_plan, size, cost = plan_fit(cfg, params, train_imgs, train_cams, bg, g0.num)
     cfg = resolved(cfg, fit_plan)
-    fpts, fcols = far_points(pts, train_cams, [im.cpu().numpy() for im in train_imgs], cfg.background,
-                             int(cfg.far_share * cfg.densify.max_gaussians))
+    fpts, fcols = far_points(pts, train_cams, [im.cpu().numpy() for im in train_imgs],
+                             None if random_bg else cfg.background, int(cfg.far_share * cfg.densify.max_gaussians))
     if len(fpts):
         log.info("static fit: %d far points where the photos show what SfM did not triangulate", len(fpts))
         g0 = init_gaussians(np.concatenate([pts, fpts]), np.concatenate([cols, fcols]), extent, cfg.sh_degree,
@@ -367,7 +375,8 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
         if run.params["means"].shape[0] == 0:
             raise RuntimeError(f"static fit: no Gaussians left at iteration {step}")
         stats = dstate if stats_needed(densify_cfg, step) else None
-        loss, rgb = train_step(run.params, optimizer, cam, target, deg, run.bg, cfg.backend, cfg.ssim_weight,
+        step_bg = torch.rand(3, generator=gen).to(device) if cfg.background == "random" else run.bg
+        loss, rgb = train_step(run.params, optimizer, cam, target, deg, step_bg, cfg.backend, cfg.ssim_weight,
                                mats=train_mats[v], stats=stats, guard=guard, step=step)
 
         ckpt_due = cfg.checkpoint_every > 0 and step % cfg.checkpoint_every == 0

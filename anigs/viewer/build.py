@@ -31,7 +31,7 @@ from anigs.views import cameras_from_views
 
 log = logging.getLogger("anigs.viewer")
 
-DEFAULT_BACKGROUND = (0.62, 0.76, 0.92)  # the final renders' default sky colour (final.background)
+DEFAULT_BACKGROUND = (0.5, 0.5, 0.5)  # the final renders' default background (final.background)
 PAGE = "viewer.html"  # package data: written as the layout's page (``index``)
 STATIC_FILES = ("viewer.css", "format.js", "sort-worker.js", "shaders.js", "renderer.js", "camera.js", "viewer.js",
                 "ui.js")

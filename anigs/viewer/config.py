@@ -12,7 +12,7 @@ from anigs.typed_config import Section
 class ViewConfig(Section):
     """The ``view`` config section."""
 
-    background: list = field(default_factory=lambda: [0.62, 0.76, 0.92])  # RGB behind the splats
+    background: list = field(default_factory=lambda: [0.5, 0.5, 0.5])  # RGB behind the splats (as final.background)
     fps: float = 12.0  # frames per second of the animation at speed 1x
     embed: bool = True  # also write scene.js, so index.html opens straight from the file system
     title: str = "anigs"  # page title

@@ -97,7 +97,8 @@ def test_fit_reports_plan_and_stops_on_a_flat_curve():
     # densification ends at step 40; the evaluations at 80 and 120 are both after it: +5 dB is not
     # reached between them, so the fit ends at 120 of its 400 steps
     assert m["iterations"] == 120 and m["plan"]["stopped_early"]
-    assert [r["iteration"] for r in m["curve"]][-2:] == [80, 120]
+    its = [r["iteration"] for r in m["curve"]]
+    assert its[-1] == 120 and 80 in its and max(its) == 120  # (120 twice when the final prune removed splats)
     assert m["plan"]["pinned"] == ["iterations", "densify.stop"] and m["plan"]["estimated_seconds"] > 0
     assert set(m["accuracy"]) >= {"now", "next", "warning", "thresholds"}
     cfg_off = FitConfig.from_dict({**cfg.__dict__, "densify": cfg.densify.__dict__, "plateau_db": 0.0,

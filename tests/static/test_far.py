@@ -3,6 +3,7 @@ are or where the photo shows the background colour; deterministic; bounded by th
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from anigs.static.far import far_points, far_radius
@@ -49,3 +50,22 @@ def test_fit_with_far_points_over_a_sky():
     _, without = fit_static(skied, cams, p, c, FitConfig.from_dict({**fast, "far_share": 0.0}), progress=False)
     assert with_far["far_points"] > 0 and without["far_points"] == 0
     assert with_far["train_psnr"] > without["train_psnr"] + 1.0  # the sky is there from the start
+
+
+def test_random_background_makes_what_the_photos_show_opaque():
+    from anigs.render import render_gaussians
+
+    gt, cams, imgs = make_scene(n_cams=12, width=48, height=36)
+    sky = torch.tensor([0.3, 0.5, 0.9])
+    skied = [torch.where(im.sum(-1, keepdim=True) < 1e-3, sky, im) for im in imgs]
+    p, c = sfm_points(gt, every=3)
+    fast = {"iterations": 150, "eval_every": 0, "sh_degree": 0, "densify": {"start": 20, "stop": 100, "every": 20}}
+    alpha = {}
+    for bg in ("random", [0.3, 0.5, 0.9]):
+        g, _ = fit_static(skied, cams, p, c, FitConfig.from_dict({**fast, "background": bg}), progress=False)
+        with torch.no_grad():
+            alpha[str(bg)] = float(torch.stack([render_gaussians(g, cam)[1].mean() for cam in cams]).mean())
+    # trained over a fixed sky colour the sky may stay transparent; over random colours it cannot
+    assert alpha["random"] > 0.95 and alpha["random"] > alpha[str([0.3, 0.5, 0.9])] + 0.05, alpha
+    with pytest.raises(ValueError, match="static.background"):
+        FitConfig.from_dict({"background": "sky"})
