@@ -39,6 +39,8 @@ from anigs.geometry.quaternion import quat_to_rotmat
 log = logging.getLogger(__name__)
 
 REQUIRED = ("means", "quats", "log_scales", "opacity_logits")
+GROWTH = ("budget", "threshold")
+BUDGET_FLOOR = 0.25  # budget growth: candidates need at least this share of grad_threshold
 
 
 class AllPrunedError(RuntimeError):
@@ -63,6 +65,11 @@ class DensifyConfig(Section):
     reset_every: int = 0  # opacity reset interval (0 = never: short CPU schedules do better without)
     reset_opacity: float = 0.01  # opacities are clamped to at most this on reset
     max_gaussians: int | None = None  # densification never grows the set beyond this (null: from static.budget)
+    #: "budget": each densification step grows the set along a straight line from its size at the first
+    #: step to max_gaussians at the last, taking the candidates with the largest gradients (a rank, so
+    #: the image size does not move it; grad_threshold / 4 is the floor); "threshold": every Gaussian
+    #: above grad_threshold, up to max_gaussians (3DGS; what anigs 0.7 did)
+    growth: str = "budget"
 
     WHERE: ClassVar[str] = "densify config"
 
@@ -77,6 +84,8 @@ class DensifyConfig(Section):
             raise ValueError(f"densify.prune_opacity must be in [0,1), got {self.prune_opacity}")
         if not 0 < self.reset_opacity < 1:
             raise ValueError(f"densify.reset_opacity must be in (0,1), got {self.reset_opacity}")
+        if self.growth not in GROWTH:
+            raise ValueError(f"densify.growth must be one of {list(GROWTH)}, got {self.growth!r}")
         if self.split_factor <= 1:
             raise ValueError(f"densify.split_factor must be > 1, got {self.split_factor}")
 
@@ -94,6 +103,7 @@ class DensifyState:
     count: torch.Tensor
     max_radii: torch.Tensor
     last: dict[str, int] = field(default_factory=dict)
+    first_count: int | None = None  # the set's size at the first densification (budget growth starts there)
 
     @staticmethod
     def empty(n: int, device: torch.device | str = "cpu") -> "DensifyState":
@@ -216,6 +226,19 @@ def schedule_for(cfg: DensifyConfig, iterations: int) -> DensifyConfig:
     return replace(cfg, stop=cap if cfg.stop is None else min(cfg.stop, cap))
 
 
+def growth_target(cfg: DensifyConfig, step: int, first_count: int) -> int:
+    """Budget growth: the set's size after the densification at ``step``, on a straight line from
+    ``first_count`` (before the first densification, at ``cfg.start`` rounded up to ``cfg.every``)
+    to ``cfg.max_gaussians`` (after the last, before ``cfg.stop``)."""
+    first = -(-max(cfg.start, 1) // cfg.every) * cfg.every
+    last = ((_stop(cfg) - 1) // cfg.every) * cfg.every
+    if last <= first:
+        return int(cfg.max_gaussians)
+    k = (step - first) // cfg.every + 1
+    frac = min(1.0, k / ((last - first) // cfg.every + 1))
+    return int(round(first_count + (cfg.max_gaussians - first_count) * frac))
+
+
 @torch.no_grad()
 def refine(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimizer, state: DensifyState, step: int,
            cfg: DensifyConfig, scene_extent: float,
@@ -247,7 +270,10 @@ def _densify_and_prune(params, optimizer, state: DensifyState, step: int, cfg: D
     scales = params["log_scales"].detach().exp()
     max_scale = scales.max(dim=1).values
     avg_grad = state.grad_sum / state.count.clamp_min(1)
-    candidates = avg_grad >= cfg.grad_threshold
+    budget_growth = cfg.growth == "budget" and cfg.max_gaussians is not None
+    if state.first_count is None:
+        state.first_count = n
+    candidates = avg_grad >= cfg.grad_threshold * (BUDGET_FLOOR if budget_growth else 1.0)
     big = max_scale > cfg.dense_percent * extent
     opac = torch.sigmoid(params["opacity_logits"].detach())
 
@@ -261,7 +287,10 @@ def _densify_and_prune(params, optimizer, state: DensifyState, step: int, cfg: D
 
     # budget: survivors + clones + split children (2 per split replacing one) <= max_gaussians
     survivors = int((~prune).sum())
-    room = n + int(candidates.sum()) if cfg.max_gaussians is None else max(0, cfg.max_gaussians - survivors)
+    cap = n + int(candidates.sum()) if cfg.max_gaussians is None else cfg.max_gaussians
+    if budget_growth:
+        cap = min(cap, growth_target(cfg, step, state.first_count))
+    room = max(0, cap - survivors)
     cand_idx = torch.nonzero(candidates, as_tuple=False).squeeze(1)
     if cand_idx.numel() > room:  # each candidate adds one row net
         order = torch.argsort(avg_grad[cand_idx], descending=True, stable=True)

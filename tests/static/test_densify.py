@@ -44,7 +44,7 @@ def state_with_grads(n: int, grads: list[float], radii: list[float] | None = Non
     return st
 
 
-CFG = DensifyConfig(start=1, stop=1000, every=1, grad_threshold=0.001, dense_percent=0.05,
+CFG = DensifyConfig(growth="threshold", start=1, stop=1000, every=1, grad_threshold=0.001, dense_percent=0.05,
                     reset_every=0, max_gaussians=100)
 
 
@@ -127,7 +127,7 @@ def test_prune_low_opacity_and_too_large_after_reset():
         params["opacity_logits"][0] = math.log(0.001 / 0.999)
         params["log_scales"][3] = math.log(0.3)  # > 0.1 * extent in the world
     take_adam_step(params, opt)
-    cfg = DensifyConfig(start=1, stop=1000, every=1, grad_threshold=1.0, reset_every=0, prune_size_from=100,
+    cfg = DensifyConfig(growth="threshold", start=1, stop=1000, every=1, grad_threshold=1.0, reset_every=0, prune_size_from=100,
                         max_gaussians=100)
     st = state_with_grads(5, [0.0] * 5, radii=[0.0, 0.0, 0.5, 0.0, 0.0])  # 2 too large on screen
     means = params["means"].detach().clone()
@@ -142,7 +142,7 @@ def test_prune_low_opacity_and_too_large_after_reset():
 
 def test_budget_keeps_highest_gradients():
     params, opt = make_params(6)
-    cfg = DensifyConfig(start=1, stop=1000, every=1, grad_threshold=0.001, reset_every=0, max_gaussians=8)
+    cfg = DensifyConfig(growth="threshold", start=1, stop=1000, every=1, grad_threshold=0.001, reset_every=0, max_gaussians=8)
     st = state_with_grads(6, [0.002, 0.009, 0.003, 0.008, 0.004, 0.0])
     means = params["means"].detach().clone()
     new = refine(params, opt, st, step=3, cfg=cfg, scene_extent=100.0)
@@ -158,7 +158,7 @@ def test_all_pruned_raises_clear_error():
 
 def test_schedule_outside_window_is_a_no_op():
     params, opt = make_params(3, opacity=0.001)
-    cfg = DensifyConfig(start=100, stop=200, every=10, reset_every=0)
+    cfg = DensifyConfig(growth="threshold", start=100, stop=200, every=10, reset_every=0)
     st = state_with_grads(3, [1.0] * 3)
     for step in (5, 105, 200, 300):  # before start, off-interval, at stop, after stop
         assert refine(params, opt, st, step, cfg, 1.0) is params
@@ -207,7 +207,7 @@ def test_with_rasterizer_meta():
 
 def test_refine_resets_opacity_on_schedule():
     params, opt = make_params(3, opacity=0.9)
-    cfg = DensifyConfig(start=1000, stop=2000, every=100, reset_every=50)
+    cfg = DensifyConfig(growth="threshold", start=1000, stop=2000, every=100, reset_every=50)
     st = state_with_grads(3, [0.0] * 3)
     refine(params, opt, st, 49, cfg, 1.0)
     assert torch.sigmoid(params["opacity_logits"].detach()).min() > 0.8
@@ -220,24 +220,24 @@ def test_schedule_ends_densification_before_the_fit_ends():
     """A fit shorter than densify.stop still ends with steps free of densification."""
     from anigs.static.densify import DensifyConfig, schedule_for
 
-    cfg = DensifyConfig(start=300, stop=1200, every=100)
+    cfg = DensifyConfig(growth="threshold", start=300, stop=1200, every=100)
     assert schedule_for(cfg, 500).stop == 400 and schedule_for(cfg, 1000).stop == 800
     assert schedule_for(cfg, 3000).stop == 1200  # a long fit keeps the configured stop
-    assert schedule_for(DensifyConfig(stop_fraction=1.0), 1000).stop == 1000
+    assert schedule_for(DensifyConfig(growth="threshold", stop_fraction=1.0), 1000).stop == 1000
     with pytest.raises(ValueError, match="stop_fraction"):
         DensifyConfig.from_dict({"stop_fraction": 0})
 
 
 def test_statistics_are_needed_until_the_last_scheduled_densification():
-    cfg = DensifyConfig(start=300, stop=800, every=100)
+    cfg = DensifyConfig(growth="threshold", start=300, stop=800, every=100)
     assert [s for s in (1, 299, 700, 701, 800, 1000) if stats_needed(cfg, s)] == [1, 299, 700]
-    assert not stats_needed(DensifyConfig(start=300, stop=250, every=100), 1)  # nothing scheduled
-    assert stats_needed(DensifyConfig(start=10, stop=31, every=10), 30)
-    assert not stats_needed(DensifyConfig(start=10, stop=30, every=10), 21)  # 30 is not < stop
+    assert not stats_needed(DensifyConfig(growth="threshold", start=300, stop=250, every=100), 1)  # nothing scheduled
+    assert stats_needed(DensifyConfig(growth="threshold", start=10, stop=31, every=10), 30)
+    assert not stats_needed(DensifyConfig(growth="threshold", start=10, stop=30, every=10), 21)  # 30 is not < stop
 
 
 def test_refine_due_matches_what_refine_does():
-    cfg = DensifyConfig(start=5, stop=20, every=5, reset_every=8)
+    cfg = DensifyConfig(growth="threshold", start=5, stop=20, every=5, reset_every=8)
     params, opt = make_params(6, scale=0.01)
     for step in range(1, 25):
         st = state_with_grads(params["means"].shape[0], [0.0] * params["means"].shape[0])
@@ -245,3 +245,26 @@ def test_refine_due_matches_what_refine_does():
         params = refine(params, opt, st, step, cfg, scene_extent=1.0)
         changed = bool(st.last) or not torch.equal(before, params["opacity_logits"].detach())
         assert changed == refine_due(cfg, step), step
+
+
+def test_budget_growth_follows_its_line_by_rank_not_by_threshold():
+    from anigs.static.densify import growth_target
+
+    cfg = DensifyConfig(start=300, stop=1000, every=100, grad_threshold=0.01, max_gaussians=100, reset_every=0)
+    # densifications at 300..900: seven steps from the first size to the budget
+    assert [growth_target(cfg, s, 30) for s in range(300, 1000, 100)] == [40, 50, 60, 70, 80, 90, 100]
+    params, opt = make_params(30)
+    grads = [0.1 * (i + 1) / 30 for i in range(30)]  # all far above the threshold
+    st = state_with_grads(30, grads)
+    new = refine(params, opt, st, step=300, cfg=cfg, scene_extent=100.0)
+    assert new["means"].shape[0] == 40  # the line, not every candidate
+    assert st.first_count == 30
+    # scaled gradients (another image size) pick the same Gaussians: a rank, not a threshold
+    p2, o2 = make_params(30)
+    new2 = refine(p2, o2, state_with_grads(30, [g * 0.3 for g in grads]), step=300, cfg=cfg, scene_extent=100.0)
+    assert torch.equal(new["means"].detach(), new2["means"].detach())
+    # below a quarter of the threshold nothing grows
+    p3, o3 = make_params(30)
+    assert refine(p3, o3, state_with_grads(30, [0.002] * 30), step=300, cfg=cfg, scene_extent=100.0)["means"].shape[0] == 30
+    with pytest.raises(ValueError, match="densify.growth"):
+        DensifyConfig.from_dict({"growth": "fast"})
