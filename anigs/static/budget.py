@@ -22,10 +22,11 @@ so the estimate in the log is for this machine under its current load.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any, Sequence
 
 LEVELS_ORDER = ("fast", "auto", "quality")
+AUTO_SIDE = 640  # the auto level's largest photo side (px): the views and clips are 256x192 by default
 
 
 @dataclass(frozen=True)
@@ -36,9 +37,10 @@ class Level:
     epochs: float  # steps per training photo
     min_steps: int
     max_steps: int
-    per_megapixel: float  # Gaussians per training megapixel
+    per_megapixel: float  # Gaussians per training megapixel (at the fit's image size)
     min_gaussians: int
     max_gaussians: int
+    max_side: int = 0  # the fit's photos are downscaled to at most this longest side (0: as captured)
 
     def steps(self, photos: int) -> int:
         return int(min(max(round(self.epochs * photos / 100.0) * 100, self.min_steps), self.max_steps))
@@ -52,7 +54,7 @@ LEVELS: dict[str, Level] = {
     "fast": Level("fast", epochs=0, min_steps=1500, max_steps=1500, per_megapixel=0,
                   min_gaussians=30000, max_gaussians=30000),
     "auto": Level("auto", epochs=120, min_steps=1500, max_steps=4000, per_megapixel=10000,
-                  min_gaussians=30000, max_gaussians=150000),
+                  min_gaussians=30000, max_gaussians=150000, max_side=AUTO_SIDE),
     "quality": Level("quality", epochs=300, min_steps=4000, max_steps=7000, per_megapixel=40000,
                      min_gaussians=100000, max_gaussians=300000),
 }
@@ -76,12 +78,22 @@ class CaptureSize:
         """Training megapixels (all photos)."""
         return self.photos * self.pixels / 1e6
 
+    def limited(self, max_side: int) -> "CaptureSize":
+        """The size after downscaling to at most ``max_side`` on the longest side (0: unchanged)."""
+        f = fit_scale(self.width, self.height, max_side)
+        return replace(self, width=max(1, round(self.width * f)), height=max(1, round(self.height * f)))
+
     @staticmethod
     def of(sizes: Sequence[tuple[int, int]]) -> "CaptureSize":
         """From the training photos' (width, height)."""
         ws = sorted(w for w, _ in sizes)
         hs = sorted(h for _, h in sizes)
         return CaptureSize(len(sizes), ws[len(ws) // 2], hs[len(hs) // 2])
+
+
+def fit_scale(width: int, height: int, max_side: int) -> float:
+    """Downscale factor (<= 1) that brings the longest side to at most ``max_side`` (0: 1)."""
+    return 1.0 if max_side <= 0 or max(width, height) <= max_side else max_side / max(width, height)
 
 
 @dataclass(frozen=True)
@@ -117,6 +129,7 @@ class FitPlan:
     """A concrete schedule for one fit, and its estimated cost on this machine."""
 
     level: str  # fast / auto / quality, or "N min"
+    max_side: int  # the fit's photos' longest side at most (0: as captured)
     iterations: int
     max_gaussians: int
     densify_stop: int
@@ -156,22 +169,25 @@ def _densify_stop(iterations: int, explicit: int | None, fraction: float) -> int
 
 def plan(budget: str | float, size: CaptureSize, cost: StepCost, start_gaussians: int, *,
          iterations: int | None = None, max_gaussians: int | None = None, densify_stop: int | None = None,
-         stop_fraction: float = 0.8, eval_every: int | None = None) -> FitPlan:
-    """The fit's schedule for ``budget`` on a capture of ``size``; explicit keys win.
+         stop_fraction: float = 0.8, eval_every: int | None = None, max_side: int | None = None) -> FitPlan:
+    """The fit's schedule for ``budget`` on a capture of ``size`` (the photos as captured); explicit
+    keys win. ``cost`` is per pixel of the fit's image size.
 
     ``start_gaussians``: the initial count (the SfM points), for the time estimate.
     """
     budget = parse_budget(budget)
     pinned = tuple(k for k, v in (("iterations", iterations), ("densify.max_gaussians", max_gaussians),
-                                  ("densify.stop", densify_stop)) if v is not None)
+                                  ("densify.stop", densify_stop), ("max_side", max_side)) if v is not None)
 
     def build(level: Level, name: str, factor: float = 1.0) -> FitPlan:
-        its = iterations if iterations is not None else max(100, int(round(level.steps(size.photos) * factor)))
+        side = max_side if max_side is not None else level.max_side
+        fit = size.limited(side)
+        its = iterations if iterations is not None else max(100, int(round(level.steps(fit.photos) * factor)))
         gs = max_gaussians if max_gaussians is not None else max(
-            start_gaussians, int(round(level.gaussians(size.megapixels) * factor)))
+            start_gaussians, int(round(level.gaussians(fit.megapixels) * factor)))
         stop = _densify_stop(its, densify_stop, stop_fraction)
-        secs = cost.fit_seconds(size.pixels, its, start_gaussians, gs, stop)
-        return FitPlan(name, its, gs, stop, _eval_every(its, eval_every), secs, pinned)
+        secs = cost.fit_seconds(fit.pixels, its, start_gaussians, gs, stop)
+        return FitPlan(name, side, its, gs, stop, _eval_every(its, eval_every), secs, pinned)
 
     if isinstance(budget, str):
         return build(LEVELS[budget], budget)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import torch
 
 from anigs.cameras import Camera
-from anigs.static.budget import CaptureSize, FitPlan, StepCost, plan
+from anigs.static.budget import LEVELS, CaptureSize, FitPlan, StepCost, fit_scale, parse_budget, plan
 from anigs.static.evaluate import _render, loss_fn, pixels
 
 if TYPE_CHECKING:
@@ -28,11 +28,11 @@ def flat_curve(curve: list[dict[str, Any]], last_densify: int | None, plateau_db
 
 
 def plan_fit(cfg: "FitConfig", params: dict[str, torch.nn.Parameter], imgs: list[torch.Tensor],
-             cams: list[Camera], bg: torch.Tensor, start: int) -> tuple[FitPlan, CaptureSize, StepCost]:
-    """The fit's schedule from ``cfg.budget`` and the training photos, its time estimate calibrated
-    by timing forward+backward passes of the initial Gaussians (parameters unchanged). Returns the
-    plan, the capture's size and the calibrated cost model."""
-    size = CaptureSize.of([(c.width, c.height) for c in cams])
+             cams: list[Camera], bg: torch.Tensor, start: int, size: CaptureSize) -> tuple[FitPlan, StepCost]:
+    """The fit's schedule from ``cfg.budget`` and the capture's ``size`` (the training photos as
+    captured), its time estimate calibrated by timing forward+backward passes of the initial
+    Gaussians on ``imgs``/``cams`` (the photos at the fit's size; parameters unchanged). Returns the
+    plan and the calibrated cost model."""
     times = []
     for _ in range(3):
         t0 = time.perf_counter()
@@ -45,13 +45,43 @@ def plan_fit(cfg: "FitConfig", params: dict[str, torch.nn.Parameter], imgs: list
         p.grad = None
     # a whole step is the render and loss plus the optimizer and densification statistics: 1.25x
     # (benchmarks/README.md, "The static fit's step": training step / rasterizer 1.21-1.32)
-    cost = StepCost().calibrated(1.25 * min(times[1:]), size.pixels, start)
+    cost = StepCost().calibrated(1.25 * min(times[1:]), cams[0].width * cams[0].height, start)
     fit_plan = plan(cfg.budget, size, cost, start, iterations=cfg.iterations, max_gaussians=cfg.densify.max_gaussians,
-                    densify_stop=cfg.densify.stop, stop_fraction=cfg.densify.stop_fraction, eval_every=cfg.eval_every)
-    return fit_plan, size, cost
+                    densify_stop=cfg.densify.stop, stop_fraction=cfg.densify.stop_fraction, eval_every=cfg.eval_every,
+                    max_side=cfg.max_side)
+    return fit_plan, cost
 
 
 def resolved(cfg: "FitConfig", fit_plan: FitPlan) -> "FitConfig":
     """``cfg`` with the plan's concrete steps, Gaussian budget, densification stop and evaluation interval."""
     densify = replace(cfg.densify, max_gaussians=fit_plan.max_gaussians, stop=fit_plan.densify_stop)
     return replace(cfg, iterations=fit_plan.iterations, eval_every=fit_plan.eval_every, densify=densify)
+
+
+def fit_side(cfg: "FitConfig") -> int:
+    """The fit's largest photo side: ``static.max_side``, else its budget level's (a minutes budget: auto's)."""
+    if cfg.max_side is not None:
+        return cfg.max_side
+    b = parse_budget(cfg.budget)
+    return LEVELS[b if isinstance(b, str) else "auto"].max_side
+
+
+def downscaled(images: list[torch.Tensor], cameras: list[Camera], max_side: int
+               ) -> tuple[list[torch.Tensor], list[Camera]]:
+    """Images [H,W,3] (uint8 or float) and cameras at most ``max_side`` on the longest side (area
+    interpolation; 0 or already smaller: unchanged)."""
+    import cv2
+    import numpy as np
+
+    out_i, out_c = [], []
+    for img, cam in zip(images, cameras):
+        f = fit_scale(cam.width, cam.height, max_side)
+        if f >= 1.0:
+            out_i.append(img)
+            out_c.append(cam)
+            continue
+        w, h = max(1, round(cam.width * f)), max(1, round(cam.height * f))
+        arr = cv2.resize(np.ascontiguousarray(img.cpu().numpy()), (w, h), interpolation=cv2.INTER_AREA)
+        out_i.append(torch.from_numpy(arr).to(img.device))
+        out_c.append(cam.scaled(w, h))
+    return out_i, out_c

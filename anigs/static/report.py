@@ -12,7 +12,6 @@ static fit costs", has the table.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from typing import Any
 
 from anigs.static.budget import CaptureSize, FitPlan, StepCost, next_level, plan
@@ -72,11 +71,11 @@ def _warning(metrics: dict[str, Any], fit_plan: FitPlan, size: CaptureSize, cost
         p = plan(nxt, size, cost, start_gaussians)
         options.append((p.estimated_seconds, f"static.budget: {nxt} ({p.iterations} steps, {p.max_gaussians:,} "
                                              f"Gaussians, about {p.estimated_seconds / 60:.0f} min here)"))
-    if size.width > 700:  # a smaller image size: the same schedule on a quarter of the pixels
-        half = replace(size, width=size.width // 2, height=size.height // 2)
-        p = plan(fit_plan.level if nxt is None else nxt, half, cost, start_gaussians)
-        options.append((p.estimated_seconds, f"photos.max_side: {max(half.width, half.height)} with "
-                                             f"static.budget: {p.level} (about {p.estimated_seconds / 60:.0f} min)"))
+    side = max(size.limited(fit_plan.max_side).width, size.limited(fit_plan.max_side).height)
+    if side >= 640:  # a smaller image size: the next level on a quarter of the pixels
+        p = plan(fit_plan.level if nxt is None else nxt, size, cost, start_gaussians, max_side=side // 2)
+        options.append((p.estimated_seconds, f"static.max_side: {side // 2} with static.budget: {p.level} "
+                                             f"(about {p.estimated_seconds / 60:.0f} min)"))
     if not options:
         return f"{what}; more photos of the scene are the remaining remedy"
     options.sort()

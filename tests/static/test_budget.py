@@ -31,12 +31,14 @@ def test_levels_grow_with_the_capture():
     fast, auto, quality = (plan(n, STREET, COST, 1500) for n in ("fast", "auto", "quality"))
     assert fast.estimated_seconds < auto.estimated_seconds < quality.estimated_seconds
     assert (fast.iterations, fast.max_gaussians) == (1500, 30000)  # anigs 0.7's defaults, whatever the capture
+    assert (fast.max_side, auto.max_side, quality.max_side) == (0, 640, 0)  # auto fits at most 640 px
 
 
 def test_explicit_keys_win_and_are_named():
     p = plan("quality", STREET, COST, 1500, iterations=1000, max_gaussians=12345, densify_stop=700, eval_every=100)
     assert (p.iterations, p.max_gaussians, p.densify_stop, p.eval_every) == (1000, 12345, 700, 100)
     assert p.pinned == ("iterations", "densify.max_gaussians", "densify.stop")
+    assert plan("auto", STREET, COST, 1500, max_side=400).pinned == ("max_side",)
 
 
 def test_minutes_budget_fits_its_time_and_grows_with_it():
@@ -83,7 +85,7 @@ def test_accuracy_record_next_level_and_warning():
     assert good["next"]["test_psnr_from_curve"] > 20.0  # the curve still rises: more steps extrapolate higher
     poor = accuracy_record(_metrics(MIN_TEST_PSNR - 5, MIN_TRAIN_PSNR - 3), p, STREET, COST, 1500)
     assert "too blurry" in poor["warning"] and "cheapest change" in poor["warning"]
-    assert "photos.max_side" in poor["warning"] or "static.budget: quality" in poor["warning"]
+    assert "static.max_side" in poor["warning"] or "static.budget: quality" in poor["warning"]
     overfit = accuracy_record(_metrics(MIN_TEST_PSNR - 4, MIN_TRAIN_PSNR + 4), p, STREET, COST, 1500)
     assert "more photos" in overfit["warning"]
 
@@ -105,3 +107,14 @@ def test_fit_reports_plan_and_stops_on_a_flat_curve():
                                    "iterations": 160})
     _, m_off = fit_static(imgs, cams, p, c, cfg_off, progress=False)
     assert m_off["iterations"] == 160 and not m_off["plan"]["stopped_early"]
+
+
+def test_fit_downscales_to_its_side_and_measures_there():
+    gt, cams, imgs = make_scene(n_cams=10, width=64, height=48)
+    p, c = sfm_points(gt, every=3)
+    cfg = FitConfig.from_dict({"iterations": 20, "eval_every": 0, "sh_degree": 0, "max_side": 32,
+                               "densify": {"start": 10, "stop": 20, "every": 10}})
+    g, m = fit_static(imgs, cams, p, c, cfg, progress=False)
+    assert m["image_size"] == [32, 24] and m["plan"]["max_side"] == 32
+    with pytest.raises(ValueError, match="static.max_side"):
+        FitConfig.from_dict({"max_side": -1})
