@@ -237,9 +237,10 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
              "rasterizer %s, SSIM %s", len(train_idx), len(test_idx), g0.num, extent,
              "fused" if optimizer.defaults.get("fused") else "foreach", select_backend(cfg.backend, device),
              _ssim_path(device))
-    log.info("static fit plan (budget %s%s): at most %d steps, at most %d Gaussians (densifying until step %d), "
-             "held-out PSNR every %d steps; estimated %.1f min of training on this machine",
-             fit_plan.level, f"; set: {', '.join(fit_plan.pinned)}" if fit_plan.pinned else "", fit_plan.iterations,
+    log.info("static fit plan (budget %s%s): photos at %dx%d, at most %d steps, at most %d Gaussians (densifying "
+             "until step %d), held-out PSNR every %d steps; estimated %.1f min of training on this machine",
+             fit_plan.level, f"; set: {', '.join(fit_plan.pinned)}" if fit_plan.pinned else "", train_cams[0].width,
+             train_cams[0].height, fit_plan.iterations,
              fit_plan.max_gaussians, fit_plan.densify_stop, fit_plan.eval_every, fit_plan.estimated_seconds / 60)
 
     run = _FitRun(cfg, params, bg, test_imgs, test_cams, checkpoint_path, t_start, c_start)
