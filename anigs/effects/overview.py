@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import textwrap
 from pathlib import Path
+from typing import Sequence
 
 import cv2
 import numpy as np
@@ -69,9 +70,15 @@ def _numbers(panel: np.ndarray, res: EffectsResult, photo: int, region: str, sca
         cv2.putText(panel, str(c.number), org, FONT, 0.4, ink, 1, cv2.LINE_AA)
 
 
-def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_width: int = 256) -> None:
-    """Write the overview PNG of ``res`` to ``path`` (``photos`` rows, one column per region)."""
+def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_width: int = 256,
+                  warnings: Sequence[str] = ()) -> None:
+    """Write the overview PNG of ``res`` to ``path`` (``photos`` rows, one column per region);
+    ``warnings`` (e.g. a static fit too blurry to animate) in red at the top."""
     rows = []
+    if warnings:
+        width = len(REGIONS) * (panel_width + 4)
+        rows.append(_text_block([ln for w in warnings for ln in textwrap.wrap("WARNING: " + w, width // 7)], width,
+                                colour=(0.75, 0.05, 0.05)))
     header = []
     for r in REGIONS:
         e = res.effects[REGION_EFFECTS[r][0]]

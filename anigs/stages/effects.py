@@ -27,6 +27,7 @@ from anigs.effects.detect import photo_indices
 from anigs.effects.config import Config
 from anigs.stages import contract
 from anigs.stages.contract import File
+from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.shared_inputs import CanonicalInputs
 
@@ -100,6 +101,10 @@ def run(inputs: Inputs, cfg: Config) -> Outputs:
     out.root.mkdir(parents=True, exist_ok=True)
     out.save_array("regions", decision.result.region_of.astype(np.int8))
     out.save_array("dynamic", decision.dynamic)
-    save_overview(out.path("overview"), decision.result)
+    static = StaticOutputs(Path(inputs.canonical).parent)  # the static fit's own verdict on its sharpness
+    warning = static.metrics().get("accuracy", {}).get("warning") if static.exists("metrics") else None
+    if warning:
+        decision.report["static_fit_warning"] = warning
+    save_overview(out.path("overview"), decision.result, warnings=[warning] if warning else ())
     write_json(out.path("effects"), decision.report)
     return out
