@@ -6,7 +6,8 @@ of a facade have no points, so a fit started from SfM alone fills them late, wit
 densification drags there: large smears near the cameras that every novel view shows (the castle's
 sky, the street's blur). Outdoor 3DGS pipelines start such regions from a sphere of far points; here
 the sphere is sampled only where it is needed: for each training photo, the cells of a coarse grid
-that no SfM point projects into (nor next to) are cast as rays onto a sphere around the scene,
+that no SfM point projects into (nor next to) and that look up, or at most 3 degrees down, are
+cast as rays onto a sphere around the scene,
 coloured by the photo, deduplicated by direction. Cells whose colour is the fit's background
 (within ``BG_TOL``) are left out: the background already shows there (the synthetic demo's sky).
 Points that turn out hidden behind nearer surfaces get no gradient and are removed by the fit's
@@ -22,6 +23,9 @@ from anigs.cameras import Camera
 
 GRID = 64  # grid cells across a photo's width tested for SfM points (cells of at least 4 px)
 BG_TOL = 0.06  # a cell within this (max abs, RGB in [0,1]) of the background is left to it
+#: only rays at most 3 degrees below the horizon: what lies lower is ground near the cameras (a lawn SfM
+#: found no texture on), not far away (on the demo, far points on its lawn cost 0.3 dB held out)
+MIN_ELEVATION = -0.05
 
 
 def far_radius(points: np.ndarray, cameras: Sequence[Camera]) -> tuple[np.ndarray, float]:
@@ -90,6 +94,8 @@ def far_points(points: np.ndarray, cameras: Sequence[Camera], images: Sequence[n
         o = cam.center - mid  # |o + t d| = R, t > 0
         b = rays @ o
         t = -b + np.sqrt(np.maximum(b * b - (o @ o - radius * radius), 0.0))
+        up = rays[:, 2] > MIN_ELEVATION  # the SfM frame is z-up (anigs.sfm.align)
+        rays, t, col = rays[up], t[up], col[up]
         hit = o + t[:, None] * rays
         u = hit / np.linalg.norm(hit, axis=1, keepdims=True)
         key_a = np.floor(np.arctan2(u[:, 1], u[:, 0]) / step).astype(np.int64)

