@@ -18,18 +18,20 @@ from anigs.static.budget import CaptureSize, FitPlan, StepCost, next_level, plan
 
 MIN_TEST_PSNR = 21.0  # dB, held out
 MIN_TRAIN_PSNR = 24.0  # dB
+MAX_GAIN = 3.0  # dB: the most the curve's extrapolation promises (diminishing returns)
 OVERFIT_GAP = 6.0  # train minus held-out PSNR (dB) above which more photos help more than a longer fit
 
 
 def _extrapolate(curve: list[dict[str, Any]], steps: int) -> float | None:
-    """Held-out PSNR at ``steps`` from the curve's last half, linear in log(steps) (None: too few points)."""
+    """Held-out PSNR at ``steps``: the gain per doubling of steps over the curve's last interval,
+    carried on to ``steps`` and capped at :data:`MAX_GAIN` (None: fewer than two points)."""
     pts = [(r["iteration"], r["test_psnr"]) for r in curve if r["iteration"] > 0 and math.isfinite(r["test_psnr"])]
-    pts = pts[len(pts) // 2:]
+    pts = [p for i, p in enumerate(pts) if i == 0 or p[0] > pts[i - 1][0]]  # a re-evaluation at the same step
     if len(pts) < 2 or steps <= pts[-1][0]:
         return None
-    (s0, p0), (s1, p1) = pts[0], pts[-1]
-    slope = (p1 - p0) / math.log(s1 / s0) if s1 > s0 else 0.0
-    return p1 + max(slope, 0.0) * math.log(steps / s1)
+    (s0, p0), (s1, p1) = pts[-2], pts[-1]
+    per_doubling = max(p1 - p0, 0.0) / math.log2(s1 / s0)
+    return p1 + min(per_doubling * math.log2(steps / s1), MAX_GAIN)
 
 
 def accuracy_record(metrics: dict[str, Any], fit_plan: FitPlan, size: CaptureSize, cost: StepCost,
@@ -48,7 +50,9 @@ def accuracy_record(metrics: dict[str, Any], fit_plan: FitPlan, size: CaptureSiz
         rec["next"] = {"level": nxt, "steps": p.iterations, "gaussians": p.max_gaussians,
                        "estimated_minutes": round(p.estimated_seconds / 60.0, 1),
                        "test_psnr_from_curve": None if est is None else round(est, 2),
-                       "note": "the curve's extrapolation counts more steps only; more Gaussians add to it"}
+                       "note": "test_psnr_from_curve: the gain per doubling of steps over the held-out curve's last "
+                               f"interval, carried on to the next level's steps (at most +{MAX_GAIN:g} dB); more "
+                               "Gaussians and a larger image size change it further"}
     rec["warning"] = _warning(metrics, fit_plan, size, cost, start_gaussians)
     return rec
 
