@@ -88,6 +88,8 @@ def test_accuracy_record_next_level_and_warning():
     assert "static.max_side" in poor["warning"] or "static.budget: quality" in poor["warning"]
     overfit = accuracy_record(_metrics(MIN_TEST_PSNR - 4, MIN_TRAIN_PSNR + 4), p, STREET, COST, 1500)
     assert "more photos" in overfit["warning"]
+    street = accuracy_record(_metrics(15.0, 23.7), p, STREET, COST, 1500)  # lund-street at auto: under both
+    assert "more photos" in street["warning"] and "9 dB better" in street["warning"]
 
 
 def test_fit_reports_plan_and_stops_on_a_flat_curve():
