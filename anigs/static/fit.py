@@ -25,8 +25,7 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.typed_config import reject_unknown_keys
-from anigs.static.budget import parse_budget
-from anigs.static.budget import CaptureSize
+from anigs.static.budget import CaptureSize, parse_budget
 from anigs.static.planning import downscaled, fit_side, flat_curve, plan_fit, resolved
 from anigs.static.report import accuracy_record
 from anigs.static.densify import (DensifyConfig, DensifyState, refine, refine_due, schedule_for, stats_needed,
@@ -384,7 +383,7 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
         if run.params["means"].shape[0] == 0:
             raise RuntimeError(f"static fit: no Gaussians left at iteration {step}")
         stats = dstate if stats_needed(densify_cfg, step) else None
-        step_bg = torch.rand(3, generator=gen).to(device) if cfg.background == "random" else run.bg
+        step_bg = torch.rand(3, generator=gen).to(device) if cfg.background == "random" else run.bg  # (random_bg)
         loss, rgb = train_step(run.params, optimizer, cam, target, deg, step_bg, cfg.backend, cfg.ssim_weight,
                                mats=train_mats[v], stats=stats, guard=guard, step=step)
 
