@@ -383,7 +383,7 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
         if run.params["means"].shape[0] == 0:
             raise RuntimeError(f"static fit: no Gaussians left at iteration {step}")
         stats = dstate if stats_needed(densify_cfg, step) else None
-        step_bg = torch.rand(3, generator=gen).to(device) if cfg.background == "random" else run.bg  # (random_bg)
+        step_bg = torch.rand(3, generator=gen).to(device) if cfg.background == "random" else run.bg
         loss, rgb = train_step(run.params, optimizer, cam, target, deg, step_bg, cfg.backend, cfg.ssim_weight,
                                mats=train_mats[v], stats=stats, guard=guard, step=step)
 
