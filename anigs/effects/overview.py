@@ -77,7 +77,7 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
     rows = []
     if warnings:
         width = len(REGIONS) * (panel_width + 4)
-        rows.append(_text_block([ln for w in warnings for ln in textwrap.wrap("WARNING: " + w, width // 7)], width,
+        rows.append(_text_block([ln for w in warnings for ln in textwrap.wrap("WARNING: " + w, width // 8)], width,
                                 colour=(0.75, 0.05, 0.05)))
     header = []
     for r in REGIONS:
