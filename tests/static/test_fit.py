@@ -203,7 +203,9 @@ def test_nan_gradient_is_detected(scene, monkeypatch):
 def test_fit_end_to_end_improves_held_out_psnr(scene):
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=3, noise=0.03)
+    # the scene is rendered onto black: a synthetic scene's background is known (as the demo's sky)
     cfg = FitConfig.from_dict({"iterations": 300, "eval_every": 100, "sh_degree": 1, "sh_increase_every": 150,
+                               "background": [0.0, 0.0, 0.0],
                                "densify": {"start": 50, "stop": 250, "every": 50, "reset_every": 0,
                                            "max_gaussians": 3000}})
     g, m = fit_static(imgs, cams, p, c, cfg, progress=False)
