@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 MODULES = ROOT / ".node" / "node_modules"
 NODE = shutil.which("node")
 PACKAGES = {"splat-transform": "@playcanvas/splat-transform", "spark": "@sparkjsdev/spark", "three": "three",
-            "gltf-validator": "gltf-validator"}
+            "gltf-validator": "gltf-validator", "playcanvas": "playcanvas"}
 
 
 def missing(*names: str) -> list[str]:
