@@ -10,7 +10,6 @@ import json
 import math
 
 import numpy as np
-import pytest
 
 from anigs.formats.orientation import Y_UP
 from tests._browser import chrome, needs_browser
