@@ -88,19 +88,24 @@ def match_selection(path: str | Path, means: np.ndarray, tol: float,
     dist, idx = cKDTree(means).query(pts, k=k)
     dist, idx = dist.reshape(len(pts), k), idx.reshape(len(pts), k)
     near = dist <= radius[:, None]
-    if appearance is not None and layout == "compressed ply":  # several within a coarse step: the most alike
-        key = appearance_key(sel)
-        score = np.where(near, np.abs(appearance[idx] - key[:, None]).sum(-1), np.inf)
-        pick = score.argmin(1)
-    else:
-        pick = np.zeros(len(pts), int)
     rows = np.arange(len(pts))
+    pick = np.zeros(len(pts), int)  # the nearest within the tolerance ...
+    key = appearance_key(sel) if appearance is not None else None
+    if key is not None:
+        diff = np.abs(appearance[idx] - key[:, None]).max(-1)  # [M,k]
+        if layout == "compressed ply":  # ... or, within a coarse step, the most alike
+            pick = np.where(near, diff, np.inf).argmin(1)
+        else:  # ... or the one that is the same Gaussian (a moved neighbour may sit within the tolerance)
+            same = near & (diff <= KEY_TOL)
+            pick = np.where(same.any(1), same.argmax(1), 0)
     ok, found = near[rows, pick], idx[rows, pick]
     moved = 0
-    if appearance is not None and layout == "ply" and len(pts) and not ok.all():
-        miss = np.flatnonzero(~ok)
-        key = appearance_key(sel)[miss]
-        kd, kidx = cKDTree(appearance).query(key, k=k, p=np.inf)
+    miss = np.zeros(0, int)
+    if key is not None and layout == "ply":
+        # plain PLY: a splat whose position holds no Gaussian that looks like it had moved (animated.ply, a frame)
+        miss = np.flatnonzero(~(near & (diff <= KEY_TOL)).any(1))
+    if len(miss):
+        kd, kidx = cKDTree(appearance).query(key[miss], k=k, p=np.inf)
         kd, kidx = kd.reshape(len(miss), k), kidx.reshape(len(miss), k)
         # of the Gaussians that look the same (clones, flat synthetic colours), the nearest
         far = np.where(kd <= KEY_TOL, np.linalg.norm(means[kidx] - pts[miss, None], axis=-1), np.inf)
@@ -110,6 +115,7 @@ def match_selection(path: str | Path, means: np.ndarray, tol: float,
         ok[miss[hit]] = True
         found[miss[hit]] = kidx[rows_m, best][hit]
         moved = int(hit.sum())
+        # no Gaussian looks like it anywhere near (a tool changed its colours): its position decides, as above
     if len(pts) == 0 or ok.mean() < MIN_MATCHED:
         how = "" if appearance is None or layout != "ply" else " or carry the colour, opacity and scale of a Gaussian nearby"
         raise ValueError(
