@@ -163,7 +163,7 @@ def test_spark_renders_ply_spz_and_a_frame_upright(site, browser, tmp_path):
 @pytest.mark.skipif(not os.environ.get("ANIGS_SPARK_RESULTS"),
                     reason="set ANIGS_SPARK_RESULTS to a results folder with a finished demo run (demo/static, "
                            "demo/sfm, demo/full/export) to compare Spark with the demo's photo")
-def test_spark_renders_the_demo_like_its_photo(site, browser):
+def test_spark_renders_the_demo_like_its_photo(site, browser, tmp_path):
     """The demo's canonical.ply and canonical.spz in Spark from its most level SfM camera: within 10/255
     (mean) of the photo."""
     import shutil
@@ -180,7 +180,10 @@ def test_spark_renders_the_demo_like_its_photo(site, browser):
     photo = iio.imread(results / "sfm" / "images" / cam.name)[..., :3].astype(np.float64) / 255
     shutil.copy(results / "static" / "canonical.ply", root / "demo.ply")
     shutil.copy(results / "full" / "export" / "canonical.spz", root / "demo.spz")
-    diffs = {name: float(np.abs(spark_render(browser, url + name, cam) - photo).mean() * 255)
-             for name in ("demo.ply", "demo.spz")}
-    print("demo: camera", cam.name, "roll", min(roll), "spark vs photo mean abs difference (of 255):", diffs)
+    shots = {name: spark_render(browser, url + name, cam) for name in ("demo.ply", "demo.spz")}
+    diffs = {name: float(np.abs(img - photo).mean() * 255) for name, img in shots.items()}
+    sheet = np.concatenate([photo, shots["demo.ply"], shots["demo.spz"]], 1)
+    iio.imwrite(tmp_path / "spark_demo.png", (sheet * 255).round().astype(np.uint8))  # photo | ply | spz
+    print("demo: camera", cam.name, "roll", min(roll), "spark vs photo mean abs difference (of 255):", diffs,
+          tmp_path / "spark_demo.png")
     assert all(v < 10 for v in diffs.values()), diffs
