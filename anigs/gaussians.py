@@ -209,7 +209,9 @@ def save_ply(g: Gaussians, path: str | Path) -> None:
             fh.write(np.ascontiguousarray(data).tobytes())
 
 
-def _read_header(fh) -> tuple[str, list[tuple[str, int, list[tuple[str, str]]]]]:
+def read_ply_header(fh) -> tuple[str, list[tuple[str, int, list[tuple[str, str]]]]]:
+    """The PLY header of the open binary file ``fh``: its format and its elements (name, count,
+    [(property, numpy type code or 'list')]); ``fh`` is left at the first data byte."""
     first = fh.readline().strip()
     if first != b"ply":
         raise ValueError("not a PLY file (missing 'ply' magic)")
@@ -247,7 +249,7 @@ def load_ply(path: str | Path) -> Gaussians:
     if not path.exists():
         raise FileNotFoundError(f"PLY not found: {path}")
     with open(path, "rb") as fh:
-        fmt, elements = _read_header(fh)
+        fmt, elements = read_ply_header(fh)
         if not elements or elements[0][0] != "vertex":
             raise ValueError(f"{path}: first PLY element must be 'vertex'")
         _, n, props = elements[0]

@@ -30,7 +30,7 @@ from pathlib import Path
 LAYERS: list[tuple[str, set[str]]] = [
     ("base: data types, IO, device, math", {
         "io", "device", "config", "configs", "typed_config", "images", "video", "flow", "cameras",
-        "gaussians", "geometry", "benchmark_tsv", "photos", "pixels", "registry"}),
+        "gaussians", "geometry", "benchmark_tsv", "photos", "pixels", "registry", "formats"}),
     ("compiled kernels: rasterizer, SSIM", {"render", "ssim", "fused_ssim", "ssim_kernel"}),
     ("scene sources: synthetic scene, photos, SfM", {"synth", "sfm", "capture_config"}),
     ("scene analysis: static fit, effects, views", {"static", "effects", "views"}),

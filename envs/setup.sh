@@ -16,7 +16,8 @@ CONSTRAINTS="${ANIGS_CONSTRAINTS:-envs/constraints.txt}"
 # Optional extras (e.g. ANIGS_EXTRAS=ltx,gsplat). The test suite runs the real LTX code path
 # with tiny random weights and uses gsplat's pure-torch functions as an oracle, so 'test'
 # installs both by default (neither downloads weights; gsplat's CUDA kernels stay unused),
-# plus the 'test' extra (plyfile, selenium) and Debian's chromium (envs/browser.sh).
+# plus the 'test' extra (plyfile, gsply, pygltflib, selenium), Debian's chromium (envs/browser.sh)
+# and the npm tools of the interoperability tests (envs/npm.sh, into .node/).
 if [ "$MODE" = "test" ]; then EXTRAS="${ANIGS_EXTRAS-ltx,gsplat,slurm,test}"; else EXTRAS="${ANIGS_EXTRAS:-}"; fi
 
 if [ ! -x "$VENV/bin/python" ]; then
@@ -40,6 +41,8 @@ fi
 "$VENV/bin/anigs" build-kernel --quiet
 # the browser tests (viewer, study page) drive Debian's chromium; installed as root where apt exists
 if [ "$MODE" = "test" ]; then ANIGS_VENV="$VENV" bash envs/browser.sh "$VENV"; fi
+# the interoperability tests run splat-transform, Spark (three.js) and the glTF validator from npm
+if [ "$MODE" = "test" ]; then bash envs/npm.sh; fi
 export PATH="$(cd "$VENV/bin" && pwd):$PATH"
 
 case "$MODE" in

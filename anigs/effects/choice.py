@@ -84,10 +84,10 @@ def decide_effects(photos: Sequence[np.ndarray], cams: Sequence, g, cfg: Config,
     by_prompt = kinds is not None and is_auto(requested)
     res = detect_effects(photos, cams, g, cfg, kinds.regions if by_prompt else None)
     if cfg.drop or cfg.force or cfg.boxes or cfg.selections:
-        from anigs.effects.corrections import apply_corrections
+        from anigs.effects.corrections import appearance_key, apply_corrections
 
         for note in apply_corrections(res, g.means.detach().double().numpy(), cfg.drop, cfg.force, cfg.boxes,
-                                      cfg.selections, cfg.selection_tol):
+                                      cfg.selections, cfg.selection_tol, appearance_key(g)):
             log.info("effects: correction: %s", note)
     named = None
     if by_prompt:  # the prompt's kinds, and those the user's corrections make move

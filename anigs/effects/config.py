@@ -108,9 +108,11 @@ class Config:
     # the user's corrections (anigs/effects/corrections.py; numbers as in overview.png)
     drop: list = field(default_factory=list)  # numbered candidates of overview.png that must not move
     force: list = field(default_factory=list)  # numbered candidates a geometry rule set aside that move all the same
-    #: 3D boxes {min: [x, y, z], max: [x, y, z], effect: NAME or still} in the frame of static/canonical.ply
+    #: 3D boxes {min: [x, y, z], max: [x, y, z], effect: NAME or still, frame: anigs or supersplat}: corners in the
+    #: frame of static/canonical.ply (anigs, the default) or as SuperSplat shows positions ((-x, -y, z): supersplat)
     boxes: list = field(default_factory=list)
-    #: SuperSplat selection exports {ply: PATH, effect: NAME or still}, matched to the fitted Gaussians by position
+    #: SuperSplat selection exports {ply: PATH, effect: NAME or still} (PLY or compressed PLY), matched to the fitted
+    #: Gaussians by position (moved ones, from animated.ply or a frame, by colour, opacity and scale)
     selections: list = field(default_factory=list)
     #: a selected splat matches the fitted Gaussian within this x the model's bounding-box diagonal
     selection_tol: float = 0.0001

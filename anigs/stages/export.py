@@ -5,7 +5,9 @@
 ``scene.anigs`` (the compact format of :mod:`anigs.viewer.compact`: the canonical Gaussians once,
 DCT motion coefficients of the moving ones only; ``load_compact(path).frame(t)`` reproduces the
 library's frame t exactly), ``animated.ply`` (the standard 3DGS PLY plus per-Gaussian DCT
-properties) with its JSON sidecar, and with ``frames: true`` the per-frame PLY sequence.
+properties) with its JSON sidecar, the static scene (``static/canonical.ply``) as glTF binary with
+``KHR_gaussian_splatting`` (``canonical.glb``, its node turned +y up) and as SPZ (``canonical.spz``),
+and with ``frames: true`` the per-frame PLY sequence.
 """
 from __future__ import annotations
 
@@ -30,6 +32,9 @@ class Outputs(contract.Outputs):
                                             "DCT motion of the moving Gaussians"),
               "ply": File("animated.ply", "standard 3DGS PLY + per-Gaussian DCT properties"),
               "sidecar": File("animated.json", "the PLY's sidecar: K, T, fps, dynamic count, frames, compact"),
+              "glb": File("canonical.glb", "the static scene as glTF binary with KHR_gaussian_splatting "
+                                           "(positions as canonical.ply's, the node stands it +y up)"),
+              "spz": File("canonical.spz", "the static scene as SPZ v3 (anigs's +z-up frame, as canonical.ply)"),
               "frames": File("frames/", "with export.frames: one 3DGS PLY per frame", optional=True)}
 
 
@@ -61,7 +66,10 @@ Config = ExportConfig  # the `export` config section
 
 def run(inputs: Inputs, cfg: ExportConfig) -> Outputs:
     """Export the model into the export folder (``animated.json`` holds what was written)."""
+    from anigs import __version__
     from anigs.export import save_animated_ply, sidecar
+    from anigs.formats.gltf import save_glb
+    from anigs.formats.spz import save_spz
     from anigs.io import write_json
     from anigs.viewer.compact import save_compact, write_frame_plys
 
@@ -73,6 +81,11 @@ def run(inputs: Inputs, cfg: ExportConfig) -> Outputs:
     meta = sidecar(deformation, cfg.fps, Outputs.LAYOUT["ply"].name, extra)
     meta["frames"] = names
     meta["compact"] = Outputs.LAYOUT["compact"].name
+    static = inputs.static.canonical()
+    save_glb(out.path("glb"), static, generator=f"anigs {__version__}")
+    save_spz(out.path("spz"), static)
+    meta["static"] = {"glb": Outputs.LAYOUT["glb"].name, "spz": Outputs.LAYOUT["spz"].name,
+                      "up": "+z (anigs's frame; canonical.glb's node turns it +y up)"}
     write_json(out.path("sidecar"), meta)
     log.info("export: %d frame PLYs and %s (%d dynamic of %d Gaussians, K=%d, T=%d) -> %s",
              len(names), out.path("ply").name, deformation.num_dynamic, canonical.num, deformation.num_bases, deformation.num_frames, out.root)

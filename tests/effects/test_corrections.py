@@ -12,8 +12,9 @@ import pytest
 import torch
 
 from anigs.cli import main
-from anigs.effects.config import REGIONS
+from anigs.effects.config import EFFECT_REGION, REGIONS
 from anigs.stages.effects import Outputs as EffectsOutputs
+from tests._node import needs_node, splat_transform
 
 SUPERSPLAT_SEQUENCE = re.compile(r"(.*?)(\d+)(?:\.compressed)?\.ply$")  # SuperSplat's isPlySequence (src/file-handler.ts)
 
@@ -85,11 +86,110 @@ def test_box_and_supersplat_selection(room, caplog):
     dyn = EffectsOutputs(tmp / "sel").dynamic()
     assert doc["chosen"] == ["flower_bob"]  # the rug bobs because the box says so; the plant stays still
     assert dyn[rug].mean() > 0.99 and not dyn[label == 4].any()
-    # a selection exported after moving the model in SuperSplat does not match: a clear error
-    moved = g.subset(torch.from_numpy(np.flatnonzero(label == 4)))
-    moved.means[:, 2] += 0.5
-    moved.save_ply(tmp / "moved.ply")
-    _fails(tmp, {"selections": [{"ply": str(tmp / "moved.ply")}]}, caplog, "Reset its transform")
+    # a selection of Gaussians this model does not have (another run's: other colours, elsewhere): a clear error
+    other = g.subset(torch.from_numpy(np.flatnonzero(label == 4)))
+    other.means[:, 2] += 0.5
+    other.sh[:, 0] += 0.3
+    other.save_ply(tmp / "other.ply")
+    _fails(tmp, {"selections": [{"ply": str(tmp / "other.ply")}]}, caplog, "reset its transform.*select on static/canonical.ply")
+
+
+# ---- the SuperSplat round trip without traps (issue 37) ----------------------------------------
+
+def _rug_box(g, rug: np.ndarray) -> tuple[list, list]:
+    m = g.means.numpy()[rug]
+    return (m.min(0) - 0.01).tolist(), (m.max(0) + 0.01).tolist()
+
+
+def test_box_corners_read_off_supersplat(room, caplog):
+    """Trap 1: SuperSplat shows positions as (-x, -y, z); its corners with ``frame: supersplat`` select
+    the rug, not its mirror image; without it the note says what the SuperSplat reading would hold."""
+    from anigs.formats.orientation import SUPERSPLAT
+    from anigs.gaussians import load_ply
+    from anigs.synth.decoys import DECOY_IDS
+
+    tmp, d, _ = room
+    g = load_ply(tmp / "canonical.ply")
+    rug = d.gaussians.extras["decoy"].numpy() == DECOY_IDS["rug"]
+    lo, hi = _rug_box(g, rug)
+    shown = np.array([lo, hi]) @ SUPERSPLAT  # the corners as SuperSplat displays them
+    box = {"min": shown.min(0).tolist(), "max": shown.max(0).tolist(), "effect": "flower_bob"}
+    flowers = lambda out: np.load(tmp / out / "regions.npy") == REGIONS.index(EFFECT_REGION["flower_bob"])
+    before = flowers("auto")
+    doc = _run(tmp, "ss_box", {"boxes": [{**box, "frame": "supersplat"}]})
+    added = flowers("ss_box") & ~before
+    assert "flower_bob" in doc["chosen"] and added[rug].mean() > 0.99
+    m = g.means.numpy()
+    in_box = np.all((m >= lo) & (m <= hi), axis=1)
+    assert np.array_equal(added, in_box & ~before)  # exactly the box around the rug, not its mirror image
+    # the same corners without the frame: the mirror image, and the note names the SuperSplat reading
+    doc = _run(tmp, "ss_box_anigs", {"boxes": [box]})
+    assert "frame: supersplat" in doc["corrections"][0], doc["corrections"]
+    in_mirror = np.all((m >= shown.min(0)) & (m <= shown.max(0)), axis=1)
+    assert np.array_equal(flowers("ss_box_anigs") & ~before, in_mirror & ~before) and in_mirror.sum() < in_box.sum()
+    # a box far outside the scene is an error, not a silent no-op; an unknown key too
+    _fails(tmp, {"boxes": [{"min": [50, 50, 50], "max": [51, 51, 51]}]}, caplog, "holds no Gaussian")
+    _fails(tmp, {"boxes": [{**box, "frame": "threejs"}]}, caplog, "frame: one of")
+
+
+def test_selection_made_on_animated_ply_or_a_frame(room, caplog):
+    """Trap 2: the plant selected on export/animated.ply (canonical positions trained by the update) or
+    on a frame PLY (moved by the animation) is matched, by colour, opacity and scale."""
+    from anigs.animate.deform import DCTDeformation
+    from anigs.animate.frames import deformed
+    from anigs.export import save_animated_ply
+    from anigs.gaussians import load_ply
+
+    tmp, d, _ = room
+    g = load_ply(tmp / "canonical.ply")
+    plant = np.flatnonzero(d.gaussians.extras["label"].numpy() == 4)
+    idx = torch.from_numpy(plant)
+    deform = DCTDeformation(idx, 9, 3, rotation=True, num_gaussians=g.num)
+    with torch.no_grad():
+        deform.pos_coeffs.copy_(torch.randn(deform.pos_coeffs.shape, generator=torch.Generator().manual_seed(0)) * 0.05)
+        deform.rot_coeffs.copy_(torch.randn(deform.rot_coeffs.shape, generator=torch.Generator().manual_seed(1)) * 0.1)
+    trained = g.detach()
+    trained.means[idx] += torch.randn(len(plant), 3, generator=torch.Generator().manual_seed(2)) * 0.01  # the update's
+    save_animated_ply(tmp / "animated.ply", trained, deform)
+    load_ply(tmp / "animated.ply").subset(idx).save_ply(tmp / "sel_animated.ply")
+    frame = deformed(trained, deform, 4)
+    moved = (frame.means[idx] - g.means[idx]).norm(dim=1)
+    assert moved.median() > 0.02  # the frame's plant is far from canonical.ply's (beyond the position tolerance)
+    frame.subset(idx).save_ply(tmp / "sel_frame.ply")
+    for name in ("sel_animated", "sel_frame"):
+        doc = _run(tmp, name, {"selections": [{"ply": str(tmp / f"{name}.ply"), "effect": "still"}]})
+        dyn = EffectsOutputs(tmp / name).dynamic()
+        # the synthetic plant has groups of identical Gaussians (48 share colour, opacity and scale with up to 24
+        # others): such a splat takes the nearest of its look-alikes, so a few of the plant stay unmatched
+        assert dyn[plant].mean() < 0.03, (name, dyn[plant].mean())
+        assert "had moved" in doc["corrections"][0], doc["corrections"]
+
+
+@needs_node("splat-transform")
+def test_supersplat_compressed_ply_selection(room, caplog):
+    """Trap 3: SuperSplat's "Compressed PLY" export (splat-transform's writer, which SuperSplat calls) is
+    read, and matched with a tolerance that follows its quantisation: a large sparse selection whose
+    rounding exceeds the float tolerance matches in full."""
+    from anigs.formats.compressed_ply import read_compressed_ply
+    from anigs.gaussians import load_ply
+
+    tmp, d, _ = room
+    g = load_ply(tmp / "canonical.ply")
+    label = d.gaussians.extras["label"].numpy()
+    plant = np.flatnonzero(label == 4)
+    sparse = np.flatnonzero(label != 4)[::7]  # spread over the room: coarse chunks
+    sel = np.concatenate([plant, sparse])
+    g.subset(torch.from_numpy(sel)).save_ply(tmp / "sel.ply")
+    splat_transform(tmp / "sel.ply", tmp / "sel.compressed.ply")
+    back, step = read_compressed_ply(tmp / "sel.compressed.ply")
+    diag = float(np.linalg.norm(g.means.numpy().max(0) - g.means.numpy().min(0)))
+    err = np.linalg.norm(back.means.numpy()[:, None] - g.means.numpy()[sel][None], axis=-1).min(1)
+    assert err.max() > 1e-4 * diag  # the rounding exceeds the float tolerance (selection_tol x diagonal) ...
+    assert (err <= np.linalg.norm(step, axis=1) / 2 + 1e-5).all()  # ... and stays within half a step
+    doc = _run(tmp, "sel_compressed", {"selections": [{"ply": str(tmp / "sel.compressed.ply"), "effect": "still"}]})
+    dyn = EffectsOutputs(tmp / "sel_compressed").dynamic()
+    assert not dyn[plant].any()
+    assert f"{len(sel)} Gaussians never move" in doc["corrections"][0], doc["corrections"]
 
 
 def test_frame_plys_load_as_one_supersplat_timeline(tmp_path):

@@ -60,6 +60,16 @@ def test_export_cli(tmp_path):
     assert meta["compact"] == "scene.anigs"
     scene = load_compact(tmp_path / "exp" / "scene.anigs")
     assert torch.equal(scene.frame(4).means, d(g, 4).means)
+    # the static scene as SPZ (within its 1/4096 position steps) and glTF (positions exactly)
+    from anigs.formats.spz import load_spz
+
+    assert meta["static"]["glb"] == "canonical.glb" and meta["static"]["spz"] == "canonical.spz"
+    assert (load_spz(tmp_path / "exp" / "canonical.spz").means - g.means).abs().max() <= 0.5 / 4096 + 1e-6
+    raw = (tmp_path / "exp" / "canonical.glb").read_bytes()
+    n = int.from_bytes(raw[12:16], "little")
+    doc = json.loads(raw[20:20 + n])
+    pos = doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]
+    assert raw[:4] == b"glTF" and pos["count"] == 40 and np.allclose(pos["min"], g.means.min(0).values.numpy())
     # per-frame PLYs only on request (export.frames)
     assert cli([*src, "--out", str(tmp_path / "exp2")]) == 0
     meta2 = json.loads((tmp_path / "exp2" / "animated.json").read_text())

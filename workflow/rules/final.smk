@@ -71,6 +71,8 @@ rule export:
         sidecar=stage_out("export", "sidecar"),
         ply=stage_out("export", "ply"),
         compact=stage_out("export", "compact"),
+        glb=stage_out("export", "glb"),
+        spz=stage_out("export", "spz"),
     log:
         f"{R}/{{scene}}/{{variant}}/logs/export.log",
     benchmark:
