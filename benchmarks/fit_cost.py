@@ -8,8 +8,8 @@ thins it to N by copying rows with a small jitter, 0: as it is), times the parts
 step of :func:`anigs.static.fit.train_step` view by view: the render, the loss (L1 + fused SSIM),
 the backward of both, the densification statistics and the fused Adam step;
 medians over ``--reps`` steps of wall and process CPU milliseconds. Prints a Markdown table and the
-least-squares fit of the step's wall ms to ``a + b * pixels + c * Gaussians`` (the cost model of
-:class:`anigs.static.budget.StepCost`).
+least-squares fit of the step's wall and CPU seconds to ``a + b * pixels + c * Gaussians + d * pixels *
+Gaussians`` (the cost model of :class:`anigs.static.budget.StepCost`).
 """
 from __future__ import annotations
 
@@ -92,16 +92,18 @@ def main() -> None:
                     parts["adam"].append(ta)
             med = {k: float(np.median(v)) for k, v in parts.items()}
             px = views[0][1].width * views[0][1].height
-            rows.append((px, g.num, med["step"]))
+            rows.append((px, g.num, med["step"], med["step_cpu"]))
             print(f"| {views[0][1].width}x{views[0][1].height} | {px:,} | {g.num:,} | {med['step']:.1f} | "
                   f"{med['step_cpu']:.1f} | {med['render']:.1f} | {med['loss']:.1f} | {med['backward']:.1f} | {med['stats']:.1f} | "
                   f"{med['adam']:.1f} |", flush=True)
-    if len(rows) >= 3:
-        A = np.array([[1.0, p, n] for p, n, _ in rows])
-        y = np.array([s for _, _, s in rows]) / 1e3
-        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-        print(f"\nstep seconds ~ {coef[0]:.4g} + {coef[1]:.3g} * pixels + {coef[2]:.3g} * Gaussians "
-              f"({args.threads} threads)")
+    if len(rows) >= 4:
+        A = np.array([[1.0, p, n, p * n] for p, n, _, _ in rows])
+        for col, name in ((2, "wall"), (3, "CPU")):
+            y = np.array([r[col] for r in rows]) / 1e3
+            coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+            err = float(np.max(np.abs(A @ coef - y) / y))
+            print(f"\nstep {name} seconds ~ {coef[0]:.3g} + {coef[1]:.3g} * pixels + {coef[2]:.3g} * Gaussians + "
+                  f"{coef[3]:.3g} * pixels * Gaussians ({args.threads} threads; largest error {100 * err:.0f}%)")
 
 
 if __name__ == "__main__":

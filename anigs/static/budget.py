@@ -13,8 +13,8 @@ Keys set explicitly in the section win over the level (``static.iterations``,
 ``static.densify.max_gaussians``, ``static.densify.stop``). The fit ends early when its held-out
 curve flattens (``static.plateau_db``), so a level's steps are an upper bound.
 
-The time estimate: a step costs ``a + b * pixels + c * Gaussians`` seconds. The coefficients are
-the least-squares fit of ``benchmarks/fit_cost.py`` on 2 cores (its table is in
+The time estimate: a step costs ``a + b * pixels + c * Gaussians + d * pixels * Gaussians`` seconds
+(:class:`StepCost`; the least-squares fit of ``benchmarks/fit_cost.py``, whose table is in
 benchmarks/README.md, "What the static fit costs"); :func:`calibrate` times a few steps of the fit
 itself on this machine before training and scales the model by the measured / predicted ratio,
 so the estimate in the log is for this machine under its current load.
@@ -98,15 +98,22 @@ def fit_scale(width: int, height: int, max_side: int) -> float:
 
 @dataclass(frozen=True)
 class StepCost:
-    """Seconds per training step: ``scale * (a + b * pixels + c * gaussians)``."""
+    """Seconds per training step: ``scale * (a + b * pixels + c * gaussians + d * pixels * gaussians)``
+    (the last term: larger splats on larger photos cover more pixels each). The coefficients are one
+    thread's CPU seconds measured by ``benchmarks/fit_cost.py`` on the street walk (12 points, 76k-697k
+    pixels, 20k-150k Gaussians, within 6%); ``scale`` brings them to this machine and its threads."""
 
-    a: float = 0.012  # fixed part (s)
-    b: float = 1.9e-7  # per pixel of the photo (s)
-    c: float = 1.3e-6  # per Gaussian (s)
-    scale: float = 1.0  # measured / predicted on this machine (:func:`calibrate`)
+    a: float = 5.4e-3  # fixed part (s)
+    b: float = 1.94e-7  # per pixel of the photo (s)
+    c: float = 7.2e-7  # per Gaussian (s)
+    d: float = 5.0e-12  # per pixel and Gaussian (s)
+    scale: float = 1.0  # measured / predicted on this machine (:meth:`calibrated`)
+
+    def _model(self, pixels: int, gaussians: float) -> float:
+        return self.a + self.b * pixels + self.c * gaussians + self.d * pixels * gaussians
 
     def step(self, pixels: int, gaussians: float) -> float:
-        return self.scale * (self.a + self.b * pixels + self.c * gaussians)
+        return self.scale * self._model(pixels, gaussians)
 
     def fit_seconds(self, pixels: int, steps: int, start_gaussians: int, max_gaussians: int, densify_stop: int) -> float:
         """Estimated training seconds: the Gaussian count grows linearly from its start to the
@@ -119,9 +126,9 @@ class StepCost:
 
     def calibrated(self, measured: float, pixels: int, gaussians: int) -> "StepCost":
         """This model scaled so it predicts ``measured`` seconds for a step at (pixels, gaussians)."""
-        pred = self.a + self.b * pixels + self.c * gaussians
+        pred = self._model(pixels, gaussians)
         scale = measured / pred if pred > 0 and math.isfinite(measured) and measured > 0 else 1.0
-        return StepCost(self.a, self.b, self.c, scale)
+        return replace(self, scale=scale)
 
 
 @dataclass(frozen=True)
