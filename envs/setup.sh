@@ -27,7 +27,7 @@ STAMP="$VENV/.anigs-install-stamp-${EXTRAS:-core}"
 WANT="$(cat pyproject.toml "$CONSTRAINTS" envs/anigs.post-deploy.sh | sha256sum | cut -c1-16)"
 if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   echo "[anigs] installing dependencies (torch pinned by $CONSTRAINTS)"
-  "$VENV/bin/python" -m pip install -q --upgrade pip setuptools wheel -c "$CONSTRAINTS"
+  "$VENV/bin/python" -m pip install -q --upgrade pip "setuptools>=77" wheel -c "$CONSTRAINTS"
   TORCH_PIN="$(grep -E '^torch[=<>~!]' "$CONSTRAINTS" | head -1 || true)"
   "$VENV/bin/python" -m pip install -q "${TORCH_PIN:-torch}" -c "$CONSTRAINTS"
   SPEC="."
