@@ -4,8 +4,16 @@
 Shared scene builders live in ``tests/_scenes.py``."""
 from __future__ import annotations
 
-import pytest
-import torch
+import os
+
+# One BLAS thread for numpy, set before numpy loads (torch imports it): OpenBLAS's threads spin
+# while they wait for each other and stall on an oversubscribed machine (tests/metrics/
+# test_bootstrap.py's SVDs took 558 s instead of 16 s on a loaded 2-core machine). Torch's own
+# threads: the one_thread fixture. Export OPENBLAS_NUM_THREADS to choose another count.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import pytest  # noqa: E402
+import torch  # noqa: E402
 
 
 def pytest_addoption(parser):
