@@ -3,6 +3,8 @@ import os
 
 from snakemake.utils import min_version, validate
 
+from anigs.registry import STAGES
+
 min_version("8.0")
 
 
@@ -22,18 +24,15 @@ include: "workflow/rules/animate.smk"
 include: "workflow/rules/final.smk"
 include: "workflow/rules/fvd_gt.smk"
 include: "workflow/rules/eval.smk"
+include: "workflow/rules/targets.smk"
 
 
-# Named targets. A stage's rule carries the stage's name (the stages: STAGES in
-# anigs/registry.py; those that combine scenes are targets themselves); the targets that
-# build one stage for every scene and variant are all_<stage>.
+# Named targets: `all` (the default) and `all_<stage>` for every stage of the registry
+# (anigs/registry.py STAGES): what that stage's jobs write for every scene and variant
+# (workflow/rules/targets.smk); `all_animate`, every variant's final model, is also `animate`.
 localrules:
     all,
-    all_static,
     animate,
-    all_final,
-    all_export,
-    all_eval,
     eval,
     tables,
     study,
@@ -45,26 +44,16 @@ rule all:
         final_targets(),
 
 
-rule all_static:
-    input:
-        [stage_out("static", "canonical", scene=s) for s in SCENES],
-
-
 rule animate:
     input:
-        lambda wc: [final_model_of(s, v) for s in SCENES for v in config["variants"]],
+        targets_of("animate"),
 
 
-rule all_final:
-    input:
-        [stage_out("final", "summary", scene=s, variant=v) for s in SCENES for v in config["variants"]],
+for _stage in STAGES:
 
-
-rule all_export:
-    input:
-        [stage_out("export", "sidecar", scene=s, variant=v) for s in SCENES for v in config["variants"]],
-
-
-rule all_eval:
-    input:
-        [stage_out("eval", "metrics", scene=s, variant=v) for s in SCENES for v in config["variants"]],
+    rule:
+        name:
+            f"all_{_stage.name}"
+        input:
+            targets_of(_stage.name),
+        localrule: True

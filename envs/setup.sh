@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # One-command set-up and run for anigs.
 #   bash envs/setup.sh demo [snakemake args...]   install, then run the workflow on the embedded demo
-#   bash envs/setup.sh test [pytest args...]      install, then run the test suite
+#   bash envs/setup.sh test [pytest args...]      install, then run the fast test tier (not `slow`)
+#   bash envs/setup.sh test-all [pytest args...]  install, then run every test (the full tier too:
+#                                                 SLURM, browsers, end-to-end workflows, determinism)
 #   bash envs/setup.sh install                    install only
 # Creates ./.venv (override with ANIGS_VENV), installs torch from the pin in
 # envs/constraints.txt first, then anigs and its dependencies, then envs/anigs.post-deploy.sh
@@ -16,9 +18,12 @@ CONSTRAINTS="${ANIGS_CONSTRAINTS:-envs/constraints.txt}"
 # Optional extras (e.g. ANIGS_EXTRAS=ltx,gsplat). The test suite runs the real LTX code path
 # with tiny random weights and uses gsplat's pure-torch functions as an oracle, so 'test'
 # installs both by default (neither downloads weights; gsplat's CUDA kernels stay unused),
-# plus the 'test' extra (plyfile, gsply, pygltflib, selenium), Debian's chromium (envs/browser.sh)
-# and the npm tools of the interoperability tests (envs/npm.sh, into .node/).
-if [ "$MODE" = "test" ]; then EXTRAS="${ANIGS_EXTRAS-ltx,gsplat,slurm,test}"; else EXTRAS="${ANIGS_EXTRAS:-}"; fi
+# plus the 'test' extra (plyfile, gsply, pygltflib, selenium) and the npm tools of the
+# interoperability tests (envs/npm.sh, into .node/); 'test-all' also Debian's chromium (envs/browser.sh).
+case "$MODE" in
+  test|test-all) EXTRAS="${ANIGS_EXTRAS-ltx,gsplat,slurm,test}" ;;
+  *) EXTRAS="${ANIGS_EXTRAS:-}" ;;
+esac
 
 if [ ! -x "$VENV/bin/python" ]; then
   echo "[anigs] creating virtual environment $VENV"
@@ -28,7 +33,7 @@ STAMP="$VENV/.anigs-install-stamp-${EXTRAS:-core}"
 WANT="$(cat pyproject.toml "$CONSTRAINTS" envs/anigs.post-deploy.sh | sha256sum | cut -c1-16)"
 if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   echo "[anigs] installing dependencies (torch pinned by $CONSTRAINTS)"
-  "$VENV/bin/python" -m pip install -q --upgrade pip setuptools wheel -c "$CONSTRAINTS"
+  "$VENV/bin/python" -m pip install -q --upgrade pip "setuptools>=77" wheel -c "$CONSTRAINTS"
   TORCH_PIN="$(grep -E '^torch[=<>~!]' "$CONSTRAINTS" | head -1 || true)"
   "$VENV/bin/python" -m pip install -q "${TORCH_PIN:-torch}" -c "$CONSTRAINTS"
   SPEC="."
@@ -39,15 +44,18 @@ if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   echo "$WANT" > "$STAMP"
 fi
 "$VENV/bin/anigs" build-kernel --quiet
-# the browser tests (viewer, study page) drive Debian's chromium; installed as root where apt exists
-if [ "$MODE" = "test" ]; then ANIGS_VENV="$VENV" bash envs/browser.sh "$VENV"; fi
+# the browser tests (viewer, study page, Spark, PlayCanvas; the full tier) drive Debian's chromium;
+# installed as root where apt exists
+if [ "$MODE" = "test-all" ]; then ANIGS_VENV="$VENV" bash envs/browser.sh "$VENV"; fi
 # the interoperability tests run splat-transform, Spark (three.js) and the glTF validator from npm
-if [ "$MODE" = "test" ]; then bash envs/npm.sh; fi
+case "$MODE" in test|test-all) bash envs/npm.sh ;; esac
 export PATH="$(cd "$VENV/bin" && pwd):$PATH"
 
 case "$MODE" in
   demo) exec snakemake --cores all --workflow-profile workflow/profiles/default "$@" ;;
-  test) bash envs/style.sh && exec python -m pytest "$@" ;;
+  # the fast tier: every test not marked slow (pyproject.toml's markers; README "Tests")
+  test) bash envs/style.sh && exec python -m pytest -m "not slow" "$@" ;;
+  test-all) bash envs/style.sh && exec python -m pytest "$@" ;;
   install) echo "[anigs] installed into $VENV" ;;
-  *) echo "usage: bash envs/setup.sh {demo|test|install} [args...]" >&2; exit 2 ;;
+  *) echo "usage: bash envs/setup.sh {demo|test|test-all|install} [args...]" >&2; exit 2 ;;
 esac

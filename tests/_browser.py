@@ -1,7 +1,8 @@
 """Headless Chromium for the browser tests (viewer, study page): Debian's chromium and
 chromium-driver driven by Selenium. Nothing downloads a browser or a driver (the driver is given
-to Selenium explicitly). Tests skip when a piece is missing; with ANIGS_REQUIRE_BROWSER=1 (CI)
-a missing piece is an error instead.
+to Selenium explicitly). A browser test carries :data:`needs_browser`; tests/conftest.py puts it in
+the full tier (marks it ``slow``: `bash envs/setup.sh test-all` installs the browser) and skips it
+when a piece is missing; with ANIGS_REQUIRE_BROWSER=1 (CI) it runs and fails naming the piece.
 """
 from __future__ import annotations
 
@@ -16,11 +17,11 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver") or ("/usr/bin/chromedriver" if Path("/usr/bin/chromedriver").exists() else None)
 MISSING = [name for name, ok in (("chromium", CHROMIUM), ("chromedriver", CHROMEDRIVER),
                                  ("selenium", importlib.util.find_spec("selenium"))) if not ok]
-if MISSING and os.environ.get("ANIGS_REQUIRE_BROWSER") == "1":
-    raise RuntimeError(f"ANIGS_REQUIRE_BROWSER=1 but {', '.join(MISSING)} missing (bash envs/browser.sh)")
+REQUIRED = os.environ.get("ANIGS_REQUIRE_BROWSER") == "1"
+SKIP_REASON = (f"browser test needs {', '.join(MISSING)}: run `bash envs/browser.sh` (apt chromium "
+               "chromium-driver as root, pip selenium)")
 
-needs_browser = pytest.mark.skipif(bool(MISSING), reason=f"browser test needs {', '.join(MISSING)}: run "
-                                   "`bash envs/browser.sh` (apt chromium chromium-driver as root, pip selenium)")
+needs_browser = pytest.mark.browser  # the full tier; skipped without the browser (tests/conftest.py)
 
 FLAGS = ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-background-networking",
          "--disable-component-update", "--disable-sync", "--no-first-run")
@@ -29,6 +30,8 @@ WEBGL_FLAGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader")  # WebG
 
 def chrome(window: tuple[int, int] = (1280, 860), webgl: bool = False, download_dir: Path | None = None):
     """A headless Chrome session (caller quits it)."""
+    if MISSING:  # reached only with ANIGS_REQUIRE_BROWSER=1 (else the test skips): the test fails here
+        raise RuntimeError(f"ANIGS_REQUIRE_BROWSER=1 but {', '.join(MISSING)} missing (bash envs/browser.sh)")
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
 
