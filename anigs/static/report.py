@@ -19,6 +19,7 @@ from anigs.static.budget import CaptureSize, FitPlan, StepCost, next_level, plan
 MIN_TEST_PSNR = 21.0  # dB, held out
 MIN_TRAIN_PSNR = 24.0  # dB
 MAX_GAIN = 3.0  # dB: the most the curve's extrapolation promises (diminishing returns)
+MIN_SIDE = 480  # px: the smallest photo size the advice suggests (about twice the default views' 256x192)
 OVERFIT_GAP = 6.0  # train minus held-out PSNR (dB) above which more photos help more than a longer fit
 
 
@@ -64,8 +65,9 @@ def _warning(metrics: dict[str, Any], fit_plan: FitPlan, size: CaptureSize, cost
     low_test = math.isfinite(test) and test < MIN_TEST_PSNR
     if not (low_test or train < MIN_TRAIN_PSNR):
         return None
-    what = (f"the static fit is too blurry to animate: held-out PSNR {test:.1f} dB (under {MIN_TEST_PSNR:g} "
-            f"means smeared views) and train PSNR {train:.1f} dB (under {MIN_TRAIN_PSNR:g})")
+    low = [f"held-out PSNR {test:.1f} dB (under {MIN_TEST_PSNR:g}: smeared views)" if low_test else "",
+           f"train PSNR {train:.1f} dB (under {MIN_TRAIN_PSNR:g})" if train < MIN_TRAIN_PSNR else ""]
+    what = "the static fit is too blurry to animate: " + " and ".join(x for x in low if x)
     if low_test and train - test > OVERFIT_GAP:  # the street walk: held-out flat while the Gaussians grew 5x
         return (f"{what}; it fits the photos {train - test:.0f} dB better than the photos it did not train on: the "
                 "capture sees each part from too few places, and more photos between the existing ones help "
@@ -78,9 +80,10 @@ def _warning(metrics: dict[str, Any], fit_plan: FitPlan, size: CaptureSize, cost
         options.append((p.estimated_seconds, f"static.budget: {nxt} ({p.iterations} steps, {p.max_gaussians:,} "
                                              f"Gaussians, about {p.estimated_seconds / 60:.0f} min here)"))
     side = max(size.limited(fit_plan.max_side).width, size.limited(fit_plan.max_side).height)
-    if side >= 640:  # a smaller image size: the next level on a quarter of the pixels
-        p = plan(fit_plan.level if nxt is None else nxt, size, cost, start_gaussians, max_side=side // 2)
-        options.append((p.estimated_seconds, f"static.max_side: {side // 2} with static.budget: {p.level} "
+    if side > MIN_SIDE:  # a smaller image size (not below MIN_SIDE): the next level on fewer pixels
+        smaller = max(MIN_SIDE, side // 2)
+        p = plan(fit_plan.level if nxt is None else nxt, size, cost, start_gaussians, max_side=smaller)
+        options.append((p.estimated_seconds, f"static.max_side: {smaller} with static.budget: {p.level} "
                                              f"(about {p.estimated_seconds / 60:.0f} min)"))
     if not options:
         return f"{what}; more photos of the scene are the remaining remedy"
