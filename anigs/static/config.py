@@ -1,0 +1,98 @@
+"""The ``static`` config section: :class:`FitConfig` (the static fit's hyperparameters and its budget)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from anigs.static.budget import parse_budget
+from anigs.static.densify import DensifyConfig
+from anigs.static.regularize import RegularizeConfig
+from anigs.typed_config import reject_unknown_keys
+
+
+@dataclass
+class FitConfig:
+    """Static fit hyperparameters (the ``static`` config section)."""
+
+    #: the one dial: a level (fast, auto, quality: steps and Gaussians follow the capture's photos and pixels)
+    #: or minutes on this machine; the plan and its estimated time are logged before the fit starts
+    budget: str | float = "auto"
+    iterations: int | None = None  # optimisation steps (null: from the budget; the fit may end earlier, plateau_db)
+    seed: int = 0  # seeds view order, split sampling and everything else
+    sh_degree: int = 3  # final SH degree (0..3)
+    sh_increase_every: int = 300  # raise the active SH degree by one every this many steps
+    #: "random": a new random colour behind the splats at every step, so that only what the photos show
+    #: is opaque and unobserved space stays transparent (views composite it onto final.background);
+    #: or a fixed RGB in [0,1] (a synthetic scene's sky: its photos were rendered onto it)
+    background: tuple[float, float, float] | str = "random"
+    holdout_every: int = 8  # images i with i % holdout_every == 0 are held out (0 = none)
+    lr_means: float = 1.6e-4  # initial position lr, times the scene extent
+    lr_means_final: float = 1.6e-6  # final position lr, times the scene extent
+    lr_sh_dc: float = 2.5e-3  # learning rate of the DC SH coefficients
+    lr_sh_rest: float = 2.5e-3 / 20  # learning rate of the higher-order SH coefficients
+    lr_opacity: float = 5e-2  # learning rate of the opacity logits
+    lr_scales: float = 5e-3  # learning rate of the log-scales
+    lr_quats: float = 1e-3  # learning rate of the rotations
+    ssim_weight: float = 0.2  # loss = (1-w) L1 + w (1 - SSIM)
+    init_opacity: float = 0.1  # opacity of the initial Gaussians
+    #: the fit's photos are downscaled to at most this longest side (px; 0: as captured; null: the budget
+    #: level's: auto 640, fast and quality as captured); held-out and train PSNR are measured at that size
+    max_side: int | None = None
+    #: at most this share of the Gaussian budget starts on a far sphere where photos show what SfM did not
+    #: triangulate above the horizon (the sky, distant background); with background "random" only (a fixed
+    #: background, a synthetic scene's sky, is the far field itself); 0: none
+    far_share: float = 0.1
+    eval_every: int | None = None  # held-out PSNR every this many steps (null: about 8 points over the fit; 0 = end only)
+    #: stop once densification is over and the held-out PSNR gained less than this (dB) since the
+    #: previous evaluation (0: never stop early)
+    plateau_db: float = 0.05
+    checkpoint_every: int = 500  # write the last good PLY every this many steps (with checkpoint_path)
+    device: str = "auto"  # torch device: auto picks CUDA when present (the workflow passes the global device)
+    backend: str = "auto"  # rasterizer backend
+    #: densification strategy (clone, split, prune, opacity reset)
+    densify: DensifyConfig = field(default_factory=DensifyConfig)
+    regularize: RegularizeConfig = field(default_factory=RegularizeConfig)  # needles / unresolved splats
+
+    @staticmethod
+    def from_dict(d: dict[str, Any] | None) -> "FitConfig":
+        d = dict(d or {})
+        reject_unknown_keys(FitConfig, d, "static config", ValueError)
+        if "densify" in d and not isinstance(d["densify"], DensifyConfig):
+            d["densify"] = DensifyConfig.from_dict(d["densify"])
+        if "regularize" in d and not isinstance(d["regularize"], RegularizeConfig):
+            d["regularize"] = RegularizeConfig.from_dict(d["regularize"])
+        if "background" in d and not isinstance(d["background"], str):
+            d["background"] = tuple(float(x) for x in d["background"])
+        cfg = FitConfig(**d)
+        cfg.validate()
+        return cfg
+
+    def validate(self) -> None:
+        parse_budget(self.budget)
+        if self.iterations is not None and self.iterations < 0:
+            raise ValueError(f"static.iterations must be >= 0, got {self.iterations}")
+        if self.eval_every is not None and self.eval_every < 0:
+            raise ValueError(f"static.eval_every must be >= 0, got {self.eval_every}")
+        if self.plateau_db < 0:
+            raise ValueError(f"static.plateau_db must be >= 0, got {self.plateau_db}")
+        if not 0 <= self.sh_degree <= 3:
+            raise ValueError(f"static.sh_degree must be in 0..3, got {self.sh_degree}")
+        if self.sh_increase_every < 1:
+            raise ValueError(f"static.sh_increase_every must be >= 1, got {self.sh_increase_every}")
+        if isinstance(self.background, str):
+            if self.background != "random":
+                raise ValueError(f"static.background must be 'random' or 3 values in [0,1], got {self.background!r}")
+        elif len(self.background) != 3 or not all(0 <= x <= 1 for x in self.background):
+            raise ValueError(f"static.background must be 'random' or 3 values in [0,1], got {self.background}")
+        if self.holdout_every < 0 or self.holdout_every == 1:
+            raise ValueError(f"static.holdout_every must be 0 (no holdout) or >= 2, got {self.holdout_every}")
+        if not 0 <= self.ssim_weight <= 1:
+            raise ValueError(f"static.ssim_weight must be in [0,1], got {self.ssim_weight}")
+        if self.max_side is not None and self.max_side < 0:
+            raise ValueError(f"static.max_side must be >= 0 (0: as captured), got {self.max_side}")
+        if not 0 <= self.far_share < 1:
+            raise ValueError(f"static.far_share must be in [0, 1), got {self.far_share}")
+        if not 0 < self.init_opacity < 1:
+            raise ValueError(f"static.init_opacity must be in (0,1), got {self.init_opacity}")
+        self.densify.validate()
+        self.regularize.validate()
