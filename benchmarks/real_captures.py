@@ -21,6 +21,8 @@ share of the pixel's colour that comes from moving Gaussians); a pixel moves whe
 - ``recall``: the share of must-move pixels that move (all labelled photos pooled; ``blossoms``:
   the same over the marks named so); judged only where the phrasing names what moves there;
 - ``still``: the share of must-stay-still pixels that move, and the worst single mark;
+- ``verdict``: ok, or what fails the bar (a still mark more than 1% moving, recall under 0.8 where
+  motion is expected, an effect chosen that the labels say the photos do not hold);
 - ``s``: seconds of the effects stage (CPU seconds of this process in brackets); SfM and the fit
   once per capture from Snakemake's benchmark TSVs.
 
@@ -241,10 +243,11 @@ def _fmt(v, pct: bool = False) -> str:
     return f"{100 * v:.1f}%" if pct else f"{v:.2f}"
 
 
-def verdict(expect: str, sc: dict, chosen: list[str], capture: str) -> str:
+def verdict(expect: str, sc: dict, chosen: list[str], absent: tuple[str, ...]) -> str:
     """ok / FAIL against the issue's bar: still marks <= 1% moving; where motion is expected,
-    recall >= 0.8 (and on the flower capture the blossoms too)."""
-    bad = []
+    recall >= 0.8 (and on the flower capture the blossoms too); no effect chosen whose kind the
+    photos do not hold (the labels' ``absent``: flower_bob on a capture without flowers)."""
+    bad = [f"chose {e}" for e in chosen if e in absent]
     if sc["still"] is not None and sc["worst_still"] > 0.01:
         bad.append(f"still {sc['worst_what']} {sc['worst_still']:.1%}")
     if expect == "move":
@@ -306,7 +309,7 @@ def main() -> None:
             rep = json.loads((folder / "effects.json").read_text())
             moving = moving_maps(folder, scene, [p.name for p in labels.photos])
             sc = score(labels, moving, sizes)
-            v = verdict(ph["expect"], sc, rep["chosen"], capture)
+            v = verdict(ph["expect"], sc, rep["chosen"], labels.absent)
             worst = f"{_fmt(sc['still'], pct=True)} ({sc['worst_still']:.1%} {sc['worst_what']})" if sc["still"] is not None else "n/a"
             print(f"| {capture} | {ph['kind']} | {ph['prompt']} | {', '.join(rep['chosen']) or 'nothing'} | "
                   f"{_fmt(sc['recall']) if ph['expect'] == 'move' else '(' + _fmt(sc['recall']) + ')'} | "

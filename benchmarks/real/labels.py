@@ -4,7 +4,8 @@ A label file ``benchmarks/real/labels/<capture>.json`` holds, per labelled photo
 the capture folder), polygons in the pixel coordinates of the original photo as an image viewer
 shows it (EXIF orientation applied)::
 
-    {"capture": NAME, "expects_motion": bool, "note": "what was marked and why",
+    {"capture": NAME, "expects_motion": bool, "absent": [effects the photos do not hold, e.g. "flower_bob"],
+     "note": "what was marked and why",
      "photos": {"image001.png": {"move": [{"what": "fronds", "points": [[x, y], ...]}, ...],
                                  "still": [{"what": "trunk", "points": [...]}, ...]}}}
 
@@ -66,6 +67,7 @@ class CaptureLabels:
     expects_motion: bool
     note: str
     photos: list[PhotoLabels]
+    absent: tuple[str, ...] = ()  # effects whose kind the photos do not hold: choosing one is wrong
 
 
 def _polys(items: list, where: str) -> list[Polygon]:
@@ -89,7 +91,8 @@ def load_labels(capture: str, folder: Path = LABELS) -> CaptureLabels:
               for name, v in d.get("photos", {}).items()]
     if len(photos) < 3:
         raise ValueError(f"{path}: {len(photos)} labelled photos, the benchmark needs at least 3")
-    return CaptureLabels(d.get("capture", capture), bool(d.get("expects_motion", True)), d.get("note", ""), photos)
+    return CaptureLabels(d.get("capture", capture), bool(d.get("expects_motion", True)), d.get("note", ""), photos,
+                         tuple(d.get("absent", ())))
 
 
 def read_photo(path: Path) -> np.ndarray:
