@@ -142,16 +142,18 @@ def moving_maps(folder: Path, scene: Path, names: list[str]) -> dict[str, np.nda
     res = Outputs(folder)
     dyn, reg = res.dynamic(g.num), res.regions(g.num)
     onehot = np.stack([dyn & (reg == k) for k in range(len(REGIONS))], 1).astype(np.float32)
-    cams = {c.name: c for c in load_cameras(scene / "sfm" / "cameras.json")}
+    # by the photo's stem: the capture stage may re-encode a photo (a JPEG's camera is NAME.png)
+    cams = {Path(c.name).stem: c for c in load_cameras(scene / "sfm" / "cameras.json")}
     out = {}
     for n in names:
-        if n not in cams:
+        cam = cams.get(Path(n).stem)
+        if cam is None:
             continue
-        m = np.zeros((cams[n].height, cams[n].width), np.int8)
+        m = np.zeros((cam.height, cam.width), np.int8)
         if dyn.any():
-            share = np.concatenate([render_features(g, onehot[:, :3], cams[n])[0],
-                                    render_features(g, onehot[:, 3:], cams[n])[0]], -1)
-            alpha = render_features(g, dyn[:, None].astype(np.float32), cams[n])[1]
+            share = np.concatenate([render_features(g, onehot[:, :3], cam)[0],
+                                    render_features(g, onehot[:, 3:], cam)[0]], -1)
+            alpha = render_features(g, dyn[:, None].astype(np.float32), cam)[1]
             moves = (share.sum(-1) >= MOVE_AT) & (alpha >= 0.5)
             m[moves] = 1 + np.argmax(share, -1)[moves]
         out[n] = m
