@@ -41,7 +41,7 @@ def fern(tmp_path_factory):
     assert main(["--threads", "2", "sfm", "--images", str(FERN), "--out", str(tmp / "sfm"), "--params", "{}"]) == 0
     assert main(["--threads", "2", "static", "--images", str(tmp / "sfm" / "images"), "--cameras",
                  str(tmp / "sfm" / "cameras.json"), "--points", str(tmp / "sfm" / "points.npz"), "--out",
-                 str(tmp / "static"), "--no-progress", "--params", json.dumps({"iterations": 400})]) == 0
+                 str(tmp / "static"), "--no-progress", "--params", json.dumps({"iterations": 1000})]) == 0
     return tmp
 
 
