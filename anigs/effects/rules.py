@@ -17,8 +17,9 @@ neighbourhood radius), numbered for the overview and the user's corrections, and
 3. *not a blossom's own colour* (flowers): the candidate's Gaussians carry their own (view-
    independent) colour; at least ``flower_own_min_share`` of a blossom's are saturated and bright
    (saturation >= ``flower_own_min_saturation``, value >= ``flower_own_min_value``, hue outside
-   the green band) or, with ``white_flowers``, white (not greenish white; a bed's stems and leaves
-   make up the rest). Pale, greenish or dull candidates are glare on leaves, bark or a blend of
+   the green band; a bed's stems and leaves make up the rest) or, with ``white_flowers``, at least
+   ``flower_own_min_white_share`` are white (not greenish white: glare is white-ish, never a
+   saturated colour). Pale, greenish or dull candidates are glare on leaves, bark or a blend of
    them: rejected. A white candidate that lies above every camera (along the world's
    up, no ground plane needed) is a light under a ceiling or a bright sky gap: rejected.
 4. *sunlit leaves* (flowers): a yellow-green candidate (median hue within ``leaf_hue_margin``
@@ -304,8 +305,8 @@ def _own_colour_rule(cand: Candidate, colours, above_cameras, cfg: Config) -> No
             cand.reason = (f"white and above every camera ({high:.0%} of its Gaussians): a light under a ceiling or "
                            "a bright gap, not blossoms")
             return
-    if c_share + w_share < cfg.flower_own_min_share:
+    if c_share < cfg.flower_own_min_share and w_share < cfg.flower_own_min_white_share:
         cand.kept, cand.rule = False, "not_blossom_colour"
-        cand.reason = (f"too few of its Gaussians have a blossom's own colour ({c_share + w_share:.0%} saturated and "
-                       f"bright off the green band, or white; median saturation {float(np.median(sat)):.2f}, "
-                       f"value {float(np.median(mx)):.2f}): glare on leaves, bark, soil or a blend of them")
+        cand.reason = (f"too few of its Gaussians have a blossom's own colour ({c_share:.0%} saturated and bright off "
+                       f"the green band, {w_share:.0%} white; median saturation {float(np.median(sat)):.2f}, value "
+                       f"{float(np.median(mx)):.2f}): glare on leaves, bark, soil or a blend of them")
