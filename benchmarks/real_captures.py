@@ -105,6 +105,9 @@ def _code_hash() -> str:
     return h.hexdigest()[:12]
 
 
+CODE = _code_hash()  # the effects code this run imports (an edit during a run does not change its keys)
+
+
 def run_effects(capture: str, cache: Path, prompt: str, overrides: dict) -> tuple[Path, float, float, bool]:
     """The effects stage on the cached fit with ``prompt``; (its folder, wall s, CPU s, from the cache)."""
     from anigs.effects.config import Config
@@ -114,7 +117,7 @@ def run_effects(capture: str, cache: Path, prompt: str, overrides: dict) -> tupl
     ply = scene / "static" / "canonical.ply"
     cfg = Config.from_dict({**overrides, "prompt": prompt, "requested": "auto"})
     key = hashlib.sha256(json.dumps([prompt, cfg.to_dict(), ply.stat().st_size, ply.stat().st_mtime_ns,
-                                     _code_hash()], sort_keys=True).encode()).hexdigest()[:16]
+                                     CODE], sort_keys=True).encode()).hexdigest()[:16]
     folder = scene / "phrasings" / key
     out = stage.Outputs(folder)
     if out.exists("effects"):
