@@ -61,6 +61,14 @@ def prompt_note(kinds, by_prompt: bool, chosen: Sequence[str]) -> str:
         "" if chosen else ", and none was found, so the scene stays still")
 
 
+def unknown_note(kinds) -> str:
+    """One sentence naming the prompt's words the stage did not understand ('' when none)."""
+    if kinds is None or not kinds.unknown:
+        return ""
+    return (f"words of the prompt not understood (in neither the lexicon of anigs/effects/lexicon.py nor the "
+            f"English dictionary): {', '.join(kinds.unknown)}; they name nothing that moves")
+
+
 @dataclass
 class Decision:
     """``result``: the detection (:class:`~anigs.effects.detect.EffectsResult`, its ``region_of``
@@ -105,7 +113,12 @@ def decide_effects(photos: Sequence[np.ndarray], cams: Sequence, g, cfg: Config,
                               "used": by_prompt, "note": prompt_note(kinds, by_prompt, chosen)},
                    "corrections": getattr(res, "notes", [])[1:],
                    "num_dynamic": int(dynamic.sum()), "dynamic_fraction": float(dynamic.mean()) if len(dynamic) else 0.0})
+    unknown = unknown_note(kinds)
+    report["prompt"]["unknown_note"] = unknown
+    res.prompt_lines = [f"Prompt: {report['prompt']['note']}"] + ([unknown] if unknown else [])
     log.info("effects: %s", report["prompt"]["note"])
+    if unknown:
+        log.warning("effects: %s", unknown)
     log.info("effects: detected %s; simulating %s (%d of %d Gaussians)%s", res.detected or "nothing",
              chosen or "nothing", int(dynamic.sum()), g.num, f"; asked for but not found: {missing}" if missing else "")
     return Decision(res, dynamic, report)

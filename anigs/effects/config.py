@@ -67,6 +67,11 @@ class Config:
     #: blossoms are saturated colours outside this band (red, yellow, blue, violet)
     flower_green_hue: tuple = (68.0, 215.0)
     white_flowers: bool = True       # bright near-white blobs inside vegetation count as blossoms
+    #: a flower candidate: this share of its Gaussians' own colours (or more) are a blossom's ...
+    flower_own_min_share: float = 0.15
+    flower_own_min_saturation: float = 0.3  # ... at least this saturation ...
+    flower_own_min_value: float = 0.45  # ... and this brightest channel (bark and soil are darker)
+    flower_own_min_white_share: float = 0.35  # ... or this share are white (not greenish: glare on leaves)
     flower_radius_frac: float = 0.025  # a blossom lies within this of vegetation
     flower_min_ring: float = 0.25    # share of a blossom's surroundings that must be vegetation
     #: a blossom lies at most this x its depth behind that vegetation (a wall seen past a bush lies farther)

@@ -176,7 +176,7 @@ def _lift(means: np.ndarray, max_scale: np.ndarray, maps: Sequence[PhotoMaps], r
 
 def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground: Ground, radius: float,
                  maps: Sequence[PhotoMaps], regions: Sequence[PhotoRegions], cfg: Config,
-                 flat: np.ndarray) -> tuple[np.ndarray, list, dict]:
+                 flat: np.ndarray, cams: Sequence[Camera] = ()) -> tuple[np.ndarray, list, dict]:
     """The geometry rules (:mod:`anigs.effects.rules`) on the lifted regions; the photos' masks lose
     the pixels of rejected candidates and small parts (and sunlit leaves move from flowers to foliage)."""
     colours = (0.5 + 0.28209479 * g.sh[:, 0, :]).clamp(0, 1).double().numpy()
@@ -184,7 +184,10 @@ def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground:
     if ground.plane is not None:
         height = means @ ground.plane.normal - ground.plane.offset
         cam_h = ground.plane.camera_height if ground.plane.camera_height > 0 else 1.0
-    new, cands, fragments = check_candidates(means, colours, region_of, height, cam_h or 1.0, radius, cfg, flat)
+    up = world_up(cams, cfg.up, means) if cams else np.array([0.0, 0.0, 1.0])
+    cam_top = max(float(np.asarray(c.center) @ up) for c in cams) if cams else np.inf
+    new, cands, fragments = check_candidates(means, colours, region_of, height, cam_h or 1.0, radius, cfg, flat,
+                                             above_cameras=means @ up > cam_top)
     for name, count in fragments.items():
         log.info("effects: %d %s Gaussians in parts under %d Gaussians set aside by the rules", count, name,
                  cfg.min_candidate)
@@ -271,7 +274,7 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
                 reg.masks[name] = np.zeros_like(reg.masks[name])
     region_of, share = _lift(means, max_scale, maps, regions, ground, cfg)
     region_of, candidates, fragments = _apply_rules(g, means, region_of, ground, radius, maps, regions, cfg,
-                                                    variation < cfg.wall_max_variation)
+                                                    variation < cfg.wall_max_variation, cams)
     effects: dict[str, EffectResult] = {}
     n_photos = len(maps)
     min_photos = max(2, int(np.ceil(cfg.min_photo_fraction * n_photos))) if n_photos > 1 else 1

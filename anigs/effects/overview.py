@@ -114,6 +114,7 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
     width = rows[-1].shape[1]
     found = res.detected
     lines = ["Effects found: " + (", ".join(found) if found else "none: the scene stays still")]
+    lines += getattr(res, "prompt_lines", [])  # how the prompt was read, and its words not understood
     lines += [res.effects[REGION_EFFECTS[r][0]].reason for r in REGIONS]
     if res.ground.note:
         lines.append(res.ground.note)

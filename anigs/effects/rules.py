@@ -14,7 +14,15 @@ neighbourhood radius), numbered for the overview and the user's corrections, and
 2. *not held by a plant* (flowers): a blossom sits on plant Gaussians; fewer than
    ``min_attached`` of the candidate's Gaussians have a foliage / grass Gaussian or a green one
    within ``link``: a lamp or a window surround seen next to leaves. Rejected.
-3. *sunlit leaves* (flowers): a yellow-green candidate (median hue within ``leaf_hue_margin``
+3. *not a blossom's own colour* (flowers): the candidate's Gaussians carry their own (view-
+   independent) colour; at least ``flower_own_min_share`` of a blossom's are saturated and bright
+   (saturation >= ``flower_own_min_saturation``, value >= ``flower_own_min_value``, hue outside
+   the green band; a bed's stems and leaves make up the rest) or, with ``white_flowers``, at least
+   ``flower_own_min_white_share`` are white (not greenish white: glare is white-ish, never a
+   saturated colour). Pale, greenish or dull candidates are glare on leaves, bark or a blend of
+   them: rejected. A white candidate that lies above every camera (along the world's
+   up, no ground plane needed) is a light under a ceiling or a bright sky gap: rejected.
+4. *sunlit leaves* (flowers): a yellow-green candidate (median hue within ``leaf_hue_margin``
    degrees below the vegetation band) high in a tree's crown (most of it above
    ``crown_min_height`` x the camera height), is foliage in the sun, not blossoms: moved to
    foliage. This rule runs first; the others apply to the candidates it leaves.
@@ -118,7 +126,8 @@ def _hue(rgb: np.ndarray) -> np.ndarray:
 
 def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarray, height: np.ndarray | None,
                      cam_height: float, radius: float, cfg: Config, flat: np.ndarray | None = None,
-                     seed: int = 0) -> tuple[np.ndarray, list[Candidate], dict[str, int]]:
+                     seed: int = 0, above_cameras: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, list[Candidate], dict[str, int]]:
     """Split each region into numbered 3D candidates and apply the rules (module docstring).
 
     Args:
@@ -128,6 +137,7 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
         radius: the neighbourhood radius of the local shape (world units).
         flat: bool [N], Gaussians whose neighbourhood is planar: flat and other Gaussians form separate
             candidates (a lawn bank under a tree, a facade behind it are not the crown).
+        above_cameras: bool [N], Gaussians higher (along up) than every camera (None: not checked).
     Returns the new region ids [N] and the candidates, numbered from 1 in ``REGIONS`` order, largest first.
     """
     out = region_of.copy()
@@ -157,7 +167,9 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
             cand = Candidate(0, name, sel, p.mean(0), float(np.linalg.norm(p.max(0) - p.min(0))))
             if name == "flowers":
                 _sunlit_rule(cand, colours, height, cam_height, cfg)
-            if name in ("foliage", "flowers") and not cand.moved_to:
+            if name == "flowers" and not cand.moved_to:
+                _own_colour_rule(cand, colours, above_cameras, cfg)
+            if name in ("foliage", "flowers") and cand.kept and not cand.moved_to:
                 _plane_rule(cand, means, is_plant, tree_all, link, tol, radius, cfg, rng)
             if name == "flowers" and cand.kept and not cand.moved_to:
                 _held_rule(cand, means, holder_tree, holders, link, cfg)
@@ -269,3 +281,32 @@ def _sunlit_rule(cand: Candidate, colours, height, cam_height: float, cfg: Confi
         cand.reason = (f"yellow-green (hue {hue:.0f} deg) and high in a crown ({high:.0%} above "
                        f"{cfg.crown_min_height:g} x the camera height): "
                        "sunlit leaves, so they sway with the foliage instead of bobbing as flowers")
+
+
+def _own_colour_rule(cand: Candidate, colours, above_cameras, cfg: Config) -> None:
+    """A blossom's own colour: enough of its Gaussians saturated and bright off the green band, or white
+    (module docstring)."""
+    rgb = colours[cand.indices]
+    mx, mn = rgb.max(1), rgb.min(1)
+    sat = (mx - mn) / np.maximum(mx, 1e-6)
+    hue = _hue(rgb)
+    lo, hi = cfg.flower_green_hue
+    coloured = (sat >= cfg.flower_own_min_saturation) & (mx >= cfg.flower_own_min_value) & ~((hue >= lo) & (hue <= hi))
+    # white petals; a greenish white (a green hue at saturation >= 0.06) is glare on leaves
+    greenish = (hue >= cfg.green_hue[0]) & (hue <= cfg.green_hue[1]) & (sat >= 0.06)
+    white = (sat < 0.15) & (mn >= 0.8) & ~greenish if cfg.white_flowers else np.zeros(len(rgb), bool)
+    c_share, w_share = float(coloured.mean()), float(white.mean())
+    cand.figures.update(own_coloured=c_share, own_white=w_share)
+    if w_share > c_share and above_cameras is not None:
+        high = float(above_cameras[cand.indices].mean())
+        cand.figures["above_cameras"] = high
+        if high >= 0.5:
+            cand.kept, cand.rule = False, "light"
+            cand.reason = (f"white and above every camera ({high:.0%} of its Gaussians): a light under a ceiling or "
+                           "a bright gap, not blossoms")
+            return
+    if c_share < cfg.flower_own_min_share and w_share < cfg.flower_own_min_white_share:
+        cand.kept, cand.rule = False, "not_blossom_colour"
+        cand.reason = (f"too few of its Gaussians have a blossom's own colour ({c_share:.0%} saturated and bright off "
+                       f"the green band, {w_share:.0%} white; median saturation {float(np.median(sat)):.2f}, value "
+                       f"{float(np.median(mx)):.2f}): glare on leaves, bark, soil or a blend of them")

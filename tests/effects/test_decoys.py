@@ -80,4 +80,4 @@ def test_rejections_are_numbered_with_their_reason(decoy):
     assert numbers == list(range(1, len(numbers) + 1))
     assert doc["rejected"], d.name  # every decoy scene has something the rules set aside
     for c in doc["rejected"]:
-        assert c["reason"] and c["rule"] in ("plane", "not_held", "sunlit_leaves")
+        assert c["reason"] and c["rule"] in ("plane", "not_held", "sunlit_leaves", "not_blossom_colour", "light")

@@ -11,7 +11,8 @@ import pytest
 import yaml
 
 from anigs.effects.config import REGIONS
-from anigs.effects.vocabulary import SCENE_WORDS, WORDS, prompt_kinds, vocabulary_markdown
+from anigs.effects.lexicon import GENERIC, PLANTS
+from anigs.effects.vocabulary import prompt_kinds, vocabulary_markdown
 from anigs.effects.choice import choose
 from anigs.stages.effects import Outputs as EffectsOutputs
 
@@ -24,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
     ("a building with trees and lawns in the wind", ["foliage", "grass"]),
     ("a plant with fronds moving", ["foliage"]),
     ("an object in a room", []),
-    ("a ROSE by the Fountain", ["flowers", "water"]),
+    ("a ROSE by the Fountain", ["foliage", "flowers", "water"]),  # a rose: its blossoms and its leaves
     ("a park", ["foliage", "grass", "flowers"]),
     ("a room without plants, lit by a lamp", []),
     ("no flowers, only trees in the wind", ["foliage"]),
@@ -35,16 +36,48 @@ def test_prompt_names_kinds(prompt, regions):
     assert prompt_kinds(prompt).regions == regions
 
 
-def test_every_vocabulary_word_names_its_kind_and_the_table_lists_it():
-    for region, words in WORDS.items():
-        for w in words:
-            k = prompt_kinds(f"a {w} in the wind")
-            assert region in k.regions and k.matches[w] == [r for r in REGIONS if r in k.regions], (w, k)
-    for w, regions in SCENE_WORDS.items():
-        assert prompt_kinds(w).regions == [r for r in REGIONS if r in regions]
+def test_every_lexicon_word_names_its_kinds_and_the_table_lists_it():
+    for w, regions in {**GENERIC, **PLANTS}.items():
+        k = prompt_kinds(f"a {w} in the wind")
+        assert k.regions == [r for r in REGIONS if r in regions], (w, k)
     table = vocabulary_markdown()
-    assert all(w in table for words in WORDS.values() for w in words)
+    assert all(w in table for w, regions in {**GENERIC, **PLANTS}.items() if regions)
     assert "garden" in (ROOT / "config" / "README.md").read_text()  # generated into the config docs
+
+
+@pytest.mark.parametrize("prompt, words", [
+    # inflections and plurals through the lemmatizer, not a list of word forms
+    ("a flowering plant", {"flowering": ["flowers"], "plant": ["foliage"]}),
+    ("blooming lilies", {"blooming": ["flowers"], "lilies": ["foliage", "flowers"]}),
+    ("an overgrown wall", {"overgrown": ["foliage"]}),
+    ("wolves and oxen under birches", {"birches": ["foliage"]}),
+    # derived adjectives
+    ("a leafy street and grassy hills", {"leafy": ["foliage"], "grassy": ["grass"]}),
+    ("flowery wallpaper", {"flowery": ["flowers"]}),
+    # compounds by their parts
+    ("wildflowers on a hillside", {"wildflowers": ["foliage", "flowers"]}),
+    ("a rosebush", {"rosebush": ["foliage", "flowers"]}),
+    ("a bamboo grove", {"bamboo": ["foliage"], "grove": ["foliage"]}),
+    # plant names and crops map to their kinds; what the subject implies: a flowering shrub's blossoms
+    ("an oak, a palm and ivy", {"oak": ["foliage"], "palm": ["foliage"], "ivy": ["foliage"]}),
+    ("a rhododendron", {"rhododendron": ["foliage", "flowers"]}),
+    ("a wheat field", {"wheat": ["grass"], "field": ["grass"]}),
+    ("water lilies", {"water lilies": ["foliage", "flowers"]}),
+    # what only looks like a kind names nothing
+    ("a flowerpot and a treehouse", {}),
+    ("a courtyard with parked cars", {}),
+    ("a wood table", {}),
+    ("trees waving", {"trees": ["foliage"]}),  # a verb form of "wave" is no water
+])
+def test_words_as_people_write_them(prompt, words):
+    assert prompt_kinds(prompt).matches == words
+
+
+def test_words_not_understood_are_listed():
+    k = prompt_kinds("a flwers garden with a zorbleflax, a chateau and a trunk")
+    assert k.unknown == ["flwers", "zorbleflax"]  # typos and rare words; function words and still things are not listed
+    assert k.regions == ["foliage", "grass", "flowers"]  # the garden
+    assert prompt_kinds("a fox on a table in a living room").unknown == []
 
 
 def test_words_matched_are_recorded():
@@ -90,8 +123,9 @@ def _run(tmp: Path, out: str, params: dict, prompt: str | None = None) -> dict:
 
 
 def test_a_prompt_naming_nothing_that_moves_gives_a_still_scene(garden_stage):
-    doc = _run(garden_stage, "still", {"prompt": "a wooden bench in a courtyard"})
+    doc = _run(garden_stage, "still", {"prompt": "a wooden bench in a courtyard by a qwertzy"})
     assert doc["chosen"] == [] and doc["detected"] == [] and doc["requested_not_found"] == []
+    assert doc["prompt"]["unknown"] == ["qwertzy"] and "qwertzy" in doc["prompt"]["unknown_note"]
     assert "names nothing that moves" in doc["prompt"]["note"] and doc["prompt"]["used"]
     assert not EffectsOutputs(garden_stage / "still").dynamic().any()
     for e, r in doc["effects"].items():
