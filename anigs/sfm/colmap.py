@@ -15,9 +15,13 @@ when the camera model has distortion -> frame normalisation -> outputs.
 Parameters live in :mod:`anigs.sfm.config`, model conversion in :mod:`anigs.sfm.model`.
 
 Reproducibility: extraction (the images enter the database in name order first, so several
-threads cannot renumber them), matching and undistortion gave bit-identical databases, cameras
-and images for 1 and 2 threads (tests/sfm; the 34-photo flower capture), so they use
-``num_threads`` (all available CPUs by default); the mapper and the bundle adjustments are
+threads cannot renumber them) and undistortion gave bit-identical databases, cameras and images
+for 1, 2 and 4 threads (tests/sfm; the 34-photo flower capture; the demo), so they use
+``num_threads`` (all available CPUs by default). Matching runs on ``matching_num_threads`` (1 by
+default): every RANSAC is seeded per pair (``seed``), but COLMAP's CPU matcher builds a FAISS index
+per image in each matching thread, and one run of the demo's matching with 4 threads gave other
+raw matches for 2 of 1128 pairs (both with one image); one thread takes the same CPU seconds. The
+mapper and the bundle adjustments are
 bit-identical for a seed only with ``mapper_num_threads: 1`` (the default; 2 threads changed the
 cameras in the last digits from run to run). The report has wall and CPU seconds per step
 (``timings_s``, ``cpu_s``: CPU seconds of all the process's threads, less sensitive than wall
@@ -101,9 +105,11 @@ def resolve_config(cfg: SfmConfig, cli_threads: int | None = None) -> tuple[SfmC
     the report entry.
     """
     threads = resolve_threads(cfg.num_threads, cli_threads)
+    matching_threads = threads if cfg.matching_num_threads == -1 else cfg.matching_num_threads
     mapper_threads = threads if cfg.mapper_num_threads == -1 else cfg.mapper_num_threads
-    return (dataclasses.replace(cfg, num_threads=threads, mapper_num_threads=mapper_threads),
-            {"num_threads": threads, "mapper_num_threads": mapper_threads})
+    return (dataclasses.replace(cfg, num_threads=threads, matching_num_threads=matching_threads,
+                                mapper_num_threads=mapper_threads),
+            {"num_threads": threads, "matching_num_threads": matching_threads, "mapper_num_threads": mapper_threads})
 
 
 # ---- the stage -----------------------------------------------------------------------------------

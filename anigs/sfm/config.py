@@ -74,9 +74,13 @@ class SfmConfig(Section):
     #: (no ground truth) scale so the mean camera height is this; None keeps COLMAP's scale
     camera_height: Optional[float] = 1.6
     device: str = "auto"  # auto | cpu | cuda (SIFT extraction and matching)
-    #: threads of SIFT extraction, matching and undistortion (-1: the CPUs available, or anigs --threads); 1 and 2
-    #: threads gave bit-identical outputs
+    #: threads of SIFT extraction and undistortion (-1: the CPUs available, or anigs --threads); 1, 2 and 4 threads gave
+    #: bit-identical outputs
     num_threads: int = -1
+    #: threads of SIFT matching and geometric verification (-1: as num_threads); COLMAP's CPU matcher builds a FAISS
+    #: index per image in each matching thread, and with several threads some runs matched a few pairs differently
+    #: (benchmarks/README.md); one thread costs no CPU time, only wall time
+    matching_num_threads: int = 1
     #: threads of mapping and bundle adjustment; 1 is bit-deterministic for a seed, more (-1: as num_threads) is faster
     #: but cameras differ slightly from run to run
     mapper_num_threads: int = 1
@@ -129,7 +133,7 @@ class SfmConfig(Section):
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2**31 - 1024:
             raise ValueError(f"sfm.seed must be an integer in [0, 2^31 - 1024), got {self.seed!r}: COLMAP's -1 leaves "
                              "RANSAC unseeded, and the verified matches then depend on thread scheduling")
-        for key in ("num_threads", "mapper_num_threads"):
+        for key in ("num_threads", "matching_num_threads", "mapper_num_threads"):
             v = getattr(self, key)
             if isinstance(v, bool) or not isinstance(v, int) or v == 0 or v < -1:
                 raise ValueError(f"sfm.{key} must be -1 (all cores) or >= 1, got {v!r}")

@@ -420,7 +420,7 @@ def test_config_rejects_unknown_and_bad_values():
         SfmConfig.from_dict({"camera_model": "SIMPLE_RADIAL", "camera_params": [300, 160, 120]})
     with pytest.raises(ValueError, match="num_threads"):
         SfmConfig.from_dict({"num_threads": 0})
-    for key, bad in (("mapper_num_threads", -2), ("init_min_tri_angle", "wide"), ("init_min_tri_angle", 95),
+    for key, bad in (("mapper_num_threads", -2), ("matching_num_threads", 0), ("init_min_tri_angle", "wide"), ("init_min_tri_angle", 95),
                      ("exhaustive_max_images", 1), ("exhaustive_max_comparisons", 0), ("sequential_similar", -1),
                      ("ba_global_growth", 1.0), ("ba_global_max_refinements", 0), ("ba_local_max_refinements", 0)):
         with pytest.raises(ValueError, match=key):
@@ -440,8 +440,8 @@ def _busy_cpu0():
 
 
 def test_same_seed_same_output_for_any_extraction_thread_count(ring, tmp_path):
-    """mapper_num_threads=1 (the default) makes the stage bit-deterministic for a seed, whatever
-    num_threads extraction, matching and undistortion use, and however their threads are scheduled:
+    """matching_num_threads=1 and mapper_num_threads=1 (the defaults) make the stage bit-deterministic for a
+    seed, whatever num_threads extraction and undistortion use, and however their threads are scheduled:
     1 thread, 2 threads, and 3 threads sharing one CPU with a busy process (the CLI, as the
     workflow runs it) give the same bytes and the same fingerprint after every step."""
     folder = tmp_path / "imgs"
@@ -463,6 +463,7 @@ def test_same_seed_same_output_for_any_extraction_thread_count(ring, tmp_path):
     assert a.report["registered"] == 7
     assert (a.report["auto"]["num_threads"], b.report["auto"]["num_threads"], c.report()["auto"]["num_threads"]) == (1, 2, 3)
     assert a.report["auto"]["mapper_num_threads"] == b.report["auto"]["mapper_num_threads"] == 1
+    assert a.report["auto"]["matching_num_threads"] == c.report()["auto"]["matching_num_threads"] == 1
     assert set(a.report["fingerprints"]) == {"features", "matches", "mapped", "model"}
     assert a.report["fingerprints"] == b.report["fingerprints"] == c.report()["fingerprints"]
     assert np.array_equal(a.xyz, b.xyz) and np.array_equal(a.rgb, b.rgb)
@@ -561,10 +562,12 @@ def test_thread_counts():
     assert plan.resolve_threads(3, cli_threads=8) == 3
     assert plan.resolve_threads(-1, cli_threads=2) == 2
     assert plan.resolve_threads(-1) == plan.available_cpus() >= 1
-    cfg, info = sfm_mod.resolve_config(SfmConfig(num_threads=-1, mapper_num_threads=-1), cli_threads=5)
-    assert (cfg.num_threads, cfg.mapper_num_threads) == (5, 5) == (info["num_threads"], info["mapper_num_threads"])
+    cfg, info = sfm_mod.resolve_config(SfmConfig(num_threads=-1, matching_num_threads=-1, mapper_num_threads=-1),
+                                       cli_threads=5)
+    assert (cfg.num_threads, cfg.matching_num_threads, cfg.mapper_num_threads) == (5, 5, 5) \
+        == (info["num_threads"], info["matching_num_threads"], info["mapper_num_threads"])
     cfg, _ = sfm_mod.resolve_config(SfmConfig(), cli_threads=5)
-    assert (cfg.num_threads, cfg.mapper_num_threads) == (5, 1)
+    assert (cfg.num_threads, cfg.matching_num_threads, cfg.mapper_num_threads) == (5, 1, 1)
 
 
 def test_initial_pair_angle_from_the_matches(ring, tmp_path):
