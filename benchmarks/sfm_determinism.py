@@ -1,13 +1,20 @@
 """Is the sfm stage deterministic? Run it N times on one capture and count distinct ``cameras.json``.
 
     python benchmarks/sfm_determinism.py CAPTURE --runs 20 --out DIR [--params JSON] [--threads 2] [--keep-work]
+        [--contention K] [--pin CPUS]
     python benchmarks/sfm_determinism.py --compare-db RUN_A/work/database.db RUN_B/work/database.db
 
 The first form runs ``anigs --threads T sfm`` (the workflow rule's command; ground truth from
 ``CAPTURE/gt/cameras.json`` when present) N times, one at a time, into ``DIR/runK`` and prints
-per run the md5 of ``cameras.json``, the wall seconds and the load average, then the number of
+per run the md5 of ``cameras.json``, the wall and CPU seconds, the load average and the first step
+whose fingerprint (``report.json``, :mod:`anigs.sfm.fingerprint`) differs from run 1's, then the number of
 distinct md5s, how many runs gave each, and the median seconds per run. With ``--keep-work``
 every run keeps its COLMAP database (``runK/work/database.db``) for the second form.
+
+Under contention: ``--contention K`` keeps K busy processes (pure-Python loops) running through
+all runs, and ``--pin CPUS`` (e.g. ``0``) puts the stage and those processes on the same CPUs
+(``taskset``-like affinity), so the stage's threads are preempted at arbitrary points: the
+schedule a loaded machine gives, on purpose. The load average printed per run includes them.
 
 The second form compares two feature databases of the same photos: keypoints and descriptors
 per image, raw matches and two-view geometries (configuration, inlier matches, F/E/H) per pair,
@@ -29,7 +36,28 @@ from pathlib import Path
 import numpy as np
 
 
-def run_once(capture: Path, out: Path, params: str, threads: int, keep_work: bool) -> tuple[str, float]:
+def _pinned(cpus: set[int] | None):
+    """A ``preexec_fn`` that restricts the child to ``cpus`` (None: no restriction)."""
+    if not cpus:
+        return None
+    return lambda: os.sched_setaffinity(0, cpus)
+
+
+def start_contention(k: int, cpus: set[int] | None) -> list[subprocess.Popen]:
+    """K busy processes (endless pure-Python loops) on ``cpus``; stop them with :func:`stop_contention`."""
+    spin = "x = 0\nwhile True:\n    x = (x * 1103515245 + 12345) % 2147483648\n"
+    return [subprocess.Popen([sys.executable, "-c", spin], preexec_fn=_pinned(cpus)) for _ in range(k)]
+
+
+def stop_contention(procs: list[subprocess.Popen]) -> None:
+    for p in procs:
+        p.terminate()
+    for p in procs:
+        p.wait()
+
+
+def run_once(capture: Path, out: Path, params: str, threads: int, keep_work: bool,
+             cpus: set[int] | None = None) -> tuple[str, float, float]:
     from anigs.stages.capture import Outputs as CaptureOutputs
     from anigs.stages.sfm import Outputs as SfmOutputs
 
@@ -42,29 +70,58 @@ def run_once(capture: Path, out: Path, params: str, threads: int, keep_work: boo
     if keep_work:
         cmd.append("--keep-work")
     t0 = time.perf_counter()
+    r0 = os.times()
     with open(str(out) + ".log", "w") as log:
-        subprocess.run(cmd, check=True, stdout=log, stderr=subprocess.STDOUT)
+        subprocess.run(cmd, check=True, stdout=log, stderr=subprocess.STDOUT, preexec_fn=_pinned(cpus))
     seconds = time.perf_counter() - t0
-    return hashlib.md5(SfmOutputs(out).path("cameras").read_bytes()).hexdigest(), seconds
+    r1 = os.times()
+    cpu = (r1.children_user - r0.children_user) + (r1.children_system - r0.children_system)
+    return hashlib.md5(SfmOutputs(out).path("cameras").read_bytes()).hexdigest(), seconds, cpu
+
+
+STEPS = ("features", "matches", "mapped", "model")  # report.json's fingerprints, in pipeline order
+
+
+def first_difference(report: dict, reference: dict) -> str:
+    """The first step whose fingerprint (``report.json``) differs from ``reference``'s, or ``same``."""
+    a, b = report.get("fingerprints", {}), reference.get("fingerprints", {})
+    for step in STEPS:
+        if a.get(step) != b.get(step):
+            return f"differs from run 1 at {step}" if step in a and step in b else "no fingerprints"
+    return "same steps as run 1"
 
 
 def repeat(args) -> None:
     capture, root = Path(args.capture), Path(args.out)
     root.mkdir(parents=True, exist_ok=True)
-    md5s, secs = [], []
-    for k in range(1, args.runs + 1):
-        out = root / f"run{k}"
-        if out.exists():
-            shutil.rmtree(out)
-        md5, s = run_once(capture, out, args.params, args.threads, args.keep_work)
-        md5s.append(md5)
-        secs.append(s)
-        print(f"run {k:2d}  {md5}  {s:6.1f} s  load {os.getloadavg()[0]:.1f}", flush=True)
     from anigs.stages.sfm import Outputs as SfmOutputs
+
+    cpus = {int(c) for c in args.pin.split(",")} if args.pin else None
+    md5s, secs, cpus_s, first = [], [], [], {}
+    spinners = start_contention(args.contention, cpus)
+    if spinners or cpus:
+        print(f"contention: {args.contention} busy process(es), stage and busy processes on CPUs "
+              f"{sorted(cpus) if cpus else 'any'}", flush=True)
+    try:
+        for k in range(1, args.runs + 1):
+            out = root / f"run{k}"
+            if out.exists():
+                shutil.rmtree(out)
+            md5, s, c = run_once(capture, out, args.params, args.threads, args.keep_work, cpus)
+            md5s.append(md5)
+            secs.append(s)
+            cpus_s.append(c)
+            report = SfmOutputs(out).report()
+            first = report if k == 1 else first
+            print(f"run {k:2d}  {md5}  {s:6.1f} s  {c:6.1f} CPU s  load {os.getloadavg()[0]:.1f}  "
+                  f"{first_difference(report, first)}", flush=True)
+    finally:
+        stop_contention(spinners)
 
     counts = collections.Counter(md5s)
     print(f"\n{args.runs} runs, {len(counts)} distinct {SfmOutputs.LAYOUT['cameras'].name}; median {statistics.median(secs):.1f} s per run "
-          f"(min {min(secs):.1f}, max {max(secs):.1f})")
+          f"(min {min(secs):.1f}, max {max(secs):.1f}); median {statistics.median(cpus_s):.1f} CPU s per run "
+          f"(min {min(cpus_s):.1f}, max {max(cpus_s):.1f})")
     for md5, n in counts.most_common():
         print(f"  {md5}  {n} run(s)")
 
@@ -132,6 +189,8 @@ def main() -> None:
                     help="the sfm section as JSON (default: the demo scene's sfm keys)")
     ap.add_argument("--threads", type=int, default=2, help="anigs --threads (what the workflow rule gives)")
     ap.add_argument("--keep-work", action="store_true", help="keep every run's COLMAP database")
+    ap.add_argument("--contention", type=int, default=0, help="busy processes kept running through all runs")
+    ap.add_argument("--pin", default="", help="CPUs (comma-separated) for the stage and the busy processes, e.g. 0")
     ap.add_argument("--compare-db", nargs=2, metavar="DB", help="compare two feature databases and exit")
     args = ap.parse_args()
     if args.compare_db:

@@ -15,13 +15,19 @@ when the camera model has distortion -> frame normalisation -> outputs.
 Parameters live in :mod:`anigs.sfm.config`, model conversion in :mod:`anigs.sfm.model`.
 
 Reproducibility: extraction (the images enter the database in name order first, so several
-threads cannot renumber them), matching and undistortion gave bit-identical databases, cameras
-and images for 1 and 2 threads (tests/sfm; the 34-photo flower capture), so they use
-``num_threads`` (all available CPUs by default); the mapper and the bundle adjustments are
+threads cannot renumber them) and undistortion gave bit-identical databases, cameras and images
+for 1, 2 and 4 threads (tests/sfm; the 34-photo flower capture; the demo), so they use
+``num_threads`` (all available CPUs by default). Matching runs on ``matching_num_threads`` (1 by
+default): every RANSAC is seeded per pair (``seed``), but COLMAP's CPU matcher builds a FAISS index
+per image in each matching thread, and one run of the demo's matching with 4 threads gave other
+raw matches for 2 of 1128 pairs (both with one image); one thread takes the same CPU seconds. The
+mapper and the bundle adjustments are
 bit-identical for a seed only with ``mapper_num_threads: 1`` (the default; 2 threads changed the
 cameras in the last digits from run to run). The report has wall and CPU seconds per step
 (``timings_s``, ``cpu_s``: CPU seconds of all the process's threads, less sensitive than wall
-seconds to other work on a shared machine) and what ``auto`` chose (``auto``, ``mapping``).
+seconds to other work on a shared machine), what ``auto`` chose (``auto``, ``mapping``) and a digest
+after each step (``fingerprints``: :mod:`anigs.sfm.fingerprint`), which names the step where two runs
+of the same photos part.
 
 Failure handling (:mod:`anigs.sfm.escalate`): several models: the one with most registered images
 is kept, the others are reported; a mapping that registers fewer than ``min_registered_fraction``
@@ -67,6 +73,7 @@ from anigs.sfm.escalate import Source, SfmError, map_escalating, rescale_model
 from anigs.sfm.model import (find_model_dir, reconstruction_cameras, reconstruction_points, replace_dir,
                              to_sim3d)
 from anigs.sfm.bundle import adjust_intrinsics
+from anigs.sfm.fingerprint import database_fingerprints, model_fingerprint
 from anigs.sfm import steps
 from anigs.sfm.plan import resolve_threads
 from anigs.sfm.steps import _device, camera_mode, cpu_seconds, larger_originals, refine_model, select_model
@@ -98,9 +105,11 @@ def resolve_config(cfg: SfmConfig, cli_threads: int | None = None) -> tuple[SfmC
     the report entry.
     """
     threads = resolve_threads(cfg.num_threads, cli_threads)
+    matching_threads = threads if cfg.matching_num_threads == -1 else cfg.matching_num_threads
     mapper_threads = threads if cfg.mapper_num_threads == -1 else cfg.mapper_num_threads
-    return (dataclasses.replace(cfg, num_threads=threads, mapper_num_threads=mapper_threads),
-            {"num_threads": threads, "mapper_num_threads": mapper_threads})
+    return (dataclasses.replace(cfg, num_threads=threads, matching_num_threads=matching_threads,
+                                mapper_num_threads=mapper_threads),
+            {"num_threads": threads, "matching_num_threads": matching_threads, "mapper_num_threads": mapper_threads})
 
 
 # ---- the stage -----------------------------------------------------------------------------------
@@ -228,12 +237,17 @@ def _map(work: Path, image_dir: Path, names: list[str], cfg: SfmConfig, mode: st
     report["auto"]["matcher"] = stats.pop("matcher", cfg.matcher)
     report["auto"]["matcher_choice"] = stats.pop("matcher_choice", None)
     report["features"] = stats
+    database = work / "database.db"
+    report["fingerprints"] = database_fingerprints(database) if database.exists() else {}
     t0, c0 = time.perf_counter(), cpu_seconds()
-    first = Source(work / "database.db", image_dir, "capture", report["auto"]["matcher"])
+    first = Source(database, image_dir, "capture", report["auto"]["matcher"])
     outcome = map_escalating(first, work, cfg, names, _device(cfg) if first.database.exists() else None,
                              originals=larger_originals(originals, headers), mode=mode)
     rec, report["mapping"], report["status"] = outcome.rec, outcome.report, outcome.status
     report["timings_s"]["mapping"], report["cpu_s"]["mapping"] = time.perf_counter() - t0, cpu_seconds() - c0
+    if (outcome.source.database != database or report["mapping"]["retries"]) and outcome.source.database.exists():
+        report["fingerprints"]["kept_database"] = database_fingerprints(outcome.source.database)
+    report["fingerprints"]["mapped"] = model_fingerprint(rec)
     t0, c0 = time.perf_counter(), cpu_seconds()
     report["refine"] = refine_model(rec, outcome.source.database, cfg)
     if cfg.mapper_holds_distortion() and not report["refine"]["applied"]:
@@ -242,6 +256,7 @@ def _map(work: Path, image_dir: Path, names: list[str], cfg: SfmConfig, mode: st
         report["mapping"]["rescaled_from_original"] = rescale_model(
             rec, {n: (w, h) for n, (w, h, _) in headers.items()})
     report["timings_s"]["refine"], report["cpu_s"]["refine"] = time.perf_counter() - t0, cpu_seconds() - c0
+    report["fingerprints"]["model"] = model_fingerprint(rec)
     return rec
 
 

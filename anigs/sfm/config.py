@@ -74,9 +74,13 @@ class SfmConfig(Section):
     #: (no ground truth) scale so the mean camera height is this; None keeps COLMAP's scale
     camera_height: Optional[float] = 1.6
     device: str = "auto"  # auto | cpu | cuda (SIFT extraction and matching)
-    #: threads of SIFT extraction, matching and undistortion (-1: the CPUs available, or anigs --threads); 1 and 2
-    #: threads gave bit-identical outputs
+    #: threads of SIFT extraction and undistortion (-1: the CPUs available, or anigs --threads); 1, 2 and 4 threads gave
+    #: bit-identical outputs
     num_threads: int = -1
+    #: threads of SIFT matching and geometric verification (-1: as num_threads); COLMAP's CPU matcher builds a FAISS
+    #: index per image in each matching thread, and with several threads some runs matched a few pairs differently
+    #: (benchmarks/README.md); one thread costs no CPU time, only wall time
+    matching_num_threads: int = 1
     #: threads of mapping and bundle adjustment; 1 is bit-deterministic for a seed, more (-1: as num_threads) is faster
     #: but cameras differ slightly from run to run
     mapper_num_threads: int = 1
@@ -92,7 +96,10 @@ class SfmConfig(Section):
     #: from the focal length; on the flower capture one reached f = 2978 px, k = 10 and stalled), yes for the other
     #: models
     mapper_refine_distortion: Union[bool, str] = "auto"
-    seed: int = 0  # COLMAP random seed
+    #: COLMAP random seed (>= 0): every RANSAC, two-view verification included, restarts from it for each image pair,
+    #: so the results do not depend on which thread takes which pair (COLMAP's default -1 leaves it unseeded: the
+    #: verified matches then change from run to run with the thread schedule)
+    seed: int = 0
 
     WHERE: ClassVar[str] = "sfm config"
     ERROR: ClassVar[type[Exception]] = KeyError
@@ -123,7 +130,10 @@ class SfmConfig(Section):
             raise ValueError(f"sfm.camera_height must be > 0 or null, got {self.camera_height}")
         if not 0 <= self.ground_percentile <= 100:
             raise ValueError(f"sfm.ground_percentile must be in [0, 100], got {self.ground_percentile}")
-        for key in ("num_threads", "mapper_num_threads"):
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2**31 - 1024:
+            raise ValueError(f"sfm.seed must be an integer in [0, 2^31 - 1024), got {self.seed!r}: COLMAP's -1 leaves "
+                             "RANSAC unseeded, and the verified matches then depend on thread scheduling")
+        for key in ("num_threads", "matching_num_threads", "mapper_num_threads"):
             v = getattr(self, key)
             if isinstance(v, bool) or not isinstance(v, int) or v == 0 or v < -1:
                 raise ValueError(f"sfm.{key} must be -1 (all cores) or >= 1, got {v!r}")

@@ -34,7 +34,7 @@ def matching_kwargs(cfg: SfmConfig, device) -> dict:
     import pycolmap
 
     match = pycolmap.FeatureMatchingOptions()
-    match.num_threads = cfg.num_threads
+    match.num_threads = cfg.matching_num_threads
     match.use_gpu = device == pycolmap.Device.cuda
     verify = pycolmap.TwoViewGeometryOptions()
     verify.ransac.random_seed = cfg.seed

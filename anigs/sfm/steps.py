@@ -62,8 +62,8 @@ def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: Sf
     ``cfg.num_threads`` must be a count (:func:`resolve_config`)."""
     import pycolmap
 
-    if cfg.num_threads < 1:
-        raise ValueError("extract_and_match needs a thread count (sfm.colmap.resolve_config)")
+    if cfg.num_threads < 1 or cfg.matching_num_threads < 1:
+        raise ValueError("extract_and_match needs thread counts (sfm.colmap.resolve_config)")
     device = _device(cfg)
     pycolmap.set_random_seed(cfg.seed)
     reader = pycolmap.ImageReaderOptions(camera_model=cfg.camera_model)

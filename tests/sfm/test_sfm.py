@@ -9,6 +9,10 @@ from __future__ import annotations
 
 import logging
 import math
+import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +27,7 @@ from anigs.sfm.align import (Similarity, estimate_up, pose_errors, rotation_angl
 from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at  # noqa: E402
 from anigs.gaussians import Gaussians  # noqa: E402
 from anigs.sfm.colmap import SfmConfig, SfmError, run_sfm  # noqa: E402
+from anigs.sfm.fingerprint import database_fingerprints, model_fingerprint  # noqa: E402
 from anigs.stages.sfm import Outputs as SfmOutputs  # noqa: E402
 from _captures import render as render_capture, textured_discs  # noqa: E402
 
@@ -415,35 +420,59 @@ def test_config_rejects_unknown_and_bad_values():
         SfmConfig.from_dict({"camera_model": "SIMPLE_RADIAL", "camera_params": [300, 160, 120]})
     with pytest.raises(ValueError, match="num_threads"):
         SfmConfig.from_dict({"num_threads": 0})
-    for key, bad in (("mapper_num_threads", -2), ("init_min_tri_angle", "wide"), ("init_min_tri_angle", 95),
+    for key, bad in (("mapper_num_threads", -2), ("matching_num_threads", 0), ("init_min_tri_angle", "wide"), ("init_min_tri_angle", 95),
                      ("exhaustive_max_images", 1), ("exhaustive_max_comparisons", 0), ("sequential_similar", -1),
                      ("ba_global_growth", 1.0), ("ba_global_max_refinements", 0), ("ba_local_max_refinements", 0)):
         with pytest.raises(ValueError, match=key):
             SfmConfig.from_dict({key: bad})
     assert SfmConfig.from_dict({}).matcher == "auto" and SfmConfig.from_dict({}).init_min_tri_angle == "auto"
     for key, bad in (("refine_max_keypoint_scale", 0), ("refine_min_observations", -1), ("refine_loss_scale", -0.5),
-                     ("sift_peak_threshold", 0)):
+                     ("sift_peak_threshold", 0), ("seed", -1), ("seed", 1.5), ("seed", 2**31)):
         with pytest.raises(ValueError, match=key):
             SfmConfig.from_dict({key: bad})
     assert SfmConfig.from_dict({"matcher": "sequential"}).matcher == "sequential"
 
 
+def _busy_cpu0():
+    """A process spinning on CPU 0 (stopped by the caller), and CPU 0 for a child to share it."""
+    spin = subprocess.Popen([sys.executable, "-c", "while True: pass"], preexec_fn=lambda: os.sched_setaffinity(0, {0}))
+    return spin, (lambda: os.sched_setaffinity(0, {0}))
+
+
 def test_same_seed_same_output_for_any_extraction_thread_count(ring, tmp_path):
-    """mapper_num_threads=1 (the default) makes the stage bit-deterministic for a seed, whatever
-    num_threads extraction, matching and undistortion use."""
+    """matching_num_threads=1 and mapper_num_threads=1 (the defaults) make the stage bit-deterministic for a
+    seed, whatever num_threads extraction and undistortion use, and however their threads are scheduled:
+    1 thread, 2 threads, and 3 threads sharing one CPU with a busy process (the CLI, as the
+    workflow runs it) give the same bytes and the same fingerprint after every step."""
     folder = tmp_path / "imgs"
     folder.mkdir()
     for p in sorted(ring["images"].iterdir())[:7]:  # 7 neighbouring views: a quick reconstruction
         (folder / p.name).write_bytes(p.read_bytes())
     a = run_sfm(folder, SfmOutputs(tmp_path / "a"), SfmConfig(camera_model="SIMPLE_RADIAL", num_threads=1), keep_work=True)
     b = run_sfm(folder, SfmOutputs(tmp_path / "b"), SfmConfig(camera_model="SIMPLE_RADIAL", num_threads=2), keep_work=True)
+    spin, on_cpu0 = _busy_cpu0()
+    try:
+        done = subprocess.run([sys.executable, "-m", "anigs.cli", "--threads", "3", "sfm", "--images", str(folder),
+                               "--out", str(tmp_path / "c"), "--params", '{"camera_model": "SIMPLE_RADIAL"}'],
+                              capture_output=True, text=True, preexec_fn=on_cpu0)
+    finally:
+        spin.kill()
+        spin.wait()
+    assert done.returncode == 0, done.stderr[-3000:]
+    c = SfmOutputs(tmp_path / "c")
     assert a.report["registered"] == 7
-    assert (a.report["auto"]["num_threads"], b.report["auto"]["num_threads"]) == (1, 2)
+    assert (a.report["auto"]["num_threads"], b.report["auto"]["num_threads"], c.report()["auto"]["num_threads"]) == (1, 2, 3)
     assert a.report["auto"]["mapper_num_threads"] == b.report["auto"]["mapper_num_threads"] == 1
+    assert a.report["auto"]["matching_num_threads"] == c.report()["auto"]["matching_num_threads"] == 1
+    assert set(a.report["fingerprints"]) == {"features", "matches", "mapped", "model"}
+    assert a.report["fingerprints"] == b.report["fingerprints"] == c.report()["fingerprints"]
     assert np.array_equal(a.xyz, b.xyz) and np.array_equal(a.rgb, b.rgb)
     assert all(np.array_equal(x.viewmat, y.viewmat) and np.array_equal(x.K, y.K) for x, y in zip(a.cameras, b.cameras))
-    for name in sorted(p.name for p in (tmp_path / "a" / "images").iterdir()):  # undistorted with 1 and 2 threads
+    assert (tmp_path / "a" / "cameras.json").read_bytes() == c.path("cameras").read_bytes()
+    assert (tmp_path / "a" / "points.npz").read_bytes() == c.path("points").read_bytes()
+    for name in sorted(p.name for p in (tmp_path / "a" / "images").iterdir()):  # undistorted with 1, 2 and 3 threads
         assert (tmp_path / "a" / "images" / name).read_bytes() == (tmp_path / "b" / "images" / name).read_bytes()
+        assert (tmp_path / "a" / "images" / name).read_bytes() == c.path("images").joinpath(name).read_bytes()
     da, db = (pycolmap.Database.open(str(tmp_path / x / "work" / "database.db")) for x in "ab")
     try:
         for im in da.read_all_images():
@@ -458,6 +487,37 @@ def test_same_seed_same_output_for_any_extraction_thread_count(ring, tmp_path):
     finally:
         da.close()
         db.close()
+
+
+def test_fingerprints_name_the_step_that_changed(ring, tmp_path):
+    """The report's fingerprints are digests of the kept database and model: they match a recomputation,
+    and change when one inlier match, one descriptor byte or one pose changes."""
+    fp = ring["res"].report["fingerprints"]
+    database = ring["out"] / "work" / "database.db"
+    assert {k: fp[k] for k in ("features", "matches")} == database_fingerprints(database)
+    changed = tmp_path / "changed.db"
+    shutil.copy(database, changed)
+    db = pycolmap.Database.open(str(changed))
+    try:
+        pair_ids, geoms = db.read_two_view_geometries()
+        k = int(np.argmax([len(g.inlier_matches) for g in geoms]))
+        g = geoms[k]
+        g.inlier_matches = np.asarray(g.inlier_matches)[1:]
+        i, j = pycolmap.pair_id_to_image_pair(pair_ids[k])
+        db.update_two_view_geometry(i, j, g)
+    finally:
+        db.close()
+    after = database_fingerprints(changed)
+    assert after["features"] == fp["features"] and after["matches"] != fp["matches"]
+    rec = pycolmap.Reconstruction(ring["out"] / "sparse" / "0")
+    same = pycolmap.Reconstruction(rec)
+    assert model_fingerprint(rec) == model_fingerprint(same)
+    image_id = sorted(same.reg_image_ids())[0]
+    frame = same.frames[same.images[image_id].frame_id]
+    pose = frame.rig_from_world
+    pose.translation = np.asarray(pose.translation) + np.array([1e-9, 0, 0])
+    frame.rig_from_world = pose
+    assert model_fingerprint(rec) != model_fingerprint(same)
 
 
 # ---- choices from the capture (anigs.sfm.plan) ------------------------------------------------
@@ -502,10 +562,12 @@ def test_thread_counts():
     assert plan.resolve_threads(3, cli_threads=8) == 3
     assert plan.resolve_threads(-1, cli_threads=2) == 2
     assert plan.resolve_threads(-1) == plan.available_cpus() >= 1
-    cfg, info = sfm_mod.resolve_config(SfmConfig(num_threads=-1, mapper_num_threads=-1), cli_threads=5)
-    assert (cfg.num_threads, cfg.mapper_num_threads) == (5, 5) == (info["num_threads"], info["mapper_num_threads"])
+    cfg, info = sfm_mod.resolve_config(SfmConfig(num_threads=-1, matching_num_threads=-1, mapper_num_threads=-1),
+                                       cli_threads=5)
+    assert (cfg.num_threads, cfg.matching_num_threads, cfg.mapper_num_threads) == (5, 5, 5) \
+        == (info["num_threads"], info["matching_num_threads"], info["mapper_num_threads"])
     cfg, _ = sfm_mod.resolve_config(SfmConfig(), cli_threads=5)
-    assert (cfg.num_threads, cfg.mapper_num_threads) == (5, 1)
+    assert (cfg.num_threads, cfg.matching_num_threads, cfg.mapper_num_threads) == (5, 1, 1)
 
 
 def test_initial_pair_angle_from_the_matches(ring, tmp_path):
