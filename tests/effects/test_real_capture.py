@@ -27,6 +27,12 @@ FERN = CAPTURES / "fern-llff"
 pytestmark = pytest.mark.skipif(not FERN.is_dir(), reason=f"real capture folder {FERN} is missing (the shared "
                                 "captures are not beside this clone; set ANIGS_CAPTURES to their folder)")
 
+# the short fit the labels' figures were measured on (anigs 0.7's static defaults, 1000 steps), so that this
+# test follows the effects stage, not the static fit: with 0.8's auto budget (random background, far points,
+# budget growth) the fern's worst must-stay-still mark moves 1.3% (recall 0.93; issue 35's note)
+SHORT_FIT = {"iterations": 1000, "budget": "fast", "background": [0.0, 0.0, 0.0], "far_share": 0.0,
+             "densify": {"growth": "threshold"}}
+
 PROMPTS = {"user": "a fern with its fronds moving in the wind",
            "absent": "a potted plant with leaves and flowers in a breeze",
            "nothing": "an atrium with shops, a glass railing and ceiling lamps"}
@@ -41,7 +47,7 @@ def fern(tmp_path_factory):
     assert main(["--threads", "2", "sfm", "--images", str(FERN), "--out", str(tmp / "sfm"), "--params", "{}"]) == 0
     assert main(["--threads", "2", "static", "--images", str(tmp / "sfm" / "images"), "--cameras",
                  str(tmp / "sfm" / "cameras.json"), "--points", str(tmp / "sfm" / "points.npz"), "--out",
-                 str(tmp / "static"), "--no-progress", "--params", json.dumps({"iterations": 1000})]) == 0
+                 str(tmp / "static"), "--no-progress", "--params", json.dumps(SHORT_FIT)]) == 0
     return tmp
 
 

@@ -40,11 +40,16 @@ def test_far_points_fill_only_what_sfm_left_out():
     assert len(far_points(p, cams, skied, tuple(sky), 1000)[0]) < 0.1 * len(fp)
 
 
-def test_fit_with_far_points_over_a_sky():
+def _sky_scene(sky: tuple[float, float, float]):
+    """The wall-and-ground scene's photos over a sky colour (its black background replaced), cameras
+    and pseudo-SfM points."""
     gt, cams, imgs = make_scene(n_cams=12, width=48, height=36)
-    sky = torch.tensor([0.3, 0.5, 0.9])
-    skied = [torch.where(im.sum(-1, keepdim=True) < 1e-3, sky, im) for im in imgs]
-    p, c = sfm_points(gt, every=3)
+    skied = [torch.where(im.sum(-1, keepdim=True) < 1e-3, torch.tensor(sky), im) for im in imgs]
+    return skied, cams, *sfm_points(gt, every=3)
+
+
+def test_fit_with_far_points_over_a_sky():
+    skied, cams, p, c = _sky_scene((0.3, 0.5, 0.9))
     fast = {"iterations": 60, "eval_every": 0, "sh_degree": 0, "densify": {"start": 20, "stop": 40, "every": 20}}
     _, with_far = fit_static(skied, cams, p, c, FitConfig.from_dict(fast), progress=False)
     _, without = fit_static(skied, cams, p, c, FitConfig.from_dict({**fast, "far_share": 0.0}), progress=False)
@@ -55,10 +60,7 @@ def test_fit_with_far_points_over_a_sky():
 def test_random_background_makes_what_the_photos_show_opaque():
     from anigs.render import render_gaussians
 
-    gt, cams, imgs = make_scene(n_cams=12, width=48, height=36)
-    sky = torch.tensor([0.3, 0.5, 0.9])
-    skied = [torch.where(im.sum(-1, keepdim=True) < 1e-3, sky, im) for im in imgs]
-    p, c = sfm_points(gt, every=3)
+    skied, cams, p, c = _sky_scene((0.3, 0.5, 0.9))
     fast = {"iterations": 150, "eval_every": 0, "sh_degree": 0, "densify": {"start": 20, "stop": 100, "every": 20}}
     alpha = {}
     for bg in ("random", [0.3, 0.5, 0.9]):
