@@ -18,6 +18,7 @@ from anigs.static.budget import CaptureSize, FitPlan, StepCost, next_level, plan
 
 MIN_TEST_PSNR = 21.0  # dB, held out
 MIN_TRAIN_PSNR = 24.0  # dB
+REFERENCE = StepCost()  # one core's CPU seconds (benchmarks/README.md): deterministic minutes for artifacts
 MAX_GAIN = 3.0  # dB: the most the curve's extrapolation promises (diminishing returns)
 MIN_SIDE = 480  # px: the smallest photo size the advice suggests (about twice the default views' 256x192)
 OVERFIT_GAP = 6.0  # train minus held-out PSNR (dB) above which more photos help more than a longer fit
@@ -48,13 +49,17 @@ def accuracy_record(metrics: dict[str, Any], fit_plan: FitPlan, size: CaptureSiz
     if nxt is not None:
         p = plan(nxt, size, cost, start_gaussians)
         est = _extrapolate(metrics.get("curve", []), p.iterations)
+        ref = plan(nxt, size, REFERENCE, start_gaussians)
         rec["next"] = {"level": nxt, "steps": p.iterations, "gaussians": p.max_gaussians,
                        "estimated_minutes": round(p.estimated_seconds / 60.0, 1),
+                       "reference_cpu_minutes": round(ref.estimated_seconds / 60.0, 1),
                        "test_psnr_from_curve": None if est is None else round(est, 2),
                        "note": "test_psnr_from_curve: the gain per doubling of steps over the held-out curve's last "
                                f"interval, carried on to the next level's steps (at most +{MAX_GAIN:g} dB); more "
                                "Gaussians and a larger image size change it further"}
-    rec["warning"] = _warning(metrics, fit_plan, size, cost, start_gaussians)
+    # the warning is an artifact's text (final.json, the effects overview): its minutes come from the
+    # reference cost model, not this machine's timing, so the same config gives the same bytes
+    rec["warning"] = _warning(metrics, fit_plan, size, REFERENCE, start_gaussians)
     return rec
 
 
@@ -78,13 +83,13 @@ def _warning(metrics: dict[str, Any], fit_plan: FitPlan, size: CaptureSize, cost
     if nxt is not None:
         p = plan(nxt, size, cost, start_gaussians)
         options.append((p.estimated_seconds, f"static.budget: {nxt} ({p.iterations} steps, {p.max_gaussians:,} "
-                                             f"Gaussians, about {p.estimated_seconds / 60:.0f} min here)"))
+                                             f"Gaussians, about {p.estimated_seconds / 60:.0f} CPU min)"))
     side = max(size.limited(fit_plan.max_side).width, size.limited(fit_plan.max_side).height)
     if side > MIN_SIDE:  # a smaller image size (not below MIN_SIDE): the next level on fewer pixels
         smaller = max(MIN_SIDE, side // 2)
         p = plan(fit_plan.level if nxt is None else nxt, size, cost, start_gaussians, max_side=smaller)
         options.append((p.estimated_seconds, f"static.max_side: {smaller} with static.budget: {p.level} "
-                                             f"(about {p.estimated_seconds / 60:.0f} min)"))
+                                             f"(about {p.estimated_seconds / 60:.0f} CPU min)"))
     if not options:
         return f"{what}; more photos of the scene are the remaining remedy"
     options.sort()
@@ -93,8 +98,9 @@ def _warning(metrics: dict[str, Any], fit_plan: FitPlan, size: CaptureSize, cost
 
 
 def draw_fit(metrics: dict[str, Any], path) -> None:
-    """``static/fit.png``: held-out PSNR against training seconds (points labelled by step), and the
-    accuracy record in words (the plan, now, the next level and its cost, the warning)."""
+    """``static/fit.png``: held-out PSNR against the steps (points labelled by the Gaussian count) and
+    the accuracy record in words (the plan, now, the next level, the warning). Only what the same
+    config and seed reproduce is drawn: this machine's seconds are in metrics.json and the log."""
     import textwrap
 
     import cv2
@@ -103,24 +109,26 @@ def draw_fit(metrics: dict[str, Any], path) -> None:
     from anigs.io import atomic_path
     from anigs.tradeoff_plot import knob_image
 
-    rows = [{"knob": "fit", "seconds": r["train_seconds"], "test_psnr": r["test_psnr"], "value": r["iteration"]}
-            for r in metrics.get("curve", []) if math.isfinite(r["test_psnr"])]
-    plot = knob_image(rows, "fit", ["test_psnr"], panel=(640, 300), x_label="training seconds")
+    rows = [{"knob": "fit", "seconds": r["iteration"], "test_psnr": r["test_psnr"],
+             "value": f"{r['num_gaussians'] / 1000:.0f}k"} for r in metrics.get("curve", [])
+            if math.isfinite(r["test_psnr"])]
+    plot = knob_image(rows, "fit", ["test_psnr"], panel=(640, 300), x_label="steps (labels: Gaussians)")
     acc, pl = metrics.get("accuracy", {}), metrics.get("plan", {})
     now = acc.get("now", {})
-    lines = [f"budget {pl.get('level')}: {now.get('steps')} steps{' (the held-out curve flattened)' if pl.get('stopped_early') else ''}, "
-             f"{now.get('gaussians', 0):,} Gaussians, {now.get('minutes', 0):.1f} min (estimated {pl.get('estimated_seconds', 0) / 60:.1f})",
-             f"now: held-out PSNR {now.get('test_psnr', float('nan')):.2f} dB, SSIM {now.get('test_ssim', float('nan')):.3f}; "
-             f"train PSNR {now.get('train_psnr', float('nan')):.2f} dB"]
+    flat = " (the held-out curve flattened)" if pl.get("stopped_early") else ""
+    lines = [f"budget {pl.get('level')}: {now.get('steps')} of {pl.get('iterations')} steps{flat}, "
+             f"{now.get('gaussians', 0):,} of {pl.get('max_gaussians', 0):,} Gaussians",
+             f"now: held-out PSNR {now.get('test_psnr', float('nan')):.2f} dB, SSIM "
+             f"{now.get('test_ssim', float('nan')):.3f}; train PSNR {now.get('train_psnr', float('nan')):.2f} dB"]
     nxt = acc.get("next")
     if nxt:
-        curve = "" if nxt.get("test_psnr_from_curve") is None else f"; the curve extrapolates to {nxt['test_psnr_from_curve']:.1f} dB"
-        lines.append(f"next level {nxt['level']}: {nxt['steps']} steps, {nxt['gaussians']:,} Gaussians, "
-                     f"about {nxt['estimated_minutes']:.0f} min here{curve}")
-    warn = acc.get("warning")
+        curve = ("" if nxt.get("test_psnr_from_curve") is None
+                 else f"; the curve points to {nxt['test_psnr_from_curve']:.1f} dB")
+        lines.append(f"next level {nxt['level']}: {nxt['steps']} steps, {nxt['gaussians']:,} Gaussians, about "
+                     f"{nxt['reference_cpu_minutes']:.0f} CPU min{curve} (minutes on this machine: metrics.json)")
     text = [(ln, (0, 0, 0)) for ln in lines]
-    if warn:
-        text += [(ln, (0, 0, 190)) for ln in textwrap.wrap("WARNING: " + warn, 100)]
+    if acc.get("warning"):
+        text += [(ln, (0, 0, 190)) for ln in textwrap.wrap("WARNING: " + acc["warning"], 100)]
     block = np.full((18 * len(text) + 10, plot.shape[1], 3), 255, np.uint8)
     for i, (ln, ink) in enumerate(text):
         cv2.putText(block, ln, (8, 18 * (i + 1)), cv2.FONT_HERSHEY_SIMPLEX, 0.42, ink, 1, cv2.LINE_AA)

@@ -120,3 +120,20 @@ def test_fit_downscales_to_its_side_and_measures_there():
     assert m["image_size"] == [32, 24] and m["plan"]["max_side"] == 32
     with pytest.raises(ValueError, match="static.max_side"):
         FitConfig.from_dict({"max_side": -1})
+
+
+def test_fit_picture_and_warning_do_not_depend_on_this_machines_speed(tmp_path):
+    from anigs.static.report import draw_fit
+
+    p = plan("auto", STREET, COST, 1500)
+    curve = [{"iteration": s, "test_psnr": 15 + 0.1 * i, "num_gaussians": 5000 * (i + 1), "train_seconds": 9.0 * s}
+             for i, s in enumerate((0, 250, 500, 750))]
+    slow = COST.calibrated(COST.step(STREET.pixels, 1500) * 5, STREET.pixels, 1500)  # the same fit, 5x slower
+    pictures = []
+    for cost, secs in ((COST, 300.0), (slow, 1500.0)):
+        m = {**_metrics(15.0, 23.7, curve), "train_seconds": secs, "plan": {**p.as_dict(), "stopped_early": True}}
+        m["accuracy"] = accuracy_record(m, p, STREET, cost, 1500)
+        draw_fit(m, tmp_path / f"fit{len(pictures)}.png")
+        pictures.append(((tmp_path / f"fit{len(pictures)}.png").read_bytes(), m["accuracy"]["warning"]))
+    assert pictures[0] == pictures[1]  # the picture and the warning are artifacts: same config, same bytes
+    assert m["accuracy"]["next"]["estimated_minutes"] > m["accuracy"]["next"]["reference_cpu_minutes"]
