@@ -33,8 +33,8 @@ class Outputs(contract.Outputs):
         "metrics": File("metrics.json", "held-out and train PSNR/SSIM, Gaussian count, seconds, the plan (budget, "
                                         "steps, estimated time), accuracy (the next level's cost, a too-blurry warning), "
                                         "inputs, config"),
-        "fit": File("fit.png", "held-out PSNR against training time, what the next level would cost here, "
-                               "the too-blurry warning"),
+        "fit": File("fit.png", "held-out PSNR against the steps, the next level and its cost in CPU minutes, "
+                               "the too-blurry warning (this machine's minutes: metrics.json)"),
         "checkpoint": File("checkpoint.ply", "the last good state while the fit runs; removed on success, "
                                              "kept when the fit diverges", optional=True),
     }
