@@ -37,7 +37,8 @@ class Outputs(contract.Outputs):
 
     LAYOUT = {"summary": File("final.json", "per view: row, col, peak_temporal_std, static_max_change, "
                                             "dynamic_fraction; frames, config, path; warnings (a static fit too "
-                                            "blurry to animate, with the cheapest change that helps)"),
+                                            "blurry to animate, with the cheapest change that helps; no view "
+                                            "showing the motion sharply, with where more photos would help)"),
               "video": File("{view}.mp4", "camera-fixed video of a view (H.264)"),
               "clips": File("clips/", "the videos' frames as clips (the eval stage reads them)"),
               "clip": File("clips/{view}.npz", "float [T,H,W,3] in [0,1] + metadata (camera, fps)"),
@@ -105,9 +106,12 @@ def run(inputs: Inputs, cfg: FinalConfig) -> Outputs:
     if still:
         summary["nothing_moves"] = still
     fit = inputs.static.metrics().get("accuracy", {}) if inputs.static.exists("metrics") else {}
-    if fit.get("warning"):  # the static fit is too blurry to animate: say so beside the videos
-        summary["warnings"] = [fit["warning"]]
-        log.warning("final: %s", fit["warning"])
+    advice = (inputs.views.report().get("motion") or {}).get("advice")  # no view shows the motion sharply
+    warnings = [w for w in (fit.get("warning"), advice) if w]  # the static fit too blurry to animate; the views
+    if warnings:
+        summary["warnings"] = warnings
+        for w in warnings:
+            log.warning("final: %s", w)
     masks = inputs.masks
     for cam in cameras_from_views(read_json(inputs.views.path("views"))):
         if cfg.scale != 1.0:

@@ -80,6 +80,9 @@ class Inputs(GroundTruthInputs):
         "help": "the effects stage's folder: its dynamic set is the region of interest"})
     points: Path | None = contract.upstream(SfmOutputs, "points", "SfM points (xyz): a sharp Gaussian lies near "
                                             "them (views.near_points)", default=None)
+    images: Path | None = contract.upstream(SfmOutputs, "images", "the photos the cameras describe: a view's moving "
+                                            "region must be about as sharp as they show it "
+                                            "(views.min_motion_sharpness)", default=None)
 
 
 def region_of_interest(inputs: Inputs, g: Gaussians, cameras: list[Camera]) -> tuple[np.ndarray, str]:
@@ -115,7 +118,7 @@ def run(inputs: Inputs, cfg: ViewsConfig) -> Outputs:
         points = load_points(inputs.points)[0]
     plan = plan_views(g, roi if roi.any() else np.ones_like(roi), cameras, cfg,
                       keep_all=None if fallback is None else "roi_fallback: the ROI is the whole scene",
-                      points=points)
+                      points=points, images=inputs.images)
     out = inputs.out
     out.root.mkdir(parents=True, exist_ok=True)
     payload = plan.to_json()

@@ -64,6 +64,15 @@ class ViewsConfig:
     #: min share of a view's render within 4 px of an edge (abs Laplacian of grey > 6 at 0-255); 0: recorded, not
     #: applied
     min_edge_share: float = 0.0
+    #: a view's moving region must be >= this x as sharp as the sharpest photo that sees it shows it (band sharpness
+    #: at the view's sampling, anigs.views.motion); a failing direction is replaced; 0: recorded, not applied
+    min_motion_sharpness: float = 0.7
+    #: max share of a view's pixels that no Gaussian covers (rendered alpha < 0.5: the background shows); 1: recorded,
+    #: not applied
+    max_unobserved: float = 0.02
+    #: directions that no location shows sharply enough (min_motion_sharpness) are filled with views at the poses of
+    #: the photos that show the moving region best, and views.json says where more photos would help
+    photo_pose_fallback: bool = True
     #: render background of the edge figure (the scene's sky colour)
     background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
 
@@ -101,6 +110,9 @@ class ViewsConfig:
         if not 0.0 <= self.min_content <= 1.0 or not 0.0 <= self.min_edge_share <= 1.0:
             raise ValueError(f"views.min_content and views.min_edge_share must be in [0, 1], "
                              f"got {self.min_content}, {self.min_edge_share}")
+        if self.min_motion_sharpness < 0 or not 0.0 <= self.max_unobserved <= 1.0:
+            raise ValueError(f"views.min_motion_sharpness must be >= 0 (0: off) and max_unobserved in [0, 1], got "
+                             f"{self.min_motion_sharpness}, {self.max_unobserved}")
         if self.max_sampling_ratio < 0:
             raise ValueError(f"views.max_sampling_ratio must be >= 0 (0: off), got {self.max_sampling_ratio}")
         if self.sharp_fraction <= 0 or self.footprint_ratio <= 0 or self.near_points <= 0 or self.min_sharp_observations < 0:
@@ -120,7 +132,8 @@ class ViewsConfig:
                            min_sharp_observations=self.min_sharp_observations,
                            footprint_ratio=self.footprint_ratio, near_points=self.near_points,
                            alpha=self.coverage_alpha, min_weight=self.min_weight,
-                           max_sampling_ratio=self.max_sampling_ratio)
+                           max_sampling_ratio=self.max_sampling_ratio,
+                           min_motion_sharpness=self.min_motion_sharpness, max_unobserved=self.max_unobserved)
 
     def visibility_config(self) -> VisibilityConfig:
         return VisibilityConfig(mode=self.visibility, rel_tol=self.rel_tol, scale_tol=self.scale_tol,

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import cv2
 import numpy as np
@@ -48,6 +48,9 @@ from anigs.gaussians import Gaussians
 from anigs.render import rasterize
 from anigs.render.labels import label_masks
 from anigs.render.visibility import blend_weights, frustum_subset, render_inputs
+
+if TYPE_CHECKING:
+    from anigs.views.motion import MotionSharpness
 
 log = logging.getLogger("anigs.views")
 
@@ -68,6 +71,8 @@ class ContentRule:
     alpha: float = 0.5                # a content pixel has accumulated alpha >= this
     min_weight: float = 0.05          # visibility in a photo: blending weight >= this (pixels)
     max_sampling_ratio: float = 1.0   # a Gaussian counts for a view when its best photo's pixel footprint <= this x the view's (0: off)
+    min_motion_sharpness: float = 0.0  # the moving region's band sharpness >= this x the best photo's (0: recorded only)
+    max_unobserved: float = 1.0        # share of pixels of alpha < 0.5 a view may show (1: recorded only)
 
 
 @dataclass
@@ -245,21 +250,30 @@ def edge_share(image: np.ndarray, threshold: float = EDGE_THRESHOLD, radius: int
 
 class ContentCheck:
     """The content test of candidate directions: :func:`content_fraction` (gated at
-    ``rule.min_content``) and :func:`edge_share` (gated at ``min_edge_share``; 0 records it only)."""
+    ``rule.min_content``), :func:`edge_share` (gated at ``min_edge_share``; 0 records it only) and,
+    with ``motion`` (:class:`anigs.views.motion.MotionSharpness`), the moving region's sharpness
+    against the photos' (gated at ``rule.min_motion_sharpness``) and the unobserved pixels (gated at
+    ``rule.max_unobserved``)."""
 
     def __init__(self, g: Gaussians, sharp: SharpSet, rule: ContentRule, background: Sequence[float],
-                 min_edge_share: float = 0.0):
+                 min_edge_share: float = 0.0, motion: MotionSharpness | None = None):
         self.g, self.sharp, self.rule = g, sharp, rule
         self.background, self.min_edge_share = list(background), float(min_edge_share)
+        self.motion = motion
 
-    def measure(self, cam: Camera) -> dict[str, float]:
+    def measure(self, cam: Camera) -> dict[str, Any]:
         """{"content": ..., "magnified": ..., "edge_share": ...} of a view: ``magnified`` is the share
         of its pixels that sharp Gaussians dominate but that the view magnifies beyond
-        ``max_sampling_ratio`` (left out of ``content``)."""
+        ``max_sampling_ratio`` (left out of ``content``); with ``motion``, also its figures
+        (:meth:`anigs.views.motion.MotionSharpness.measure`)."""
         content, sharp = content_masks(self.g, self.sharp.sharp, cam, self.rule.alpha, self.sharp.photo_footprint,
                                        self.rule.max_sampling_ratio)
-        return {"content": float(content.mean()), "magnified": float((sharp & ~content).mean()),
-                "edge_share": edge_share(render_rgb(self.g, cam, self.background))}
+        rgb = render_rgb(self.g, cam, self.background)
+        fig: dict[str, Any] = {"content": float(content.mean()), "magnified": float((sharp & ~content).mean()),
+                               "edge_share": edge_share(rgb)}
+        if self.motion is not None:
+            fig.update(self.motion.measure(cam, rgb))
+        return fig
 
     def failure(self, fig: dict[str, float]) -> str | None:
         """Why a view with figures ``fig`` fails (None: it passes)."""
@@ -271,6 +285,14 @@ class ContentCheck:
                                                "sampling" if fig.get("magnified", 0) > 0 else "") + ")")
         if fig["edge_share"] < self.min_edge_share:
             why.append(f"edge share {fig['edge_share']:.2f} < min_edge_share {self.min_edge_share:g}")
+        ms = fig.get("motion_sharpness")
+        if ms is not None and ms < self.rule.min_motion_sharpness:
+            why.append(f"motion sharpness {ms:.2f} < min_motion_sharpness {self.rule.min_motion_sharpness:g}: the "
+                       f"moving region is blurrier than photo {fig['motion_reference']} shows it (band sharpness "
+                       f"{fig['motion_view']:.3f} vs {fig['motion_photo']:.3f} at the view's sampling)")
+        if fig.get("unobserved", 0.0) > self.rule.max_unobserved:
+            why.append(f"unobserved {fig['unobserved']:.3f} > max_unobserved {self.rule.max_unobserved:g} (pixels no "
+                       "Gaussian covers show the background)")
         return "; ".join(why) or None
 
     def to_json(self) -> dict[str, Any]:
@@ -279,7 +301,8 @@ class ContentCheck:
         return {"min_content": r.min_content, "min_edge_share": self.min_edge_share, "sharp_fraction": r.sharp_fraction,
                 "min_sharp_observations": r.min_sharp_observations, "footprint_ratio": r.footprint_ratio,
                 "neighbours": r.neighbours, "near_points": r.near_points, "alpha": r.alpha,
-                "max_sampling_ratio": r.max_sampling_ratio,
+                "max_sampling_ratio": r.max_sampling_ratio, "min_motion_sharpness": r.min_motion_sharpness,
+                "max_unobserved": r.max_unobserved, "motion": None if self.motion is None else self.motion.to_json(),
                 "edge": {"threshold": EDGE_THRESHOLD, "radius_px": EDGE_RADIUS, "background": self.background},
                 "sharp_gaussians": self.sharp.summary,
                 "definition": ("content: share of the view's pixels with alpha >= alpha of which sharp Gaussians "

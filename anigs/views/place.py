@@ -46,6 +46,9 @@ class Placer:
     figures: dict[int, dict[str, float]] = field(default_factory=dict)
     used: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
     cov_cache: dict[tuple, tuple[float, dict[str, float] | None]] = field(default_factory=dict)
+    missing: list[float] = field(default_factory=list)  # yaws placed nowhere (after place_all)
+    motion_failed: list[tuple[Camera, dict[str, Any]]] = field(default_factory=list)  # (camera, figures) of the
+    # directions tried for those that failed min_motion_sharpness
 
     def heading_vec(self, h_deg: float) -> np.ndarray:
         e1, e2 = horizontal_basis(self.up)
@@ -67,6 +70,7 @@ class Placer:
         """First direction at candidate ``ci`` for requested ``yaw`` that passes the coverage test."""
         roi_az = roi_azimuth(self.cand[ci], self.centroid, self.up)
         roi_rel = None if roi_az is None else _rel_deg(roi_az - self.heading[ci])
+        blurred: list[tuple[Camera, dict[str, Any]]] = []
         for y, p in replacement_directions(yaw, self.policy.pitch_deg, roi_rel, self.cfg):
             if any(abs(_rel_deg(y - uy)) < 1e-6 and abs(p - up_) < 1e-6 for uy, up_ in self.used.get(ci, [])):
                 continue
@@ -80,6 +84,9 @@ class Placer:
             self.rejected.append({"location": loc, "candidate": int(ci), "requested_yaw": float(yaw), "yaw": float(y),
                                   "pitch": float(p), "coverage": cov, **(fig or {}), "reason": why,
                                   "position": self.cand[ci].tolist(), "forward": cam.forward.tolist()})
+            if "motion sharpness" in why:
+                blurred.append((cam, fig or {}))
+        self.motion_failed.extend(blurred)
         return None
 
     def place_all(self, chosen: list[int], extra: list[int]) -> tuple[list[Slot], list[int]]:
@@ -112,11 +119,13 @@ class Placer:
             if placed_here:
                 loc_ids.append(loc)
                 chosen.append(ci)
+        self.missing = missing
         if missing:
             log.warning("views: %d direction(s) (yaw %s) pass the coverage test (>= %.0f%% of pixels on Gaussians "
-                        "seen in >= %d photos) and the content test (>= %.0f%% of pixels on sharp Gaussians) "
-                        "nowhere: left out of the queue", len(missing), ", ".join(f"{y:+.0f}" for y in missing),
-                        100 * cfg.min_coverage, cfg.min_observations, 100 * cfg.min_content)
+                        "seen in >= %d photos) and the content test (>= %.0f%% of pixels on sharp Gaussians, the "
+                        "moving region >= %g x as sharp as the photos show it, <= %.0f%% unobserved) nowhere",
+                        len(missing), ", ".join(f"{y:+.0f}" for y in missing), 100 * cfg.min_coverage,
+                        cfg.min_observations, 100 * cfg.min_content, cfg.min_motion_sharpness, 100 * cfg.max_unobserved)
         if self.rejected:
             log.info("views: %d direction(s) rejected by the coverage test and replaced", len(self.rejected))
         return slots, chosen

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
@@ -17,6 +18,8 @@ from anigs.views.config import ViewsConfig
 from anigs.views.coverage import DYNAMIC_ALPHA, DYNAMIC_SHARE, dynamic_fraction
 from anigs.views.content import ContentCheck, sharp_gaussians
 from anigs.views.entries import queue_entries
+from anigs.views.fallback import motion_advice, photo_pose_slots
+from anigs.views.motion import MotionSharpness
 from anigs.views.place import Placer, Slot
 from anigs.views.policy import classify_capture, layout_policy
 from anigs.views.score import choose_locations, score_candidates
@@ -49,6 +52,7 @@ class ViewPlan:
     dropped: list[dict[str, Any]] = field(default_factory=list)   # views left out: negligible dynamic region
     dynamic_rule: dict[str, Any] | None = None     # the negligible-view test (None: min_dynamic_fraction 0)
     content_rule: dict[str, Any] | None = None     # the content test (anigs.views.content.ContentCheck.to_json)
+    motion: dict[str, Any] | None = None           # photo-pose fallback and advice (anigs.views.fallback)
 
     def dynamic_json(self) -> dict[str, Any]:
         """The ``dynamic_fraction`` section of ``views.json`` (see :func:`drop_negligible`)."""
@@ -65,6 +69,10 @@ class ViewPlan:
             **({} if self.content_rule is None else {"content": {
                 **self.content_rule, "per_view": [v.get("content") for v in self.views],
                 "edge_share_per_view": [v.get("edge_share") for v in self.views]}}),
+            **({} if self.content_rule is None or self.content_rule.get("motion") is None else {"motion": {
+                **(self.motion or {"advice": None}),
+                "per_view": [v.get("motion_sharpness") for v in self.views],
+                "unobserved_per_view": [v.get("unobserved") for v in self.views]}}),
             "up_estimate": self.up_estimate,
             "coverage_after": self.coverage_after,
             "frustum_coverage_after": self.frustum_coverage_after,
@@ -119,7 +127,8 @@ def drop_negligible(g: Gaussians, roi: np.ndarray, cams: Sequence[Camera], cfg: 
 
 def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
                cfg: ViewsConfig | None = None, observations: np.ndarray | None = None,
-               keep_all: str | None = None, points: np.ndarray | None = None) -> ViewPlan:
+               keep_all: str | None = None, points: np.ndarray | None = None,
+               images: str | Path | None = None) -> ViewPlan:
     """Build the view queue: classify the capture (:mod:`anigs.views.policy`) -> candidate
     positions -> score them and choose locations (:mod:`anigs.views.score`) -> place the
     directions (:mod:`anigs.views.place`) -> drop negligible views -> the queue's entries.
@@ -133,6 +142,9 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
         keep_all: a reason to queue every placed view, whatever its dynamic fraction (the
             stage passes its whole-scene ROI fallback); None applies ``min_dynamic_fraction``.
         points: the SfM points [P,3] (the content test's ``near_points``; None skips that part).
+        images: the folder of the photos ``cameras`` describe: the moving region's sharpness is
+            judged against them (:mod:`anigs.views.motion`); None skips that test (and the
+            photo-pose fallback, :mod:`anigs.views.fallback`).
     """
     cfg = cfg or ViewsConfig()
     roi = np.asarray(roi)
@@ -147,7 +159,8 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
     means = gaussians.means.detach().double().numpy()
     g = gaussians.detach()
     vcfg = cfg.visibility_config()
-    check = content_check(g, cameras, cfg, points)
+    motion = None if images is None else MotionSharpness(g, roi, cameras, images, 2 * max(cfg.width, cfg.height))
+    check = content_check(g, cameras, cfg, points, motion)
     frame = classify_capture(g, means, cameras, cfg, check, observations)
     observed, up, layout = frame.observed, frame.up, frame.layout
     g_obs = g.subset(torch.from_numpy(np.nonzero(observed)[0]))
@@ -168,6 +181,18 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
 
     placer = Placer(g_obs, check, cand, heading, centroid, up, policy, cfg)
     slots, chosen = placer.place_all(chosen, extra)
+    motion_json = None
+    if motion is not None and placer.missing and placer.motion_failed:
+        fb_figs: dict[int, dict[str, Any]] = {}
+        if cfg.photo_pose_fallback:
+            fb, fb_figs = photo_pose_slots(motion, check, g_obs, cand, heading, up, placer.missing, len(chosen),
+                                           cfg.width, cfg.height, cfg.coverage_alpha)
+            slots += fb
+            placer.figures.update(fb_figs)
+        motion_json = motion_advice(motion, placer.motion_failed, len(placer.missing), cfg.min_motion_sharpness,
+                                    list(fb_figs.values()))
+        if motion_json is not None:
+            log.warning("views: %s", motion_json["advice"])
     slots, fractions, dropped, dyn_rule = _drop_slots(g, roi, slots, cfg, keep_all)
     views, cams, seen_by_view, coverage_after, frustum_after = queue_entries(
         g, roi, slots, fractions, heading, placer.figures, policy, cfg)
@@ -181,7 +206,7 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
             "observed_gaussians": int(observed.sum())}
     return ViewPlan(views, cams, cand, cand_vis, heading, chosen, centroid, up, coverage_after, reachable, seen_by_view,
                     cand_seen, frustum_after, layout, placer.rejected, rule, frame.up_report, dropped, dyn_rule,
-                    check.to_json())
+                    check.to_json(), motion_json)
 
 
 def _drop_slots(g: Gaussians, roi: np.ndarray, slots: list[Slot], cfg: ViewsConfig, keep_all: str | None
@@ -211,11 +236,12 @@ def _drop_slots(g: Gaussians, roi: np.ndarray, slots: list[Slot], cfg: ViewsConf
     return [slots[i] for i in keep], [fractions[i] for i in keep], dropped, dyn_rule
 
 
-def content_check(g: Gaussians, cameras: Sequence[Camera], cfg: ViewsConfig,
-                  points: np.ndarray | None) -> ContentCheck:
-    """The content test of the plan (:mod:`anigs.views.content`): its sharp Gaussians from the capture."""
+def content_check(g: Gaussians, cameras: Sequence[Camera], cfg: ViewsConfig, points: np.ndarray | None,
+                  motion: MotionSharpness | None = None) -> ContentCheck:
+    """The content test of the plan (:mod:`anigs.views.content`): its sharp Gaussians from the capture,
+    and the moving region's sharpness against the photos (``motion``, None: not judged)."""
     sharp = sharp_gaussians(g, cameras, cfg.content_rule(), points)
-    return ContentCheck(g, sharp, cfg.content_rule(), cfg.background, cfg.min_edge_share)
+    return ContentCheck(g, sharp, cfg.content_rule(), cfg.background, cfg.min_edge_share, motion)
 
 
 def cameras_from_views(data: dict) -> list[Camera]:

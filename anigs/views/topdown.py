@@ -6,6 +6,7 @@ they see. Drawn with OpenCV on the plane orthogonal to the plan's ``up``.
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 
 import cv2
@@ -19,6 +20,8 @@ from anigs.views.plan import ViewPlan
 _REJECTED = (40, 40, 140)
 _NO_CONTENT = (0, 120, 230)  # rejected by the content test (anigs.views.content): orange
 _DROPPED = (150, 150, 40)
+_BLURRED = (160, 40, 160)    # rejected by the motion-sharpness test (anigs.views.motion): purple
+_ADVICE = (30, 30, 200)
 _DIR_COLOURS = [(200, 90, 20), (0, 140, 255), (180, 40, 180), (40, 160, 40), (30, 30, 200)]
 
 
@@ -46,7 +49,9 @@ def draw_topdown(plan: ViewPlan, means: np.ndarray, roi: np.ndarray, size: int =
     span = float(max(hi - lo)) or 1.0
     margin = 0.12 * span
     lo, span = lo - margin, span + 2 * margin
-    footer = 60
+    advice = (plan.motion or {}).get("advice")
+    advice_lines = textwrap.wrap("ADVICE: " + advice, size // 7) if advice else []
+    footer = 78 + 16 * len(advice_lines)
     img = np.full((size + footer, size, 3), 255, np.uint8)
 
     def px(p: np.ndarray) -> np.ndarray:
@@ -82,7 +87,11 @@ def draw_topdown(plan: ViewPlan, means: np.ndarray, roi: np.ndarray, size: int =
         poly = np.round(px(np.stack([eye, left, right]))).astype(np.int32)
         cv2.polylines(img, [poly], True, col, 1, cv2.LINE_AA)
         tip = eye + 0.6 * ray * fwd
-        cv2.arrowedLine(img, ipt(eye), ipt(tip), col, 1, cv2.LINE_AA, tipLength=0.15)
+        cv2.arrowedLine(img, ipt(eye), ipt(tip), col, 2 if v.get("photo_pose") else 1, cv2.LINE_AA, tipLength=0.15)
+        if v.get("motion_sharpness") is not None:  # the moving region's sharpness against the photos'
+            t = ipt(tip)
+            cv2.putText(img, f"{v['motion_sharpness']:.2f}", (t[0] + 3, t[1] + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, col,
+                        1, cv2.LINE_AA)
     for r in plan.rejected:  # directions that failed the coverage test: short dark-red ray ending in an x
         eye = to2(np.asarray(r["position"]))
         fwd = to2(np.asarray(r["forward"]))
@@ -90,7 +99,9 @@ def draw_topdown(plan: ViewPlan, means: np.ndarray, roi: np.ndarray, size: int =
         if n < 1e-9:
             continue
         tip = eye + 0.45 * ray * fwd / n
-        col = _NO_CONTENT if str(r.get("reason", "")).startswith(("content", "edge")) else _REJECTED
+        reason = str(r.get("reason", ""))
+        col = (_BLURRED if "motion sharpness" in reason else
+               _NO_CONTENT if reason.startswith(("content", "edge", "unobserved")) else _REJECTED)
         cv2.line(img, ipt(eye), ipt(tip), col, 1, cv2.LINE_AA)
         cv2.drawMarker(img, ipt(tip), col, cv2.MARKER_TILTED_CROSS, 7, 1, cv2.LINE_AA)
     for d in plan.dropped:  # views left out for a negligible dynamic region: short ray ending in a circle
@@ -107,7 +118,7 @@ def draw_topdown(plan: ViewPlan, means: np.ndarray, roi: np.ndarray, size: int =
         cv2.putText(img, str(i), (p[0] + 9, p[1] - 9), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (30, 30, 220), 2, cv2.LINE_AA)
     y0 = size + 18
     cv2.putText(img, "grey: scene  green: ROI  o: candidates  red: locations (CCW)  "
-                "x: rejected (orange: no content)",
+                "x: rejected (orange: no content, purple: blurred motion)",
                 (8, y0), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
     x = 8
     for j, yaw in enumerate(yaws):
@@ -120,6 +131,14 @@ def draw_topdown(plan: ViewPlan, means: np.ndarray, roi: np.ndarray, size: int =
         cv2.putText(img, f"layout {plan.layout.kind}, {len(plan.rejected)} rejected ({n_content} for content){dropped}",
                     (8, y0 + 38),
                     cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+    per_view = [v.get("motion_sharpness") for v in plan.views]
+    if any(m is not None for m in per_view):
+        n_pose = sum(bool(v.get("photo_pose")) for v in plan.views)
+        cv2.putText(img, "motion sharpness vs the photos (at each arrow): " + " ".join(
+            "-" if m is None else f"{m:.2f}" for m in per_view) + (f"; {n_pose} at photo poses (thick)" if n_pose else ""),
+            (8, y0 + 56), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+    for i, line in enumerate(advice_lines):
+        cv2.putText(img, line, (8, y0 + 74 + 16 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.42, _ADVICE, 1, cv2.LINE_AA)
     if plan.coverage_after:
         cv2.putText(img, f"ROI coverage {100 * plan.coverage_after[-1]:.1f}% after {len(plan.views)} views",
                     (x + 10, y0 + 20), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)

@@ -38,6 +38,7 @@ checkpoint views:
         ply=stage_file("static", "canonical"),
         cameras=stage_file("sfm", "cameras"),
         points=stage_file("sfm", "points"),  # the content test: sharp Gaussians lie near SfM points
+        images=stage_file("sfm", "images"),  # the moving region's sharpness against the photos'
         roi=_roi_inputs,
         gt=gt_inputs,
     output:
@@ -60,7 +61,7 @@ checkpoint views:
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} views --canonical {input.ply:q} --cameras {input.cameras:q} "
-        "--points {input.points:q} {params.roi} "
+        "--points {input.points:q} --images {input.images:q} {params.roi} "
         "--out {params.out:q} --params {params.p:q} > {log} 2>&1"
 
 
