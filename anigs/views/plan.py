@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -160,7 +160,9 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
     g = gaussians.detach()
     vcfg = cfg.visibility_config()
     motion = None if images is None else MotionSharpness(g, roi, cameras, images, 2 * max(cfg.width, cfg.height))
-    check = content_check(g, cameras, cfg, points, motion)
+    # the whole-scene fallback (nothing moves): no moving region to judge, the holes still count
+    check = content_check(g, cameras, cfg if keep_all is None else replace(cfg, min_motion_sharpness=0.0), points,
+                          motion)
     frame = classify_capture(g, means, cameras, cfg, check, observations)
     observed, up, layout = frame.observed, frame.up, frame.layout
     g_obs = g.subset(torch.from_numpy(np.nonzero(observed)[0]))

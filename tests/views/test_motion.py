@@ -99,3 +99,13 @@ def test_no_sharp_view_anywhere_falls_back_to_photo_poses_with_advice(scene):
     ok = plan_views(g, roi, cams, ViewsConfig(**{**cfg.__dict__, "min_motion_sharpness": 0.0}), images=folder)
     assert ok.motion is None and not any(v.get("photo_pose") for v in ok.views)
     assert all(v["motion_sharpness"] is not None for v in ok.views)
+
+
+def test_the_whole_scene_fallback_judges_holes_not_motion(scene):
+    g, roi, cams, folder = scene
+    cfg = ViewsConfig(num_locations=2, directions=[0.0], width=96, height=72, fov_deg=60.0, extra_locations=1,
+                      min_content=0.0, min_coverage=0.0, min_motion_sharpness=5.0)
+    plan = plan_views(g, np.ones_like(roi), cams, cfg, keep_all="roi_fallback: the ROI is the whole scene",
+                      images=folder)
+    assert plan.motion is None and plan.views and not any(v.get("photo_pose") for v in plan.views)
+    assert plan.content_rule["min_motion_sharpness"] == 0.0 and all("unobserved" in v for v in plan.views)
