@@ -223,7 +223,9 @@ def test_photo_scenes_pair_the_sfm_cameras_with_the_undistorted_images(tmp_path)
     # the region of interest is computed once, by the effects stage, and the views stage takes it
     views = next(line for line in res.stdout.splitlines() if " views --canonical" in line)
     assert "--effects " in views and views.split("--effects ", 1)[1].split()[0].endswith("/ph/effects"), views
-    assert "--images" not in views and "--labels" not in views, views
+    assert "--labels" not in views, views
+    # ... and reads the photos only to judge its views against them (views.min_motion_sharpness)
+    assert views.split("--images ", 1)[1].split()[0].endswith("/ph/sfm/images"), views
 
 
 def test_one_scene_background_reaches_every_rendering_stage(tmp_path):
