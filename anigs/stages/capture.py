@@ -19,8 +19,8 @@ import numpy as np
 from anigs.capture_config import PhotosConfig, capture_config
 from anigs.stages.command import parse_params
 from anigs.io import write_json
-from anigs.stages import contract
-from anigs.stages.contract import File
+from anigs import contract
+from anigs.contract import File
 
 log = logging.getLogger("anigs.capture")
 

@@ -25,8 +25,8 @@ import numpy as np
 from anigs.effects.choice import decide_effects
 from anigs.effects.detect import photo_indices
 from anigs.effects.config import Config
-from anigs.stages import contract
-from anigs.stages.contract import File
+from anigs import contract
+from anigs.contract import File
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.shared_inputs import CanonicalInputs

@@ -22,14 +22,15 @@ from pathlib import Path
 from typing import Any
 
 from anigs.stages.record import metrics_record, prior_pairs, table_row  # noqa: F401 (table_row: the rules')
-from anigs.metrics.suite import EvalConfig
-from anigs.stages import contract
+from anigs.io import write_json
+from anigs.metrics.suite import ClipInputs, EvalConfig, ModelInputs, evaluate
+from anigs import contract
 from anigs.stages.command import parse_params
 from anigs.stages.capture import Outputs as CaptureOutputs
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.static import Outputs as StaticOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.shared_inputs import TableRowInputs
 from anigs.stages.final import Outputs as FinalOutputs
 from anigs.stages.update import Outputs as UpdateOutputs
@@ -95,17 +96,17 @@ def _record_inputs(inputs: Inputs) -> dict[str, Any]:
 
 def run(inputs: Inputs, cfg: EvalConfig) -> Outputs:
     """Evaluate and write the record of ``inputs.part`` into the evaluation folder."""
-    from anigs.io import write_json
-    from anigs.metrics.suite import evaluate
-
     if inputs.part not in PART_FILE:
         raise ValueError(f"eval: --part {inputs.part!r}; choose {sorted(PART_FILE)}")
     if not inputs.scene:
         raise ValueError("eval: --scene is required (the table column)")
     t0 = time.perf_counter()
     i = _record_inputs(inputs)
-    metrics = evaluate(cfg, i["clips"], i["masks"], i["reference"], i["model"], i["canonical"], i["cameras"],
-                       i["images"], i["points"], i["gt_dir"], i["fid_reference"], part=inputs.part)
+    P = (lambda p: None if p is None else Path(p))  # noqa: E731
+    clips = ClipInputs(i["clips"], inputs.masks, i["reference"], i["fid_reference"])
+    model = ModelInputs(P(i["model"]), P(i["canonical"]), P(i["cameras"]), P(i["images"]), P(i["points"]),
+                        inputs.capture)
+    metrics = evaluate(cfg, clips, model, part=inputs.part)
     record = metrics_record(inputs, inputs.part, dataclasses.asdict(cfg), i, time.perf_counter() - t0, metrics)
     out = Outputs(inputs.out)
     write_json(out.path(PART_FILE[inputs.part]), record)

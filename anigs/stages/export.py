@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import ClassVar
 
 from anigs.typed_config import Section
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.static import Outputs as StaticOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.update import Outputs as UpdateOutputs
 
 log = logging.getLogger("anigs.export")

@@ -23,12 +23,12 @@ from pathlib import Path
 from anigs.stages.record import metrics_record
 from anigs.metrics.fvd_gt_config import FvdGtConfig
 from anigs.metrics.fvd_gt import METRIC, i3d_detector  # noqa: F401  (i3d_detector: the network the stage uses)
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.command import parse_params
 from anigs.stages.capture import Outputs as CaptureOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.static import Outputs as StaticOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.shared_inputs import TableRowInputs
 from anigs.stages.update import Outputs as UpdateOutputs
 

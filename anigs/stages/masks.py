@@ -30,8 +30,8 @@ from anigs.masks.config import MasksConfig
 from anigs.masks.segment import segment_views
 from anigs.masks.truth import GroundTruth
 from anigs.masks.truth_check import compare_with_truth
-from anigs.stages import contract
-from anigs.stages.contract import File
+from anigs import contract
+from anigs.contract import File
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.shared_inputs import GroundTruthInputs

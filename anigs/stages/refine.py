@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from anigs.refine.config import RefineConfig
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.masks import Outputs as MasksOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.render_clip import Outputs as RenderClipOutputs
 
 log = logging.getLogger("anigs.refine")

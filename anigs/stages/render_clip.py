@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from anigs.animate.render_job import RenderClipConfig, load_scene, render_view
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.update import Outputs as UpdateOutputs
 
 log = logging.getLogger("anigs.render_clip")

@@ -17,7 +17,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from anigs.stages import contract, refine, render_clip
+from anigs import contract
+from anigs.stages import refine, render_clip
 from anigs.stages.command import parse_params
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.masks import Outputs as MasksOutputs

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from anigs.sfm.config import SfmConfig
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.command import parse_params
-from anigs.stages.contract import File
+from anigs.contract import File
 
 Config = SfmConfig  # the `sfm` config section
 

@@ -14,9 +14,9 @@ import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.command import parse_params
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.static.fit import FitConfig
 

@@ -8,8 +8,8 @@ import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from anigs.stages import contract
-from anigs.stages.contract import File
+from anigs import contract
+from anigs.contract import File
 
 log = logging.getLogger("anigs.tables")
 

@@ -21,12 +21,12 @@ from pathlib import Path
 
 from anigs.animate.round_policy import baseline_params, contains, round_seed, still_reason  # noqa: F401 (the rules')
 from anigs.animate.update import UpdateConfig
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.command import parse_params
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 
 Config = UpdateConfig  # the `update` config section
 

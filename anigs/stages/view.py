@@ -16,11 +16,11 @@ from pathlib import Path
 from typing import Any
 
 from anigs.viewer.config import ViewConfig
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.command import parse_params
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.update import Outputs as UpdateOutputs
 
 log = logging.getLogger("anigs.view")

@@ -25,8 +25,8 @@ import numpy as np
 from anigs.cameras import Camera, load_cameras
 from anigs.gaussians import Gaussians, load_ply
 from anigs.io import write_json
-from anigs.stages import contract
-from anigs.stages.contract import File
+from anigs import contract
+from anigs.contract import File
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.shared_inputs import GroundTruthInputs

@@ -64,7 +64,8 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _build(args: argparse.Namespace) -> int:
-    from anigs.study.build import StudyOptions, build_study, find_final_videos
+    from anigs.stages.final import find_final_videos
+    from anigs.study.build import StudyOptions, build_study
     from anigs.study.layout import Outputs as StudyOutputs
 
     variants = None if args.others is None else [args.ours] + args.others

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from anigs.stages.contract import File, Inputs, Outputs, check_array, outputs_of
+from anigs.contract import File, Inputs, Outputs, check_array, outputs_of
 
 
 class _Out(Outputs):

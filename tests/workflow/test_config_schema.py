@@ -143,7 +143,7 @@ def test_the_stage_list_is_written_once():
     from anigs.stages import STAGES, get
     from anigs.tradeoff import SCENE_STAGE_ORDER, VARIANT_SECTIONS
 
-    from anigs.stages import contract
+    from anigs import contract
 
     names = [s.name for s in STAGES]
     assert STAGE_SECTIONS == tuple(s.name for s in STAGES if s.section)

@@ -188,7 +188,7 @@ def test_config_yaml_lines_are_short():
 
 
 def test_the_results_layout_lists_each_outputs_file_under_its_stage_folder():
-    from anigs.stages.contract import File, Outputs
+    from anigs.contract import File, Outputs
 
     class MasksOut(Outputs):
         FOLDER = "{scene}/masks"
@@ -213,7 +213,7 @@ def test_the_results_layout_lists_each_outputs_file_under_its_stage_folder():
 def test_every_stage_with_a_command_is_in_the_results_layout():
     """Every stage's folders appear (from its Outputs' FOLDER; tests/workflow/test_rule_outputs.py checks
     the FOLDERs against the rules' outputs)."""
-    from anigs.stages.contract import outputs_of
+    from anigs.contract import outputs_of
 
     docs = _script("make_config_docs")
     text = docs.results_layout()

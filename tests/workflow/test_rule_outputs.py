@@ -1,7 +1,7 @@
 """Every rule that runs a stage writes only files its stages' ``Outputs`` name, where they say.
 
 The workflow is loaded through the Snakemake API (the demo config; no job runs). A stage's
-``Outputs`` types (:func:`anigs.stages.contract.outputs_of`: several when it writes into several
+``Outputs`` types (:func:`anigs.contract.outputs_of`: several when it writes into several
 folders) each say their folder under the results root (``FOLDER``) and its files (``LAYOUT``).
 The rules of a stage (the rule of its name and those named ``<stage>_...``) run it, and a rule whose
 command chains another stage (``anigs ... --then STAGE``, :data:`THEN`) runs that one too. Each
@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from anigs.stages import BY_NAME, STAGES
-from anigs.stages.contract import Outputs, outputs_of
+from anigs.contract import Outputs, outputs_of
 
 ROOT = Path(__file__).resolve().parents[2]
 WILDCARD = re.compile(r"\{(\w+),[^{}]*(?:\{[^{}]*\}[^{}]*)*\}")  # {name,constraint} -> {name}
@@ -170,7 +170,7 @@ def test_rule_outputs_are_files_of_the_stage_outputs(stage, workflow_rules):
 def test_the_check_finds_a_file_the_layout_does_not_name(workflow_rules):
     """The check is not vacuous: a rule output missing from the LAYOUT, one in another folder, or a
     LAYOUT file that no rule declares, is reported."""
-    from anigs.stages.contract import File
+    from anigs.contract import File
     from anigs.stages.eval import Outputs as EvalOutputs
     from anigs.stages.views import Outputs
 

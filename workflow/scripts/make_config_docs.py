@@ -87,7 +87,7 @@ def results_layout(stages=None) -> str:
              "Every stage writes one folder; the files below are its `Outputs` contract "
              "(`anigs/stages/<stage>.py`), the only place that names them. `{round}` is the round, `{view}` a "
              "queued view (`v00`, ...). Generated from the stages' `Outputs` types.", ""]
-    from anigs.stages.contract import outputs_of
+    from anigs.contract import outputs_of
 
     missing, seen = [], set()
     for stage in stages if stages is not None else STAGES:

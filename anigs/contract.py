@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import string
 import types
 import typing
 from dataclasses import dataclass
@@ -36,6 +37,10 @@ from pathlib import Path
 from typing import Any, ClassVar, Union
 
 import numpy as np
+
+from anigs.io import atomic_path
+from anigs.registry import BY_NAME
+from anigs.video import load_clip
 
 
 @dataclass(frozen=True)
@@ -52,8 +57,6 @@ class File:
     @property
     def fields(self) -> tuple[str, ...]:
         """The format fields of ``name`` (``("view",)`` for ``"{view}.png"``)."""
-        import string
-
         return tuple(f for _, f, _, _ in string.Formatter().parse(self.name) if f)
 
 
@@ -67,7 +70,7 @@ class Outputs:
     def __init_subclass__(cls, **kw: Any) -> None:
         super().__init_subclass__(**kw)
         pkg, _, name = cls.__module__.rpartition(".")
-        if pkg != "anigs.stages" or name == "contract":
+        if pkg != "anigs.stages":
             return
         if "STAGE" not in cls.__dict__:
             cls.STAGE = name
@@ -140,8 +143,6 @@ class Outputs:
 
     def clip(self, key: str, **fields: Any) -> tuple[np.ndarray, dict]:
         """(frames float32 [T,H,W,3], metadata) of the clip file ``key`` (:func:`anigs.video.load_clip`)."""
-        from anigs.video import load_clip
-
         p = self.path(key, **fields)
         if not p.is_file():
             raise FileNotFoundError(f"{p}: missing (run the {self.STAGE or 'upstream'} stage)")
@@ -149,8 +150,6 @@ class Outputs:
 
     def save_array(self, key: str, a: np.ndarray, **fields: Any) -> Path:
         """Write the ``.npy`` file ``key`` atomically (temp + rename); returns its path."""
-        from anigs.io import atomic_path
-
         p = self.path(key, **fields)
         with atomic_path(p) as tmp, open(tmp, "wb") as fh:
             np.save(fh, a)
@@ -160,8 +159,6 @@ class Outputs:
 def scope_folder(stage: str) -> str:
     """The default folder of a stage's files under the results root, from its scope in the registry:
     ``{scene}/<name>`` (scene), ``{scene}/{variant}/<name>`` (variant), ``<name>`` (global)."""
-    from anigs.stages import BY_NAME
-
     return {"scene": "{scene}/", "variant": "{scene}/{variant}/", "global": ""}[BY_NAME[stage].scope] + stage
 
 

@@ -1,4 +1,5 @@
-"""The accuracy-versus-time sweep's plot: one PNG per knob (:mod:`anigs.tradeoff`)."""
+"""Charts of metrics against one setting (a knob): one PNG per knob, for the accuracy-versus-time
+sweep (:mod:`anigs.tradeoff`) and the static fit's report (:mod:`anigs.static.report`)."""
 from __future__ import annotations
 
 from pathlib import Path
