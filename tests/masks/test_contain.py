@@ -146,7 +146,7 @@ def test_masks_stage_contains_the_effects_set(tmp_path):
     np.save(EffectsOutputs(eff).path("regions"), regions)
     np.save(EffectsOutputs(eff).path("dynamic"), regions >= 0)
     EffectsOutputs(eff).path("effects").write_text(json.dumps({"chosen": ["foliage_sway"]}))
-    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
+    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path),
             "--effects", str(eff)]
     assert main(args + ["--out", str(tmp_path / "on"), "--params", "{}"]) == 0
     assert main(args + ["--out", str(tmp_path / "off"), "--params", json.dumps({"contain": False})]) == 0

@@ -71,6 +71,11 @@ def with_globals(section_dict, globals_):
     return out
 
 
+def with_device_seed(wc):
+    """The global device and seed (what most stages' sections take from the workflow)."""
+    return {"device": config["device"], "seed": config["seed"]}
+
+
 def jparams(name, extra=None):
     """params: the section as canonical JSON (a change re-runs exactly the affected jobs)."""
 
@@ -263,49 +268,6 @@ def _folder(files):
     return os.path.dirname(files[0]) if files else None
 
 
-def render_clip_command(wc, input):
-    return stage_command(
-        "render_clip",
-        jparams("render_clip", _frames)(wc),
-        static=stage_dir(wc.scene, "static"),
-        out=round_dir(wc.scene, wc.variant, wc.round),
-        model=_folder(input.model),
-        views=stage_dir(wc.scene, "views"),
-        view_id=wc.view,
-    )
-
-
-def refine_command(wc, input):
-    rd = round_dir(wc.scene, wc.variant, wc.round)
-    return stage_command(
-        "refine",
-        jparams("refine", _refine_extra)(wc),
-        render_clip=rd,
-        view=wc.view,
-        out=rd,
-        masks=stage_dir(wc.scene, "masks"),
-        effects=_folder(input.effects),
-        round=int(wc.round),
-    )
-
-
-def round_command(wc, input):
-    """The round's render and refine work in one process (then its update: see the round rule)."""
-    return stage_command(
-        "round",
-        static=stage_dir(wc.scene, "static"),
-        views=stage_dir(wc.scene, "views"),
-        masks=stage_dir(wc.scene, "masks"),
-        view_ids=round_views(wc.scene, wc.variant, int(wc.round)),
-        round=int(wc.round),
-        out=round_dir(wc.scene, wc.variant, wc.round),
-        model=_folder(input.model),
-        effects=_folder(input.effects),
-        render_params=jparams("render_clip", _frames)(wc),
-        refine_params=jparams("refine", _refine_extra)(wc),
-    )
-
-
 def update_command(wc, input):
     """Round r's model update: trains on one target clip per view of its dataset; the update stage
     decides from --round/--rounds whether it contains the motion (update.contain_rounds)."""
@@ -377,7 +339,7 @@ def _table_row(wc):
 
 def eval_command(wc, part, **inputs):
     method, variant = _table_row(wc)
-    params = jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc)
+    params = jparams("eval", with_device_seed)(wc)
     return stage_command(
         "eval",
         params,
@@ -477,9 +439,9 @@ def gt_inputs(wc):
     return [gt_of(wc.scene, k) for k in GT_KEYS] if is_synthetic(wc.scene) else []
 
 
-def gt_args(wc):
-    """``--labels --motion --gt-gaussians --gt-cameras`` of a synthetic scene (views and masks)."""
-    if not is_synthetic(wc.scene):
-        return ""
-    flags = ("--labels", "--motion", "--gt-gaussians", "--gt-cameras")
-    return " ".join(f"{f} {shlex.quote(gt_of(wc.scene, k))}" for f, k in zip(flags, GT_KEYS))
+def gt_fields(scene):
+    """A synthetic scene's ground truth as the views and masks stages' ``GroundTruthInputs`` fields
+    (``--labels --motion --gt-gaussians --gt-cameras``); none on photo scenes."""
+    if not is_synthetic(scene):
+        return {}
+    return {f: gt_of(scene, k) for f, k in zip(("labels", "motion", "gt_gaussians", "gt_cameras"), GT_KEYS)}

@@ -5,12 +5,6 @@
 # ---- views.smk ----
 
 
-def _roi_args(wc):
-    """The region of interest: ground-truth labels on synthetic scenes, else the effects stage's
-    (the effects the scene contains, found in the undistorted photos)."""
-    return gt_args(wc) if is_synthetic(wc.scene) else f"--effects {shlex.quote(stage_dir(wc.scene, 'effects'))}"
-
-
 def _roi_inputs(wc):
     return [] if is_synthetic(wc.scene) else [stage_file_of(wc.scene, "effects", "dynamic")]
 
@@ -47,7 +41,7 @@ def _fvd_gt_scene(wc):
         "capture": stage_dir(wc.scene, "capture"),
         "sfm": stage_dir(wc.scene, "sfm"),
         "static": stage_dir(wc.scene, "static"),
-        "eval_params": jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc),
+        "eval_params": jparams("eval", with_device_seed)(wc),
     }
 
 
