@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
+from anigs.io import atomic_path
 
 
 def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[str], path: str | Path,
@@ -18,7 +19,6 @@ def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[
     """
     import cv2
 
-    from anigs.io import atomic_path
 
     img = knob_image(rows, knob, metric_names, panel, fronts)
     with atomic_path(path) as tmp:

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 import torch
 
 from anigs.animate.deform import dynamic_index_from_mask, offset_limits
+from anigs.effects.labels import effect_label_ids
 
 if TYPE_CHECKING:
     from anigs.animate.update import UpdateConfig
@@ -21,7 +22,6 @@ _UNLIMITED = 1e18  # stands for "no limit" in per-Gaussian limit tensors (finite
 
 def effect_labels() -> dict[str, int]:
     """Effect name -> its label in an int dynamic mask (:func:`anigs.effects.labels.effect_label_ids`)."""
-    from anigs.effects.labels import effect_label_ids
 
     return effect_label_ids()
 

@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass, field
 
 from anigs.animate.method_config import LiftingConfig, PhysicsConfig
+from anigs.typed_config import from_dict
 
 
 @dataclass(frozen=True)
@@ -90,8 +91,6 @@ class AnimateConfig:
 
     @staticmethod
     def from_dict(d: dict | None) -> "AnimateConfig":
-        from anigs.typed_config import from_dict
-
         cfg = from_dict(AnimateConfig, d, "animate", KeyError)
         if cfg.method not in METHODS:
             raise ValueError(f"animate.method must be one of {list(METHODS)}, got {cfg.method!r}")

@@ -13,6 +13,11 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.typed_config import Section
+from anigs.animate.deform import load_model
+from anigs.animate.frames import render_clip
+from anigs.device import get_device
+from anigs.gaussians import Gaussians
+from anigs.video import save_clip
 
 log = logging.getLogger("anigs.render_clip")
 
@@ -39,9 +44,6 @@ class RenderClipConfig(Section):
 def load_scene(canonical_path: str | Path, cfg: RenderClipConfig, model_path: str | Path | None = None):
     """The canonical scene and the model's deformation (None: static) on the config's device
     -> (canonical, deformation | None, background [3])."""
-    from anigs.animate.deform import load_model
-    from anigs.device import get_device
-    from anigs.gaussians import Gaussians
 
     canonical = Gaussians.load_ply(canonical_path)
     deformation = None
@@ -61,8 +63,6 @@ def render_view(scene: tuple, camera: Camera, out: str | Path, cfg: RenderClipCo
                 model_path: str | Path | None = None, view_id: str | None = None) -> dict:
     """Render ``camera``'s clip of a :func:`load_scene` scene to ``out``; returns the clip's metadata
     (the paths are recorded as given)."""
-    from anigs.animate.frames import render_clip
-    from anigs.video import save_clip
 
     canonical, deformation, bg = scene
     T = cfg.num_frames

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 from anigs.typed_config import Section
+from anigs.metrics.eval_views import Placement
 
 WHEN = ("tables", "always", "never")
 
@@ -49,8 +50,6 @@ class FvdGtConfig(Section):
             raise ValueError("fvd_gt: need 0 < min_distance < max_distance")
 
     def placement(self):
-        from anigs.metrics.eval_views import Placement
-
         return Placement(self.num_views, self.width, self.height, self.fov_deg, self.seed, self.jitter_m,
                          self.min_distance, self.max_distance, self.clearance, self.min_dynamic_fraction,
                          self.max_tries_per_view)

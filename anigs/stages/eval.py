@@ -34,6 +34,8 @@ from anigs.contract import File
 from anigs.stages.shared_inputs import TableRowInputs
 from anigs.stages.final import Outputs as FinalOutputs
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs.metrics.records import merge_records
+from anigs.tables import SCHEMA
 
 Config = EvalConfig  # the `eval` config section
 
@@ -52,7 +54,6 @@ class Outputs(contract.Outputs):
 
     def record(self, key: str = "metrics") -> dict[str, Any]:
         """A metrics record, checked to have the ``metrics.json`` schema."""
-        from anigs.tables import SCHEMA
 
         rec = self.json(key)
         if not isinstance(rec, dict) or rec.get("schema") != SCHEMA or not isinstance(rec.get("metrics"), dict):
@@ -119,7 +120,6 @@ def run(inputs: Inputs, cfg: EvalConfig) -> Outputs:
 
 def merge_parts(out: Outputs, extra: list[str | Path] | None = None) -> dict:
     """``metrics.json`` of ``out`` from its clips and model halves (and ``extra`` records, e.g. FVD-GT's)."""
-    from anigs.metrics.records import merge_records
 
     return merge_records(out.path("clip_metrics"), out.path("model_metrics"), out.path("metrics"), extra)
 

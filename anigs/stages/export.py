@@ -21,6 +21,12 @@ from anigs import contract
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.contract import File
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs import __version__
+from anigs.export import save_animated_ply, sidecar
+from anigs.formats.gltf import save_glb
+from anigs.formats.spz import save_spz
+from anigs.io import write_json
+from anigs.viewer.compact import save_compact, write_frame_plys
 
 log = logging.getLogger("anigs.export")
 
@@ -66,12 +72,6 @@ Config = ExportConfig  # the `export` config section
 
 def run(inputs: Inputs, cfg: ExportConfig) -> Outputs:
     """Export the model into the export folder (``animated.json`` holds what was written)."""
-    from anigs import __version__
-    from anigs.export import save_animated_ply, sidecar
-    from anigs.formats.gltf import save_glb
-    from anigs.formats.spz import save_spz
-    from anigs.io import write_json
-    from anigs.viewer.compact import save_compact, write_frame_plys
 
     canonical, deformation, _ = inputs.model.load(inputs.static.path("canonical"))
     out = Outputs(inputs.out)

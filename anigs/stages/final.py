@@ -26,6 +26,13 @@ from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.contract import File
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs.animate.final_videos import path_video, view_video
+from anigs.animate.playback import pingpong_times
+from anigs.cameras import load_cameras
+from anigs.device import get_device
+from anigs.gaussians import Gaussians
+from anigs.io import read_json, write_json
+from anigs.views import cameras_from_views
 
 log = logging.getLogger("anigs.final")
 
@@ -98,13 +105,6 @@ def run(inputs: Inputs, cfg: FinalConfig) -> Outputs:
     """Write the final videos, clips and slices and the ``final.json`` summary."""
     import torch
 
-    from anigs.animate.final_videos import path_video, view_video
-    from anigs.animate.playback import pingpong_times
-    from anigs.cameras import load_cameras
-    from anigs.device import get_device
-    from anigs.gaussians import Gaussians
-    from anigs.io import read_json, write_json
-    from anigs.views import cameras_from_views
 
     dev = get_device(cfg.device)
     t0 = time.perf_counter()

@@ -31,6 +31,11 @@ from anigs.stages.static import Outputs as StaticOutputs
 from anigs.contract import File
 from anigs.stages.shared_inputs import TableRowInputs
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs.io import write_json, write_npz
+from anigs.metrics.eval_views import contact_sheet
+from anigs.metrics.fvd_gt import run_reference, run_method
+from anigs.metrics.suite import EvalConfig
+from anigs.video import save_png
 
 log = logging.getLogger("anigs.fvd_gt")
 
@@ -79,13 +84,10 @@ class Inputs(TableRowInputs):
 
 def run(inputs: Inputs, cfg: FvdGtConfig) -> contract.Outputs:
     """``--reference``: the scene's reference folder; else the variant's ``fvd_gt.json`` record."""
-    from anigs.metrics.suite import EvalConfig
 
     ecfg = EvalConfig.from_dict(parse_params(inputs.eval_params))
     cameras, canonical = inputs.sfm.path("cameras"), inputs.static.path("canonical")
     if inputs.reference:
-        from anigs.metrics.fvd_gt import run_reference
-
         if not inputs.frames:
             raise ValueError("fvd_gt --reference needs --frames (the models' T)")
         out = ReferenceOutputs(inputs.out)
@@ -100,10 +102,6 @@ def run(inputs: Inputs, cfg: FvdGtConfig) -> contract.Outputs:
 
 def write_record(inputs: Inputs, cfg: FvdGtConfig, ecfg) -> Outputs:
     """The per-variant command: the method's ``fvd/gt`` against the reference, as a metrics record."""
-    from anigs.io import write_json, write_npz
-    from anigs.metrics.eval_views import contact_sheet
-    from anigs.metrics.fvd_gt import run_method
-    from anigs.video import save_png
 
     t0 = time.perf_counter()
     out = Outputs(inputs.out)

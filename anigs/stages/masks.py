@@ -37,6 +37,7 @@ from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.shared_inputs import GroundTruthInputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.views import cameras_from_views
+from anigs.images import read_mask
 
 log = logging.getLogger("anigs.masks")
 
@@ -77,8 +78,6 @@ class Outputs(contract.Outputs):
         return {p.stem[len(prefix):]: self._read_mask(p) for p in found}
 
     def _read_mask(self, p: Path) -> np.ndarray:
-        from anigs.images import read_mask
-
         if not p.is_file():
             raise FileNotFoundError(f"{p}: missing (run the {self.STAGE} stage)")
         return contract.check_array(read_mask(p), str(p), "f", (None, None))

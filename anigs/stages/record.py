@@ -7,12 +7,12 @@ from typing import Any
 
 from anigs import __version__
 from anigs.tables import SCHEMA
+from anigs.animate.plan import METHODS
 
 
 def table_row(method: str, variant: str) -> tuple[str, str]:
     """(method, variant) of a variant's table row: ours under its variant (Table 5), a baseline under
     its method's name (Tables 1-3). ``method``: ``animate.method``."""
-    from anigs.animate.plan import METHODS
 
     return ("Ours", variant) if method == "anigs" else (METHODS[method], "full")
 

@@ -21,6 +21,7 @@ from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.contract import File
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs.cameras import load_camera_json, load_view_camera
 
 log = logging.getLogger("anigs.render_clip")
 
@@ -54,7 +55,6 @@ class Inputs(contract.Inputs):
 def run(inputs: Inputs, cfg: RenderClipConfig, scene: tuple | None = None) -> Outputs:
     """Render the clip of ``inputs``' camera with its model (none: the static canonical scene);
     ``scene``: the :func:`load_scene` of these inputs, when a caller renders several views."""
-    from anigs.cameras import load_camera_json, load_view_camera
 
     if inputs.camera_json:
         camera = load_camera_json(inputs.camera_json)

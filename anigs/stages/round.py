@@ -25,6 +25,7 @@ from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs.io import write_json
 
 log = logging.getLogger("anigs.round")
 
@@ -63,7 +64,6 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
     """Render each view of ``inputs.view_ids`` with the round's model (none: static) and refine it with its
     mask; the configs are ``inputs``' render and refine params (the stage has no section of its own).
     Seconds per view and phase go to the log (and ``--timings-json``), not into the artifacts."""
-    from anigs.io import write_json
 
     view_ids = inputs.view_ids
     if not view_ids:

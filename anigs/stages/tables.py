@@ -10,6 +10,8 @@ from pathlib import Path
 
 from anigs import contract
 from anigs.contract import File
+from anigs.io import write_json
+from anigs.tables import load_metrics, write_tables
 
 log = logging.getLogger("anigs.tables")
 
@@ -33,8 +35,6 @@ class Inputs(contract.Inputs):
 
 def run(inputs: Inputs, cfg: None = None) -> Outputs:
     """Write the tables of the metrics files (and ``tables.json``)."""
-    from anigs.io import write_json
-    from anigs.tables import load_metrics, write_tables
 
     out = Outputs(inputs.out)
     records = load_metrics(inputs.metrics)
