@@ -35,7 +35,7 @@ LAYERS: list[tuple[str, set[str]]] = [
         "gaussians", "geometry", "benchmark_tsv", "photos", "pixels", "registry", "formats", "contract", "knob_chart",
         "__init__"}),
     ("compiled kernels: rasterizer, SSIM", {"render", "ssim", "fused_ssim", "ssim_kernel"}),
-    ("scene sources: synthetic scene, photos, SfM", {"synth", "sfm", "capture_config"}),
+    ("scene sources: synthetic scene, photos, SfM", {"synth", "sfm", "capture"}),
     ("scene analysis: static fit, effects, views", {"static", "effects", "views"}),
     ("dynamic masks per view", {"masks"}),
     ("animation: prior, update, baselines, export", {"refine", "animate", "baselines", "export"}),

@@ -181,7 +181,7 @@ def figures(args, scene_dir: Path, variant_dir: Path) -> dict:
 
 def contact(args, variant_dir: Path, scene_dir: Path, fig: dict) -> None:
     from anigs.metrics.contact import load_rows, save_contact_sheet
-    from anigs.metrics.suite import EvalConfig
+    from anigs.metrics.config import EvalConfig
 
     clips = FinalOutputs(variant_dir / "final").path("clips")
     if not clips.is_dir():

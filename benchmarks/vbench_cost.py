@@ -17,7 +17,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 def main() -> int:
     import torch
 
-    from anigs.metrics.suite import EvalConfig, clip_fps, find_clips, load_any_clip, weightfree_metrics
+    from anigs.metrics.config import EvalConfig
+
+    from anigs.metrics.suite import clip_fps, find_clips, load_any_clip, weightfree_metrics
     from anigs.metrics.vbench import vbench_metrics
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -13,7 +13,7 @@ from anigs.animate.deform import dynamic_index_from_mask, offset_limits
 from anigs.effects.labels import effect_label_ids
 
 if TYPE_CHECKING:
-    from anigs.animate.update import UpdateConfig
+    from anigs.animate.config import UpdateConfig
 
 log = logging.getLogger("anigs.animate.update")
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from anigs.animate.update import UpdateConfig
+from anigs.animate.config import UpdateConfig
 from anigs.animate.losses import prior_sds_hook
 from anigs.refine.prior import get_prior
 

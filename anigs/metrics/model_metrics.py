@@ -21,7 +21,7 @@ from anigs.metrics.multiview import multiview_consistency, novel_timestep, stati
 from anigs.synth.motion import MotionParams, gt_clip_offsets
 
 if TYPE_CHECKING:
-    from anigs.metrics.suite import EvalConfig
+    from anigs.metrics.config import EvalConfig
     from anigs.stages.capture import Outputs as CaptureOutputs
 
 log = logging.getLogger("anigs.eval")

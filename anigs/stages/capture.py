@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.capture_config import PhotosConfig, capture_config
+from anigs.capture.config import PhotosConfig, capture_config
 from anigs.stages.command import parse_params
 from anigs.io import write_json
 from anigs import contract

@@ -23,7 +23,8 @@ from typing import Any
 
 from anigs.stages.record import metrics_record, prior_pairs, table_row  # noqa: F401 (table_row: the rules')
 from anigs.io import write_json
-from anigs.metrics.suite import ClipInputs, EvalConfig, ModelInputs, evaluate
+from anigs.metrics.config import EvalConfig
+from anigs.metrics.suite import ClipInputs, ModelInputs, evaluate
 from anigs import contract
 from anigs.stages.command import parse_params
 from anigs.stages.capture import Outputs as CaptureOutputs

@@ -14,15 +14,14 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
 
-from anigs.typed_config import Section
 from anigs import contract
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.contract import File
 from anigs.stages.update import Outputs as UpdateOutputs
 from anigs import __version__
 from anigs.export import save_animated_ply, sidecar
+from anigs.export.config import ExportConfig
 from anigs.formats.gltf import save_glb
 from anigs.formats.spz import save_spz
 from anigs.io import write_json
@@ -49,22 +48,6 @@ class Inputs(contract.Inputs):
     static: StaticOutputs
     model: UpdateOutputs = field(metadata={"help": "the update stage's folder of the model"})
     out: Path = field(metadata={"help": "the export folder"})
-
-
-@dataclass
-class ExportConfig(Section):
-    """``export`` config section."""
-
-    frames: bool = False  # also write the per-frame PLY sequence (scene.anigs holds every frame exactly)
-    frame_step: int = 1  # every n-th frame of 0..T-1
-    fps: float = 12.0  # frames per second of the written videos / sidecar
-
-    WHERE: ClassVar[str] = "export"
-    ERROR: ClassVar[type[Exception]] = KeyError
-
-    def validate(self) -> None:
-        if self.frame_step < 1:
-            raise ValueError(f"export.frame_step must be >= 1, got {self.frame_step}")
 
 
 Config = ExportConfig  # the `export` config section

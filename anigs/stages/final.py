@@ -18,7 +18,7 @@ from typing import Sequence
 
 import numpy as np
 
-from anigs.animate.final_config import FinalConfig
+from anigs.animate.config import FinalConfig
 from anigs import contract
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from anigs.stages.record import metrics_record
-from anigs.metrics.fvd_gt_config import FvdGtConfig
+from anigs.metrics.config import FvdGtConfig
 from anigs.metrics.fvd_gt import METRIC, i3d_detector  # noqa: F401  (i3d_detector: the network the stage uses)
 from anigs import contract
 from anigs.stages.command import parse_params
@@ -34,7 +34,7 @@ from anigs.stages.update import Outputs as UpdateOutputs
 from anigs.io import write_json, write_npz
 from anigs.metrics.eval_views import contact_sheet
 from anigs.metrics.fvd_gt import run_reference, run_method
-from anigs.metrics.suite import EvalConfig
+from anigs.metrics.config import EvalConfig
 from anigs.video import save_png
 
 log = logging.getLogger("anigs.fvd_gt")

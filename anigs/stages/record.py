@@ -7,7 +7,7 @@ from typing import Any
 
 from anigs import __version__
 from anigs.tables import SCHEMA
-from anigs.animate.plan import METHODS
+from anigs.animate.config import METHODS
 
 
 def table_row(method: str, variant: str) -> tuple[str, str]:

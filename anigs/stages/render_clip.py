@@ -15,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.animate.render_job import RenderClipConfig, load_scene, render_view
+from anigs.animate.render_job import load_scene, render_view
+
+from anigs.animate.config import RenderClipConfig
 from anigs import contract
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs

@@ -12,9 +12,10 @@ from anigs.masks.contain import contain_dynamic, outside_weights
 from anigs.render.labels import dynamic_masks
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.effects import Outputs as EffectsOutputs
+from anigs.synth.scene import SKY
 
 W, H = 64, 48
-BG = (0.62, 0.76, 0.92)
+BG = SKY
 
 
 def _scene():

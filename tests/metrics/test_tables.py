@@ -293,7 +293,9 @@ def test_eval_fid_reference_pools_paths(tmp_path):
     """--fid-reference PRIOR=PATH (repeated) pools clips for FID only; FVD keeps --reference."""
     import torch
 
-    from anigs.metrics.suite import ClipInputs, EvalConfig, evaluate
+    from anigs.metrics.config import EvalConfig
+
+    from anigs.metrics.suite import ClipInputs, evaluate
     from anigs.stages.masks import Outputs as MasksOutputs
 
     d = _tiny_inputs(tmp_path)

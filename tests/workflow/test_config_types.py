@@ -68,7 +68,7 @@ def test_a_nested_section_parses_into_its_dataclass_and_names_an_unknown_key(sec
 
 
 def test_nested_values_are_checked_by_their_own_class():
-    from anigs.animate.plan import AnimateConfig
+    from anigs.animate.config import AnimateConfig
     from anigs.stages.masks import MasksConfig
 
     assert MasksConfig.from_dict({"lift": {"min_views": 3}}).lift.min_views == 3

@@ -9,7 +9,8 @@ import yaml
 
 from anigs.config import check_sections, deep_merge, load_scene, section
 from anigs.tradeoff import DERIVED_SEP, get_dotted, knob_filename, stage_owner, sweep_points as _sweep_points
-from anigs.animate.plan import METHODS, AnimateConfig, RoundPlan
+from anigs.animate.plan import RoundPlan
+from anigs.animate.config import METHODS, AnimateConfig
 from anigs.views.queue import queued_view_count
 
 ANIGS_VERSION = anigs.__version__
