@@ -32,7 +32,7 @@ from pathlib import Path
 LAYERS: list[tuple[str, set[str]]] = [
     ("base: data types, IO, device, math", {
         "io", "device", "config", "configs", "typed_config", "images", "video", "flow", "cameras",
-        "gaussians", "geometry", "benchmark_tsv", "photos", "pixels", "registry", "formats", "contract", "knob_chart",
+        "gaussians", "geometry", "photos", "pixels", "registry", "formats", "contract", "knob_chart",
         "__init__"}),
     ("compiled kernels: rasterizer, SSIM", {"render", "ssim", "fused_ssim", "ssim_kernel"}),
     ("scene sources: synthetic scene, photos, SfM", {"synth", "sfm", "capture"}),
@@ -40,7 +40,7 @@ LAYERS: list[tuple[str, set[str]]] = [
     ("dynamic masks per view", {"masks"}),
     ("animation: prior, update, baselines, export", {"refine", "animate", "baselines", "export"}),
     ("evaluation", {"metrics"}),
-    ("reports and apps", {"tables", "table_format", "tradeoff", "study", "viewer"}),
+    ("reports and apps", {"reports", "study", "viewer"}),
     ("stages", {"stages"}),
     ("command line", {"cli", "build_kernel"}),
 ]

@@ -13,7 +13,7 @@ missing is written as not available with the reason):
   camera) and the SfM points (``xyz``, ``rgb``) of the multiview protocol; the capture stage's
   folder with the synthetic ground truth (motion statistics).
 
-The schema of the output is documented in :mod:`anigs.tables`.
+The schema of the output is documented in :mod:`anigs.reports.tables`.
 """
 from __future__ import annotations
 

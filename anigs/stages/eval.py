@@ -1,7 +1,7 @@
 """Stage ``eval``: every metric of one (scene, method, variant) into ``metrics.json``.
 
 The metrics and their inputs are described in :mod:`anigs.metrics.suite`; the schema of the
-output in :mod:`anigs.tables`.
+output in :mod:`anigs.reports.tables`.
 
     anigs eval --final final/ --masks masks/ --model round4/ --static static/ --sfm sfm/ \\
         [--capture capture/] --scene demo --variant full --out eval/ --params '{...eval section...}'
@@ -36,7 +36,7 @@ from anigs.stages.shared_inputs import TableRowInputs
 from anigs.stages.final import Outputs as FinalOutputs
 from anigs.stages.update import Outputs as UpdateOutputs
 from anigs.metrics.records import merge_records
-from anigs.tables import SCHEMA
+from anigs.reports.tables import SCHEMA
 
 Config = EvalConfig  # the `eval` config section
 

@@ -25,7 +25,7 @@ from anigs.io import write_json
 from anigs.pixels import overlay
 from anigs.images import write_mask_png, write_rgb_png
 from anigs.masks.choose import EffectSets
-from anigs.masks.frames import first_frames
+from anigs.masks.first_frames import first_frames
 from anigs.masks.config import MasksConfig
 from anigs.masks.segment import segment_views
 from anigs.masks.truth import GroundTruth

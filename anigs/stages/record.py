@@ -1,12 +1,12 @@
 """The metrics record the eval and fvd_gt stages write (the schema of ``metrics.json``,
-:data:`anigs.tables.SCHEMA`) and what it is made of: the variant's table row (:func:`table_row`,
+:data:`anigs.reports.tables.SCHEMA`) and what it is made of: the variant's table row (:func:`table_row`,
 which the rules ask too) and the ``PRIOR=PATH`` reference options (:func:`prior_pairs`)."""
 from __future__ import annotations
 
 from typing import Any
 
 from anigs import __version__
-from anigs.tables import SCHEMA
+from anigs.reports.tables import SCHEMA
 from anigs.animate.config import METHODS
 
 

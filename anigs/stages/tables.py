@@ -11,9 +11,9 @@ from pathlib import Path
 from anigs import contract
 from anigs.contract import File
 from anigs.io import write_json
-from anigs.tables import load_metrics, write_tables
+from anigs.reports.tables import load_metrics, write_tables
 
-log = logging.getLogger("anigs.tables")
+log = logging.getLogger("anigs.reports.tables")
 
 
 Config = None  # no config section: the tables follow from the metrics files
@@ -23,7 +23,7 @@ class Outputs(contract.Outputs):
     """The tables folder (``results/tables``)."""
 
     LAYOUT = {"index": File("tables.json", "records read, the metrics files, the files written"),
-              "table": File("{name}.{ext}", "one table (anigs.tables: main, fvd, ablation, weightfree, fvd_gt, ...) "
+              "table": File("{name}.{ext}", "one table (anigs.reports.tables: main, fvd, ablation, weightfree, fvd_gt, ...) "
                                             "as csv, md or tex")}
 
 

@@ -22,10 +22,10 @@ from anigs.stages.command import parse_params
 from anigs.contract import File
 from anigs.stages.eval import Outputs as EvalOutputs
 from anigs.io import atomic_path, read_json
-from anigs.tradeoff import (SweepPoint, front_section, knob_filename, mark_fronts, markdown_report, metric_directions,
+from anigs.reports.tradeoff import (SweepPoint, front_section, knob_filename, mark_fronts, markdown_report, metric_directions,
                             plot_knob, report_fronts, report_rows, write_csv)
 
-log = logging.getLogger("anigs.tradeoff")
+log = logging.getLogger("anigs.reports.tradeoff")
 
 
 class Outputs(contract.Outputs):
@@ -59,7 +59,7 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
 
 
 def report(scene: str, points: list, results: str | Path, out: Outputs, plot_metrics: list[str]) -> Path:
-    """Write the report of one scene's sweep ``points`` (:class:`anigs.tradeoff.SweepPoint`) into ``out``;
+    """Write the report of one scene's sweep ``points`` (:class:`anigs.reports.tradeoff.SweepPoint`) into ``out``;
     returns the CSV."""
 
     if not points:

@@ -88,7 +88,7 @@ def region_of_interest(inputs: Inputs, g: Gaussians, cameras: list[Camera]) -> t
         raise ValueError("views: give exactly one region of interest: --effects DIR or --labels (with --motion)")
     if inputs.effects is not None:
         return inputs.effects.dynamic(g.num), f"effects:{inputs.effects.root}"
-    from anigs.masks.labels import roi_from_labels
+    from anigs.masks.labels_backend import roi_from_labels
 
     roi = roi_from_labels(g, inputs.labels, inputs.motion, None, inputs.gt_gaussians, inputs.gt_cameras, cameras)
     return roi, f"labels:{inputs.labels}"

@@ -24,7 +24,7 @@ from anigs.io import atomic_write_text, write_json
 from anigs.study.catch import CATCH, make_catch_video
 from anigs.study.layout import Outputs
 from anigs.study.schema import MANIFEST_SCHEMA, QUESTIONS
-from anigs.tables import variant_label
+from anigs.reports.tables import variant_label
 
 ASSETS = Path(__file__).with_name("assets")  # the page (study.html), its script and style
 PAGE = "study.html"

@@ -392,7 +392,7 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
 def test_labels_across_frames_and_transfer(lawn_scene):
     """Labels of ground-truth Gaussians rendered from cameras of another (similarity) frame."""
     from anigs.sfm.align import Similarity
-    from anigs.masks.labels import LabelsBackend
+    from anigs.masks.labels_backend import LabelsBackend
     from anigs.render.labels import labels_for
     from anigs.sfm.align import align_cameras
     from scipy.spatial.transform import Rotation

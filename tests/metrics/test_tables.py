@@ -9,7 +9,7 @@ import pytest
 
 from anigs.io import write_json
 from anigs.metrics import metric_record, not_available
-from anigs.tables import (SCHEMA, ablation_table, build_tables, fvd_table, load_metrics, multiview_table,
+from anigs.reports.tables import (SCHEMA, ablation_table, build_tables, fvd_table, load_metrics, multiview_table,
                           to_csv, to_latex, to_markdown, weightfree_table, write_tables)
 
 SCENES = ["fireplace", "garden"]

@@ -141,7 +141,7 @@ def test_the_stage_list_is_written_once():
     from anigs.cli import commands
     from anigs.config import STAGE_SECTIONS
     from anigs.stages import STAGES, get
-    from anigs.tradeoff import SCENE_STAGE_ORDER, VARIANT_SECTIONS
+    from anigs.reports.tradeoff import SCENE_STAGE_ORDER, VARIANT_SECTIONS
 
     from anigs import contract
 

@@ -94,7 +94,7 @@ def test_the_refine_stage_sets_the_priors_derived_keys():
 
 def test_typed_defaults_are_those_the_code_used_before():
     """The labels backend's keywords and the protocol's fit keep their defaults."""
-    from anigs.masks.labels import LabelsBackend, LabelsConfig
+    from anigs.masks.labels_backend import LabelsBackend, LabelsConfig
     from anigs.metrics.multiview import MultiviewFitConfig
     from anigs.static.fit import FitConfig
 

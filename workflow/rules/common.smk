@@ -8,7 +8,7 @@ import anigs
 import yaml
 
 from anigs.config import check_sections, deep_merge, load_scene, section
-from anigs.tradeoff import DERIVED_SEP, get_dotted, knob_filename, stage_owner, sweep_points as _sweep_points
+from anigs.reports.tradeoff import DERIVED_SEP, get_dotted, knob_filename, stage_owner, sweep_points as _sweep_points
 from anigs.animate.plan import RoundPlan
 from anigs.animate.config import METHODS, AnimateConfig
 from anigs.views.queue import queued_view_count
@@ -354,7 +354,7 @@ def eval_command(wc, part, **inputs):
 
 
 # ---- accuracy versus time: the sweep's points are variants, or derived scenes for per-scene
-# stages (see anigs/tradeoff.py) ----
+# stages (see anigs/reports/tradeoff.py) ----
 _TO = config.get("tradeoff", {})
 TRADEOFF = {}  # scene -> [SweepPoint]
 for _s in SCENES:

@@ -33,7 +33,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from anigs.benchmark_tsv import benchmark_seconds
+from anigs.reports.benchmark_tsv import benchmark_seconds
 from anigs.config import deep_merge
 from anigs.io import atomic_path
 from anigs.registry import sections_of
