@@ -9,7 +9,7 @@ import math
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any, ClassVar
 
-from anigs.animate.limits import effect_labels
+from anigs.effects.labels import effect_label_ids
 from anigs.animate.method_config import LiftingConfig, PhysicsConfig
 from anigs.animate.plan import RoundPlan
 from anigs.typed_config import Section, from_dict
@@ -166,7 +166,7 @@ class UpdateConfig:
             if bad:
                 raise KeyError(f"update config: effect_limits[{key!r}] has unknown key(s) {sorted(bad)}")
         if self.effect_num_bases:
-            names = effect_labels()
+            names = effect_label_ids()
             for key, k in self.effect_num_bases.items():
                 if not (str(key) in names or (str(key).isdigit() and int(key) > 0)):
                     raise KeyError(f"update config: effect_num_bases key {key!r} is unknown: give an effect label "

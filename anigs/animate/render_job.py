@@ -1,7 +1,7 @@
 """The ``render_clip`` job (its config section: :class:`anigs.animate.config.RenderClipConfig`): the
-scene it renders (:func:`load_scene`: the canonical Gaussians and a round's deformation) and one view's clip
+scene it renders (:func:`load_animated_scene`: the canonical Gaussians and a round's deformation) and one view's clip
 (:func:`render_view`). The stage: :mod:`anigs.stages.render_clip`; the ``round`` stage renders
-every view of a round from one :func:`load_scene`."""
+every view of a round from one :func:`load_animated_scene`."""
 from __future__ import annotations
 
 import logging
@@ -21,7 +21,7 @@ from anigs.video import save_clip
 log = logging.getLogger("anigs.render_clip")
 
 
-def load_scene(canonical_path: str | Path, cfg: RenderClipConfig, model_path: str | Path | None = None):
+def load_animated_scene(canonical_path: str | Path, cfg: RenderClipConfig, model_path: str | Path | None = None):
     """The canonical scene and the model's deformation (None: static) on the config's device
     -> (canonical, deformation | None, background [3])."""
 
@@ -41,7 +41,7 @@ def load_scene(canonical_path: str | Path, cfg: RenderClipConfig, model_path: st
 
 def render_view(scene: tuple, camera: Camera, out: str | Path, cfg: RenderClipConfig, canonical_path: str | Path,
                 model_path: str | Path | None = None, view_id: str | None = None) -> dict:
-    """Render ``camera``'s clip of a :func:`load_scene` scene to ``out``; returns the clip's metadata
+    """Render ``camera``'s clip of a :func:`load_animated_scene` scene to ``out``; returns the clip's metadata
     (the paths are recorded as given)."""
 
     canonical, deformation, bg = scene

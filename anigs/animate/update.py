@@ -30,7 +30,7 @@ from anigs.animate.frames import render_frame
 from anigs.cameras import Camera
 from anigs.animate.config import UpdateConfig
 from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, resolve_num_bases, save_model
-from anigs.animate.limits import bases_from_config, effect_labels, limits_from_config
+from anigs.animate.limits import bases_from_config, limits_from_config
 from anigs.animate.trainable import Trainable, first_non_finite, param_groups
 from anigs.device import get_device, seed_everything
 from anigs.geometry.extent import box_diagonal
@@ -41,7 +41,7 @@ from anigs.animate.target_frames import ClipFrames
 log = logging.getLogger("anigs.animate.update")
 
 __all__ = ["UpdateDiverged", "UpdateResult", "ViewData", "bases_from_config",
-           "effect_labels", "limits_from_config", "run_update", "static_references"]
+           "limits_from_config", "run_update", "static_references"]
 
 @dataclass
 class ViewData:

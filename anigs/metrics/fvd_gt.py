@@ -23,7 +23,7 @@ from anigs.gaussians import Gaussians
 from anigs.io import write_json, write_npz
 from anigs.metrics import metric_record, not_available
 from anigs.metrics.bootstrap import bootstrap_frechet, bootstrap_gap
-from anigs.metrics.eval_views import (contact_sheet, gt_clip, gt_offsets_at, moving_labels, place_eval_views,
+from anigs.metrics.eval_views import (thumbnail_sheet, gt_clip, gt_offsets_at, moving_labels, place_eval_views,
                                       window_starts, model_clip)
 from anigs.metrics.features import load_i3d_detector, describe_i3d, i3d_features, Unavailable
 from anigs.metrics.frechet import frechet_distance
@@ -170,7 +170,7 @@ def run_reference(capture, cameras: str | Path, canonical: str | Path, num_frame
                                               seconds=secs_s)
         write_npz(out.path("still_features"), features=f_still, views=np.array(rows))
         sheet_rows = [r for i in range(0, len(firsts), 8) for r in (firsts[i:i + 8], firsts_s[i:i + 8])]
-    save_png(out.path("sheet"), contact_sheet(sheet_rows))
+    save_png(out.path("sheet"), thumbnail_sheet(sheet_rows))
     ref["seconds_total"] = round(time.perf_counter() - t0, 2)
     write_json(out.path("reference"), ref)
     log.info("fvd_gt: reference %d clips of %d views in %.1f s%s", len(rows), len(views), ref["seconds_total"],

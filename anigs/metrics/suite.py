@@ -1,6 +1,6 @@
 """The evaluation suite: every metric of one (scene, method, variant), as the ``eval`` stage writes it.
 
-:func:`evaluate` takes two typed sets of inputs, every one optional (a metric whose inputs are
+:func:`evaluate_variant` takes two typed sets of inputs, every one optional (a metric whose inputs are
 missing is written as not available with the reason):
 
 - :class:`ClipInputs`, the clips half: the method's camera-fixed clips (``.npz`` from
@@ -217,7 +217,7 @@ EVAL_PARTS = ("all", "clips", "model")
 
 @dataclass(frozen=True)
 class ClipInputs:
-    """What the clips half of :func:`evaluate` reads.
+    """What the clips half of :func:`evaluate_variant` reads.
 
     ``clips``: clip files or folders; ``masks``: the masks stage's folder; ``references``: prior ->
     clip files/folders (FVD-prior, and FID-prior unless ``fid_references`` names other clips for
@@ -231,7 +231,7 @@ class ClipInputs:
 
 @dataclass(frozen=True)
 class ModelInputs:
-    """What the model half of :func:`evaluate` reads: the animated model (``model.pt``) and its
+    """What the model half of :func:`evaluate_variant` reads: the animated model (``model.pt``) and its
     canonical PLY, the training cameras (``cameras.json``), the capture images and the SfM points
     (``points.npz``) of the multiview protocol, and ``truth``, the capture stage's folder with the
     synthetic ground truth (None on photo scenes)."""
@@ -244,7 +244,7 @@ class ModelInputs:
     truth: CaptureOutputs | None = None
 
 
-def evaluate(cfg: EvalConfig, clips: ClipInputs | None = None, model: ModelInputs | None = None,
+def evaluate_variant(cfg: EvalConfig, clips: ClipInputs | None = None, model: ModelInputs | None = None,
              part: str = "all") -> dict[str, Any]:
     """Compute every metric whose inputs are given; returns the ``metrics`` mapping of metrics.json.
 

@@ -24,7 +24,7 @@ from typing import Any
 from anigs.stages.record import metrics_record, prior_pairs, table_row  # noqa: F401 (table_row: the rules')
 from anigs.io import write_json
 from anigs.metrics.config import EvalConfig
-from anigs.metrics.suite import ClipInputs, ModelInputs, evaluate
+from anigs.metrics.suite import ClipInputs, ModelInputs, evaluate_variant
 from anigs import contract
 from anigs.stages.command import parse_params
 from anigs.stages.capture import Outputs as CaptureOutputs
@@ -108,7 +108,7 @@ def run(inputs: Inputs, cfg: EvalConfig) -> Outputs:
     clips = ClipInputs(i["clips"], inputs.masks, i["reference"], i["fid_reference"])
     model = ModelInputs(P(i["model"]), P(i["canonical"]), P(i["cameras"]), P(i["images"]), P(i["points"]),
                         inputs.capture)
-    metrics = evaluate(cfg, clips, model, part=inputs.part)
+    metrics = evaluate_variant(cfg, clips, model, part=inputs.part)
     record = metrics_record(inputs, inputs.part, dataclasses.asdict(cfg), i, time.perf_counter() - t0, metrics)
     out = Outputs(inputs.out)
     write_json(out.path(PART_FILE[inputs.part]), record)

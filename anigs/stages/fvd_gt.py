@@ -32,7 +32,7 @@ from anigs.contract import File
 from anigs.stages.shared_inputs import TableRowInputs
 from anigs.stages.update import Outputs as UpdateOutputs
 from anigs.io import write_json, write_npz
-from anigs.metrics.eval_views import contact_sheet
+from anigs.metrics.eval_views import thumbnail_sheet
 from anigs.metrics.fvd_gt import run_reference, run_method
 from anigs.metrics.config import EvalConfig
 from anigs.video import save_png
@@ -117,7 +117,7 @@ def write_record(inputs: Inputs, cfg: FvdGtConfig, ecfg) -> Outputs:
     record = metrics_record(inputs, "fvd_gt", config, paths, time.perf_counter() - t0, metrics)
     write_json(out.path("record"), record)
     if firsts:
-        save_png(out.path("sheet"), contact_sheet([firsts[i:i + 8] for i in range(0, len(firsts), 8)]))
+        save_png(out.path("sheet"), thumbnail_sheet([firsts[i:i + 8] for i in range(0, len(firsts), 8)]))
     m = metrics[METRIC]
     log.info("fvd_gt: %s %s: %s", inputs.method, inputs.variant,
              f"{m['value']:.2f} ± {m['bootstrap']['std']:.2f} ({m['samples']['test']} clips)" if m["available"]

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.animate.render_job import load_scene, render_view
+from anigs.animate.render_job import load_animated_scene, render_view
 
 from anigs.animate.config import RenderClipConfig
 from anigs import contract
@@ -67,7 +67,7 @@ def run(inputs: Inputs, cfg: RenderClipConfig, scene: tuple | None = None) -> Ou
     out = Outputs(inputs.out)
     model = inputs.model.path("model") if inputs.model is not None else None
     canonical = inputs.static.path("canonical")
-    scene = scene if scene is not None else load_scene(canonical, cfg, model)
+    scene = scene if scene is not None else load_animated_scene(canonical, cfg, model)
     render_view(scene, camera, out.path("clip", view=inputs.view_id or camera.name), cfg, canonical, model,
                 inputs.view_id)
     return out

@@ -79,7 +79,7 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
     startup_cpu = time.process_time()  # CPU this process spent before the work: interpreter, imports, arguments
     t0 = time.perf_counter()
     model = inputs.model.path("model") if inputs.model is not None else None
-    scene = render_clip.load_scene(inputs.static.path("canonical"), render_cfg, model)
+    scene = render_clip.load_animated_scene(inputs.static.path("canonical"), render_cfg, model)
     timings = {"load_s": time.perf_counter() - t0, "views": {}}
     priors: dict = {}
     for v in view_ids:

@@ -187,14 +187,14 @@ def test_nan_or_inf_frames_are_an_error_naming_the_clip(tiny_ckpt, tmp_path):
         i3d_features(net, [good, bad])
     # a clip file enters the evaluation through anigs.video's check, which names the file
     from anigs.metrics.config import EvalConfig
-    from anigs.metrics.suite import ClipInputs, evaluate
+    from anigs.metrics.suite import ClipInputs, evaluate_variant
 
     d = tmp_path / "clips"
     d.mkdir()
     np.savez(d / "view_00.npz", frames=good)
     np.savez(d / "view_01.npz", frames=bad)
     with pytest.raises(ValueError, match="view_01.npz: contains NaN or Inf"):
-        evaluate(EvalConfig.from_dict({"i3d_path": str(tiny_ckpt[0]), "multiview": False}),
+        evaluate_variant(EvalConfig.from_dict({"i3d_path": str(tiny_ckpt[0]), "multiview": False}),
                  ClipInputs([d], references={"gt": [d / "view_00.npz"]}))
 
 

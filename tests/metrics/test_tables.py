@@ -295,7 +295,7 @@ def test_eval_fid_reference_pools_paths(tmp_path):
 
     from anigs.metrics.config import EvalConfig
 
-    from anigs.metrics.suite import ClipInputs, evaluate
+    from anigs.metrics.suite import ClipInputs, evaluate_variant
     from anigs.stages.masks import Outputs as MasksOutputs
 
     d = _tiny_inputs(tmp_path)
@@ -307,7 +307,7 @@ def test_eval_fid_reference_pools_paths(tmp_path):
     torch.jit.script(StandInInception()).save(str(d / "inc.pt"))
     cfg = EvalConfig.from_dict({"inception_path": str(d / "inc.pt"), "fid_size": 32, "multiview": False,
                                 "i3d_path": ""})  # FVD off: its reason says so
-    m = evaluate(cfg, ClipInputs([d / "final" / "clips"], MasksOutputs(d / "masks"), {"ltx": [d / "ref"]},
+    m = evaluate_variant(cfg, ClipInputs([d / "final" / "clips"], MasksOutputs(d / "masks"), {"ltx": [d / "ref"]},
                                  fid_references={"ltx": [d / "ref", d / "final" / "clips"]}))
     assert m["fid/ltx"]["available"] and m["fid/ltx"]["samples"] == {"test": 2 * 12, "reference": 5 * 12}
     assert m["fid/ltx"]["feature_dim"] == 6
