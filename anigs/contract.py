@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import importlib
 import json
 import string
 import types
@@ -111,6 +112,14 @@ class Outputs:
         return self.root / f.name.format(**fields)
 
     @classmethod
+    def under(cls, results: str | Path, key: str | None = None, **fields: Any) -> str:
+        """File ``key`` (None: the folder) under the results root: ``FOLDER`` and the ``LAYOUT`` name with
+        ``fields`` filled in and the others left as ``{name}`` (a Snakemake rule's output pattern, or a
+        path when every field is given)."""
+        rel = cls.FOLDER if key is None else f"{cls.FOLDER}/{cls.LAYOUT[key].name}"
+        return f"{results}/{rel}".rstrip("/").format_map(_Unfilled(fields))
+
+    @classmethod
     def pattern(cls, key: str, root: str = "") -> str:
         """``root/name`` with the format fields left in (a Snakemake pattern when they are wildcards)."""
         name = cls.LAYOUT[key].name
@@ -154,6 +163,19 @@ class Outputs:
         with atomic_path(p) as tmp, open(tmp, "wb") as fh:
             np.save(fh, a)
         return p
+
+
+class _Unfilled(dict):
+    """Format fields: a field that is not given stays ``{name}`` (a Snakemake wildcard)."""
+
+    def __missing__(self, key: str) -> str:
+        return f"{{{key}}}"
+
+
+def stage_outputs(stage: str, kind: str = "Outputs") -> type[Outputs]:
+    """The ``Outputs`` type ``kind`` of stage module ``anigs.stages.<stage>`` (a dotted name: that
+    module's, e.g. ``anigs.study.layout``), imported by name (the contract imports no stage)."""
+    return getattr(importlib.import_module(stage if "." in stage else f"anigs.stages.{stage}"), kind)
 
 
 def scope_folder(stage: str) -> str:

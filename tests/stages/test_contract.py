@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from anigs.contract import File, Inputs, Outputs, check_array, outputs_of
+from anigs.contract import File, Inputs, Outputs, check_array, outputs_of, stage_outputs
 
 
 class _Out(Outputs):
@@ -30,6 +30,16 @@ class _In(Inputs):
     steps: int = 3
     names: list[str] | None = None
     keep_work: bool = False
+
+
+def test_files_under_the_results_root_keep_the_fields_not_given():
+    assert _Out.under("res") == "res/{scene}/{variant}/toy"
+    assert _Out.under("res", "mask", scene="demo") == "res/demo/{variant}/toy/{view}.png"
+    assert _Out.under("res", "report", scene="demo", variant="full") == "res/demo/full/toy/report.json"
+    assert stage_outputs("masks").under("r", "dynamic", scene="s") == "r/s/masks/dynamic.npy"
+    assert stage_outputs("anigs.study.layout").under("r") == "r/study"
+    with pytest.raises(KeyError):
+        _Out.under("res", "nope")
 
 
 def test_paths_and_patterns(tmp_path):

@@ -7,7 +7,8 @@ import shlex
 import anigs
 import yaml
 
-from anigs.config import check_sections, deep_merge, load_scene, section
+from anigs.config import deep_merge, section, workflow_scenes
+from anigs.contract import stage_outputs
 from anigs.reports.tradeoff import DERIVED_SEP, get_dotted, knob_filename, stage_owner, sweep_points as _sweep_points
 from anigs.animate.plan import RoundPlan
 from anigs.animate.config import METHODS, AnimateConfig
@@ -15,29 +16,11 @@ from anigs.views.queue import queued_view_count
 
 ANIGS_VERSION = anigs.__version__
 R = config["results"]
-# scene files: relative to the working directory, else to the workflow (when run from elsewhere)
-_scene_dir = config["scene_dir"]
-if not os.path.isabs(_scene_dir) and not os.path.isdir(_scene_dir):
-    _scene_dir = os.path.join(workflow.basedir, _scene_dir)
-# scene files and variant overrides are validated against the config schema's sections here, so a
-# typo fails when the workflow is parsed, naming the key and the file, before any job runs
+# the scenes config names, their files and the variants checked against the schema when the workflow
+# is parsed (anigs.config.workflow_scenes), so a typo fails before any job runs
 with open(os.path.join(workflow.basedir, "workflow", "schemas", "config.schema.yaml")) as _f:
-    CONFIG_SCHEMA = yaml.safe_load(_f)
-SCENES = {name: load_scene(_scene_dir, name, CONFIG_SCHEMA) for name in config["scenes"]}  # the scenes config names
-for _v, _o in config["variant_overrides"].items():
-    check_sections(_o, CONFIG_SCHEMA, f"config: variant_overrides.{_v}")
+    SCENES = workflow_scenes(config, yaml.safe_load(_f), workflow.basedir, DERIVED_SEP)
 ALL_SCENES = dict(SCENES)  # and the accuracy-versus-time sweep's derived scenes (added below)
-for _s in SCENES:
-    if DERIVED_SEP in _s:
-        raise ValueError(
-            f"config: scene name {_s!r} may not contain {DERIVED_SEP!r} (it marks the sweep's derived scenes)"
-        )
-for _v in list(config["variants"]) + list(config["table_variants"]):
-    if _v not in config["variant_overrides"]:
-        raise ValueError(
-            f"config: variant {_v!r} is not defined under variant_overrides "
-            f"(defined: {sorted(config['variant_overrides'])})"
-        )
 
 
 def _names(source):
@@ -379,32 +362,14 @@ def tradeoff_points():
 
 # ---- the stages' files, named by their Outputs (anigs/stages/<name>.py: FOLDER, LAYOUT): the
 # rules spell no file name of a stage's folder ----
-import importlib as _importlib
-
 STUDY = "anigs.study.layout"  # the study folder's Outputs (`anigs study build`: not a pipeline stage)
 
 
-def stage_outputs(stage, kind="Outputs"):
-    """The ``Outputs`` type of ``stage`` (its folder's layout and loaders; a dotted name: that
-    module's, e.g. :data:`STUDY`); ``kind``: another ``Outputs`` type of the stage module
-    (``fvd_gt``'s ``ReferenceOutputs``)."""
-    return getattr(_importlib.import_module(stage if "." in stage else f"anigs.stages.{stage}"), kind)
-
-
-class _Wildcards(dict):
-    """A field that is not given stays a Snakemake wildcard (``{scene}``)."""
-
-    def __missing__(self, key):
-        return f"{{{key}}}"
-
-
 def stage_out(stage, key=None, kind="Outputs", **fields):
-    """File ``key`` (None: the folder) of ``stage``'s Outputs under the results root: its ``FOLDER`` and
-    ``LAYOUT`` name with ``fields`` filled in, the others left as wildcards (``{scene}``, ``{variant}``,
-    ``{round}``, ``{view}``): a rule's output pattern, or a path when every field is given."""
-    t = stage_outputs(stage, kind)
-    rel = t.FOLDER if key is None else f"{t.FOLDER}/{t.LAYOUT[key].name}"
-    return f"{R}/{rel}".rstrip("/").format_map(_Wildcards(fields))
+    """File ``key`` (None: the folder) of ``stage``'s Outputs (``kind``: another Outputs type of the
+    module, e.g. fvd_gt's ReferenceOutputs) under the results root, fields not given left as
+    wildcards: a rule's output pattern, or a path (:meth:`anigs.contract.Outputs.under`)."""
+    return stage_outputs(stage, kind).under(R, key, **fields)
 
 
 def job_out(stage, wc, key=None, kind="Outputs"):
