@@ -18,9 +18,6 @@ from anigs.sfm.config import SfmConfig
 from anigs import contract
 from anigs.stages.command import parse_params
 from anigs.contract import File
-from anigs.cameras import load_cameras
-from anigs.sfm.model import load_points
-from anigs.stages.capture import Outputs as CaptureOutputs
 
 Config = SfmConfig  # the `sfm` config section
 
@@ -40,11 +37,13 @@ class Outputs(contract.Outputs):
 
     def cameras(self) -> list:
         """The registered cameras (:class:`~anigs.cameras.Camera`)."""
+        from anigs.cameras import load_cameras  # lazy, like the two below: `anigs sfm` starts without torch
 
         return load_cameras(self.path("cameras"))
 
     def points(self) -> tuple[np.ndarray, np.ndarray]:
         """(xyz [P,3] float64, rgb [P,3] float64 in [0,1]) of the SfM points."""
+        from anigs.sfm.model import load_points
 
         return load_points(self.path("points"))
 
@@ -74,6 +73,7 @@ def run(inputs: Inputs, cfg: SfmConfig, threads: int | None = None) -> Outputs:
     CPUs when None. The sfm escalation tries the user's original photos at full size when the
     images were imported by the capture stage (its ``capture.json`` beside ``images``)."""
     from anigs.sfm.colmap import run_sfm
+    from anigs.stages.capture import Outputs as CaptureOutputs
 
     originals = CaptureOutputs(Path(inputs.images).parent).original_photos()
     run_sfm(inputs.images, inputs.out, cfg, gt_cameras=inputs.gt_cameras, model_dir=inputs.model,
