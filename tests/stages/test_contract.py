@@ -104,3 +104,22 @@ def test_flags_derive_from_fields_and_round_trip(tmp_path):
     assert inp.effects is None and inp.names == ["a", "b"] and inp.keep_work is False
     again = _In.from_args(p.parse_args(inp.argv()))
     assert again == inp
+
+
+def test_stage_command_gives_back_the_inputs_through_the_stage_s_own_flags(tmp_path):
+    """The workflow's one command builder (params.cmd of every stage rule): argv from the stage's
+    Inputs, parsed back by the stage's own command line into equal Inputs (quoting included)."""
+    import shlex
+
+    from anigs.stages import masks
+    from anigs.stages.command import stage_arguments, stage_command
+
+    cmd = stage_command("masks", '{"backend": "labels"}', canonical=tmp_path / "a b.ply", views=tmp_path / "views",
+                        out=tmp_path / "masks", effects=tmp_path / "effects")
+    argv = shlex.split(cmd)
+    assert argv[0] == "masks" and argv[-2:] == ["--params", '{"backend": "labels"}']
+    p = argparse.ArgumentParser()
+    stage_arguments(masks, "masks", p)
+    back = masks.Inputs.from_args(p.parse_args(argv[1:]))
+    assert back.canonical == tmp_path / "a b.ply" and back.views == masks.ViewsOutputs(tmp_path / "views")
+    assert back.effects.root == tmp_path / "effects" and back.labels is None

@@ -2,13 +2,16 @@
 import json
 import os
 import re
-import shlex
 
 import anigs
 import yaml
 
 from anigs.config import deep_merge, section, workflow_scenes
 from anigs.contract import stage_outputs
+from anigs.stages.command import stage_command
+from anigs.stages.eval import Outputs as EvalOutputs, merge_parts, table_row
+from anigs.stages.refine import listed_effects
+from anigs.stages.update import baseline_params, round_seed, still_reason
 from anigs.reports.tradeoff import DERIVED_SEP, get_dotted, knob_filename, stage_owner, sweep_points as _sweep_points
 from anigs.animate.plan import RoundPlan
 from anigs.animate.config import METHODS, AnimateConfig
@@ -168,8 +171,6 @@ def _frames(wc):
 def _gt_effects(scene):
     """The effects refine synthesises by name (anigs.stages.refine.listed_effects); None: the effects
     stage's choice."""
-    from anigs.stages.refine import listed_effects
-
     return listed_effects(is_synthetic(scene), sec(scene, "effects")["requested"])
 
 
@@ -227,24 +228,11 @@ def _init_model(wc):
 
 
 def _update_extra(wc):
-    from anigs.stages.update import round_seed
-
     return {"device": config["device"], "seed": round_seed(config["seed"], int(wc.round))}
 
 
 # ---- stage commands: built from each stage's Inputs (anigs/stages/<name>.py: Inputs.argv), so a
 # rule names the upstream stages' folders and scalars, and one artifact has one flag everywhere ----
-
-
-def stage_command(stage, params=None, **inputs):
-    """``STAGE --flag value ...`` (shell-quoted) from ``anigs.stages.<stage>.Inputs(**inputs)``, with
-    ``--params`` (the stage's config section as JSON) when given."""
-    import importlib
-
-    argv = [stage, *importlib.import_module(f"anigs.stages.{stage}").Inputs(**inputs).argv()]
-    if params is not None:
-        argv += ["--params", params]
-    return " ".join(shlex.quote(str(a)) for a in argv)
 
 
 def _folder(files):
@@ -255,8 +243,6 @@ def _folder(files):
 def update_command(wc, input):
     """Round r's model update: trains on one target clip per view of its dataset; the update stage
     decides from --round/--rounds whether it contains the motion (update.contain_rounds)."""
-    from anigs.stages.update import baseline_params
-
     p = plan(wc.scene, wc.variant)
     r = int(wc.round)
     baseline = baseline_params(sec(wc.scene, "animate", wc.variant), sec(wc.scene, "update", wc.variant))
@@ -309,15 +295,11 @@ def final_model(wc):
 
 
 def _still_reason(wc):
-    from anigs.stages.update import still_reason
-
     return still_reason(_chosen_effects(wc.scene))
 
 
 def _table_row(wc):
     """(method, variant) of the variant's table row (anigs.stages.eval.table_row)."""
-    from anigs.stages.eval import table_row
-
     return table_row(method_of(wc.scene, wc.variant), wc.variant)
 
 

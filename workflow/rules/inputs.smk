@@ -87,8 +87,6 @@ def _study_variants():
 def merge_eval_halves(metrics, input, log):
     """The eval rule's job (in Snakemake: a JSON merge, no process start-up): ``metrics`` (the merged file)
     from the clips and model halves beside it and the FVD-GT records of ``input.fvd_gt``."""
-    from anigs.stages.eval import Outputs, merge_parts
-
-    merge_parts(Outputs(os.path.dirname(metrics)), extra=list(input.fvd_gt))
+    merge_parts(EvalOutputs(os.path.dirname(metrics)), extra=list(input.fvd_gt))
     with open(log, "w") as f:
         f.write(f"merged {input.clips}, {input.model} and {len(input.fvd_gt)} FVD-GT record(s) into {metrics}\n")
