@@ -140,3 +140,24 @@ def section(config: dict, scene: dict, variant: str, name: str) -> dict[str, Any
             base = deep_merge(base, {"multiview_fit": {"background": scene["background"]}})
     merged = deep_merge(base, scene.get(name))
     return deep_merge(merged, variants[variant].get(name))
+
+
+def workflow_scenes(config: dict, schema: dict, basedir: str | Path, reserved: str) -> dict[str, dict]:
+    """The scenes the workflow ``config`` names, each read and checked (:func:`load_scene`); the
+    variant overrides checked against the ``schema``'s sections, and every variant the config runs
+    defined. ``scene_dir`` is relative to the working directory, else to ``basedir`` (the workflow's
+    folder); a scene name may not hold ``reserved`` (the sweep's derived-scene marker)."""
+    scene_dir = Path(config["scene_dir"])
+    if not scene_dir.is_absolute() and not scene_dir.is_dir():
+        scene_dir = Path(basedir) / scene_dir
+    scenes = {name: load_scene(scene_dir, name, schema) for name in config["scenes"]}
+    for v, o in config["variant_overrides"].items():
+        check_sections(o, schema, f"config: variant_overrides.{v}")
+    for s in scenes:
+        if reserved in s:
+            raise ValueError(f"config: scene name {s!r} may not contain {reserved!r} (it marks the sweep's derived scenes)")
+    for v in list(config["variants"]) + list(config["table_variants"]):
+        if v not in config["variant_overrides"]:
+            raise ValueError(f"config: variant {v!r} is not defined under variant_overrides "
+                             f"(defined: {sorted(config['variant_overrides'])})")
+    return scenes

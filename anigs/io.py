@@ -17,7 +17,7 @@ import numpy as np
 
 
 class Layout(Protocol):
-    """A stage's output folder as a library writer sees it (:class:`anigs.stages.contract.Outputs`):
+    """A stage's output folder as a library writer sees it (:class:`anigs.contract.Outputs`):
     its ``root`` and ``path(key, **fields)`` of each file; the names are the stage's."""
 
     root: Path

@@ -7,7 +7,7 @@ from explicit inputs and a config, and its command line (``add_arguments`` and `
 
 Derived from :data:`STAGES`: the ``anigs`` command table (:mod:`anigs.cli`), the config
 sections a scene or variant may override (:mod:`anigs.config`), the sweep's per-scene and
-per-variant split (:mod:`anigs.tradeoff`) and the generated config schema
+per-variant split (:mod:`anigs.reports.tradeoff`) and the generated config schema
 (``workflow/scripts/make_schema.py``).
 
 To add a stage: write ``anigs/stages/<name>.py`` (``Config``, ``Outputs``, ``Inputs``, ``run``),

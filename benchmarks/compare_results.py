@@ -5,20 +5,24 @@ wall times are normalised, or different (for refactors that must not change any 
 
 ROOTs are path prefixes replaced by a placeholder inside JSON and clip metadata (the results root
 of each run, when they differ). .json are compared as data, .npz array by array (metadata as JSON),
-.pt tensor by tensor; logs/ and benchmarks/ are skipped (timings).
+.pt tensor by tensor, the viewer's compact scene (.anigs, and scene.js that embeds it in base64) by
+its JSON header and its payload; logs/ and benchmarks/ are skipped (timings).
 """
 from __future__ import annotations
 
 import argparse
+import base64
 import hashlib
 import json
+import struct
 from pathlib import Path
 
 import numpy as np
 
 SKIP_DIRS = {"logs", "benchmarks"}
 SKIP_KEYS = {"seconds", "timings_s", "seconds_per_step", "cpu_s", "cpu_seconds", "load_average", "eval_seconds",
-             "fit_seconds", "train_seconds", "train_cpu_seconds", "step_ms_median", "step_ms_median_final"}
+             "fit_seconds", "train_seconds", "train_cpu_seconds", "step_ms_median", "step_ms_median_final",
+             "minutes", "estimated_minutes", "estimated_seconds", "estimate_ratio"}  # (this machine's minutes)
 
 
 def _norm(x, roots: list[str]):
@@ -40,6 +44,19 @@ def _json_of(arr: np.ndarray):
         return None
 
 
+def _compact(blob: bytes, roots: list[str]):
+    """(header as normalised data, payload) of a compact scene (8-byte magic, version, header length H,
+    the JSON header space-padded, then the arrays)."""
+    _, version, h = struct.unpack_from("<8sII", blob, 0)
+    return version, _norm(json.loads(blob[16:16 + h].decode()), roots), blob[16 + h:]
+
+
+def _b64(p: Path) -> bytes:
+    """The compact scene a viewer's scene.js embeds (``window.ANIGS_SCENE_B64 = "..."``)."""
+    text = p.read_text()
+    return base64.b64decode(text[text.index('"') + 1:text.rindex('"')])
+
+
 def same_content(a: Path, b: Path, roots: list[str]) -> bool:
     """Equal once paths and timings are normalised (json, npz, pt); False for other kinds."""
     if a.suffix == ".json":
@@ -57,6 +74,10 @@ def same_content(a: Path, b: Path, roots: list[str]) -> bool:
             elif x.shape != y.shape or x.dtype != y.dtype or x.tobytes() != y.tobytes():
                 return False
         return True
+    if a.suffix == ".anigs":
+        return _compact(a.read_bytes(), roots) == _compact(b.read_bytes(), roots)
+    if a.name == "scene.js":
+        return _compact(_b64(a), roots) == _compact(_b64(b), roots)
     if a.suffix == ".pt":
         import torch
 

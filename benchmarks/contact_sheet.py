@@ -21,6 +21,7 @@ import numpy as np
 from anigs.io import atomic_path
 from anigs.metrics.contact import MASK_COLOURS, heat_colours, load_rows, max_change, tint
 from anigs.stages.final import Outputs as FinalOutputs
+from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.views.content import edge_share
 
@@ -44,7 +45,7 @@ def main() -> int:
     ap.add_argument("--scale", type=int, default=2, help="pixel zoom of each panel")
     args = ap.parse_args()
     sd = args.scene_dir
-    rows = load_rows(FinalOutputs(sd / args.variant / "final").path("clips"), sd / "masks")
+    rows = load_rows(FinalOutputs(sd / args.variant / "final").path("clips"), MasksOutputs(sd / "masks"))
     views = {v["id"]: v for v in ViewsOutputs(sd / "views").report()["views"]}
     parts = []
     for row in rows:

@@ -248,7 +248,8 @@ def _update_scene(n: int, dyn_frac: float, views: int, w: int, h: int, T: int):
 
 def part_update(args) -> dict:
     """One round's model update (the demo's settings: 120 steps, K = 12) on ``--device``."""
-    from anigs.animate.update import UpdateConfig, run_update
+    from anigs.animate.update import run_update
+    from anigs.animate.config import UpdateConfig
 
     size = (3000, 0.3, 3, 64, 48, 9) if args.small else (30_000, 0.3, 8, 256, 192, 25)
     G, mask, views = _update_scene(*size)

@@ -99,7 +99,7 @@ def _demo(work: Path) -> str:
     if not res.is_dir():
         return ""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from anigs.benchmark_tsv import benchmark_files, rule_breakdown
+    from anigs.reports.benchmark_tsv import benchmark_files, rule_breakdown
 
     from anigs.stages.final import Outputs as FinalOutputs
     from anigs.stages.static import Outputs as StaticOutputs

@@ -27,19 +27,22 @@ from collections import Counter, defaultdict
 from pathlib import Path
 
 # Layers of anigs, bottom (0) to top; a package may import its own layer and the ones below.
+# ``__init__`` (the package root: ``__version__`` and an environment default, no imports) and
+# ``contract`` (the stage folders' Outputs/Inputs types, which the library's readers take) are base.
 LAYERS: list[tuple[str, set[str]]] = [
     ("base: data types, IO, device, math", {
         "io", "device", "config", "configs", "typed_config", "images", "video", "flow", "cameras",
-        "gaussians", "geometry", "benchmark_tsv", "photos", "pixels", "registry", "formats"}),
+        "gaussians", "geometry", "photos", "pixels", "registry", "formats", "contract", "knob_chart",
+        "__init__"}),
     ("compiled kernels: rasterizer, SSIM", {"render", "ssim", "fused_ssim", "ssim_kernel"}),
-    ("scene sources: synthetic scene, photos, SfM", {"synth", "sfm", "capture_config"}),
+    ("scene sources: synthetic scene, photos, SfM", {"synth", "sfm", "capture"}),
     ("scene analysis: static fit, effects, views", {"static", "effects", "views"}),
     ("dynamic masks per view", {"masks"}),
     ("animation: prior, update, baselines, export", {"refine", "animate", "baselines", "export"}),
     ("evaluation", {"metrics"}),
-    ("reports and apps", {"tables", "table_format", "tradeoff", "tradeoff_plot", "study", "viewer"}),
+    ("reports and apps", {"reports", "study", "viewer"}),
     ("stages", {"stages"}),
-    ("command line", {"cli", "build_kernel", "__init__"}),
+    ("command line", {"cli", "build_kernel"}),
 ]
 
 

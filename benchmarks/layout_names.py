@@ -2,7 +2,7 @@
 
     python benchmarks/layout_names.py [--all]
 
-Takes every file name of every stage's ``Outputs.LAYOUT`` (:func:`anigs.stages.contract.outputs_of`)
+Takes every file name of every stage's ``Outputs.LAYOUT`` (:func:`anigs.contract.outputs_of`)
 and of the study folder's (:mod:`anigs.study.layout`, not a pipeline stage) and greps anigs/, benchmarks/, workflow/ and the Snakefile for them. Hits inside a ``File(...)``
 of a stage module (the contract itself), docstrings (a rule file's triple-quoted strings) and
 comments are not counted; what is left is printed with the line and counted per file: string
@@ -23,7 +23,7 @@ from collections import Counter
 from pathlib import Path
 
 from anigs.stages import STAGES
-from anigs.stages.contract import outputs_of
+from anigs.contract import outputs_of
 
 ROOT = Path(__file__).resolve().parents[1]
 DIRS = ("anigs", "benchmarks", "workflow", "Snakefile")

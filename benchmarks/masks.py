@@ -69,11 +69,11 @@ def main(argv: list[str] | None = None) -> int:
 
     from anigs.stages.masks import MasksConfig
     from anigs.masks.capture import capture_frames
-    from anigs.masks.labels import roi_from_labels
+    from anigs.masks.labels_backend import roi_from_labels
     from anigs.gaussians import load_ply
     from anigs.io import read_json
     from anigs.masks import compute_masks, get_mask_backend, mask_iou, render_frames
-    from anigs.masks.labels import LabelsBackend
+    from anigs.masks.labels_backend import LabelsBackend
     from anigs.sfm.align import align_cameras
     from anigs.render.labels import appearance_labels, dynamic_masks
     from anigs.synth.truth import dynamic_label_ids, effects_from_motion

@@ -46,6 +46,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from anigs.stages.eval import Outputs as EvalOutputs  # noqa: E402
 from anigs.stages.final import Outputs as FinalOutputs  # noqa: E402
+from anigs.stages.masks import Outputs as MasksOutputs  # noqa: E402
 
 PHOTO_EXT = (".jpg", ".jpeg", ".png")
 
@@ -180,7 +181,7 @@ def figures(args, scene_dir: Path, variant_dir: Path) -> dict:
 
 def contact(args, variant_dir: Path, scene_dir: Path, fig: dict) -> None:
     from anigs.metrics.contact import load_rows, save_contact_sheet
-    from anigs.metrics.suite import EvalConfig
+    from anigs.metrics.config import EvalConfig
 
     clips = FinalOutputs(variant_dir / "final").path("clips")
     if not clips.is_dir():
@@ -188,7 +189,7 @@ def contact(args, variant_dir: Path, scene_dir: Path, fig: dict) -> None:
         return
     ev = read_json(EvalOutputs(variant_dir / "eval").path("metrics")) or {}
     cfg = {**EvalConfig().__dict__, **(ev.get("config") or {})}  # eval's margin, tolerance and threshold
-    rows = load_rows(clips, scene_dir / "masks", threshold=cfg["mask_threshold"])
+    rows = load_rows(clips, MasksOutputs(scene_dir / "masks"), threshold=cfg["mask_threshold"])
     sheet = Path(args.sheet) if args.sheet else variant_dir / "contact_sheet.png"
     stats = save_contact_sheet(sheet, rows, margin_px=cfg["still_margin_px"], tolerance=cfg["still_tolerance"])
     fig["contact_sheet"] = {"path": str(sheet), "rows": stats}

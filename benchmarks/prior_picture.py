@@ -68,6 +68,7 @@ def main() -> None:
     from anigs.refine.prior import get_prior
     from anigs.refine.prior.base import union_mask
     from anigs.synth import CaptureConfig, MotionParams, SceneConfig, build_scene, camera_path, gt_clip_offsets
+    from anigs.synth.scene import SKY
     from anigs.video import save_png, write_mp4
 
     out = Path(args.out)
@@ -78,7 +79,7 @@ def main() -> None:
     gt = gt_clip_offsets(motion, g.means, g.extras["anchor"], g.extras["label"], T)
     drift = torch.randn(T, g.means.shape[0], 3, generator=torch.Generator().manual_seed(1)) * 0.004
     drift[0] = 0
-    bg = torch.tensor((0.62, 0.76, 0.92))
+    bg = torch.tensor(SKY)
     t0 = time.perf_counter()
     rendered = render_clip(g, cam, 0.5 * gt + drift, bg)
     t_render = time.perf_counter() - t0

@@ -21,7 +21,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from anigs.benchmark_tsv import benchmark_files, breakdown_total, compare_breakdowns, rule_breakdown  # noqa: E402
+from anigs.reports.benchmark_tsv import benchmark_files, breakdown_total, compare_breakdowns, rule_breakdown  # noqa: E402
 
 
 def _f(x, fmt: str = ".1f") -> str:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from anigs.benchmark_tsv import benchmark_seconds  # noqa: E402
+from anigs.reports.benchmark_tsv import benchmark_seconds  # noqa: E402
 
 LINE = re.compile(r"round (\d+): start-up ([0-9.]+) s of the process's ([0-9.]+) s CPU")
 CHAIN = re.compile(r"chain: \d+ commands, process CPU ([0-9.]+) s")

@@ -61,7 +61,8 @@ def _worker(cfg: dict, steps: int, threads: int) -> dict:
     sys.path.insert(0, str(ROOT))
     torch.set_num_threads(threads)
     from anigs.animate.frames import render_frame
-    from anigs.animate.update import UpdateConfig, ViewData, run_update
+    from anigs.animate.update import ViewData, run_update
+    from anigs.animate.config import UpdateConfig
 
     G, mask = _scene(cfg["n"], cfg["dyn_frac"])
     cams = _cameras(cfg["views"], cfg["width"], cfg["height"])

@@ -53,7 +53,8 @@ def run(folder: str, mode: str, steps: int = 5) -> dict:
     import torch
 
     from anigs.animate.training_views import training_views
-    from anigs.animate.update import UpdateConfig, ViewData, run_update
+    from anigs.animate.update import ViewData, run_update
+    from anigs.animate.config import UpdateConfig
     from anigs.cameras import Camera
     from anigs.video import load_clip
     from tests._scenes import sway_scene

@@ -17,7 +17,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 def main() -> int:
     import torch
 
-    from anigs.metrics.suite import EvalConfig, clip_fps, find_clips, load_any_clip, weightfree_metrics
+    from anigs.metrics.config import EvalConfig
+
+    from anigs.metrics.suite import clip_fps, find_clips, load_any_clip, weightfree_metrics
     from anigs.metrics.vbench import vbench_metrics
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -26,13 +28,14 @@ def main() -> int:
     a = ap.parse_args()
     torch.set_num_threads(1)
     from anigs.stages.final import Outputs as FinalOutputs
+    from anigs.stages.masks import Outputs as MasksOutputs
 
     files = find_clips([FinalOutputs(a.variant_dir / "final").path("clips")])
     clips = {v: load_any_clip(p) for v, p in files.items()}
     cfg = EvalConfig.from_dict({})
     for _ in range(a.repeat):
         t0 = time.process_time()
-        weightfree_metrics(clips, a.variant_dir.parent / "masks", cfg)
+        weightfree_metrics(clips, MasksOutputs(a.variant_dir.parent / "masks"), cfg)
         t1 = time.process_time()
         vbench_metrics(clips, {v: clip_fps(p) for v, p in files.items()}, cfg.flow_preset)
         t2 = time.process_time()

@@ -9,7 +9,7 @@ import numpy as np
 import torch
 
 from anigs.animate.frames import render_clip
-from anigs.animate.playback import camera_path, highlight, most_animated_row_col, pingpong_times, slice_images, \
+from anigs.animate.playback import moving_camera_path, highlight, most_animated_row_col, pingpong_times, slice_images, \
     static_change
 from anigs.cameras import Camera
 from anigs.video import save_clip, save_png, write_mp4
@@ -41,7 +41,7 @@ def view_video(canonical, deformation, cam: Camera, times: torch.Tensor, bg: tor
 def path_video(canonical, deformation, cameras: list[Camera], period: int, bg: torch.Tensor, path, cfg) -> dict:
     """The moving-camera video through ``cfg.path_views`` of ``cameras`` with time running
     (``cfg.path_loops`` animation periods of ``period`` frames) to the file ``path``; its summary."""
-    cams = camera_path(cameras, cfg.path_frames, cfg.path_views)
+    cams = moving_camera_path(cameras, cfg.path_frames, cfg.path_views)
     speed = cfg.path_loops * 2 * max(period - 1, 1) / max(cfg.path_frames, 1)
     ptimes = pingpong_times(cfg.path_frames, period, speed)
     frames = []

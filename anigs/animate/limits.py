@@ -10,27 +10,21 @@ from typing import TYPE_CHECKING
 import torch
 
 from anigs.animate.deform import dynamic_index_from_mask, offset_limits
+from anigs.effects.labels import effect_label_ids
 
 if TYPE_CHECKING:
-    from anigs.animate.update import UpdateConfig
+    from anigs.animate.config import UpdateConfig
 
 log = logging.getLogger("anigs.animate.update")
 
 _UNLIMITED = 1e18  # stands for "no limit" in per-Gaussian limit tensors (finite: checkpoints refuse Inf)
 
 
-def effect_labels() -> dict[str, int]:
-    """Effect name -> its label in an int dynamic mask (:func:`anigs.effects.labels.effect_label_ids`)."""
-    from anigs.effects.labels import effect_label_ids
-
-    return effect_label_ids()
-
-
 def bases_from_config(mask: torch.Tensor, cfg: UpdateConfig, num_bases: int) -> torch.Tensor | None:
     """Bases K_d [D] long each dynamic Gaussian uses, from ``effect_num_bases`` (None when it is empty).
 
     ``mask`` [N] is bool or integer effect labels (0 = static); keys are labels (as strings) or
-    effect names (:func:`effect_labels`; several effects on one label: the largest K_e, an effect
+    effect names (:func:`anigs.effects.labels.effect_label_ids`; several effects on one label: the largest K_e, an effect
     not named counting as ``cfg.num_bases``). Values are clamped to ``num_bases`` (the K resolved for T).
     """
     if not cfg.effect_num_bases:
@@ -38,7 +32,7 @@ def bases_from_config(mask: torch.Tensor, cfg: UpdateConfig, num_bases: int) -> 
     mask = torch.as_tensor(mask)
     idx = dynamic_index_from_mask(mask)
     labels = mask[idx].long() if mask.dtype != torch.bool else torch.ones_like(idx)
-    names = effect_labels()
+    names = effect_label_ids()
     per_label: dict[int, int] = {}
     by_name = {k: v for k, v in cfg.effect_num_bases.items() if k in names}
     if by_name and mask.dtype == torch.bool:

@@ -9,6 +9,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any, Mapping
 
 from anigs.typed_config import from_dict
+from anigs.flow import _PRESETS
 
 INTEGRATORS = ("midpoint", "euler")  # the mass-spring integrators (anigs.baselines.springs)
 
@@ -38,8 +39,6 @@ class CommonConfig:
         return asdict(self)
 
     def validate(self) -> None:
-        from anigs.flow import _PRESETS
-
         if self.num_bases < 0:
             raise ValueError(f"{type(self).__name__}: num_bases must be >= 0, got {self.num_bases}")
         if self.flow_preset not in _PRESETS:

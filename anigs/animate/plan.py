@@ -12,9 +12,7 @@ the model on all targets of round r. Ablations change only which files feed whic
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-
-from anigs.animate.method_config import LiftingConfig, PhysicsConfig
+from dataclasses import dataclass
 
 
 @dataclass(frozen=True)
@@ -75,35 +73,3 @@ def view_id(i: int) -> str:
     return f"v{i:02d}"
 
 
-@dataclass(frozen=True)
-class AnimateConfig:
-    """``animate`` config section: how the dataset-model loop unrolls."""
-
-    frames: int = 25  # T: frames per clip and of the DCT motion period
-    views_per_round: int = 3  # views added to the dataset per round (paper: 1)
-    extra_rounds: int = 0  # refresh rounds after every view is in the dataset
-    view_expansion: bool = True  # false: every view from round 1 (ablation "w/o viewpoint expansion")
-    dataset_update: bool = True  # false: targets generated once from the static model (ablation)
-    method: str = "anigs"  # anigs (ours) | lifting (Gaussians2Life-style) | physics (PhysDreamer-style baseline)
-    lifting: LiftingConfig = field(default_factory=LiftingConfig)  # the lifting baseline (method: lifting)
-    physics: PhysicsConfig = field(default_factory=PhysicsConfig)  # the physics baseline (method: physics)
-
-    @staticmethod
-    def from_dict(d: dict | None) -> "AnimateConfig":
-        from anigs.typed_config import from_dict
-
-        cfg = from_dict(AnimateConfig, d, "animate", KeyError)
-        if cfg.method not in METHODS:
-            raise ValueError(f"animate.method must be one of {list(METHODS)}, got {cfg.method!r}")
-        return cfg
-
-    def plan(self, num_views: int) -> RoundPlan:
-        """The rounds of this config. A baseline fits once: one round, every view in it, each
-        view's target refined from the static render (what the paper's baselines are given)."""
-        if self.method != "anigs":
-            return RoundPlan(num_views, num_views, 0, view_expansion=False, dataset_update=False)
-        return RoundPlan(num_views, self.views_per_round, self.extra_rounds, self.view_expansion, self.dataset_update)
-
-
-# animate.method -> the method's name in the paper's tables
-METHODS: dict[str, str] = {"anigs": "Ours", "lifting": "Gaussians2Life", "physics": "PhysDreamer"}

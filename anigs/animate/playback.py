@@ -19,13 +19,13 @@ def pingpong_times(n: int, period: int, speed: float = 1.0) -> torch.Tensor:
     return torch.where(phase <= period - 1, phase, 2 * (period - 1) - phase)
 
 
-def camera_path(cameras: list[Camera], num_frames: int, num_keys: int = 6) -> list[Camera]:
+def moving_camera_path(cameras: list[Camera], num_frames: int, num_keys: int = 6) -> list[Camera]:
     """Smooth path through ``num_keys`` evenly picked cameras (positions: Catmull-Rom-free linear
     interpolation in arc length, rotations: slerp). Returns ``num_frames`` cameras."""
     if not cameras:
-        raise ValueError("camera_path: no cameras")
+        raise ValueError("moving_camera_path: no cameras")
     if num_frames < 1:
-        raise ValueError(f"camera_path: num_frames must be >= 1, got {num_frames}")
+        raise ValueError(f"moving_camera_path: num_frames must be >= 1, got {num_frames}")
     idx = np.unique(np.linspace(0, len(cameras) - 1, max(2, min(num_keys, len(cameras)))).round().astype(int))
     keys = [cameras[i] for i in idx]
     if len(keys) == 1:

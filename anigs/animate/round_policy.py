@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from anigs.animate.update import UpdateConfig
+from anigs.animate.config import UpdateConfig
 
 
 def contains(cfg: UpdateConfig, round_: int | None, rounds: int | None) -> bool:

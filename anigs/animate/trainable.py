@@ -10,7 +10,7 @@ from anigs.animate.deform import DCTDeformation
 from anigs.gaussians import Gaussians
 
 if TYPE_CHECKING:
-    from anigs.animate.update import UpdateConfig
+    from anigs.animate.config import UpdateConfig
 
 
 class Trainable:

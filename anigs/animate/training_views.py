@@ -8,6 +8,9 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera, load_camera_json, load_view_camera
+from anigs.animate.target_frames import ClipFrames
+from anigs.animate.update import ViewData, static_references
+from anigs.images import load_image
 
 
 def load_reference(path: str | Path) -> torch.Tensor:
@@ -17,14 +20,10 @@ def load_reference(path: str | Path) -> torch.Tensor:
     if not p.exists():
         raise FileNotFoundError(f"static reference not found: {p}")
     if p.suffix == ".npz":
-        from anigs.animate.target_frames import ClipFrames
-
         img = ClipFrames(p)[0].numpy()
     elif p.suffix == ".npy":
         img = np.load(p).astype(np.float32)
     else:
-        from anigs.images import load_image
-
         img = load_image(p)
     if img.ndim != 3 or img.shape[-1] != 3 or not np.isfinite(img).all():
         raise ValueError(f"static reference {p}: expected a finite [H,W,3] image, got shape {img.shape}")
@@ -60,8 +59,6 @@ def training_views(canonical, targets: list[str], views_json: str | Path | None,
     is held in memory), its camera (:func:`target_cameras`) and its static reference for L_cano
     (``static_refs``, else renders of the ``canonical`` Gaussians when ``cfg.lambda_cano > 0``, else
     none). ``cfg``: the update config."""
-    from anigs.animate.target_frames import ClipFrames
-    from anigs.animate.update import ViewData, static_references
 
     clips = [ClipFrames(t) for t in targets]
     cams = target_cameras(targets, [c.meta for c in clips], views_json, view_ids, camera_json)

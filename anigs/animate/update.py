@@ -20,18 +20,17 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import torch
 
 from anigs.animate.adam import Adam
 from anigs.animate.frames import render_frame
 from anigs.cameras import Camera
-from anigs.typed_config import from_dict
+from anigs.animate.config import UpdateConfig
 from anigs.animate.deform import DCTDeformation, dynamic_index_from_mask, resolve_num_bases, save_model
-from anigs.animate.limits import bases_from_config, effect_labels, limits_from_config
+from anigs.animate.limits import bases_from_config, limits_from_config
 from anigs.animate.trainable import Trainable, first_non_finite, param_groups
 from anigs.device import get_device, seed_everything
 from anigs.geometry.extent import box_diagonal
@@ -41,122 +40,8 @@ from anigs.animate.target_frames import ClipFrames
 
 log = logging.getLogger("anigs.animate.update")
 
-__all__ = ["PARAM_GROUPS", "UpdateConfig", "UpdateDiverged", "UpdateResult", "ViewData", "bases_from_config",
-           "effect_labels", "limits_from_config", "run_update", "static_references"]
-
-PARAM_GROUPS = ("deformation+positions", "deformation", "all")
-
-
-@dataclass
-class UpdateConfig:
-    """Hyper-parameters of one model update (the ``update`` config section)."""
-
-    steps: int = 600  # optimisation steps per round
-    views_per_step: int = 2  # (view, t) samples per step for the animation loss
-    cano_views_per_step: int = 1  # views per step for the canonical loss (frame 0 vs the static render)
-    num_bases: int = 16  # K: DCT bases per motion channel (clamped to T-1)
-    rotation: bool = True  # learn per-Gaussian rotation offsets as well as position offsets
-    #: trainable parameters: deformation+positions (paper) | deformation | all
-    param_groups: str = "deformation+positions"
-    lr_position_coeffs: float = 2e-3  # learning rate of the position DCT coefficients (times spatial_lr_scale)
-    lr_rotation_coeffs: float = 5e-3  # learning rate of the rotation DCT coefficients
-    lr_means: float = 2e-4  # learning rate of the canonical positions (times spatial_lr_scale)
-    lr_quats: float = 1e-3  # learning rate of the rotations
-    lr_scales: float = 5e-3  # learning rate of the log-scales
-    lr_opacity: float = 2.5e-2  # learning rate of the opacity logits
-    lr_sh: float = 2.5e-3  # learning rate of the SH coefficients (param_groups all)
-    lr_final_factor: float = 0.1  # learning rates decay exponentially to this fraction at the last step
-    #: length scale of position learning rates (null = 1-99 percentile scene extent)
-    spatial_lr_scale: float | None = None
-    lambda_cano: float = 0.1  # weight of the canonical loss
-    lambda_sds: float = 0.0  # weight of the SDS loss (needs a prior with a score: ltx)
-    sds_frames: int = 9  # frames of the SDS sub-clip (4m+1)
-    #: smooth limit on offsets as a fraction of the height above the ground (null = none)
-    max_offset_frac: float | None = None
-    max_offset_abs: float | None = None  # smooth absolute limit on offsets in world units (null = none)
-    max_angle_deg: float | None = None  # smooth limit on rotation offsets in degrees (null = none)
-    effect_limits: dict = field(default_factory=dict)  # per-effect-label overrides of the three limits
-    #: per-effect capacity, {key: K_e <= num_bases}: the Gaussians of that effect use only the first K_e DCT bases (the
-    #: rest stay zero); key = a label of the masks stage's effect labels ("1", "2", ...; without them every dynamic Gaussian
-    #: is "1") or an effect name (foliage_sway, leaf_flutter: label 1, grass_wave 2, flower_bob 3, water_ripple 4 = 1 +
-    #: the effects stage's region index; effects sharing a label take their largest K_e, unnamed ones count as
-    #: num_bases); {} = all use num_bases. Default: grass and flowers 6 (demo, labels from the masks stage: their
-    #: amplitude W1 2.1x / 2.7x and frequency W1 1.8x / 1.9x lower than at 12, foliage unchanged, the same time:
-    #: benchmarks/README.md)
-    effect_num_bases: dict = field(default_factory=lambda: {"grass_wave": 6, "flower_bob": 6})
-    background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])  # background colour (RGB in [0,1])
-    seed: int = 0  # random seed (the workflow passes the global seed)
-    device: str = "auto"  # torch device: auto picks CUDA when present (the workflow passes the global device)
-    backend: str = "auto"  # rasterizer backend: auto | cpu | torch | gsplat
-    log_every: int = 25  # log the loss every this many steps
-    nan_guard: bool = True  # stop on NaN loss or gradients, saving the last good state
-    #: with the masks: after training, a Gaussian whose motion carries its footprint out of a view's dilated mask moves
-    #: less (1/2, 1/4) or stays still
-    contain: bool = True
-    #: containment: each view's mask is dilated by this many pixels first (the still-pixel metric forgives 5)
-    contain_margin_px: int = 3
-    #: containment: most blending weight (in pixels) a moving Gaussian may put outside, in any frame and view (0.05
-    #: left 1-3 levels of change on flower-llff)
-    contain_max_outside_px: float = 0.01
-    #: which rounds' updates contain the motion (the update stage decides from --round/--rounds): final (the model that is
-    #: rendered, exported and evaluated; an earlier round's model only renders the next round's clips, whose static
-    #: pixels ComposedV2V pastes back from frame 0) or every
-    contain_rounds: str = "final"
-
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "UpdateConfig":
-        cfg = from_dict(UpdateConfig, d, "update config", KeyError)
-        cfg.validate()
-        return cfg
-
-    def to_dict(self) -> dict[str, Any]:
-        d = asdict(self)
-        if not d["effect_num_bases"]:  # opt-in key: unused, the recorded config is the one before it existed
-            del d["effect_num_bases"]
-        return d
-
-    def validate(self) -> None:
-        if self.param_groups not in PARAM_GROUPS:
-            raise ValueError(f"update config: param_groups={self.param_groups!r}; choose one of {PARAM_GROUPS}")
-        if self.steps < 0 or self.views_per_step < 1 or self.cano_views_per_step < 0:
-            raise ValueError("update config: steps >= 0, views_per_step >= 1, cano_views_per_step >= 0 required")
-        if self.num_bases < 0:
-            raise ValueError(f"update config: num_bases must be >= 0, got {self.num_bases}")
-        for k in ("lambda_cano", "lambda_sds"):
-            if getattr(self, k) < 0:
-                raise ValueError(f"update config: {k} must be >= 0")
-        if self.sds_frames < 1 or self.sds_frames % 4 != 1:
-            raise ValueError(f"update config: sds_frames must be 4m+1 (1, 5, 9, ...), got {self.sds_frames}")
-        for f in fields(self):
-            if f.name.startswith("lr_") and not (math.isfinite(getattr(self, f.name)) and getattr(self, f.name) > 0):
-                raise ValueError(f"update config: {f.name} must be a finite positive number, got {getattr(self, f.name)}")
-        if self.contain_margin_px < 0 or not self.contain_max_outside_px >= 0:
-            raise ValueError("update config: contain_margin_px and contain_max_outside_px must be >= 0")
-        if not 0 < self.lr_final_factor <= 1:
-            raise ValueError("update config: lr_final_factor must be in (0, 1]")
-        if len(self.background) != 3:
-            raise ValueError("update config: background must be 3 numbers")
-        if self.contain_rounds not in ("final", "every"):
-            raise ValueError(f"update config: contain_rounds={self.contain_rounds!r}; choose final or every")
-        for key, lim in self.effect_limits.items():
-            bad = set(lim) - {"max_offset_frac", "max_offset_abs", "max_angle_deg"}
-            if bad:
-                raise KeyError(f"update config: effect_limits[{key!r}] has unknown key(s) {sorted(bad)}")
-        if self.effect_num_bases:
-            names = effect_labels()
-            for key, k in self.effect_num_bases.items():
-                if not (str(key) in names or (str(key).isdigit() and int(key) > 0)):
-                    raise KeyError(f"update config: effect_num_bases key {key!r} is unknown: give an effect label "
-                                   f"(1, 2, ... as a string) or an effect name ({', '.join(names)})")
-                if isinstance(k, bool) or not isinstance(k, int) or k < 1:
-                    raise ValueError(f"update config: effect_num_bases[{key!r}] = {k!r}: must be an integer >= 1 "
-                                     f"(above num_bases = {self.num_bases} it changes nothing)")
-            twice = {names[k] for k in self.effect_num_bases if k in names} & {
-                int(k) for k in self.effect_num_bases if k not in names}
-            if twice:
-                raise ValueError(f"update config: effect_num_bases gives label(s) {sorted(twice)} both by number "
-                                 "and by effect name")
-
+__all__ = ["UpdateDiverged", "UpdateResult", "ViewData", "bases_from_config",
+           "limits_from_config", "run_update", "static_references"]
 
 @dataclass
 class ViewData:

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from anigs.animate.update import UpdateConfig
+from anigs.animate.config import UpdateConfig
+from anigs.animate.losses import prior_sds_hook
+from anigs.refine.prior import get_prior
 
 
 def sds_term(cfg: UpdateConfig, prior: str | None, prior_params: dict[str, Any], prompt: str | None):
@@ -15,8 +17,6 @@ def sds_term(cfg: UpdateConfig, prior: str | None, prior_params: dict[str, Any],
         return None
     if not prior:
         raise ValueError("update: lambda_sds > 0 needs --prior (a video prior with a score, e.g. ltx)")
-    from anigs.animate.losses import prior_sds_hook
-    from anigs.refine.prior import get_prior
 
     return prior_sds_hook(get_prior(prior, prior_params), prompt or "", cfg.sds_frames)
 

@@ -64,12 +64,12 @@ def prepare(cls: type, config: Any, canonical: Gaussians, dynamic_mask: torch.Te
     T; the canonical scene on the CPU; a copy on the configured device for the visibility renders)."""
     cfg = config if isinstance(config, cls) else cls.from_dict(config)
     cfg.validate()
-    idx, T = check_inputs(canonical, dynamic_mask, views, what)
+    idx, T = check_baseline_inputs(canonical, dynamic_mask, views, what)
     canonical = canonical.detach().to("cpu")
     return cfg, idx, T, canonical, canonical.to(get_device(cfg.device))
 
 
-def check_inputs(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData], what: str
+def check_baseline_inputs(canonical: Gaussians, dynamic_mask: torch.Tensor, views: list[ViewData], what: str
                  ) -> tuple[torch.Tensor, int]:
     """Validate the shared inputs; returns (dynamic index [D] long, T)."""
     if not views:

@@ -56,7 +56,7 @@ from anigs.animate.method_config import PhysicsConfig
 from anigs.baselines.base import BaselineResult, finish, prepare
 from anigs.baselines.material import MaterialFit, WindResponse, fit_material, material_regions
 from anigs.baselines.springs import build_graph
-from anigs.baselines.tracks import observe_view, visibility
+from anigs.baselines.tracks import observe_view, track_visibility
 from anigs.gaussians import Gaussians
 
 __all__ = ["MaterialFit", "PhysicsConfig", "WindResponse", "fit", "fit_material", "material_regions", "pick_view"]
@@ -75,7 +75,7 @@ def pick_view(canonical: Gaussians, idx: torch.Tensor, views: list[ViewData], cf
         if str(cfg.fit_view) not in names:
             raise ValueError(f"physics baseline: fit_view {cfg.fit_view!r} is not one of the views {names}")
         return names.index(str(cfg.fit_view))
-    counts = [int(visibility(canonical, idx, v.camera, cfg.depth_tol, cfg.min_alpha, cfg.background,
+    counts = [int(track_visibility(canonical, idx, v.camera, cfg.depth_tol, cfg.min_alpha, cfg.background,
                              cfg.backend)[0].sum()) for v in views]
     return int(np.argmax(counts))
 

@@ -93,7 +93,7 @@ class ViewObservation:
     depth: np.ndarray
 
 
-def visibility(canonical: Gaussians, dynamic_index: torch.Tensor, camera: Camera, depth_tol: float = 0.05,
+def track_visibility(canonical: Gaussians, dynamic_index: torch.Tensor, camera: Camera, depth_tol: float = 0.05,
                min_alpha: float = 0.5, background=None, backend: str = "auto"
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(visible [D] bool, uv [D,2], depth [D]) of the dynamic Gaussians in ``camera``.
@@ -124,7 +124,7 @@ def observe_view(canonical: Gaussians, dynamic_index: torch.Tensor, camera: Came
                  preset: str = "medium", fb_threshold_px: float = 1.0, depth_tol: float = 0.05,
                  min_alpha: float = 0.5, background=None, backend: str = "auto") -> ViewObservation:
     """Tracks of one refined clip [T,H,W,3] at the dynamic Gaussians the view sees (see :class:`ViewObservation`)."""
-    visible, uv, depth = visibility(canonical, dynamic_index, camera, depth_tol, min_alpha, background, backend)
+    visible, uv, depth = track_visibility(canonical, dynamic_index, camera, depth_tol, min_alpha, background, backend)
     disp, valid = forward_tracks(np.asarray(clip, np.float32), preset, fb_threshold_px)
     d = sample_bilinear(disp, uv)                                  # [T,D,2]
     xi = np.clip(uv[:, 0].astype(np.int64), 0, camera.width - 1)

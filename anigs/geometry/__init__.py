@@ -39,13 +39,13 @@ where the content lies relative to the camera ring.
 """
 from anigs.geometry.basics import Z_UP, angle_deg, camera_axes, fibonacci_sphere, horizontal_basis, roll_axes, unit
 from anigs.geometry.extent import box_diagonal, scene_extent
-from anigs.geometry.ground import Ground, estimate_ground
+from anigs.geometry.ground import GroundEstimate, estimate_ground
 from anigs.geometry.layout import LAYOUTS, Layout, axis_hits, classify_layout, rays_meet
 from anigs.geometry.planes import observed_points, plane_cost, point_normals
 from anigs.geometry.quaternion import axis_angle_to_quat, quat_from_matrix, quat_multiply, quat_to_rotmat
 from anigs.geometry.up import ROLL_PRIOR, UpConfig, UpEstimate, estimate_up, refine_up
 
-__all__ = ["UpConfig", "UpEstimate", "estimate_up", "refine_up", "roll_axes", "camera_axes", "Ground",
+__all__ = ["UpConfig", "UpEstimate", "estimate_up", "refine_up", "roll_axes", "camera_axes", "GroundEstimate",
            "estimate_ground", "scene_extent", "box_diagonal", "Layout", "LAYOUTS", "classify_layout", "rays_meet", "axis_hits",
            "horizontal_basis", "unit", "angle_deg", "observed_points", "fibonacci_sphere", "point_normals", "plane_cost", "Z_UP", "ROLL_PRIOR",
            "axis_angle_to_quat", "quat_from_matrix", "quat_multiply", "quat_to_rotmat"]

@@ -16,8 +16,8 @@ log = logging.getLogger("anigs.geometry")
 
 
 @dataclass
-class Ground:
-    """Ground plane ``x . normal = offset`` (see :func:`estimate_ground`).
+class GroundEstimate:
+    """The estimated ground plane ``x . normal = offset`` (:func:`estimate_ground`).
 
     ``layer``: thickness of the reconstructed ground measured below the plane;
     ``camera_height``: median camera height above the plane (0 without cameras);
@@ -49,7 +49,7 @@ def _densest_layer(h: np.ndarray, lo: float, top: float, width: float) -> float:
 
 
 def estimate_ground(means: np.ndarray, up: np.ndarray, cameras: Sequence[Camera] = (), bins: int = 400,
-                    layer_quantile: float = 0.97, layer_band: float = 0.5, min_below: int = 10) -> Ground:
+                    layer_quantile: float = 0.97, layer_band: float = 0.5, min_below: int = 10) -> GroundEstimate:
     """Ground plane of points ``means`` [N,3] along ``up`` [3].
 
     The densest thin layer below the median height (histogram peak refined by the mean of the
@@ -96,7 +96,7 @@ def estimate_ground(means: np.ndarray, up: np.ndarray, cameras: Sequence[Camera]
     depth_below = offset - h
     below = depth_below[(depth_below > 0) & (depth_below <= layer_band * ref)]
     layer = float(np.quantile(below, layer_quantile)) if len(below) >= 10 else 0.0
-    return Ground(up, offset, layer, cam_h, ref, method, fallback)
+    return GroundEstimate(up, offset, layer, cam_h, ref, method, fallback)
 
 
 @dataclass

@@ -19,14 +19,14 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from anigs.masks import labels, sam2, vegetation
+from anigs.masks import labels_backend, sam2, vegetation
 from anigs.masks.frame import Frame, MaskBackend, render_frames
 from anigs.pixels import check_image
 
 # name -> the backend's builder (sam2 imports the sam2 package only when its backend is built)
 MASK_BACKENDS: dict[str, Callable[..., MaskBackend]] = {
     "vegetation": vegetation.build,
-    "labels": labels.build,
+    "labels": labels_backend.build,
     "sam2": sam2.build,
 }
 

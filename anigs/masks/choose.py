@@ -36,7 +36,7 @@ def choose_backend(cfg, g: Gaussians, veg: VegetationConfig, ground: GroundPlane
     """The backend ``cfg.backend`` names (``cfg``: the ``masks`` section), ready to segment frames."""
     if cfg.backend == "effects":
         from anigs.effects.config import EFFECT_REGION, REGIONS
-        from anigs.masks.labels import LabelsBackend
+        from anigs.masks.labels_backend import LabelsBackend
 
         if effects is None:
             raise ValueError("masks.backend 'effects' needs --effects (the effects stage's folder)")

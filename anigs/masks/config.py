@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from anigs.masks.labels import LabelsConfig
+from anigs.masks.labels_backend import LabelsConfig
 from anigs.masks.lift import LiftConfig
 from anigs.masks.sam2 import Sam2Config
 from anigs.masks.vegetation import VegetationConfig

@@ -11,7 +11,7 @@ from anigs.effects.config import REGIONS
 from anigs.gaussians import Gaussians
 from anigs.masks import Frame
 from anigs.effects.labels import effect_label_ids, effect_labels
-from anigs.masks.labels import LabelsBackend
+from anigs.masks.labels_backend import LabelsBackend
 
 log = logging.getLogger("anigs.masks")
 

@@ -22,6 +22,10 @@ from anigs.masks.choose import EffectSets, capture_backend, choose_backend
 from anigs.masks.lift import lift_masks_report
 from anigs.masks.truth import GroundTruth
 from anigs.geometry.ground import ground_plane as estimate_ground
+from anigs.masks.capture import capture_frames
+from anigs.masks.complete import complete_masks
+from anigs.masks.contain import contain_dynamic
+from anigs.masks.per_effect import add_effect_masks, label_dynamic
 
 log = logging.getLogger("anigs.masks")
 
@@ -41,7 +45,6 @@ class MasksResult:
 def _capture_votes(cfg, g: Gaussians, backend, veg, ground, images: str | Path,
                    capture_cams: Sequence[Camera] | None, info: dict) -> tuple[list[Camera], list[np.ndarray]]:
     """The capture photos segmented too: (their cameras, their dynamic masks) for the lifting."""
-    from anigs.masks.capture import capture_frames
 
     if capture_cams is None:
         raise ValueError("--images needs --cameras (the cameras of the capture photos: the sfm stage's)")
@@ -78,11 +81,9 @@ def segment_views(cfg, g: Gaussians, frames: Sequence[Frame], up: np.ndarray, ef
         dyn, lift_info = lift_masks_report(g, lift_cams, lift_in, cfg.lift, ground=ground)
     info["lift"] = lift_info
     if cfg.complete_masks and cfg.backend not in ("labels", "effects"):  # those masks render the set itself
-        from anigs.masks.complete import complete_masks
 
         info["completed_fraction"] = complete_masks(g, dyn, frames, results)
     if cfg.contain:  # a Gaussian moves only if its footprint stays inside the (dilated) masks of every view
-        from anigs.masks.contain import contain_dynamic
 
         before = dyn
         kept = contain_dynamic(g, dyn, cams, [r["dynamic"] for r in results], cfg.contain_margin_px,
@@ -92,7 +93,6 @@ def segment_views(cfg, g: Gaussians, frames: Sequence[Frame], up: np.ndarray, ef
                                         cfg.contain_max_outside_px)
     labels = None
     if effects is not None:  # which effect each dynamic Gaussian belongs to; per-effect masks for every backend
-        from anigs.masks.per_effect import add_effect_masks, label_dynamic
 
         labels, info["effect_labels"] = label_dynamic(g, dyn, effects.chosen, effects.regions)
         if cfg.backend not in ("labels", "effects") and effects.chosen:

@@ -13,7 +13,7 @@ from anigs.cameras import Camera, load_cameras
 from anigs.gaussians import Gaussians, load_ply
 from anigs.io import read_json
 from anigs.masks import Frame, compute_masks, mask_iou
-from anigs.masks.labels import LabelsBackend, roi_from_labels
+from anigs.masks.labels_backend import LabelsBackend, roi_from_labels
 from anigs.sfm.align import align_cameras
 from anigs.render.labels import appearance_labels
 from anigs.synth.truth import dynamic_label_ids, effects_from_motion

@@ -1,7 +1,7 @@
 """Evaluation metrics: Fréchet distance, FVD/FID features (the torch I3D, TorchScript; local weights), image
 metrics, weight-free motion metrics and the multiview-consistency protocol.
 
-Every metric is written into ``metrics.json`` as a *record* (see :mod:`anigs.tables` for
+Every metric is written into ``metrics.json`` as a *record* (see :mod:`anigs.reports.tables` for
 the file schema): :func:`metric_record` for a computed value, :func:`not_available` for a
 metric that could not be computed (missing weights, no reference clips, no masks...).
 """

@@ -151,7 +151,7 @@ def model_clip(canonical: Gaussians, deformation, cam: Camera, num_frames: int,
     return render_clip(canonical, deformation, cam, num_frames, bg).clamp(0, 1).cpu().numpy()
 
 
-def contact_sheet(rows: Sequence[Sequence[np.ndarray]], thumb_width: int = 128) -> np.ndarray:
+def thumbnail_sheet(rows: Sequence[Sequence[np.ndarray]], thumb_width: int = 128) -> np.ndarray:
     """Image [H,W,3] of thumbnails: one row per list of frames [h,w,3] (a 2 px gap between)."""
     import cv2
 

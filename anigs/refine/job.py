@@ -13,6 +13,10 @@ import zlib
 from pathlib import Path
 
 import numpy as np
+from anigs.images import read_mask
+from anigs.refine.compose import ComposeConfig, composed_v2v
+from anigs.refine.prior import get_prior
+from anigs.video import load_clip, save_clip
 
 log = logging.getLogger("anigs.refine")
 
@@ -25,7 +29,6 @@ def view_seed(seed: int, round_: int, view: str) -> int:
 
 def parse_masks(values: list[str]) -> np.ndarray | dict[str, np.ndarray]:
     """``--mask PATH`` (one) or ``--mask EFFECT=PATH`` (several) -> mask or {effect: mask}."""
-    from anigs.images import read_mask
 
     if not values:
         raise ValueError("at least one --mask is required")
@@ -50,9 +53,6 @@ def refine_clip(clip_path: str | Path, masks: np.ndarray | dict[str, np.ndarray]
     """ComposedV2V refinement of the clip at ``clip_path`` (``masks``: one [H,W] mask or one per
     effect) into ``out`` with ``cfg`` (the refine stage's config); returns what was done (seed, sigmas, seconds). ``priors``: a dict kept
     across calls, so that a process refining several clips builds (loads) each prior once."""
-    from anigs.refine.prior import get_prior
-    from anigs.refine.compose import ComposeConfig, composed_v2v
-    from anigs.video import load_clip, save_clip
 
     clip_path = Path(clip_path)
     view = view if view is not None else clip_path.stem

@@ -154,17 +154,6 @@ def pose_errors(est: Sequence[Camera], gt: Sequence[Camera]) -> dict:
 
 # ---- z-up frame for reconstructions without ground truth ------------------------------------
 
-def estimate_up(cams: list[Camera], points: np.ndarray | None = None) -> np.ndarray:
-    """World up direction [3] of a reconstruction (:func:`anigs.geometry.estimate_up`).
-
-    Up is orthogonal to the cameras' horizontal image axes (x for an upright photo, y for one
-    stored sideways: each camera's roll is chosen), weakly pulled towards the mean image-up
-    axis where the axes leave a direction free (all facing one way), unless the point cloud's
-    ground and walls settle it. Never raises: undecidable cases fall back to upright photos.
-    """
-    return geometry.estimate_up(cams, points).up
-
-
 def upright_similarity(cams: list[Camera], xyz: np.ndarray, ground_percentile: float,
                        camera_height: float | None = None) -> tuple[Similarity, dict]:
     """Rotation putting the estimated up on +z, camera centroid at x=y=0, ground at z=0.

@@ -37,7 +37,7 @@ downscaled capture, a lower initial angle), then continues partial with the larg
 ``partial_min_fraction``, or fails naming the likely cause and the settings to try.
 
 Frame normalisation (downstream works in a z-up world, ground near z=0): without ground
-truth, up is estimated from the cameras held upright (:func:`anigs.sfm.align.estimate_up`) and rotated onto
+truth, up is estimated from the cameras held upright (:func:`anigs.geometry.estimate_up`) and rotated onto
 +z; the camera centroid moves to x=y=0, a low percentile of the point heights to z=0, and
 the scale makes the mean camera height ``camera_height`` (eye height: roughly metric). With ground-truth cameras the reconstruction is instead mapped onto
 them with a similarity (Umeyama on camera centres) and the pose errors are reported.

@@ -6,7 +6,9 @@ order :class:`anigs.animate.plan.RoundPlan` gives.
 """
 from __future__ import annotations
 
-from anigs.animate.plan import AnimateConfig, RoundPlan
+from anigs.animate.plan import RoundPlan
+
+from anigs.animate.config import AnimateConfig
 
 Config = AnimateConfig  # the `animate` config section
 

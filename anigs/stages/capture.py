@@ -16,11 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.capture_config import PhotosConfig, capture_config
+from anigs.capture.config import PhotosConfig, capture_config
 from anigs.stages.command import parse_params
 from anigs.io import write_json
-from anigs.stages import contract
-from anigs.stages.contract import File
+from anigs import contract
+from anigs.contract import File
+from anigs.cameras import load_cameras
+from anigs.gaussians import Gaussians
+from anigs.photos import import_photos
+from anigs.synth.capture import write_capture
 
 log = logging.getLogger("anigs.capture")
 
@@ -73,7 +77,6 @@ class Outputs(contract.Outputs):
 
     def gt_cameras(self) -> list:
         """The ground-truth cameras (:class:`~anigs.cameras.Camera`)."""
-        from anigs.cameras import load_cameras
 
         return load_cameras(self.path("gt_cameras"))
 
@@ -84,7 +87,6 @@ class Outputs(contract.Outputs):
 
     def gt_gaussians(self):
         """The ground-truth :class:`~anigs.gaussians.Gaussians`."""
-        from anigs.gaussians import Gaussians
 
         return Gaussians.load_ply(self.path("gt_gaussians"))
 
@@ -118,7 +120,6 @@ def run(inputs: Inputs, cfg) -> Outputs:
     if source == "photos":
         if photos is None:
             raise ValueError("--source photos needs --photos DIR (the folder with your photos)")
-        from anigs.photos import import_photos
 
         names = import_photos(photos, out.path("images"), cfg.max_side or None, cfg.skip_unreadable)
         log.info("imported %d photos from %s into %s", len(names), photos, out.path("images"))
@@ -129,7 +130,6 @@ def run(inputs: Inputs, cfg) -> Outputs:
         raise ValueError(f"capture: source must be 'synthetic' or 'photos', got {source!r}")
     if photos is not None:
         raise ValueError("--photos is only used with --source photos")
-    from anigs.synth.capture import write_capture
 
     summary = write_capture(cfg, out)
     write_json(out.path("summary"), {"source": "synthetic", **summary})

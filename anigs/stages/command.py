@@ -7,7 +7,9 @@ with :func:`add_params` and :func:`parse_params` from here."""
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
+import shlex
 from pathlib import Path
 from typing import Any
 
@@ -53,3 +55,13 @@ def stage_main(module, args: argparse.Namespace) -> int:
     else:
         module.run(inputs, module.Config.from_dict(parse_params(args.params)))
     return 0
+
+
+def stage_command(stage: str, params: str | None = None, **inputs: Any) -> str:
+    """``STAGE --flag value ...`` (shell-quoted) from ``anigs.stages.<stage>.Inputs(**inputs)``
+    (:meth:`anigs.contract.Inputs.argv`), with ``--params`` (the stage's config section as JSON)
+    when given: the one builder of every stage rule's command (``params.cmd``)."""
+    argv = [stage, *importlib.import_module(f"anigs.stages.{stage}").Inputs(**inputs).argv()]
+    if params is not None:
+        argv += ["--params", params]
+    return " ".join(shlex.quote(str(a)) for a in argv)

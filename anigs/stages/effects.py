@@ -25,11 +25,16 @@ import numpy as np
 from anigs.effects.choice import decide_effects
 from anigs.effects.detect import photo_indices
 from anigs.effects.config import Config
-from anigs.stages import contract
-from anigs.stages.contract import File
+from anigs import contract
+from anigs.contract import File
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.shared_inputs import CanonicalInputs
+from anigs.cameras import load_cameras
+from anigs.effects import save_overview
+from anigs.gaussians import load_ply
+from anigs.images import find_image, load_image
+from anigs.io import write_json
 
 log = logging.getLogger("anigs.effects")
 
@@ -79,11 +84,6 @@ class Inputs(CanonicalInputs):
 def run(inputs: Inputs, cfg: Config) -> Outputs:
     """Detect the scene's effects and write the stage's outputs (``inputs.requested`` and
     ``inputs.prompt``, when given, replace the section's)."""
-    from anigs.cameras import load_cameras
-    from anigs.effects import save_overview
-    from anigs.gaussians import load_ply
-    from anigs.images import find_image, load_image
-    from anigs.io import write_json
 
     if inputs.prompt is not None:
         cfg.prompt = inputs.prompt

@@ -1,7 +1,7 @@
 """Stage ``eval``: every metric of one (scene, method, variant) into ``metrics.json``.
 
 The metrics and their inputs are described in :mod:`anigs.metrics.suite`; the schema of the
-output in :mod:`anigs.tables`.
+output in :mod:`anigs.reports.tables`.
 
     anigs eval --final final/ --masks masks/ --model round4/ --static static/ --sfm sfm/ \\
         [--capture capture/] --scene demo --variant full --out eval/ --params '{...eval section...}'
@@ -22,17 +22,21 @@ from pathlib import Path
 from typing import Any
 
 from anigs.stages.record import metrics_record, prior_pairs, table_row  # noqa: F401 (table_row: the rules')
-from anigs.metrics.suite import EvalConfig
-from anigs.stages import contract
+from anigs.io import write_json
+from anigs.metrics.config import EvalConfig
+from anigs.metrics.suite import ClipInputs, ModelInputs, evaluate_variant
+from anigs import contract
 from anigs.stages.command import parse_params
 from anigs.stages.capture import Outputs as CaptureOutputs
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.static import Outputs as StaticOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.shared_inputs import TableRowInputs
 from anigs.stages.final import Outputs as FinalOutputs
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs.metrics.records import merge_records
+from anigs.reports.tables import SCHEMA
 
 Config = EvalConfig  # the `eval` config section
 
@@ -51,7 +55,6 @@ class Outputs(contract.Outputs):
 
     def record(self, key: str = "metrics") -> dict[str, Any]:
         """A metrics record, checked to have the ``metrics.json`` schema."""
-        from anigs.tables import SCHEMA
 
         rec = self.json(key)
         if not isinstance(rec, dict) or rec.get("schema") != SCHEMA or not isinstance(rec.get("metrics"), dict):
@@ -95,17 +98,17 @@ def _record_inputs(inputs: Inputs) -> dict[str, Any]:
 
 def run(inputs: Inputs, cfg: EvalConfig) -> Outputs:
     """Evaluate and write the record of ``inputs.part`` into the evaluation folder."""
-    from anigs.io import write_json
-    from anigs.metrics.suite import evaluate
-
     if inputs.part not in PART_FILE:
         raise ValueError(f"eval: --part {inputs.part!r}; choose {sorted(PART_FILE)}")
     if not inputs.scene:
         raise ValueError("eval: --scene is required (the table column)")
     t0 = time.perf_counter()
     i = _record_inputs(inputs)
-    metrics = evaluate(cfg, i["clips"], i["masks"], i["reference"], i["model"], i["canonical"], i["cameras"],
-                       i["images"], i["points"], i["gt_dir"], i["fid_reference"], part=inputs.part)
+    P = (lambda p: None if p is None else Path(p))  # noqa: E731
+    clips = ClipInputs(i["clips"], inputs.masks, i["reference"], i["fid_reference"])
+    model = ModelInputs(P(i["model"]), P(i["canonical"]), P(i["cameras"]), P(i["images"]), P(i["points"]),
+                        inputs.capture)
+    metrics = evaluate_variant(cfg, clips, model, part=inputs.part)
     record = metrics_record(inputs, inputs.part, dataclasses.asdict(cfg), i, time.perf_counter() - t0, metrics)
     out = Outputs(inputs.out)
     write_json(out.path(PART_FILE[inputs.part]), record)
@@ -118,7 +121,6 @@ def run(inputs: Inputs, cfg: EvalConfig) -> Outputs:
 
 def merge_parts(out: Outputs, extra: list[str | Path] | None = None) -> dict:
     """``metrics.json`` of ``out`` from its clips and model halves (and ``extra`` records, e.g. FVD-GT's)."""
-    from anigs.metrics.records import merge_records
 
     return merge_records(out.path("clip_metrics"), out.path("model_metrics"), out.path("metrics"), extra)
 

@@ -14,13 +14,18 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
 
-from anigs.typed_config import Section
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.static import Outputs as StaticOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs import __version__
+from anigs.export import save_animated_ply, sidecar
+from anigs.export.config import ExportConfig
+from anigs.formats.gltf import save_glb
+from anigs.formats.spz import save_spz
+from anigs.io import write_json
+from anigs.viewer.compact import save_compact, write_frame_plys
 
 log = logging.getLogger("anigs.export")
 
@@ -45,33 +50,11 @@ class Inputs(contract.Inputs):
     out: Path = field(metadata={"help": "the export folder"})
 
 
-@dataclass
-class ExportConfig(Section):
-    """``export`` config section."""
-
-    frames: bool = False  # also write the per-frame PLY sequence (scene.anigs holds every frame exactly)
-    frame_step: int = 1  # every n-th frame of 0..T-1
-    fps: float = 12.0  # frames per second of the written videos / sidecar
-
-    WHERE: ClassVar[str] = "export"
-    ERROR: ClassVar[type[Exception]] = KeyError
-
-    def validate(self) -> None:
-        if self.frame_step < 1:
-            raise ValueError(f"export.frame_step must be >= 1, got {self.frame_step}")
-
-
 Config = ExportConfig  # the `export` config section
 
 
 def run(inputs: Inputs, cfg: ExportConfig) -> Outputs:
     """Export the model into the export folder (``animated.json`` holds what was written)."""
-    from anigs import __version__
-    from anigs.export import save_animated_ply, sidecar
-    from anigs.formats.gltf import save_glb
-    from anigs.formats.spz import save_spz
-    from anigs.io import write_json
-    from anigs.viewer.compact import save_compact, write_frame_plys
 
     canonical, deformation, _ = inputs.model.load(inputs.static.path("canonical"))
     out = Outputs(inputs.out)

@@ -14,17 +14,25 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
-from anigs.animate.final_config import FinalConfig
-from anigs.stages import contract
+from anigs.animate.config import FinalConfig
+from anigs import contract
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs.animate.final_videos import path_video, view_video
+from anigs.animate.playback import pingpong_times
+from anigs.cameras import load_cameras
+from anigs.device import get_device
+from anigs.gaussians import Gaussians
+from anigs.io import read_json, write_json
+from anigs.views import cameras_from_views
 
 log = logging.getLogger("anigs.final")
 
@@ -58,6 +66,30 @@ class Outputs(contract.Outputs):
         return super().clip("clip", view=view)
 
 
+def find_final_videos(results: str | Path, scenes: Sequence[str],
+                      variants: Sequence[str] | None = None) -> dict[tuple[str, str], dict[str, Path]]:
+    """Camera-fixed videos of the final stage's folders ``results/{scene}/{variant}/final``
+    (:meth:`Outputs.videos`; the study's input, :mod:`anigs.study.build`) -> {(scene, variant): {view: path}}.
+
+    ``variants`` None takes every variant folder that has a ``final/`` folder.
+    """
+    root = Path(results)
+    found: dict[tuple[str, str], dict[str, Path]] = {}
+    for scene in scenes:
+        sdir = root / scene
+        if not sdir.is_dir():
+            raise FileNotFoundError(f"study: no results folder for scene {scene!r}: {sdir}")
+        names = variants if variants is not None else sorted(p.parent.name for p in sdir.glob("*/final"))
+        for v in names:
+            fdir = sdir / v / "final"
+            videos = Outputs(fdir).videos()
+            if not videos:
+                raise FileNotFoundError(f"study: no camera-fixed videos in {fdir} (run the final stage of "
+                                        f"scene {scene!r}, variant {v!r} first)")
+            found[(scene, v)] = videos
+    return found
+
+
 @dataclass
 class Inputs(contract.Inputs):
     static: StaticOutputs
@@ -74,13 +106,6 @@ def run(inputs: Inputs, cfg: FinalConfig) -> Outputs:
     """Write the final videos, clips and slices and the ``final.json`` summary."""
     import torch
 
-    from anigs.animate.final_videos import path_video, view_video
-    from anigs.animate.playback import pingpong_times
-    from anigs.cameras import load_cameras
-    from anigs.device import get_device
-    from anigs.gaussians import Gaussians
-    from anigs.io import read_json, write_json
-    from anigs.views import cameras_from_views
 
     dev = get_device(cfg.device)
     t0 = time.perf_counter()

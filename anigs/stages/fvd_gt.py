@@ -21,16 +21,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from anigs.stages.record import metrics_record
-from anigs.metrics.fvd_gt_config import FvdGtConfig
+from anigs.metrics.config import FvdGtConfig
 from anigs.metrics.fvd_gt import METRIC, i3d_detector  # noqa: F401  (i3d_detector: the network the stage uses)
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.command import parse_params
 from anigs.stages.capture import Outputs as CaptureOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.static import Outputs as StaticOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.shared_inputs import TableRowInputs
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs.io import write_json, write_npz
+from anigs.metrics.eval_views import thumbnail_sheet
+from anigs.metrics.fvd_gt import run_reference, run_method
+from anigs.metrics.config import EvalConfig
+from anigs.video import save_png
 
 log = logging.getLogger("anigs.fvd_gt")
 
@@ -79,13 +84,10 @@ class Inputs(TableRowInputs):
 
 def run(inputs: Inputs, cfg: FvdGtConfig) -> contract.Outputs:
     """``--reference``: the scene's reference folder; else the variant's ``fvd_gt.json`` record."""
-    from anigs.metrics.suite import EvalConfig
 
     ecfg = EvalConfig.from_dict(parse_params(inputs.eval_params))
     cameras, canonical = inputs.sfm.path("cameras"), inputs.static.path("canonical")
     if inputs.reference:
-        from anigs.metrics.fvd_gt import run_reference
-
         if not inputs.frames:
             raise ValueError("fvd_gt --reference needs --frames (the models' T)")
         out = ReferenceOutputs(inputs.out)
@@ -100,10 +102,6 @@ def run(inputs: Inputs, cfg: FvdGtConfig) -> contract.Outputs:
 
 def write_record(inputs: Inputs, cfg: FvdGtConfig, ecfg) -> Outputs:
     """The per-variant command: the method's ``fvd/gt`` against the reference, as a metrics record."""
-    from anigs.io import write_json, write_npz
-    from anigs.metrics.eval_views import contact_sheet
-    from anigs.metrics.fvd_gt import run_method
-    from anigs.video import save_png
 
     t0 = time.perf_counter()
     out = Outputs(inputs.out)
@@ -119,7 +117,7 @@ def write_record(inputs: Inputs, cfg: FvdGtConfig, ecfg) -> Outputs:
     record = metrics_record(inputs, "fvd_gt", config, paths, time.perf_counter() - t0, metrics)
     write_json(out.path("record"), record)
     if firsts:
-        save_png(out.path("sheet"), contact_sheet([firsts[i:i + 8] for i in range(0, len(firsts), 8)]))
+        save_png(out.path("sheet"), thumbnail_sheet([firsts[i:i + 8] for i in range(0, len(firsts), 8)]))
     m = metrics[METRIC]
     log.info("fvd_gt: %s %s: %s", inputs.method, inputs.variant,
              f"{m['value']:.2f} ± {m['bootstrap']['std']:.2f} ({m['samples']['test']} clips)" if m["available"]

@@ -1,7 +1,7 @@
 """Stage ``masks``: dynamic-region mask per queued view, and the dynamic Gaussian set.
 
 Each view of ``views.json`` is segmented in its first frame (rendered from the canonical model, or
-``--frames DIR``: ``{id}.png`` or frame 0 of ``{id}.npz``) by ``masks.backend``: ``effects``
+``--first-frames DIR``: ``{id}.png`` or frame 0 of ``{id}.npz``) by ``masks.backend``: ``effects``
 (default: the effects stage's chosen effects rendered), ``vegetation``, ``labels`` or ``sam2``.
 The method (the dynamic set lifted from the masks, voting over the capture photos of
 ``--images``/``--cameras`` too; completion; containment; effect labels) is
@@ -21,22 +21,23 @@ import numpy as np
 
 from anigs.cameras import load_cameras
 from anigs.gaussians import load_ply
-from anigs.io import read_json, write_json
+from anigs.io import write_json
 from anigs.pixels import overlay
 from anigs.images import write_mask_png, write_rgb_png
 from anigs.masks.choose import EffectSets
-from anigs.masks.frames import first_frames
+from anigs.masks.first_frames import first_frames
 from anigs.masks.config import MasksConfig
 from anigs.masks.segment import segment_views
 from anigs.masks.truth import GroundTruth
 from anigs.masks.truth_check import compare_with_truth
-from anigs.stages import contract
-from anigs.stages.contract import File
+from anigs import contract
+from anigs.contract import File
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.shared_inputs import GroundTruthInputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.views import cameras_from_views
+from anigs.images import read_mask
 
 log = logging.getLogger("anigs.masks")
 
@@ -77,8 +78,6 @@ class Outputs(contract.Outputs):
         return {p.stem[len(prefix):]: self._read_mask(p) for p in found}
 
     def _read_mask(self, p: Path) -> np.ndarray:
-        from anigs.images import read_mask
-
         if not p.is_file():
             raise FileNotFoundError(f"{p}: missing (run the {self.STAGE} stage)")
         return contract.check_array(read_mask(p), str(p), "f", (None, None))
@@ -99,9 +98,9 @@ Config = MasksConfig  # the `masks` config section
 class Inputs(GroundTruthInputs):
     """What the masks stage reads (see the module docstring for each)."""
 
-    views: Path = contract.upstream(ViewsOutputs, "views", "the view queue")
+    views: ViewsOutputs = field(metadata={"help": "the views stage's folder (its queue, views.json)"})
     out: Outputs = contract.output_folder(Outputs)
-    frames: Path | None = field(default=None, metadata={
+    first_frames: Path | None = field(default=None, metadata={
         "help": "folder with the first frames ({id}.png or {id}.npz clips); default: render the canonical model"})
     cameras: Path | None = contract.upstream(SfmOutputs, "cameras", "the reconstruction's cameras, to align with "
                                              "--gt-cameras and to place the --images", default=None)
@@ -115,10 +114,10 @@ class Inputs(GroundTruthInputs):
 def run(inputs: Inputs, cfg: MasksConfig) -> Outputs:
     """Write the masks of every queued view, the dynamic set, the effect labels and ``masks.json``."""
     g = load_ply(inputs.canonical)
-    data = read_json(inputs.views)
+    data = inputs.views.report()
     cams = cameras_from_views(data)
     if not cams:
-        raise ValueError(f"{inputs.views} lists no views")
+        raise ValueError(f"{inputs.views.path('views')} lists no views")
     truth = GroundTruth(inputs.labels, inputs.motion, inputs.gt_gaussians, inputs.gt_cameras) if inputs.labels else None
     if truth is not None:
         truth.effects()  # --labels needs --motion: fail before any work
@@ -126,7 +125,7 @@ def run(inputs: Inputs, cfg: MasksConfig) -> Outputs:
     if inputs.effects is not None:
         e = inputs.effects
         effects = EffectSets(e.chosen(), e.regions(g.num).astype(np.int64), e.dynamic(g.num))
-    frames = first_frames(inputs.frames, g, cams, cfg.background)
+    frames = first_frames(inputs.first_frames, g, cams, cfg.background)
     capture_cams = load_cameras(inputs.cameras) if inputs.cameras else None
     res = segment_views(cfg, g, frames, np.asarray(data.get("up", [0.0, 0.0, 1.0]), float), effects,
                         f"effects:{inputs.effects.root}" if effects is not None else "", truth, capture_cams,

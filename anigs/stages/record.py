@@ -1,18 +1,18 @@
 """The metrics record the eval and fvd_gt stages write (the schema of ``metrics.json``,
-:data:`anigs.tables.SCHEMA`) and what it is made of: the variant's table row (:func:`table_row`,
+:data:`anigs.reports.tables.SCHEMA`) and what it is made of: the variant's table row (:func:`table_row`,
 which the rules ask too) and the ``PRIOR=PATH`` reference options (:func:`prior_pairs`)."""
 from __future__ import annotations
 
 from typing import Any
 
 from anigs import __version__
-from anigs.tables import SCHEMA
+from anigs.reports.tables import SCHEMA
+from anigs.animate.config import METHODS
 
 
 def table_row(method: str, variant: str) -> tuple[str, str]:
     """(method, variant) of a variant's table row: ours under its variant (Table 5), a baseline under
     its method's name (Tables 1-3). ``method``: ``animate.method``."""
-    from anigs.animate.plan import METHODS
 
     return ("Ours", variant) if method == "anigs" else (METHODS[method], "full")
 

@@ -18,11 +18,13 @@ from pathlib import Path
 import numpy as np
 
 from anigs.refine.config import RefineConfig
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.masks import Outputs as MasksOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.render_clip import Outputs as RenderClipOutputs
+from anigs.io import write_json
+from anigs.refine.job import parse_masks, refine_clip
 
 log = logging.getLogger("anigs.refine")
 
@@ -65,7 +67,6 @@ def listed_effects(synthetic: bool, requested: str | list[str]) -> list[str] | N
 def run(inputs: Inputs, cfg: RefineConfig, priors: dict | None = None) -> Outputs:
     """Refine ``inputs.view``'s rendered clip into the round's target; ``priors``: as in
     :func:`anigs.refine.job.refine_clip`."""
-    from anigs.refine.job import parse_masks, refine_clip
 
     if inputs.mask:
         masks = parse_masks(inputs.mask)
@@ -78,7 +79,5 @@ def run(inputs: Inputs, cfg: RefineConfig, priors: dict | None = None) -> Output
                        cfg.with_effects(inputs.effects.chosen() if inputs.effects is not None else None), inputs.round,
                        inputs.view, priors)
     if inputs.info:
-        from anigs.io import write_json
-
         write_json(inputs.info, info)
     return out

@@ -15,12 +15,15 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.animate.render_job import RenderClipConfig, load_scene, render_view
-from anigs.stages import contract
+from anigs.animate.render_job import load_animated_scene, render_view
+
+from anigs.animate.config import RenderClipConfig
+from anigs import contract
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs.cameras import load_camera_json, load_view_camera
 
 log = logging.getLogger("anigs.render_clip")
 
@@ -54,7 +57,6 @@ class Inputs(contract.Inputs):
 def run(inputs: Inputs, cfg: RenderClipConfig, scene: tuple | None = None) -> Outputs:
     """Render the clip of ``inputs``' camera with its model (none: the static canonical scene);
     ``scene``: the :func:`load_scene` of these inputs, when a caller renders several views."""
-    from anigs.cameras import load_camera_json, load_view_camera
 
     if inputs.camera_json:
         camera = load_camera_json(inputs.camera_json)
@@ -65,7 +67,7 @@ def run(inputs: Inputs, cfg: RenderClipConfig, scene: tuple | None = None) -> Ou
     out = Outputs(inputs.out)
     model = inputs.model.path("model") if inputs.model is not None else None
     canonical = inputs.static.path("canonical")
-    scene = scene if scene is not None else load_scene(canonical, cfg, model)
+    scene = scene if scene is not None else load_animated_scene(canonical, cfg, model)
     render_view(scene, camera, out.path("clip", view=inputs.view_id or camera.name), cfg, canonical, model,
                 inputs.view_id)
     return out

@@ -17,13 +17,15 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from anigs.stages import contract, refine, render_clip
+from anigs import contract
+from anigs.stages import refine, render_clip
 from anigs.stages.command import parse_params
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs.io import write_json
 
 log = logging.getLogger("anigs.round")
 
@@ -62,7 +64,6 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
     """Render each view of ``inputs.view_ids`` with the round's model (none: static) and refine it with its
     mask; the configs are ``inputs``' render and refine params (the stage has no section of its own).
     Seconds per view and phase go to the log (and ``--timings-json``), not into the artifacts."""
-    from anigs.io import write_json
 
     view_ids = inputs.view_ids
     if not view_ids:
@@ -78,7 +79,7 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
     startup_cpu = time.process_time()  # CPU this process spent before the work: interpreter, imports, arguments
     t0 = time.perf_counter()
     model = inputs.model.path("model") if inputs.model is not None else None
-    scene = render_clip.load_scene(inputs.static.path("canonical"), render_cfg, model)
+    scene = render_clip.load_animated_scene(inputs.static.path("canonical"), render_cfg, model)
     timings = {"load_s": time.perf_counter() - t0, "views": {}}
     priors: dict = {}
     for v in view_ids:

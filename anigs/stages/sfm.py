@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from anigs.sfm.config import SfmConfig
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.command import parse_params
-from anigs.stages.contract import File
+from anigs.contract import File
 
 Config = SfmConfig  # the `sfm` config section
 
@@ -37,7 +37,7 @@ class Outputs(contract.Outputs):
 
     def cameras(self) -> list:
         """The registered cameras (:class:`~anigs.cameras.Camera`)."""
-        from anigs.cameras import load_cameras
+        from anigs.cameras import load_cameras  # lazy, like the two below: `anigs sfm` starts without torch
 
         return load_cameras(self.path("cameras"))
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.capture import Outputs as CaptureOutputs
 from anigs.stages.static import Outputs as StaticOutputs
 

@@ -14,11 +14,17 @@ import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.command import parse_params
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.static.fit import FitConfig
+from anigs.gaussians import load_ply
+from anigs.images import load_inputs
+from anigs.io import write_json
+from anigs.sfm.model import load_points
+from anigs.static.fit import fit_static
+from anigs.static.report import draw_fit
 
 Config = FitConfig  # the `static` config section
 
@@ -41,7 +47,6 @@ class Outputs(contract.Outputs):
 
     def canonical(self):
         """The canonical :class:`~anigs.gaussians.Gaussians`."""
-        from anigs.gaussians import load_ply
 
         p = self.path("canonical")
         if not p.is_file():
@@ -66,13 +71,7 @@ class Inputs(contract.Inputs):
 def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
     """Fit the canonical 3DGS to the sfm stage's posed images from its points; writes the
     canonical PLY and the metrics (a checkpoint while it runs, kept when the fit diverges)."""
-    from anigs.gaussians import load_ply
-    from anigs.images import load_inputs
-    from anigs.io import write_json
-    from anigs.static.fit import fit_static
-    from anigs.static.report import draw_fit
 
-    from anigs.sfm.model import load_points
 
     out, images, cameras, points = inputs.out, inputs.images, inputs.cameras, inputs.points
     imgs, cams = load_inputs(images, cameras, compact=True)  # uint8: a quarter of the memory

@@ -8,10 +8,12 @@ import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from anigs.stages import contract
-from anigs.stages.contract import File
+from anigs import contract
+from anigs.contract import File
+from anigs.io import write_json
+from anigs.reports.tables import load_metrics, write_tables
 
-log = logging.getLogger("anigs.tables")
+log = logging.getLogger("anigs.reports.tables")
 
 
 Config = None  # no config section: the tables follow from the metrics files
@@ -21,7 +23,7 @@ class Outputs(contract.Outputs):
     """The tables folder (``results/tables``)."""
 
     LAYOUT = {"index": File("tables.json", "records read, the metrics files, the files written"),
-              "table": File("{name}.{ext}", "one table (anigs.tables: main, fvd, ablation, weightfree, fvd_gt, ...) "
+              "table": File("{name}.{ext}", "one table (anigs.reports.tables: main, fvd, ablation, weightfree, fvd_gt, ...) "
                                             "as csv, md or tex")}
 
 
@@ -33,8 +35,6 @@ class Inputs(contract.Inputs):
 
 def run(inputs: Inputs, cfg: None = None) -> Outputs:
     """Write the tables of the metrics files (and ``tables.json``)."""
-    from anigs.io import write_json
-    from anigs.tables import load_metrics, write_tables
 
     out = Outputs(inputs.out)
     records = load_metrics(inputs.metrics)

@@ -17,12 +17,15 @@ import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.command import parse_params
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.eval import Outputs as EvalOutputs
+from anigs.io import atomic_path, read_json
+from anigs.reports.tradeoff import (SweepPoint, front_section, knob_filename, mark_fronts, markdown_report, metric_directions,
+                            plot_knob, report_fronts, report_rows, write_csv)
 
-log = logging.getLogger("anigs.tradeoff")
+log = logging.getLogger("anigs.reports.tradeoff")
 
 
 class Outputs(contract.Outputs):
@@ -44,7 +47,6 @@ class Inputs(contract.Inputs):
 
 def run(inputs: Inputs, cfg: None = None) -> Outputs:
     """The report of every scene of the sweep points (the stage has no config section)."""
-    from anigs.tradeoff import SweepPoint
 
     raw = parse_params(inputs.points)
     if not isinstance(raw, dict) or not raw:
@@ -57,11 +59,8 @@ def run(inputs: Inputs, cfg: None = None) -> Outputs:
 
 
 def report(scene: str, points: list, results: str | Path, out: Outputs, plot_metrics: list[str]) -> Path:
-    """Write the report of one scene's sweep ``points`` (:class:`anigs.tradeoff.SweepPoint`) into ``out``;
+    """Write the report of one scene's sweep ``points`` (:class:`anigs.reports.tradeoff.SweepPoint`) into ``out``;
     returns the CSV."""
-    from anigs.io import atomic_path, read_json
-    from anigs.tradeoff import (front_section, knob_filename, mark_fronts, markdown_report, metric_directions,
-                                plot_knob, report_fronts, report_rows, write_csv)
 
     if not points:
         raise ValueError(f"tradeoff: scene {scene!r} has no sweep points")

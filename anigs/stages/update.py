@@ -20,13 +20,23 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from anigs.animate.round_policy import baseline_params, contains, round_seed, still_reason  # noqa: F401 (the rules')
-from anigs.animate.update import UpdateConfig
-from anigs.stages import contract
+from anigs.animate.config import UpdateConfig
+from anigs import contract
 from anigs.stages.command import parse_params
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
+from anigs.animate.containment import contain_result
+from anigs.animate.deform import load_model, save_model, resolve_num_bases
+from anigs.animate.still import write_still_model
+from anigs.animate.training_views import dynamic_set, training_views
+from anigs.animate.update import run_update
+from anigs.animate.update_job import round_record, sds_term
+from anigs.baselines import run_baseline
+from anigs.gaussians import Gaussians
+from anigs.io import write_json, read_json
+from anigs.views import cameras_from_views
 
 Config = UpdateConfig  # the `update` config section
 
@@ -43,7 +53,6 @@ class Outputs(contract.RoundOutputs):
 
     def load(self, canonical=None):
         """(canonical Gaussians with the model's positions, or None; deformation; payload) of ``model.pt``."""
-        from anigs.animate.deform import load_model
 
         return load_model(self.path("model"), canonical)
 
@@ -73,13 +82,6 @@ class Inputs(contract.Inputs):
 
 def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
     """Train the round's model on ``inputs.targets``; writes ``model.pt`` and ``update.json``."""
-    from anigs.animate.containment import contain_result
-    from anigs.animate.deform import save_model
-    from anigs.animate.update_job import round_record, sds_term
-    from anigs.animate.training_views import dynamic_set, training_views
-    from anigs.animate.update import run_update
-    from anigs.gaussians import Gaussians
-    from anigs.io import write_json
 
     out = Outputs(inputs.out)
     canonical_path, masks = inputs.static.path("canonical"), inputs.masks
@@ -100,8 +102,6 @@ def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
     result = run_update(canonical, dynamic, views, cfg, init=init, sds_fn=sds, failure_path=out.path("last_good"))
     contained = None
     if contains(cfg, inputs.round, inputs.rounds) and result.deformation.num_dynamic:
-        from anigs.io import read_json
-        from anigs.views import cameras_from_views
 
         all_cams = cameras_from_views(read_json(views_json)) if views_json else cams
         contained = contain_result(result, canonical_ply, all_cams, [masks.view_mask(c.name) >= 0.5 for c in all_cams],
@@ -118,12 +118,9 @@ def run(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
 
 def run_other(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
     """``--still``: the model in which nothing moves; ``--method``: a baseline's fit (same model.pt format)."""
-    from anigs.io import write_json
 
     out = Outputs(inputs.out)
     if inputs.still:
-        from anigs.animate.deform import resolve_num_bases
-        from anigs.animate.still import write_still_model
 
         if not inputs.frames:
             raise ValueError("update --still: give --frames T (animate.frames)")
@@ -131,7 +128,6 @@ def run_other(inputs: Inputs, cfg: UpdateConfig) -> Outputs:
         write_json(out.path("log"), write_still_model(inputs.static.path("canonical"), out.path("model"),
                                                       inputs.frames, K, inputs.still))
         return out
-    from anigs.baselines import run_baseline
 
     if not inputs.targets or inputs.masks is None:
         raise ValueError("update: --targets and --masks are required")

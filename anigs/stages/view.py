@@ -16,12 +16,14 @@ from pathlib import Path
 from typing import Any
 
 from anigs.viewer.config import ViewConfig
-from anigs.stages import contract
+from anigs import contract
 from anigs.stages.command import parse_params
 from anigs.stages.static import Outputs as StaticOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
-from anigs.stages.contract import File
+from anigs.contract import File
 from anigs.stages.update import Outputs as UpdateOutputs
+from anigs.viewer.build import build_viewer
+from anigs.viewer.serve import serve_folder
 
 log = logging.getLogger("anigs.view")
 
@@ -55,7 +57,6 @@ class Inputs(contract.Inputs):
 
 def build(inputs: Inputs, cfg: ViewConfig) -> dict[str, Any]:
     """Write the viewer folder of the model (or compact file); returns its summary (sizes, counts)."""
-    from anigs.viewer.build import build_viewer
 
     if (inputs.model is None) == (inputs.compact is None):
         raise ValueError("view: give --model DIR (a model's folder) or --compact FILE (.anigs)")
@@ -80,7 +81,5 @@ def main(args: argparse.Namespace) -> int:
     inputs = Inputs.from_args(args)
     print(json.dumps(build(inputs, ViewConfig.from_dict(parse_params(args.params)))))
     if inputs.serve:
-        from anigs.viewer.serve import serve_folder
-
         serve_folder(Outputs(inputs.out), port=inputs.port, duration=inputs.serve_seconds)
     return 0

@@ -25,8 +25,8 @@ import numpy as np
 from anigs.cameras import Camera, load_cameras
 from anigs.gaussians import Gaussians, load_ply
 from anigs.io import write_json
-from anigs.stages import contract
-from anigs.stages.contract import File
+from anigs import contract
+from anigs.contract import File
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.shared_inputs import GroundTruthInputs
@@ -91,7 +91,7 @@ def region_of_interest(inputs: Inputs, g: Gaussians, cameras: list[Camera]) -> t
         raise ValueError("views: give exactly one region of interest: --effects DIR or --labels (with --motion)")
     if inputs.effects is not None:
         return inputs.effects.dynamic(g.num), f"effects:{inputs.effects.root}"
-    from anigs.masks.labels import roi_from_labels
+    from anigs.masks.labels_backend import roi_from_labels
 
     roi = roi_from_labels(g, inputs.labels, inputs.motion, None, inputs.gt_gaussians, inputs.gt_cameras, cameras)
     return roi, f"labels:{inputs.labels}"

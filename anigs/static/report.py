@@ -107,7 +107,7 @@ def draw_fit(metrics: dict[str, Any], path) -> None:
     import numpy as np
 
     from anigs.io import atomic_path
-    from anigs.tradeoff_plot import knob_image
+    from anigs.knob_chart import knob_image
 
     rows = [{"knob": "fit", "seconds": r["iteration"], "test_psnr": r["test_psnr"],
              "value": f"{r['num_gaussians'] / 1000:.0f}k"} for r in metrics.get("curve", [])

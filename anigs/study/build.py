@@ -18,13 +18,13 @@ import random
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping
 
 from anigs.io import atomic_write_text, write_json
 from anigs.study.catch import CATCH, make_catch_video
 from anigs.study.layout import Outputs
 from anigs.study.schema import MANIFEST_SCHEMA, QUESTIONS
-from anigs.tables import variant_label
+from anigs.reports.tables import variant_label
 
 ASSETS = Path(__file__).with_name("assets")  # the page (study.html), its script and style
 PAGE = "study.html"
@@ -43,32 +43,6 @@ class StudyOptions:
     post_url: str | None = "answers"  # relative to the page (the study server), absolute, or None
     title: str = "Video comparison study"
     labels: dict[str, str] = field(default_factory=dict)  # variant -> label in Table 4
-
-
-def find_final_videos(results: str | Path, scenes: Sequence[str],
-                      variants: Sequence[str] | None = None) -> dict[tuple[str, str], dict[str, Path]]:
-    """Camera-fixed videos of the final stage's folders ``results/{scene}/{variant}/final``
-    (:meth:`anigs.stages.final.Outputs.videos`) -> {(scene, variant): {view: path}}.
-
-    ``variants`` None takes every variant folder that has a ``final/`` folder.
-    """
-    from anigs.stages.final import Outputs as FinalOutputs
-
-    root = Path(results)
-    found: dict[tuple[str, str], dict[str, Path]] = {}
-    for scene in scenes:
-        sdir = root / scene
-        if not sdir.is_dir():
-            raise FileNotFoundError(f"study: no results folder for scene {scene!r}: {sdir}")
-        names = variants if variants is not None else sorted(p.parent.name for p in sdir.glob("*/final"))
-        for v in names:
-            fdir = sdir / v / "final"
-            videos = FinalOutputs(fdir).videos()
-            if not videos:
-                raise FileNotFoundError(f"study: no camera-fixed videos in {fdir} (run the final stage of "
-                                        f"scene {scene!r}, variant {v!r} first)")
-            found[(scene, v)] = videos
-    return found
 
 
 def video_info(path: Path) -> dict[str, Any]:
@@ -157,7 +131,7 @@ def build_study(videos: Mapping[tuple[str, str], Mapping[str, str | Path]], out:
                 opts: StudyOptions | None = None) -> dict[str, Any]:
     """Write the study folder ``out`` (see the module doc) and return its manifest.
 
-    ``videos``: {(scene, variant): {view: mp4 path}}, e.g. from :func:`find_final_videos`.
+    ``videos``: {(scene, variant): {view: mp4 path}}, e.g. from :func:`anigs.stages.final.find_final_videos`.
     Raises ValueError when a pair's two videos differ in size (they would not be comparable).
     """
     opts = opts or StudyOptions()

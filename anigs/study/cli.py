@@ -6,6 +6,12 @@ import logging
 import signal
 import threading
 from pathlib import Path
+from anigs.io import read_json
+from anigs.stages.final import find_final_videos
+from anigs.study.build import StudyOptions, build_study
+from anigs.study.layout import Outputs as StudyOutputs
+from anigs.study.serve import StudyServer
+from anigs.study.tally import TallyOptions, tally, write_tally
 
 log = logging.getLogger("anigs.study")
 
@@ -64,8 +70,6 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _build(args: argparse.Namespace) -> int:
-    from anigs.study.build import StudyOptions, build_study, find_final_videos
-    from anigs.study.layout import Outputs as StudyOutputs
 
     variants = None if args.others is None else [args.ours] + args.others
     videos = find_final_videos(args.results, args.scenes, variants)
@@ -79,8 +83,6 @@ def _build(args: argparse.Namespace) -> int:
 
 
 def _serve(args: argparse.Namespace) -> int:
-    from anigs.study.serve import StudyServer
-
     server = StudyServer(args.dir, args.answers, args.port)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
@@ -95,8 +97,6 @@ def _serve(args: argparse.Namespace) -> int:
 
 
 def _tally(args: argparse.Namespace) -> int:
-    from anigs.io import read_json
-    from anigs.study.tally import TallyOptions, tally, write_tally
 
     opts = TallyOptions(min_time_ms=args.min_time_ms, max_fast_fraction=args.max_fast_fraction,
                         require_complete=not args.keep_incomplete, max_catch_errors=args.max_catch_errors, ci=args.ci, level=args.level)

@@ -1,12 +1,12 @@
 """The study folder's layout (``anigs study build``; the workflow's ``study`` rule): the study's own
-``Outputs``, so its file names are written once, here, like a stage's (:mod:`anigs.stages.contract`).
+``Outputs``, so its file names are written once, here, like a stage's (:mod:`anigs.contract`).
 
     Outputs("results/study").path("manifest")   # results/study/manifest.json
 """
 from __future__ import annotations
 
-from anigs.stages.contract import File
-from anigs.stages.contract import Outputs as _Outputs
+from anigs.contract import File
+from anigs.contract import Outputs as _Outputs
 
 
 class Outputs(_Outputs):

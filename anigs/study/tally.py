@@ -34,7 +34,7 @@ from anigs.study.build import default_label
 from anigs.study.catch import catch_failed, is_catch
 from anigs.study.schema import EXPORT_SCHEMA, QUESTIONS, answer_key, answer_problems, prefers_ours
 from anigs.study.stats import binomial_p, cluster_bootstrap, interval
-from anigs.tables import Cell, Table, to_csv, to_latex, to_markdown
+from anigs.reports.tables import Cell, Table, to_csv, to_latex, to_markdown
 
 REASONS = ("malformed", "other_study", "duplicate", "incomplete", "failed_catch", "careless", "too_fast")
 REASON_LABELS = {"malformed": "malformed", "other_study": "not in this study", "duplicate": "duplicate",

@@ -42,7 +42,7 @@ from anigs.io import Layout, atomic_path, write_json
 from anigs.render import render_gaussians
 from anigs.synth.motion import MotionParams, motion_tables
 from anigs.synth.build import build_scene
-from anigs.synth.scene import BEDS, LABELS, TREE_SITES, Y1, SceneConfig, path_x
+from anigs.synth.scene import BEDS, LABELS, SKY, TREE_SITES, Y1, SceneConfig, path_x
 from anigs.video import save_png
 
 log = logging.getLogger(__name__)
@@ -65,7 +65,7 @@ class CaptureConfig:
     pos_jitter: float = 0.06  # hand-held position noise (m, std)
     rot_jitter_deg: float = 1.5  # hand-held orientation noise (degrees, std)
     walk_fraction: float = 0.25  # share of the images taken walking up the path (rest: loop)
-    background: tuple = (0.62, 0.76, 0.92)  # sky colour (RGB in [0,1])
+    background: tuple = SKY  # sky colour (RGB in [0,1])
     layout: str = "walk"  # walk | forward | orbit | facade (see module docstring)
     roll: str = "none"  # none | portrait | mixed: photos stored sideways (rolled 90 degrees)
 
@@ -254,7 +254,7 @@ def walk_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
     return cams
 
 
-def render_image(gaussians, camera: Camera, background=(0.62, 0.76, 0.92)) -> np.ndarray:
+def render_image(gaussians, camera: Camera, background=SKY) -> np.ndarray:
     """Render one photo: float32 [H,W,3] in [0,1]."""
     with torch.no_grad():
         rgb, _, _ = render_gaussians(gaussians, camera, background=torch.tensor(background, dtype=torch.float32))

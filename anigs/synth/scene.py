@@ -34,6 +34,7 @@ WATER_LABEL = 7
 ALL_LABELS: dict[int, str] = {**LABELS, WATER_LABEL: "water"}
 LABEL_IDS: dict[str, int] = {name: i for i, name in ALL_LABELS.items()}
 LAYOUTS = ("garden", "courtyard")
+SKY = (0.62, 0.76, 0.92)  # the demo scenes' sky colour (RGB in [0,1]): the capture is rendered onto it
 
 # ---- fixed layout (metres) -------------------------------------------------------
 X0, X1, Y0, Y1 = -6.5, 6.5, -5.5, 5.2  # courtyard; Y1 = facade plane

@@ -9,13 +9,9 @@ import torch
 
 from anigs.animate.deform import DCTDeformation, load_model, save_model
 from anigs.animate.frames import render_clip
-from anigs.animate.update import (
-    UpdateConfig,
-    ViewData,
-    bases_from_config,
-    effect_labels,
-    run_update,
-)
+from anigs.animate.config import UpdateConfig
+from anigs.animate.update import ViewData, bases_from_config, run_update
+from anigs.effects.labels import effect_label_ids
 from tests._scenes import ring_cameras, sway_motion, sway_scene
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -113,7 +109,7 @@ def test_a_capacity_applied_to_a_trained_field_truncates_it():
 
 
 def test_effect_names_map_to_labels_and_shared_labels_take_the_largest():
-    labels = effect_labels()
+    labels = effect_label_ids()
     assert labels["foliage_sway"] == labels["leaf_flutter"] == 1 and labels["grass_wave"] == 2
     assert labels["flower_bob"] == 3
     mask = torch.tensor([0, 1, 2, 3, 4, 0])

@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 
-from anigs.animate.final_config import FinalConfig
+from anigs.animate.config import FinalConfig
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.stages import final
 from anigs.stages.static import Outputs as StaticOutputs

@@ -13,7 +13,8 @@ import torch
 from anigs.animate.frames import render_clip
 from anigs.animate.target_frames import ClipFrames
 from anigs.animate.training_views import load_reference, training_views
-from anigs.animate.update import UpdateConfig, ViewData, run_update
+from anigs.animate.update import ViewData, run_update
+from anigs.animate.config import UpdateConfig
 from anigs.io import write_npz
 from anigs.video import load_clip, save_clip
 from tests._scenes import ring_cameras, sway_motion, sway_scene

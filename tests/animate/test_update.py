@@ -12,7 +12,8 @@ import torch
 from anigs.animate.frames import render_clip, render_frame
 from anigs.animate.deform import DCTDeformation, load_model
 from anigs.animate.losses import SDSContext, largest_4m1, photometric_loss, prior_sds_hook
-from anigs.animate.update import UpdateConfig, UpdateDiverged, ViewData, run_update
+from anigs.animate.update import UpdateDiverged, ViewData, run_update
+from anigs.animate.config import UpdateConfig
 from tests._scenes import ring_cameras, sway_motion, sway_scene
 
 pytestmark = pytest.mark.usefixtures("one_thread")

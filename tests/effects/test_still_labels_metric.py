@@ -10,6 +10,7 @@ from anigs.animate import deform
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.gaussians import Gaussians
 from anigs.metrics.still_labels import KEY, moving_labelled_still
+from anigs.stages.capture import Outputs as CaptureOutputs
 from anigs.synth import ALL_LABELS, LABEL_IDS
 from tests._gt import write_gt
 
@@ -23,7 +24,7 @@ def test_share_of_moving_gaussians_labelled_still(tmp_path, wrong):
     g = Gaussians.from_points(torch.tensor(means, dtype=torch.float32), torch.full((len(means), 3), 0.5))
     cams = [Camera(intrinsics_from_fov(60, 32, 24), look_at((5 * np.cos(a), 5 * np.sin(a), 2), (0, 0, 0)), 32, 24,
                    f"c{i}") for i, a in enumerate(np.linspace(0, 2 * np.pi, 6, endpoint=False))]
-    gt = write_gt(tmp_path, g, labels, {"labels": {str(k): v for k, v in ALL_LABELS.items()}}, cams)
+    gt = CaptureOutputs.from_gt(write_gt(tmp_path, g, labels, {"labels": {str(k): v for k, v in ALL_LABELS.items()}}, cams))
     ply = tmp_path / "canonical.ply"
     g.save_ply(ply)
     dyn = torch.tensor(list(range(n_leaf)) + list(range(n_leaf, n_leaf + wrong)))  # every leaf, `wrong` ground

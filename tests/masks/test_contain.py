@@ -12,9 +12,10 @@ from anigs.masks.contain import contain_dynamic, outside_weights
 from anigs.render.labels import dynamic_masks
 from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.stages.effects import Outputs as EffectsOutputs
+from anigs.synth.scene import SKY
 
 W, H = 64, 48
-BG = (0.62, 0.76, 0.92)
+BG = SKY
 
 
 def _scene():
@@ -146,7 +147,7 @@ def test_masks_stage_contains_the_effects_set(tmp_path):
     np.save(EffectsOutputs(eff).path("regions"), regions)
     np.save(EffectsOutputs(eff).path("dynamic"), regions >= 0)
     EffectsOutputs(eff).path("effects").write_text(json.dumps({"chosen": ["foliage_sway"]}))
-    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
+    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path),
             "--effects", str(eff)]
     assert main(args + ["--out", str(tmp_path / "on"), "--params", "{}"]) == 0
     assert main(args + ["--out", str(tmp_path / "off"), "--params", json.dumps({"contain": False})]) == 0

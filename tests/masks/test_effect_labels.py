@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from anigs.animate.update import effect_labels as label_of
+from anigs.effects.labels import effect_label_ids as label_of
 from anigs.effects.labels import effect_labels
 
 

@@ -17,8 +17,7 @@ from anigs.masks.lift import LiftConfig, lift_masks, lift_masks_report
 from anigs.render.visibility import (VisibilityConfig, blend_weights, check_mask, frustum_subset, render_depth,
                                      visibility)
 from anigs.render import render_gaussians
-
-SKY = (0.62, 0.76, 0.92)
+from anigs.synth.scene import SKY
 
 
 def toy_scene(seed: int = 0, ring: int = 10, width: int = 96, height: int = 72, lawn: bool = False,

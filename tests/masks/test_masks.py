@@ -357,7 +357,7 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
         views.append({"id": f"v{i:02d}", "camera": cam.to_dict()})
     (tmp_path / "views.json").write_text(json.dumps({"views": views, "up": [0, 0, 1]}))
     out = tmp_path / "masks"
-    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
+    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path),
             "--out", str(out), "--labels", str(tmp_path / "labels.npy"), "--motion", str(tmp_path / "motion.json")]
     assert main(args + ["--params", json.dumps({"backend": "labels"})]) == 0
     for v in views:
@@ -383,16 +383,16 @@ def test_cli_masks_with_labels(tmp_path, lawn_scene):
 
     for v in views:
         write_rgb_png(tmp_path / "frames" / f"{v['id']}.png", np.full((60, 80, 3), 0.5, np.float32))
-    assert main(args + ["--out", str(tmp_path / "grey"), "--frames", str(tmp_path / "frames"), "--params", veg_params]) == 0
+    assert main(args + ["--out", str(tmp_path / "grey"), "--first-frames", str(tmp_path / "frames"), "--params", veg_params]) == 0
     assert not read_mask_png(MasksOutputs(tmp_path / "grey").path("mask", view="v00")).any()  # an all-grey frame: empty mask, no crash
     (tmp_path / "frames" / "v01.png").unlink()
-    assert main(args + ["--out", str(tmp_path / "grey2"), "--frames", str(tmp_path / "frames"), "--params", veg_params]) == 1
+    assert main(args + ["--out", str(tmp_path / "grey2"), "--first-frames", str(tmp_path / "frames"), "--params", veg_params]) == 1
 
 
 def test_labels_across_frames_and_transfer(lawn_scene):
     """Labels of ground-truth Gaussians rendered from cameras of another (similarity) frame."""
     from anigs.sfm.align import Similarity
-    from anigs.masks.labels import LabelsBackend
+    from anigs.masks.labels_backend import LabelsBackend
     from anigs.render.labels import labels_for
     from anigs.sfm.align import align_cameras
     from scipy.spatial.transform import Rotation
@@ -438,7 +438,7 @@ def test_cli_masks_lifts_over_capture_photos(tmp_path, lawn_scene):
     vcams = location_cameras(pos, heading, np.array([0, 0, 1.0]), ViewsConfig(width=80, height=60))
     views = [{"id": f"v{i:02d}", "camera": c.to_dict()} for i, c in enumerate(vcams)]
     (tmp_path / "views.json").write_text(json.dumps({"views": views, "up": [0, 0, 1]}))
-    base = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
+    base = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path),
             "--labels", str(tmp_path / "labels.npy"), "--motion", str(tmp_path / "motion.json"),
             "--gt-gaussians", str(tmp_path / "canonical.ply"), "--gt-cameras", str(tmp_path / "cameras.json"),
             "--cameras", str(tmp_path / "cameras.json"),
@@ -519,7 +519,7 @@ def test_cli_masks_effects_backend_renders_the_effects_stage_sets(tmp_path, lawn
     np.save(EffectsOutputs(eff).path("regions"), regions)
     np.save(EffectsOutputs(eff).path("dynamic"), regions >= 0)
     EffectsOutputs(eff).path("effects").write_text(json.dumps({"chosen": ["foliage_sway", "leaf_flutter"]}))
-    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path / "views.json"),
+    args = ["masks", "--canonical", str(tmp_path / "canonical.ply"), "--views", str(tmp_path),
             "--effects", str(eff), "--params", "{}"]
     assert main(args + ["--out", str(tmp_path / "m")]) == 0
     info = MasksOutputs(tmp_path / "m").report()

@@ -7,6 +7,7 @@ import pytest
 from anigs.images import write_mask_png
 from anigs.metrics.contact import (ContactRow, contact_sheet, heat_colours, load_rows, max_change,
                                    save_contact_sheet)
+from anigs.stages.masks import Outputs as MasksOutputs
 from anigs.video import save_clip
 
 T, H, W = 5, 24, 32
@@ -70,7 +71,7 @@ def test_load_rows_reads_the_workflow_folders_and_writes_a_png(tmp_path):
     write_mask_png(masks / "v00.png", mask)
     write_mask_png(masks / "v00_flower_bob.png", mask)
     write_mask_png(masks / "v00_overlay.png", mask)  # an overlay is not a mask
-    rows = load_rows(clips, masks)
+    rows = load_rows(clips, MasksOutputs(masks))
     assert [r.name for r in rows] == ["v00", "v02", "v10"]
     assert rows[0].dynamic is not None and (rows[0].dynamic == mask).all()
     assert list(rows[0].effects) == ["flower_bob"] and rows[1].dynamic is None
@@ -78,4 +79,4 @@ def test_load_rows_reads_the_workflow_folders_and_writes_a_png(tmp_path):
     img = cv2.imread(str(tmp_path / "sheet.png"))
     assert img is not None and img.shape[1] == 4 * 48 + 3 * 4 and len(stats) == 3
     with pytest.raises(FileNotFoundError, match="no clips"):
-        load_rows(tmp_path / "empty", masks)
+        load_rows(tmp_path / "empty", MasksOutputs(masks))

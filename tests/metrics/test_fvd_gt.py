@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from anigs.metrics.eval_views import Placement, moving_labels, place_eval_views, window_starts
-from anigs.metrics.suite import EvalConfig
+from anigs.metrics.config import EvalConfig
 from anigs.metrics.fvd_gt import i3d_detector as REAL_DETECTOR
 from anigs.stages.capture import Outputs as CaptureOutputs
 from anigs.stages.fvd_gt import FvdGtConfig, ReferenceOutputs

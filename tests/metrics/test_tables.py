@@ -9,7 +9,7 @@ import pytest
 
 from anigs.io import write_json
 from anigs.metrics import metric_record, not_available
-from anigs.tables import (SCHEMA, ablation_table, build_tables, fvd_table, load_metrics, multiview_table,
+from anigs.reports.tables import (SCHEMA, ablation_table, build_tables, fvd_table, load_metrics, multiview_table,
                           to_csv, to_latex, to_markdown, weightfree_table, write_tables)
 
 SCENES = ["fireplace", "garden"]
@@ -293,7 +293,10 @@ def test_eval_fid_reference_pools_paths(tmp_path):
     """--fid-reference PRIOR=PATH (repeated) pools clips for FID only; FVD keeps --reference."""
     import torch
 
-    from anigs.metrics.suite import EvalConfig, evaluate
+    from anigs.metrics.config import EvalConfig
+
+    from anigs.metrics.suite import ClipInputs, evaluate_variant
+    from anigs.stages.masks import Outputs as MasksOutputs
 
     d = _tiny_inputs(tmp_path)
 
@@ -304,8 +307,8 @@ def test_eval_fid_reference_pools_paths(tmp_path):
     torch.jit.script(StandInInception()).save(str(d / "inc.pt"))
     cfg = EvalConfig.from_dict({"inception_path": str(d / "inc.pt"), "fid_size": 32, "multiview": False,
                                 "i3d_path": ""})  # FVD off: its reason says so
-    m = evaluate(cfg, [d / "final" / "clips"], d / "masks", {"ltx": [d / "ref"]},
-                 fid_references={"ltx": [d / "ref", d / "final" / "clips"]})
+    m = evaluate_variant(cfg, ClipInputs([d / "final" / "clips"], MasksOutputs(d / "masks"), {"ltx": [d / "ref"]},
+                                 fid_references={"ltx": [d / "ref", d / "final" / "clips"]}))
     assert m["fid/ltx"]["available"] and m["fid/ltx"]["samples"] == {"test": 2 * 12, "reference": 5 * 12}
     assert m["fid/ltx"]["feature_dim"] == 6
     assert not m["fvd/ltx"]["available"] and "no weights path" in m["fvd/ltx"]["reason"]

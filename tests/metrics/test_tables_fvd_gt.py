@@ -7,7 +7,7 @@ import pytest
 from anigs.io import write_json
 from anigs.metrics import metric_record
 from anigs.metrics.records import merge_records as merge
-from anigs.tables import SCHEMA, build_tables, fvd_table, load_metrics, to_csv, to_latex, to_markdown
+from anigs.reports.tables import SCHEMA, build_tables, fvd_table, load_metrics, to_csv, to_latex, to_markdown
 
 
 def _gt(v, std, n=128):

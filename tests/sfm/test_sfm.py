@@ -22,8 +22,9 @@ pycolmap = pytest.importorskip("pycolmap")
 
 from anigs.sfm import colmap as sfm_mod  # noqa: E402
 from anigs.sfm import plan, steps  # noqa: E402
-from anigs.sfm.align import (Similarity, estimate_up, pose_errors, rotation_angle_deg, rotation_between,  # noqa: E402
+from anigs.sfm.align import (Similarity, pose_errors, rotation_angle_deg, rotation_between,  # noqa: E402
                          umeyama)
+from anigs.geometry import estimate_up  # noqa: E402
 from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at  # noqa: E402
 from anigs.gaussians import Gaussians  # noqa: E402
 from anigs.sfm.colmap import SfmConfig, SfmError, run_sfm  # noqa: E402
@@ -692,11 +693,11 @@ def test_estimate_up_ignores_a_common_pitch():
         eye = rng.standard_normal(3) * [1, 1, 0.1] + [0, 0, 1.6]
         fwd = [math.cos(yaw) * math.cos(-0.35), math.sin(yaw) * math.cos(-0.35), math.sin(-0.35)]
         cams.append(sim.apply_camera(Camera(K, look_at(eye, eye + np.array(fwd)), W, H)))
-    up = estimate_up(cams)
+    up = estimate_up(cams).up
     assert math.degrees(math.acos(np.clip(up @ sim.R[:, 2], -1, 1))) < 0.1
     # all facing one way: undetermined within the plane orthogonal to x, the mean -y is used
     same = [cams[0]] * 5
-    up1 = estimate_up(same)
+    up1 = estimate_up(same).up
     assert abs(up1 @ same[0].R[0]) < 1e-6 and up1 @ -same[0].R[1] > 0.999
 
 

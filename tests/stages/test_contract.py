@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from anigs.stages.contract import File, Inputs, Outputs, check_array, outputs_of
+from anigs.contract import File, Inputs, Outputs, check_array, outputs_of, stage_outputs
 
 
 class _Out(Outputs):
@@ -30,6 +30,16 @@ class _In(Inputs):
     steps: int = 3
     names: list[str] | None = None
     keep_work: bool = False
+
+
+def test_files_under_the_results_root_keep_the_fields_not_given():
+    assert _Out.under("res") == "res/{scene}/{variant}/toy"
+    assert _Out.under("res", "mask", scene="demo") == "res/demo/{variant}/toy/{view}.png"
+    assert _Out.under("res", "report", scene="demo", variant="full") == "res/demo/full/toy/report.json"
+    assert stage_outputs("masks").under("r", "dynamic", scene="s") == "r/s/masks/dynamic.npy"
+    assert stage_outputs("anigs.study.layout").under("r") == "r/study"
+    with pytest.raises(KeyError):
+        _Out.under("res", "nope")
 
 
 def test_paths_and_patterns(tmp_path):
@@ -94,3 +104,22 @@ def test_flags_derive_from_fields_and_round_trip(tmp_path):
     assert inp.effects is None and inp.names == ["a", "b"] and inp.keep_work is False
     again = _In.from_args(p.parse_args(inp.argv()))
     assert again == inp
+
+
+def test_stage_command_gives_back_the_inputs_through_the_stage_s_own_flags(tmp_path):
+    """The workflow's one command builder (params.cmd of every stage rule): argv from the stage's
+    Inputs, parsed back by the stage's own command line into equal Inputs (quoting included)."""
+    import shlex
+
+    from anigs.stages import masks
+    from anigs.stages.command import stage_arguments, stage_command
+
+    cmd = stage_command("masks", '{"backend": "labels"}', canonical=tmp_path / "a b.ply", views=tmp_path / "views",
+                        out=tmp_path / "masks", effects=tmp_path / "effects")
+    argv = shlex.split(cmd)
+    assert argv[0] == "masks" and argv[-2:] == ["--params", '{"backend": "labels"}']
+    p = argparse.ArgumentParser()
+    stage_arguments(masks, "masks", p)
+    back = masks.Inputs.from_args(p.parse_args(argv[1:]))
+    assert back.canonical == tmp_path / "a b.ply" and back.views == masks.ViewsOutputs(tmp_path / "views")
+    assert back.effects.root == tmp_path / "effects" and back.labels is None

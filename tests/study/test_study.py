@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from anigs.study.build import StudyOptions, build_study, find_final_videos
+from anigs.stages.final import find_final_videos
+from anigs.study.build import StudyOptions, build_study
 from anigs.study.schema import ANSWER_SCHEMA, EXPORT_SCHEMA, answer_problems
 from anigs.study.serve import MAX_BODY, StudyServer
 from anigs.study.stats import binomial_p, clopper_pearson, cluster_bootstrap, wilson

@@ -11,7 +11,8 @@ import json
 from pathlib import Path
 
 
-from anigs.study.build import StudyOptions, build_study, find_final_videos
+from anigs.stages.final import find_final_videos
+from anigs.study.build import StudyOptions, build_study
 from anigs.study.serve import StudyServer
 from anigs.study.tally import TallyOptions, tally
 from tests._browser import chrome as _chrome, needs_browser

@@ -10,7 +10,7 @@ from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.cli import main as cli
 from anigs.animate.deform import DCTDeformation, save_model
 from anigs.export import load_animated_ply, save_animated_ply
-from anigs.animate.playback import camera_path, most_animated_row_col, pingpong_times, slice_images, static_change
+from anigs.animate.playback import moving_camera_path, most_animated_row_col, pingpong_times, slice_images, static_change
 from anigs.gaussians import Gaussians, load_ply
 
 
@@ -86,7 +86,7 @@ def test_pingpong_is_continuous_and_in_range():
 
 def test_camera_path_passes_through_keys():
     cams = [Camera(intrinsics_from_fov(60, 32, 24), look_at([i, 0, 1.5], [i, 5, 1]), 32, 24) for i in range(5)]
-    path = camera_path(cams, 21, num_keys=5)
+    path = moving_camera_path(cams, 21, num_keys=5)
     assert np.allclose(path[0].center, cams[0].center) and np.allclose(path[-1].center, cams[-1].center)
     assert all(np.allclose(p.R @ p.R.T, np.eye(3), atol=1e-9) for p in path)
 

@@ -13,12 +13,13 @@ import numpy as np
 import pytest
 import torch
 
+from anigs.synth.scene import SKY
 from tests._browser import chrome, needs_browser
 from tests.viewer.test_viewer_compact import _views_json, animated_scene
 
 pytestmark = needs_browser
 
-BACKGROUND = [0.62, 0.76, 0.92]
+BACKGROUND = list(SKY)
 TIMES = (0.0, 2.5, 8.0)
 
 

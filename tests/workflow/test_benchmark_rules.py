@@ -1,4 +1,4 @@
-"""Per-rule breakdown of a run's Snakemake benchmark TSVs (anigs.tradeoff, benchmarks/rules.py)."""
+"""Per-rule breakdown of a run's Snakemake benchmark TSVs (anigs.reports.tradeoff, benchmarks/rules.py)."""
 from __future__ import annotations
 
 import importlib.util
@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from anigs.benchmark_tsv import (benchmark_files, breakdown_total, compare_breakdowns, read_benchmark, rule_breakdown,
+from anigs.reports.benchmark_tsv import (benchmark_files, breakdown_total, compare_breakdowns, read_benchmark, rule_breakdown,
                                   rule_name)
 
 HEAD = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"

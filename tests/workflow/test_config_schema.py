@@ -141,9 +141,9 @@ def test_the_stage_list_is_written_once():
     from anigs.cli import commands
     from anigs.config import STAGE_SECTIONS
     from anigs.stages import STAGES, get
-    from anigs.tradeoff import SCENE_STAGE_ORDER, VARIANT_SECTIONS
+    from anigs.reports.tradeoff import SCENE_STAGE_ORDER, VARIANT_SECTIONS
 
-    from anigs.stages import contract
+    from anigs import contract
 
     names = [s.name for s in STAGES]
     assert STAGE_SECTIONS == tuple(s.name for s in STAGES if s.section)
@@ -250,3 +250,22 @@ def test_one_scene_background_reaches_every_rendering_stage(tmp_path):
     (tmp_path / "bad.yaml").write_text("source: synthetic\nbackground: [0.1, 0.2]\n")
     with pytest.raises(ValueError, match="background"):
         load_scene(tmp_path, "bad", _schema())
+
+
+def test_workflow_scenes_checks_the_scenes_and_variants_the_config_runs(tmp_path):
+    """anigs.config.workflow_scenes (common.smk at parse time): scene files from the scene folder
+    (relative: the working directory's, else the workflow's), the variant overrides' sections, the
+    variants the config runs defined, and no scene name with the sweep's marker."""
+    from anigs.config import workflow_scenes
+
+    cfg = yaml.safe_load((ROOT / "config/config.yaml").read_text())
+    scenes = workflow_scenes(cfg, _schema(), ROOT, "--")
+    assert list(scenes) == list(cfg["scenes"]) and scenes["demo"]["source"] == "synthetic"
+    with pytest.raises(ValueError, match="variant 'nope' is not defined under variant_overrides"):
+        workflow_scenes(dict(cfg, variants=["full", "nope"]), _schema(), ROOT, "--")
+    with pytest.raises((KeyError, ValueError), match="variant_overrides.x"):
+        workflow_scenes(dict(cfg, variant_overrides={**cfg["variant_overrides"], "x": {"update": {"stepz": 3}}}),
+                        _schema(), ROOT, "--")
+    (tmp_path / "a--b.yaml").write_text((ROOT / "config/scenes/demo.yaml").read_text())
+    with pytest.raises(ValueError, match="may not contain '--'"):
+        workflow_scenes(dict(cfg, scenes=["a--b"], scene_dir=str(tmp_path)), _schema(), ROOT, "--")

@@ -68,7 +68,7 @@ def test_a_nested_section_parses_into_its_dataclass_and_names_an_unknown_key(sec
 
 
 def test_nested_values_are_checked_by_their_own_class():
-    from anigs.animate.plan import AnimateConfig
+    from anigs.animate.config import AnimateConfig
     from anigs.stages.masks import MasksConfig
 
     assert MasksConfig.from_dict({"lift": {"min_views": 3}}).lift.min_views == 3
@@ -94,7 +94,7 @@ def test_the_refine_stage_sets_the_priors_derived_keys():
 
 def test_typed_defaults_are_those_the_code_used_before():
     """The labels backend's keywords and the protocol's fit keep their defaults."""
-    from anigs.masks.labels import LabelsBackend, LabelsConfig
+    from anigs.masks.labels_backend import LabelsBackend, LabelsConfig
     from anigs.metrics.multiview import MultiviewFitConfig
     from anigs.static.fit import FitConfig
 
@@ -188,7 +188,7 @@ def test_config_yaml_lines_are_short():
 
 
 def test_the_results_layout_lists_each_outputs_file_under_its_stage_folder():
-    from anigs.stages.contract import File, Outputs
+    from anigs.contract import File, Outputs
 
     class MasksOut(Outputs):
         FOLDER = "{scene}/masks"
@@ -213,7 +213,7 @@ def test_the_results_layout_lists_each_outputs_file_under_its_stage_folder():
 def test_every_stage_with_a_command_is_in_the_results_layout():
     """Every stage's folders appear (from its Outputs' FOLDER; tests/workflow/test_rule_outputs.py checks
     the FOLDERs against the rules' outputs)."""
-    from anigs.stages.contract import outputs_of
+    from anigs.contract import outputs_of
 
     docs = _script("make_config_docs")
     text = docs.results_layout()

@@ -1,7 +1,7 @@
 """Every rule that runs a stage writes only files its stages' ``Outputs`` name, where they say.
 
 The workflow is loaded through the Snakemake API (the demo config; no job runs). A stage's
-``Outputs`` types (:func:`anigs.stages.contract.outputs_of`: several when it writes into several
+``Outputs`` types (:func:`anigs.contract.outputs_of`: several when it writes into several
 folders) each say their folder under the results root (``FOLDER``) and its files (``LAYOUT``).
 The rules of a stage (the rule of its name and those named ``<stage>_...``) run it, and a rule whose
 command chains another stage (``anigs ... --then STAGE``, :data:`THEN`) runs that one too. Each
@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from anigs.stages import BY_NAME, STAGES
-from anigs.stages.contract import Outputs, outputs_of
+from anigs.contract import Outputs, outputs_of
 
 ROOT = Path(__file__).resolve().parents[2]
 WILDCARD = re.compile(r"\{(\w+),[^{}]*(?:\{[^{}]*\}[^{}]*)*\}")  # {name,constraint} -> {name}
@@ -53,7 +53,8 @@ def workflow_rules():
         w = wf._workflow
         rules = {r.name: [_plain(o) for o in r.output] for r in w.rules}
         chaining = {r.name for r in w.rules if _chains(r)}
-        return rules, w.config["results"], chaining
+        shells = {r.name: r.shellcmd for r in w.rules}
+        return rules, w.config["results"], chaining, shells
 
 
 def _regex(pattern: str) -> re.Pattern:
@@ -133,7 +134,7 @@ STAGES_WITH_OUTPUTS = [s for s in STAGES if outputs_of(s.load())]
 
 
 def test_every_stage_that_writes_has_outputs_with_a_folder(workflow_rules):
-    rules, _, _ = workflow_rules
+    rules, _, _, _ = workflow_rules
     writes = [s for s in STAGES if s.command or any(rules[r] for r in rules_of(s.name, rules))]
     assert [s.name for s in writes if not outputs_of(s.load())] == []
     assert [t.__name__ for s in STAGES_WITH_OUTPUTS for t in outputs_of(s.load())
@@ -155,13 +156,13 @@ def test_a_file_belongs_to_one_outputs():
 
 def test_rules_that_chain_stages_are_known(workflow_rules):
     """:data:`THEN` lists exactly the rules whose command chains a stage with ``--then``."""
-    rules, _, chaining = workflow_rules
+    rules, _, chaining, _ = workflow_rules
     assert chaining == set(THEN)
 
 
 @pytest.mark.parametrize("stage", STAGES_WITH_OUTPUTS, ids=lambda s: s.name)
 def test_rule_outputs_are_files_of_the_stage_outputs(stage, workflow_rules):
-    rules, results, _ = workflow_rules
+    rules, results, _, _ = workflow_rules
     if not rules_of(stage.name, rules):
         pytest.skip(f"no rule runs the {stage.name} stage")  # e.g. a command-only stage
     assert stage_rule_problems(stage, outputs_of(stage.load()), rules, results) == []
@@ -170,11 +171,11 @@ def test_rule_outputs_are_files_of_the_stage_outputs(stage, workflow_rules):
 def test_the_check_finds_a_file_the_layout_does_not_name(workflow_rules):
     """The check is not vacuous: a rule output missing from the LAYOUT, one in another folder, or a
     LAYOUT file that no rule declares, is reported."""
-    from anigs.stages.contract import File
+    from anigs.contract import File
     from anigs.stages.eval import Outputs as EvalOutputs
     from anigs.stages.views import Outputs
 
-    rules, results, _ = workflow_rules
+    rules, results, _, _ = workflow_rules
     stage = BY_NAME["views"]
     fewer = type("Fewer", (Outputs,), {"LAYOUT": {k: f for k, f in Outputs.LAYOUT.items() if k != "topdown"}})
     assert any("topdown.png is no folder or file" in p for p in stage_rule_problems(stage, (fewer,), rules, results))
@@ -198,7 +199,7 @@ def test_a_rule_writing_another_stage_s_file_is_reported(workflow_rules):
     (built from the masks Outputs, as a rule would) is reported."""
     from anigs.stages.masks import Outputs as MasksOutputs
 
-    rules, results, _ = workflow_rules
+    rules, results, _, _ = workflow_rules
     stray = f"{results}/{MasksOutputs.FOLDER}/{MasksOutputs.LAYOUT['dynamic'].name}"
     views = BY_NAME["views"]
     assert stage_rule_problems(views, outputs_of(views.load()), rules, results) == []
@@ -234,3 +235,15 @@ def test_the_layout_name_grep_finds_a_spelled_name(tmp_path):
     (tmp_path / "x.smk").write_text(f'# {name} in a comment\nrule x:\n    output:\n        f"{{R}}/s/static/{name}",\n')
     _, code, docs = _layout_names().hits(tmp_path, ("x.smk",))
     assert [c.split(":")[:2] for c in code] == [["x.smk", "4"]] and len(docs) == 1
+
+
+COMMAND = "anigs --threads {threads} {params.cmd} > {log} 2>&1"
+
+
+def test_every_stage_rule_runs_the_command_its_inputs_build(workflow_rules):
+    """No stage rule spells its own flags: each runs ``params.cmd``, built from the stage's ``Inputs``
+    (``stage_command`` in workflow/rules/common.smk)."""
+    rules, _, _, shells = workflow_rules
+    stage_rules = [r for r in rules if _own_stage(r) and shells[r] is not None]
+    assert {_own_stage(r) for r in stage_rules} >= {"capture", "sfm", "static", "effects", "views", "masks"}
+    assert {r: shells[r].strip() for r in stage_rules if shells[r].strip() != COMMAND} == {}

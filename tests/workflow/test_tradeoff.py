@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import pytest
 
-from anigs.tradeoff import (SweepPoint, benchmark_seconds, front_section, mark_fronts, markdown_report,
+from anigs.reports.tradeoff import (SweepPoint, benchmark_seconds, front_section, mark_fronts, markdown_report,
                             metric_directions, pareto_front, plot_knob, report_fronts, report_rows, stage_owner,
                             sweep_points, variant_name, write_csv)
 
@@ -283,7 +283,7 @@ def test_stage_writes_the_front_into_csv_markdown_and_log(tmp_path, caplog):
         path.write_text(json.dumps(m))
     pts = [SweepPoint("t40", "update.steps", 40, {}), SweepPoint("full", "update.steps", 120, {}),
            SweepPoint("k6", "update.num_bases", 6, {}), SweepPoint("full", "update.num_bases", 12, {})]
-    with caplog.at_level(logging.INFO, logger="anigs.tradeoff"):
+    with caplog.at_level(logging.INFO, logger="anigs.reports.tradeoff"):
         out = report("demo", pts, res, Outputs(tmp_path / "tradeoff"), ["gt/amplitude_w1", "multiview/psnr_novel"])
     with open(out) as f:
         got = list(csv.DictReader(f))

@@ -284,7 +284,7 @@ def test_tradeoff_sweep_reports_accuracy_against_time(run, tmp_path):
         ("update.steps", "30", "full", "tiny/full"),
         ("static.iterations", "100", "full", f"{derived}/full"),
         ("static.iterations", "300", "full", "tiny/full")]
-    from anigs.tradeoff import SCENE_STAGES, benchmark_seconds
+    from anigs.reports.tradeoff import SCENE_STAGES, benchmark_seconds
 
     update = json.loads((run / "tiny" / "tradeoff-update-steps-10" / "round1" / "update.json").read_text())
     assert update["steps"] == 10

@@ -26,7 +26,15 @@ rule render_clip:
         mem_mb=3000,
         runtime=20,
     params:
-        cmd=render_clip_command,
+        cmd=lambda wc, input: stage_command(
+            "render_clip",
+            jparams("render_clip", _frames)(wc),
+            static=stage_dir(wc.scene, "static"),
+            out=round_dir(wc.scene, wc.variant, wc.round),
+            model=_folder(input.model),
+            views=stage_dir(wc.scene, "views"),
+            view_id=wc.view,
+        ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         p=jparams("render_clip", _frames),
         version=ANIGS_VERSION,
@@ -53,7 +61,16 @@ rule refine:
         runtime=60,
         gpu=lambda wc: wants_gpu(wc.scene, wc.variant),
     params:
-        cmd=refine_command,
+        cmd=lambda wc, input: stage_command(
+            "refine",
+            jparams("refine", _refine_extra)(wc),
+            render_clip=round_dir(wc.scene, wc.variant, wc.round),
+            view=wc.view,
+            out=round_dir(wc.scene, wc.variant, wc.round),
+            masks=stage_dir(wc.scene, "masks"),
+            effects=_folder(input.effects),
+            round=int(wc.round),
+        ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         p=jparams("refine", _refine_extra),
         version=ANIGS_VERSION,
@@ -87,7 +104,21 @@ rule round:
         runtime=180,
         gpu=lambda wc: wants_gpu(wc.scene, wc.variant),
     params:
-        cmd=lambda wc, input: f"{round_command(wc, input)} --then {update_command(wc, input)}",
+        # the round's render and refine work in one process, then its update
+        cmd=lambda wc, input: stage_command(
+            "round",
+            static=stage_dir(wc.scene, "static"),
+            views=stage_dir(wc.scene, "views"),
+            masks=stage_dir(wc.scene, "masks"),
+            view_ids=round_views(wc.scene, wc.variant, int(wc.round)),
+            round=int(wc.round),
+            out=round_dir(wc.scene, wc.variant, wc.round),
+            model=_folder(input.model),
+            effects=_folder(input.effects),
+            render_params=jparams("render_clip", _frames)(wc),
+            refine_params=jparams("refine", _refine_extra)(wc),
+        )
+        + f" --then {update_command(wc, input)}",
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         render=jparams("render_clip", _frames),
         refine=jparams("refine", _refine_extra),
@@ -159,14 +190,14 @@ rule still:
     params:
         cmd=lambda wc, output: stage_command(
             "update",
-            jparams("update", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc),
+            jparams("update", with_device_seed)(wc),
             static=stage_dir(wc.scene, "static"),
             out=os.path.dirname(output[0]),
             still=_still_reason(wc),
             frames=sec(wc.scene, "animate", wc.variant)["frames"],
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
-        p=jparams("update", lambda wc: {"device": config["device"], "seed": config["seed"]}),
+        p=jparams("update", with_device_seed),
         frames=lambda wc: sec(wc.scene, "animate", wc.variant)["frames"],
         reason=_still_reason,
         version=ANIGS_VERSION,

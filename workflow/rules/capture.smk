@@ -24,11 +24,15 @@ rule capture_synthetic:
         mem_mb=4000,
         runtime=20,
     params:
-        p=lambda wc: json.dumps(SCENES[wc.scene]["synthetic"] or {}, sort_keys=True),
-        out=lambda wc: job_out("capture", wc),
+        cmd=lambda wc: stage_command(
+            "capture",
+            json.dumps(SCENES[wc.scene]["synthetic"] or {}, sort_keys=True),
+            out=job_out("capture", wc),
+            source="synthetic",
+        ),
         version=ANIGS_VERSION,
     shell:
-        "anigs --threads {threads} capture --source synthetic --params {params.p:q} --out {params.out:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 rule capture_photos:
@@ -48,9 +52,13 @@ rule capture_photos:
         mem_mb=4000,
         runtime=30,
     params:
-        p=jparams("capture"),
-        photos=lambda wc: SCENES[wc.scene]["photos"],
-        out=lambda wc: job_out("capture", wc),
+        cmd=lambda wc: stage_command(
+            "capture",
+            jparams("capture")(wc),
+            out=job_out("capture", wc),
+            source="photos",
+            photos=SCENES[wc.scene]["photos"],
+        ),
         version=ANIGS_VERSION,
     shell:
-        "anigs capture --source photos --photos {params.photos:q} --params {params.p:q} --out {params.out:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"

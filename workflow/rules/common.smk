@@ -2,41 +2,28 @@
 import json
 import os
 import re
-import shlex
 
 import anigs
 import yaml
 
-from anigs.config import check_sections, deep_merge, load_scene, section
-from anigs.tradeoff import DERIVED_SEP, get_dotted, knob_filename, stage_owner, sweep_points as _sweep_points
-from anigs.animate.plan import METHODS, AnimateConfig, RoundPlan
+from anigs.config import deep_merge, section, workflow_scenes
+from anigs.contract import stage_outputs
+from anigs.stages.command import stage_command
+from anigs.stages.eval import Outputs as EvalOutputs, merge_parts, table_row
+from anigs.stages.refine import listed_effects
+from anigs.stages.update import baseline_params, round_seed, still_reason
+from anigs.reports.tradeoff import DERIVED_SEP, get_dotted, knob_filename, stage_owner, sweep_points as _sweep_points
+from anigs.animate.plan import RoundPlan
+from anigs.animate.config import METHODS, AnimateConfig
 from anigs.views.queue import queued_view_count
 
 ANIGS_VERSION = anigs.__version__
 R = config["results"]
-# scene files: relative to the working directory, else to the workflow (when run from elsewhere)
-_scene_dir = config["scene_dir"]
-if not os.path.isabs(_scene_dir) and not os.path.isdir(_scene_dir):
-    _scene_dir = os.path.join(workflow.basedir, _scene_dir)
-# scene files and variant overrides are validated against the config schema's sections here, so a
-# typo fails when the workflow is parsed, naming the key and the file, before any job runs
+# the scenes config names, their files and the variants checked against the schema when the workflow
+# is parsed (anigs.config.workflow_scenes), so a typo fails before any job runs
 with open(os.path.join(workflow.basedir, "workflow", "schemas", "config.schema.yaml")) as _f:
-    CONFIG_SCHEMA = yaml.safe_load(_f)
-SCENES = {name: load_scene(_scene_dir, name, CONFIG_SCHEMA) for name in config["scenes"]}  # the scenes config names
-for _v, _o in config["variant_overrides"].items():
-    check_sections(_o, CONFIG_SCHEMA, f"config: variant_overrides.{_v}")
+    SCENES = workflow_scenes(config, yaml.safe_load(_f), workflow.basedir, DERIVED_SEP)
 ALL_SCENES = dict(SCENES)  # and the accuracy-versus-time sweep's derived scenes (added below)
-for _s in SCENES:
-    if DERIVED_SEP in _s:
-        raise ValueError(
-            f"config: scene name {_s!r} may not contain {DERIVED_SEP!r} (it marks the sweep's derived scenes)"
-        )
-for _v in list(config["variants"]) + list(config["table_variants"]):
-    if _v not in config["variant_overrides"]:
-        raise ValueError(
-            f"config: variant {_v!r} is not defined under variant_overrides "
-            f"(defined: {sorted(config['variant_overrides'])})"
-        )
 
 
 def _names(source):
@@ -69,6 +56,11 @@ def with_globals(section_dict, globals_):
     if "device" in globals_ and own not in (None, "auto"):
         out["device"] = own
     return out
+
+
+def with_device_seed(wc):
+    """The global device and seed (what most stages' sections take from the workflow)."""
+    return {"device": config["device"], "seed": config["seed"]}
 
 
 def jparams(name, extra=None):
@@ -179,8 +171,6 @@ def _frames(wc):
 def _gt_effects(scene):
     """The effects refine synthesises by name (anigs.stages.refine.listed_effects); None: the effects
     stage's choice."""
-    from anigs.stages.refine import listed_effects
-
     return listed_effects(is_synthetic(scene), sec(scene, "effects")["requested"])
 
 
@@ -238,8 +228,6 @@ def _init_model(wc):
 
 
 def _update_extra(wc):
-    from anigs.stages.update import round_seed
-
     return {"device": config["device"], "seed": round_seed(config["seed"], int(wc.round))}
 
 
@@ -247,70 +235,14 @@ def _update_extra(wc):
 # rule names the upstream stages' folders and scalars, and one artifact has one flag everywhere ----
 
 
-def stage_command(stage, params=None, **inputs):
-    """``STAGE --flag value ...`` (shell-quoted) from ``anigs.stages.<stage>.Inputs(**inputs)``, with
-    ``--params`` (the stage's config section as JSON) when given."""
-    import importlib
-
-    argv = [stage, *importlib.import_module(f"anigs.stages.{stage}").Inputs(**inputs).argv()]
-    if params is not None:
-        argv += ["--params", params]
-    return " ".join(shlex.quote(str(a)) for a in argv)
-
-
 def _folder(files):
     """The folder of an input's first file (a model: its round's folder), None when there is none."""
     return os.path.dirname(files[0]) if files else None
 
 
-def render_clip_command(wc, input):
-    return stage_command(
-        "render_clip",
-        jparams("render_clip", _frames)(wc),
-        static=stage_dir(wc.scene, "static"),
-        out=round_dir(wc.scene, wc.variant, wc.round),
-        model=_folder(input.model),
-        views=stage_dir(wc.scene, "views"),
-        view_id=wc.view,
-    )
-
-
-def refine_command(wc, input):
-    rd = round_dir(wc.scene, wc.variant, wc.round)
-    return stage_command(
-        "refine",
-        jparams("refine", _refine_extra)(wc),
-        render_clip=rd,
-        view=wc.view,
-        out=rd,
-        masks=stage_dir(wc.scene, "masks"),
-        effects=_folder(input.effects),
-        round=int(wc.round),
-    )
-
-
-def round_command(wc, input):
-    """The round's render and refine work in one process (then its update: see the round rule)."""
-    return stage_command(
-        "round",
-        static=stage_dir(wc.scene, "static"),
-        views=stage_dir(wc.scene, "views"),
-        masks=stage_dir(wc.scene, "masks"),
-        view_ids=round_views(wc.scene, wc.variant, int(wc.round)),
-        round=int(wc.round),
-        out=round_dir(wc.scene, wc.variant, wc.round),
-        model=_folder(input.model),
-        effects=_folder(input.effects),
-        render_params=jparams("render_clip", _frames)(wc),
-        refine_params=jparams("refine", _refine_extra)(wc),
-    )
-
-
 def update_command(wc, input):
     """Round r's model update: trains on one target clip per view of its dataset; the update stage
     decides from --round/--rounds whether it contains the motion (update.contain_rounds)."""
-    from anigs.stages.update import baseline_params
-
     p = plan(wc.scene, wc.variant)
     r = int(wc.round)
     baseline = baseline_params(sec(wc.scene, "animate", wc.variant), sec(wc.scene, "update", wc.variant))
@@ -363,21 +295,17 @@ def final_model(wc):
 
 
 def _still_reason(wc):
-    from anigs.stages.update import still_reason
-
     return still_reason(_chosen_effects(wc.scene))
 
 
 def _table_row(wc):
     """(method, variant) of the variant's table row (anigs.stages.eval.table_row)."""
-    from anigs.stages.eval import table_row
-
     return table_row(method_of(wc.scene, wc.variant), wc.variant)
 
 
 def eval_command(wc, part, **inputs):
     method, variant = _table_row(wc)
-    params = jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc)
+    params = jparams("eval", with_device_seed)(wc)
     return stage_command(
         "eval",
         params,
@@ -391,7 +319,7 @@ def eval_command(wc, part, **inputs):
 
 
 # ---- accuracy versus time: the sweep's points are variants, or derived scenes for per-scene
-# stages (see anigs/tradeoff.py) ----
+# stages (see anigs/reports/tradeoff.py) ----
 _TO = config.get("tradeoff", {})
 TRADEOFF = {}  # scene -> [SweepPoint]
 for _s in SCENES:
@@ -416,32 +344,14 @@ def tradeoff_points():
 
 # ---- the stages' files, named by their Outputs (anigs/stages/<name>.py: FOLDER, LAYOUT): the
 # rules spell no file name of a stage's folder ----
-import importlib as _importlib
-
 STUDY = "anigs.study.layout"  # the study folder's Outputs (`anigs study build`: not a pipeline stage)
 
 
-def stage_outputs(stage, kind="Outputs"):
-    """The ``Outputs`` type of ``stage`` (its folder's layout and loaders; a dotted name: that
-    module's, e.g. :data:`STUDY`); ``kind``: another ``Outputs`` type of the stage module
-    (``fvd_gt``'s ``ReferenceOutputs``)."""
-    return getattr(_importlib.import_module(stage if "." in stage else f"anigs.stages.{stage}"), kind)
-
-
-class _Wildcards(dict):
-    """A field that is not given stays a Snakemake wildcard (``{scene}``)."""
-
-    def __missing__(self, key):
-        return f"{{{key}}}"
-
-
 def stage_out(stage, key=None, kind="Outputs", **fields):
-    """File ``key`` (None: the folder) of ``stage``'s Outputs under the results root: its ``FOLDER`` and
-    ``LAYOUT`` name with ``fields`` filled in, the others left as wildcards (``{scene}``, ``{variant}``,
-    ``{round}``, ``{view}``): a rule's output pattern, or a path when every field is given."""
-    t = stage_outputs(stage, kind)
-    rel = t.FOLDER if key is None else f"{t.FOLDER}/{t.LAYOUT[key].name}"
-    return f"{R}/{rel}".rstrip("/").format_map(_Wildcards(fields))
+    """File ``key`` (None: the folder) of ``stage``'s Outputs (``kind``: another Outputs type of the
+    module, e.g. fvd_gt's ReferenceOutputs) under the results root, fields not given left as
+    wildcards: a rule's output pattern, or a path (:meth:`anigs.contract.Outputs.under`)."""
+    return stage_outputs(stage, kind).under(R, key, **fields)
 
 
 def job_out(stage, wc, key=None, kind="Outputs"):
@@ -477,9 +387,9 @@ def gt_inputs(wc):
     return [gt_of(wc.scene, k) for k in GT_KEYS] if is_synthetic(wc.scene) else []
 
 
-def gt_args(wc):
-    """``--labels --motion --gt-gaussians --gt-cameras`` of a synthetic scene (views and masks)."""
-    if not is_synthetic(wc.scene):
-        return ""
-    flags = ("--labels", "--motion", "--gt-gaussians", "--gt-cameras")
-    return " ".join(f"{f} {shlex.quote(gt_of(wc.scene, k))}" for f, k in zip(flags, GT_KEYS))
+def gt_fields(scene):
+    """A synthetic scene's ground truth as the views and masks stages' ``GroundTruthInputs`` fields
+    (``--labels --motion --gt-gaussians --gt-cameras``); none on photo scenes."""
+    if not is_synthetic(scene):
+        return {}
+    return {f: gt_of(scene, k) for f, k in zip(("labels", "motion", "gt_gaussians", "gt_cameras"), GT_KEYS)}

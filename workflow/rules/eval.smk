@@ -34,7 +34,7 @@ rule eval_model:
             capture=stage_dir(wc.scene, "capture") if is_synthetic(wc.scene) else None,
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
-        p=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
+        p=jparams("eval", with_device_seed),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
@@ -75,7 +75,7 @@ rule tables:
         cmd=lambda wc, input, output: stage_command("tables", metrics=list(input), out=os.path.dirname(output[0])),
         version=ANIGS_VERSION,
     shell:
-        "anigs {params.cmd} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 # one job for every scene's report, so that `snakemake tradeoff` names it
@@ -107,7 +107,7 @@ rule tradeoff:
         ),
         version=ANIGS_VERSION,
     shell:
-        "anigs {params.cmd} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 # The 2AFC user study page (paper Table 4): ours against each baseline, same scene and view, side by

@@ -35,6 +35,7 @@ rule final:
         mem_mb=8000,
         runtime=60,
     params:
+        # the final clips' metrics (the eval stage's clips half) in the same process: one start-up less
         cmd=lambda wc, input: stage_command(
             "final",
             jparams("final", lambda wc: {"device": config["device"]})(wc),
@@ -44,8 +45,9 @@ rule final:
             model=_folder([input.model]),
             sfm=stage_dir(wc.scene, "sfm"),
             masks=stage_dir(wc.scene, "masks"),
-        ),
-        eval=lambda wc, input: eval_command(
+        )
+        + " --then "
+        + eval_command(
             wc,
             "clips",
             final=job_out("final", wc),
@@ -56,11 +58,10 @@ rule final:
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         p=jparams("final", lambda wc: {"device": config["device"]}),
-        ep=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
+        ep=jparams("eval", with_device_seed),
         version=ANIGS_VERSION,
-    # the final clips' metrics (the eval stage's clips half) in the same process: one start-up less
     shell:
-        "anigs --threads {threads} {params.cmd} --then {params.eval} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 rule export:
@@ -134,4 +135,4 @@ rule view:
         p=jparams("view"),
         version=ANIGS_VERSION,
     shell:
-        "anigs {params.cmd} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"

@@ -72,7 +72,7 @@ rule fvd_gt:
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         p=jparams("fvd_gt", lambda wc: {"seed": config["seed"]}),
-        ep=jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]}),
+        ep=jparams("eval", with_device_seed),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"

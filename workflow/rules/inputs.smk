@@ -5,12 +5,6 @@
 # ---- views.smk ----
 
 
-def _roi_args(wc):
-    """The region of interest: ground-truth labels on synthetic scenes, else the effects stage's
-    (the effects the scene contains, found in the undistorted photos)."""
-    return gt_args(wc) if is_synthetic(wc.scene) else f"--effects {shlex.quote(stage_dir(wc.scene, 'effects'))}"
-
-
 def _roi_inputs(wc):
     return [] if is_synthetic(wc.scene) else [stage_file_of(wc.scene, "effects", "dynamic")]
 
@@ -47,7 +41,7 @@ def _fvd_gt_scene(wc):
         "capture": stage_dir(wc.scene, "capture"),
         "sfm": stage_dir(wc.scene, "sfm"),
         "static": stage_dir(wc.scene, "static"),
-        "eval_params": jparams("eval", lambda wc: {"device": config["device"], "seed": config["seed"]})(wc),
+        "eval_params": jparams("eval", with_device_seed)(wc),
     }
 
 
@@ -93,8 +87,6 @@ def _study_variants():
 def merge_eval_halves(metrics, input, log):
     """The eval rule's job (in Snakemake: a JSON merge, no process start-up): ``metrics`` (the merged file)
     from the clips and model halves beside it and the FVD-GT records of ``input.fvd_gt``."""
-    from anigs.stages.eval import Outputs, merge_parts
-
-    merge_parts(Outputs(os.path.dirname(metrics)), extra=list(input.fvd_gt))
+    merge_parts(EvalOutputs(os.path.dirname(metrics)), extra=list(input.fvd_gt))
     with open(log, "w") as f:
         f.write(f"merged {input.clips}, {input.model} and {len(input.fvd_gt)} FVD-GT record(s) into {metrics}\n")

@@ -23,13 +23,18 @@ rule sfm:
         mem_mb=8000,
         runtime=60,
     params:
+        cmd=lambda wc, input: stage_command(
+            "sfm",
+            jparams("sfm")(wc),
+            images=input.images,
+            out=job_out("sfm", wc),
+            gt_cameras=gt_of(wc.scene, "gt_cameras") if is_synthetic(wc.scene) else None,
+        ),
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         p=jparams("sfm"),
-        out=lambda wc: job_out("sfm", wc),
-        gt=lambda wc: f"--gt-cameras {gt_of(wc.scene, 'gt_cameras')}" if is_synthetic(wc.scene) else "",
         version=ANIGS_VERSION,
     shell:
-        "anigs --threads {threads} sfm --images {input.images:q} --out {params.out:q} {params.gt} "
-        "--params {params.p:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 rule static:
@@ -56,9 +61,17 @@ rule static:
         mem_mb=8000,
         runtime=120,
     params:
-        p=jparams("static", lambda wc: {"device": config["device"], "seed": config["seed"]}),
-        out=lambda wc: job_out("static", wc),
+        cmd=lambda wc, input: stage_command(
+            "static",
+            jparams("static", with_device_seed)(wc),
+            images=input.images,
+            cameras=input.cameras,
+            points=input.points,
+            out=job_out("static", wc),
+            no_progress=True,
+        ),
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
+        p=jparams("static", with_device_seed),
         version=ANIGS_VERSION,
     shell:
-        "anigs --threads {threads} static --images {input.images:q} --cameras {input.cameras:q} "
-        "--points {input.points:q} --out {params.out:q} --params {params.p:q} --no-progress > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"

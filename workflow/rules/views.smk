@@ -24,12 +24,19 @@ checkpoint effects:
         mem_mb=4000,
         runtime=30,
     params:
+        cmd=lambda wc, input: stage_command(
+            "effects",
+            jparams("effects", _effects_prompt)(wc),
+            canonical=input.ply,
+            cameras=input.cameras,
+            images=input.images,
+            out=job_out("effects", wc),
+        ),
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         p=jparams("effects", _effects_prompt),
-        out=lambda wc: job_out("effects", wc),
         version=ANIGS_VERSION,
     shell:
-        "anigs --threads {threads} effects --canonical {input.ply:q} --cameras {input.cameras:q} "
-        "--images {input.images:q} --out {params.out:q} --params {params.p:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 # a checkpoint: the queue's length (views with a negligible dynamic region are left out) sets the rounds
@@ -55,14 +62,23 @@ checkpoint views:
         mem_mb=4000,
         runtime=20,
     params:
+        # the region of interest: ground-truth labels on synthetic scenes, else the effects stage's
+        cmd=lambda wc, input: stage_command(
+            "views",
+            jparams("views")(wc),
+            canonical=input.ply,
+            cameras=input.cameras,
+            out=job_out("views", wc),
+            effects=None if is_synthetic(wc.scene) else stage_dir(wc.scene, "effects"),
+            points=input.points,
+            images=input.images,
+            **gt_fields(wc.scene),
+        ),
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         p=jparams("views"),
-        roi=_roi_args,
-        out=lambda wc: job_out("views", wc),
         version=ANIGS_VERSION,
     shell:
-        "anigs --threads {threads} views --canonical {input.ply:q} --cameras {input.cameras:q} "
-        "--points {input.points:q} --images {input.images:q} {params.roi} "
-        "--out {params.out:q} --params {params.p:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"
 
 
 rule masks:
@@ -95,12 +111,19 @@ rule masks:
         mem_mb=4000,
         runtime=20,
     params:
+        cmd=lambda wc, input: stage_command(
+            "masks",
+            jparams("masks")(wc),
+            canonical=input.ply,
+            views=stage_dir(wc.scene, "views"),
+            out=job_out("masks", wc),
+            cameras=input.cameras,
+            images=input.images,
+            effects=stage_dir(wc.scene, "effects"),
+            **gt_fields(wc.scene),
+        ),
+        # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         p=jparams("masks"),
-        effects=lambda wc: stage_dir(wc.scene, "effects"),
-        gt=gt_args,
-        out=lambda wc: job_out("masks", wc),
         version=ANIGS_VERSION,
     shell:
-        "anigs --threads {threads} masks --canonical {input.ply:q} --views {input.views:q} "
-        "--images {input.images:q} --cameras {input.cameras:q} --effects {params.effects:q} {params.gt} "
-        "--out {params.out:q} --params {params.p:q} > {log} 2>&1"
+        "anigs --threads {threads} {params.cmd} > {log} 2>&1"

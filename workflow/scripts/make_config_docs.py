@@ -87,7 +87,7 @@ def results_layout(stages=None) -> str:
              "Every stage writes one folder; the files below are its `Outputs` contract "
              "(`anigs/stages/<stage>.py`), the only place that names them. `{round}` is the round, `{view}` a "
              "queued view (`v00`, ...). Generated from the stages' `Outputs` types.", ""]
-    from anigs.stages.contract import outputs_of
+    from anigs.contract import outputs_of
 
     missing, seen = [], set()
     for stage in stages if stages is not None else STAGES:
@@ -110,6 +110,17 @@ def results_layout(stages=None) -> str:
     return "\n".join(lines)
 
 
+def section_home(key: str) -> str:
+    """Where the section's class lives (a stage's ``Config``), for a reader who wants the code."""
+    from anigs.registry import BY_NAME
+
+    stage = BY_NAME.get(key)
+    if stage is None or not stage.section:
+        return ""
+    cls = stage.config_class()
+    return f"Class `{cls.__name__}` in `{cls.__module__.replace('.', '/')}.py`; the stage: `anigs/stages/{key}.py`."
+
+
 def build() -> str:
     from anigs.effects.vocabulary import vocabulary_markdown
 
@@ -121,8 +132,9 @@ def build() -> str:
     lines += ["### Global", "", "| key | type | default | description |", "|---|---|---|---|"]
     _rows({"properties": dict(top)}, "", lines)
     for key, p in sections:
-        lines += ["", f"### `{key}`: {p.get('description', '')}", "", "| key | type | default | description |",
-                  "|---|---|---|---|"]
+        home = section_home(key)
+        lines += ["", f"### `{key}`: {p.get('description', '')}", ""] + ([home, ""] if home else []) + [
+            "| key | type | default | description |", "|---|---|---|---|"]
         _rows(p, key + ".", lines)
     return "\n".join(lines) + "\n"
 

@@ -29,7 +29,7 @@ SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
 sys.path.insert(0, str(ROOT))
 
 from anigs.stages import sections_of  # noqa: E402
-from anigs.tradeoff import SCENE_STAGES, VARIANT_SECTIONS  # noqa: E402
+from anigs.reports.tradeoff import SCENE_STAGES, VARIANT_SECTIONS  # noqa: E402
 
 
 def sections():

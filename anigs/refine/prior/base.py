@@ -21,7 +21,7 @@ import numpy as np
 MaskLike = Union[np.ndarray, Mapping[str, np.ndarray]]
 
 
-def check_mask(mask: np.ndarray, height: int, width: int, what: str = "mask") -> np.ndarray:
+def check_prior_mask(mask: np.ndarray, height: int, width: int, what: str = "mask") -> np.ndarray:
     """Validate a mask against a frame size; return float32 [H,W] in [0,1]."""
     m = np.asarray(mask)
     if m.ndim == 3 and m.shape[-1] in (1, 3, 4):
@@ -44,9 +44,9 @@ def union_mask(mask: MaskLike, height: int, width: int) -> np.ndarray:
     if isinstance(mask, Mapping):
         out = np.zeros((height, width), np.float32)
         for name, m in mask.items():
-            out = np.maximum(out, check_mask(m, height, width, f"mask[{name!r}]"))
+            out = np.maximum(out, check_prior_mask(m, height, width, f"mask[{name!r}]"))
         return out
-    return check_mask(mask, height, width)
+    return check_prior_mask(mask, height, width)
 
 
 class VideoPrior(ABC):

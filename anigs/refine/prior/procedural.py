@@ -51,7 +51,7 @@ import numpy as np
 
 from anigs.typed_config import from_dict
 from anigs.flow import clip_backward_flow, identity_grid, warp
-from anigs.refine.prior.base import MaskLike, VideoPrior, check_mask, check_strength
+from anigs.refine.prior.base import MaskLike, VideoPrior, check_prior_mask, check_strength
 from anigs.refine.prior.spectral import (EFFECTS, MotionField, effect_spec, effects_from_prompt, prompt_gain, smooth_noise,
                                   synthesize_effect)
 from anigs.video import check_clip
@@ -178,14 +178,14 @@ class ProceduralPrior(VideoPrior):
             out = {}
             for name in effects:
                 if name in mask:
-                    out[name] = check_mask(mask[name], height, width, f"mask[{name!r}]")
+                    out[name] = check_prior_mask(mask[name], height, width, f"mask[{name!r}]")
                 else:
                     log.info("effect %s is configured but has no mask: not synthesised", name)
             ignored = sorted(set(mask) - set(effects))
             if ignored:
                 log.info("masks for effects %s are not in the configured effects %s: ignored", ignored, effects)
             return out
-        m = check_mask(mask, height, width)
+        m = check_prior_mask(mask, height, width)
         return {name: m for name in effects}
 
     def motion_field(self, masks: Mapping[str, np.ndarray], height: int, width: int, seed: int,

@@ -2,7 +2,7 @@
 
 Every heavy rule of the workflow has a ``benchmark:`` file (columns ``s`` wall seconds,
 ``cpu_time``, ``max_rss`` MB, ...; one row per ``--benchmark-repeats``). The accuracy-versus-time
-report (:mod:`anigs.tradeoff`) sums them per sweep point; ``benchmarks/rules.py`` prints the
+report (:mod:`anigs.reports.tradeoff`) sums them per sweep point; ``benchmarks/rules.py`` prints the
 per-rule breakdown of a run.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The table model of :mod:`anigs.tables` (:class:`Cell`, :class:`Table` with numbered n/a
+"""The table model of :mod:`anigs.reports.tables` (:class:`Cell`, :class:`Table` with numbered n/a
 footnotes) and its renderings: CSV, Markdown and LaTeX."""
 from __future__ import annotations
 

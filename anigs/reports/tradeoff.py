@@ -33,11 +33,11 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from anigs.benchmark_tsv import benchmark_seconds
+from anigs.reports.benchmark_tsv import benchmark_seconds
 from anigs.config import deep_merge
 from anigs.io import atomic_path
 from anigs.registry import sections_of
-from anigs.tradeoff_plot import plot_knob as plot_knob  # re-exported: the sweep report's plot
+from anigs.knob_chart import plot_knob as plot_knob  # re-exported: the sweep report's plot
 
 # config sections a variant may override (the others are shared by every variant of a scene)
 VARIANT_SECTIONS = sections_of("variant")

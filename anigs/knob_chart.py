@@ -1,23 +1,24 @@
-"""The accuracy-versus-time sweep's plot: one PNG per knob (:mod:`anigs.tradeoff`)."""
+"""Charts of metrics against one setting (a knob): one PNG per knob, for the accuracy-versus-time
+sweep (:mod:`anigs.reports.tradeoff`) and the static fit's report (:mod:`anigs.static.report`)."""
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
+from anigs.io import atomic_path
 
 
 def plot_knob(rows: Sequence[dict[str, Any]], knob: str, metric_names: Sequence[str], path: str | Path,
               panel: tuple[int, int] = (360, 260), fronts: dict[str, list[int]] | None = None) -> Path:
     """PNG with one panel per metric: metric (y) against seconds (x), points labelled by value.
 
-    ``fronts`` (:func:`anigs.tradeoff.report_fronts`: metric -> indices into ``rows``): each panel also draws its
+    ``fronts`` (:func:`anigs.reports.tradeoff.report_fronts`: metric -> indices into ``rows``): each panel also draws its
     metric's Pareto front over every point as a green line, rings this knob's points on it, and
     marks the other knobs' front points with small hollow squares.
     """
     import cv2
 
-    from anigs.io import atomic_path
 
     img = knob_image(rows, knob, metric_names, panel, fronts)
     with atomic_path(path) as tmp:

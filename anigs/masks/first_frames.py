@@ -10,6 +10,7 @@ import numpy as np
 from anigs.cameras import Camera
 from anigs.masks import Frame, render_frames
 from anigs.images import load_image as read_rgb_png
+from anigs.video import load_clip
 
 
 def first_frames(frames_dir: str | Path | None, g, cams: Sequence[Camera], background) -> list[Frame]:
@@ -18,7 +19,6 @@ def first_frames(frames_dir: str | Path | None, g, cams: Sequence[Camera], backg
     rendered = render_frames(g, cams, background)
     if not frames_dir:
         return rendered
-    from anigs.video import load_clip
 
     d = Path(frames_dir)
     out = []

@@ -28,7 +28,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import importlib
 import json
+import string
 import types
 import typing
 from dataclasses import dataclass
@@ -36,6 +38,10 @@ from pathlib import Path
 from typing import Any, ClassVar, Union
 
 import numpy as np
+
+from anigs.io import atomic_path
+from anigs.registry import BY_NAME
+from anigs.video import load_clip
 
 
 @dataclass(frozen=True)
@@ -52,8 +58,6 @@ class File:
     @property
     def fields(self) -> tuple[str, ...]:
         """The format fields of ``name`` (``("view",)`` for ``"{view}.png"``)."""
-        import string
-
         return tuple(f for _, f, _, _ in string.Formatter().parse(self.name) if f)
 
 
@@ -67,7 +71,7 @@ class Outputs:
     def __init_subclass__(cls, **kw: Any) -> None:
         super().__init_subclass__(**kw)
         pkg, _, name = cls.__module__.rpartition(".")
-        if pkg != "anigs.stages" or name == "contract":
+        if pkg != "anigs.stages":
             return
         if "STAGE" not in cls.__dict__:
             cls.STAGE = name
@@ -108,6 +112,14 @@ class Outputs:
         return self.root / f.name.format(**fields)
 
     @classmethod
+    def under(cls, results: str | Path, key: str | None = None, **fields: Any) -> str:
+        """File ``key`` (None: the folder) under the results root: ``FOLDER`` and the ``LAYOUT`` name with
+        ``fields`` filled in and the others left as ``{name}`` (a Snakemake rule's output pattern, or a
+        path when every field is given)."""
+        rel = cls.FOLDER if key is None else f"{cls.FOLDER}/{cls.LAYOUT[key].name}"
+        return f"{results}/{rel}".rstrip("/").format_map(_Unfilled(fields))
+
+    @classmethod
     def pattern(cls, key: str, root: str = "") -> str:
         """``root/name`` with the format fields left in (a Snakemake pattern when they are wildcards)."""
         name = cls.LAYOUT[key].name
@@ -140,8 +152,6 @@ class Outputs:
 
     def clip(self, key: str, **fields: Any) -> tuple[np.ndarray, dict]:
         """(frames float32 [T,H,W,3], metadata) of the clip file ``key`` (:func:`anigs.video.load_clip`)."""
-        from anigs.video import load_clip
-
         p = self.path(key, **fields)
         if not p.is_file():
             raise FileNotFoundError(f"{p}: missing (run the {self.STAGE or 'upstream'} stage)")
@@ -149,19 +159,28 @@ class Outputs:
 
     def save_array(self, key: str, a: np.ndarray, **fields: Any) -> Path:
         """Write the ``.npy`` file ``key`` atomically (temp + rename); returns its path."""
-        from anigs.io import atomic_path
-
         p = self.path(key, **fields)
         with atomic_path(p) as tmp, open(tmp, "wb") as fh:
             np.save(fh, a)
         return p
 
 
+class _Unfilled(dict):
+    """Format fields: a field that is not given stays ``{name}`` (a Snakemake wildcard)."""
+
+    def __missing__(self, key: str) -> str:
+        return f"{{{key}}}"
+
+
+def stage_outputs(stage: str, kind: str = "Outputs") -> type[Outputs]:
+    """The ``Outputs`` type ``kind`` of stage module ``anigs.stages.<stage>`` (a dotted name: that
+    module's, e.g. ``anigs.study.layout``), imported by name (the contract imports no stage)."""
+    return getattr(importlib.import_module(stage if "." in stage else f"anigs.stages.{stage}"), kind)
+
+
 def scope_folder(stage: str) -> str:
     """The default folder of a stage's files under the results root, from its scope in the registry:
     ``{scene}/<name>`` (scene), ``{scene}/{variant}/<name>`` (variant), ``<name>`` (global)."""
-    from anigs.stages import BY_NAME
-
     return {"scene": "{scene}/", "variant": "{scene}/{variant}/", "global": ""}[BY_NAME[stage].scope] + stage
 
 

@@ -52,8 +52,8 @@ from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 from anigs.io import atomic_write_text, read_json
-from anigs.table_format import MISSING as MISSING  # re-exported: the n/a reason of a missing record
-from anigs.table_format import Cell, Table, to_csv, to_latex, to_markdown
+from anigs.reports.table_format import MISSING as MISSING  # re-exported: the n/a reason of a missing record
+from anigs.reports.table_format import Cell, Table, to_csv, to_latex, to_markdown
 
 SCHEMA = "anigs-metrics/1"
 

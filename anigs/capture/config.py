@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from anigs.typed_config import from_dict
+from anigs.synth.capture import SynthConfig
 
 
 @dataclass
@@ -27,6 +28,5 @@ def capture_config(source: str, params: dict | None):
     """The config ``--params`` gives: the photo import options, or the scene's ``synthetic`` section."""
     if source == "photos":
         return PhotosConfig.from_dict(params)
-    from anigs.synth.capture import SynthConfig
 
     return SynthConfig.from_dict(params)
