@@ -59,13 +59,13 @@ _LAZY = {
     "drop_negligible": "plan", "view_camera": "candidates", "farthest_point_order": "candidates",
     "ccw_order": "candidates", "make_candidates": "candidates", "location_cameras": "candidates",
     "score_candidate": "candidates", "in_wedges": "candidates", "azimuth_deg": "candidates",
-    "estimate_up": "coverage", "observation_counts": "coverage", "scene_coverage": "coverage",
+    "observation_counts": "coverage", "scene_coverage": "coverage",
     "capture_pitch_deg": "coverage", "replacement_directions": "coverage", "dynamic_fraction": "coverage",
 }
 
 __all__ = ["queued_view_count", "ViewsConfig", "ViewPlan", "plan_views", "cameras_from_views", "drop_negligible",
            "view_camera", "farthest_point_order", "ccw_order", "make_candidates", "location_cameras",
-           "score_candidate", "in_wedges", "azimuth_deg", "estimate_up", "observation_counts", "scene_coverage",
+           "score_candidate", "in_wedges", "azimuth_deg", "observation_counts", "scene_coverage",
            "capture_pitch_deg", "replacement_directions", "dynamic_fraction"]
 
 

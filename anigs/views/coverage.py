@@ -8,7 +8,6 @@ from typing import Sequence
 import numpy as np
 
 
-from anigs import geometry
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
 from anigs.render.labels import dynamic_masks
@@ -20,12 +19,6 @@ log = logging.getLogger("anigs.views")
 
 
 # ---- geometry helpers ---------------------------------------------------------------------
-def estimate_up(cameras: Sequence[Camera], points: np.ndarray | None = None) -> np.ndarray:
-    """World up [3] of the capture (:func:`anigs.geometry.estimate_up`: camera axes, photo
-    orientation, point-cloud planes; never raises, falls back to upright photos)."""
-    return geometry.estimate_up(cameras, points).up
-
-
 def observation_counts(g: Gaussians, cameras: Sequence[Camera], vcfg: VisibilityConfig | None = None) -> np.ndarray:
     """int [N]: in how many of the capture ``cameras`` each Gaussian is visible."""
     vcfg = vcfg or VisibilityConfig(mode="weight")

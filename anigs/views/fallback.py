@@ -22,7 +22,7 @@ from anigs.views.candidates import azimuth_deg
 from anigs.views.content import ContentCheck
 from anigs.views.coverage import scene_coverage
 from anigs.views.motion import MIN_WEIGHT, MotionSharpness, photo_pose_view
-from anigs.views.place import Slot
+from anigs.views.place import Placed, Slot
 
 log = logging.getLogger("anigs.views")
 
@@ -68,7 +68,8 @@ def photo_pose_slots(motion: MotionSharpness, check: ContentCheck, g_obs: Gaussi
         shown |= seen
         ci = int(np.argmin(np.linalg.norm(cand - cam.center, axis=1)))
         y, pitch = _yaw_pitch(cam, float(heading[ci]), up)
-        slots.append((first_location + k, ci, float(yaw), (cam, scene_coverage(g_obs, cam, coverage_alpha), y, pitch)))
+        slots.append(Slot(first_location + k, ci, float(yaw), Placed(cam, scene_coverage(g_obs, cam, coverage_alpha), y,
+                                                                      pitch)))
         figures[id(cam)] = fig
     return slots, figures
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -21,8 +21,23 @@ from anigs.views.policy import LayoutPolicy
 
 log = logging.getLogger("anigs.views")
 
-Placed = tuple[Camera, float, float, float]  # (camera, scene coverage, yaw, pitch)
-Slot = tuple[int, int, float, Placed]  # (location, candidate, requested yaw, placed)
+class Placed(NamedTuple):
+    """A direction that passed: its camera, scene coverage, and yaw and pitch (deg)."""
+
+    camera: Camera
+    coverage: float
+    yaw: float
+    pitch: float
+
+
+class Slot(NamedTuple):
+    """A queued direction: the location (queue order), its candidate index, the yaw it was asked
+    for (deg) and what was placed for it."""
+
+    location: int
+    candidate: int
+    requested_yaw: float
+    placed: Placed
 
 
 @dataclass
@@ -80,7 +95,7 @@ class Placer:
             if why is None:
                 self.used.setdefault(ci, []).append((y, p))
                 self.figures[id(cam)] = fig
-                return cam, cov, y, p
+                return Placed(cam, cov, y, p)
             self.rejected.append({"location": loc, "candidate": int(ci), "requested_yaw": float(yaw), "yaw": float(y),
                                   "pitch": float(p), "coverage": cov, **(fig or {}), "reason": why,
                                   "position": self.cand[ci].tolist(), "forward": cam.forward.tolist()})
@@ -103,7 +118,7 @@ class Placer:
                 if got is None:
                     missing.append(yaw)
                 else:
-                    slots.append((loc, ci, yaw, got))
+                    slots.append(Slot(loc, ci, yaw, got))
         loc_ids = list(range(len(chosen)))
         for ci in extra:  # directions no location passed: other locations
             if not missing:
@@ -114,7 +129,7 @@ class Placer:
                 got = self.place(ci, loc, yaw)
                 if got is not None:
                     missing.remove(yaw)
-                    slots.append((loc, ci, yaw, got))
+                    slots.append(Slot(loc, ci, yaw, got))
                     placed_here = True
             if placed_here:
                 loc_ids.append(loc)

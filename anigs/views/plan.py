@@ -206,16 +206,18 @@ def plan_views(gaussians: Gaussians, roi: np.ndarray, cameras: Sequence[Camera],
              " ".join(f"{100 * c:.1f}%" for c in coverage_after), 100 * reachable)
     rule = {"min": cfg.min_coverage, "alpha": cfg.coverage_alpha, "min_observations": cfg.min_observations,
             "observed_gaussians": int(observed.sum())}
-    return ViewPlan(views, cams, cand, cand_vis, heading, chosen, centroid, up, coverage_after, reachable, seen_by_view,
-                    cand_seen, frustum_after, layout, placer.rejected, rule, frame.up_report, dropped, dyn_rule,
-                    check.to_json(), motion_json)
+    return ViewPlan(views=views, cameras=cams, candidates=cand, candidate_visible=cand_vis, candidate_heading=heading,
+                    chosen=chosen, roi_centroid=centroid, up=up, coverage_after=coverage_after, reachable=reachable,
+                    seen_by_view=seen_by_view, candidate_seen=cand_seen, frustum_coverage_after=frustum_after,
+                    layout=layout, rejected=placer.rejected, coverage_rule=rule, up_estimate=frame.up_report,
+                    dropped=dropped, dynamic_rule=dyn_rule, content_rule=check.to_json(), motion=motion_json)
 
 
 def _drop_slots(g: Gaussians, roi: np.ndarray, slots: list[Slot], cfg: ViewsConfig, keep_all: str | None
                 ) -> tuple[list[Slot], list[float | None], list[dict[str, Any]], dict[str, Any] | None]:
     """(kept slots, their dynamic fractions, dropped entries, rule): :func:`drop_negligible` on
     the placed views, with a ``views.json`` entry per dropped view."""
-    keep, fractions, dyn_rule = drop_negligible(g, roi, [s[3][0] for s in slots], cfg, keep_all)
+    keep, fractions, dyn_rule = drop_negligible(g, roi, [s.placed.camera for s in slots], cfg, keep_all)
     dropped: list[dict[str, Any]] = []
     if dyn_rule is not None and dyn_rule["applied"]:
         log.info("views: dynamic fraction of the %d placed views (queue order before dropping): %s", len(slots),
