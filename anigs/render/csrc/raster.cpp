@@ -4,8 +4,9 @@
 // alpha, expected depth) exactly; see their docstrings. Pipeline per call:
 //   anigs_preprocess          per-Gaussian projection + colour (project.cpp)
 //   anigs_sort_count          visible splats sorted front to back (stable radix sort on depth),
-//                             per-splat tile counts
-//   anigs_composite_forward   tile binning, compositing, rgb/alpha/depth
+//                             per-splat tile counts (the tiles its ellipse reaches, cull.cpp)
+//   anigs_composite_forward   tile binning (each pair with its sub-rectangle of the tile),
+//                             compositing, rgb/alpha/depth
 //   anigs_composite_backward  per-(tile, splat) gradient rows, reduced per splat in a fixed order
 //   anigs_composite_weights   forward-only alternative to forward + backward for the per-splat
 //                             blend weight sums sum_p alpha T factor(p) (mask lifting, visibility)
