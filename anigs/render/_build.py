@@ -33,7 +33,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 SRC = Path(__file__).with_name("csrc") / "raster.cpp"
-ABI_VERSION = 4
+ABI_VERSION = 5
 _FLAGS = ["-O3", "-std=c++17", "-shared", "-fPIC", "-pthread", "-ffp-contract=off", "-fno-math-errno"]
 _LIB: ctypes.CDLL | None = None
 log = logging.getLogger("anigs.kernel")
@@ -220,10 +220,10 @@ def load() -> ctypes.CDLL:
     lib.anigs_preprocess.argtypes = [I, P, I, I, P, P, P, P, P, I, I, P, P, P, P, P, P, I, I]
     lib.anigs_preprocess.restype = I
     lib.anigs_preprocess_backward.argtypes = [I, P, I, I, P, P, P, P, I, I, P, P, P, P, P, P, P, P, I]
-    lib.anigs_sort_count.argtypes = [I, P, P, P, I, I, P, P, ctypes.POINTER(ctypes.c_longlong)]
+    lib.anigs_sort_count.argtypes = [I, P, P, P, P, P, P, I, I, P, P, ctypes.POINTER(ctypes.c_longlong), I]
     lib.anigs_sort_count.restype = I
-    lib.anigs_composite_forward.argtypes = [I, I, I] + [P] * 18 + [I]
-    lib.anigs_composite_backward.argtypes = [I, I, I, I] + [P] * 19 + [I]
+    lib.anigs_composite_forward.argtypes = [I, I, I] + [P] * 19 + [I]
+    lib.anigs_composite_backward.argtypes = [I, I, I, I] + [P] * 20 + [I]
     for f in (lib.anigs_preprocess_backward, lib.anigs_composite_forward, lib.anigs_composite_backward):
         f.restype = None
     _LIB = lib

@@ -126,8 +126,8 @@ class _Composite(torch.autograd.Function):
         order = torch.empty(max(n, 1), dtype=torch.int32)
         gstart = torch.empty(n + 1, dtype=torch.int32)
         npairs = _build.ctypes.c_longlong(0)
-        M = lib.anigs_sort_count(n, _ptr(feats), _ptr(valid), _ptr(rects), width, height, _ptr(order), _ptr(gstart),
-                                 _build.ctypes.byref(npairs))
+        M = lib.anigs_sort_count(n, _ptr(feats), _ptr(valid), _ptr(rects), _ptr(means2d), _ptr(conics), _ptr(o),
+                                 width, height, _ptr(order), _ptr(gstart), _build.ctypes.byref(npairs), nt)
         npairs = npairs.value
         if npairs >= 2**31:
             raise ValueError(f"rasterize: {npairs} (tile, Gaussian) pairs exceed the cpu backend's int32 limit")
@@ -135,6 +135,7 @@ class _Composite(torch.autograd.Function):
         recs = torch.empty(max(M, 1), 16)
         tile_offsets = torch.empty(ntiles + 1, dtype=torch.int32)
         tile_splats = torch.empty(max(npairs, 1), dtype=torch.int32)
+        tile_rects = torch.empty(max(npairs, 1), dtype=torch.int32)
         rgb, alpha, depth = torch.empty(height, width, 3), torch.empty(height, width), torch.empty(height, width)
         pair_slots = T = accd = last = None
         if any(ctx.needs_input_grad):  # buffers only the backward reads
@@ -143,25 +144,25 @@ class _Composite(torch.autograd.Function):
             last = torch.empty(height, width, dtype=torch.int32)
         lib.anigs_composite_forward(M, width, height, _ptr(order), _ptr(gstart), _ptr(means2d), _ptr(conics),
                                     _ptr(feats), _ptr(o), _ptr(rects), _ptr(bg), _ptr(recs), _ptr(tile_offsets),
-                                    _ptr(tile_splats), _ptr(pair_slots), _ptr(rgb), _ptr(alpha), _ptr(depth),
+                                    _ptr(tile_splats), _ptr(tile_rects), _ptr(pair_slots), _ptr(rgb), _ptr(alpha), _ptr(depth),
                                     _ptr(T), _ptr(accd), _ptr(last), nt)
         # kernel-owned intermediates (neither inputs nor outputs): kept on ctx directly
-        ctx.state = (n, M, width, height, order, gstart, valid, recs, tile_offsets, tile_splats, pair_slots, bg,
-                     T, accd, last)
+        ctx.state = (n, M, width, height, order, gstart, valid, recs, tile_offsets, tile_splats, tile_rects,
+                     pair_slots, bg, T, accd, last)
         info["num_visible"] = M
         return rgb, alpha, depth
 
     @staticmethod
     def backward(ctx, g_rgb, g_alpha, g_depth):
         lib = _build.load()
-        (n, M, width, height, order, gstart, valid, recs, tile_offsets, tile_splats, pair_slots, bg,
+        (n, M, width, height, order, gstart, valid, recs, tile_offsets, tile_splats, tile_rects, pair_slots, bg,
          T, accd, last) = ctx.state
         g_m2d, g_con, g_feat, g_o = torch.empty(n, 2), torch.empty(n, 3), torch.empty(n, 4), torch.empty(n)
         g_rgb, g_alpha, g_depth = _image_grad(g_rgb), _image_grad(g_alpha), _image_grad(g_depth)
         gstrides = (_build.ctypes.c_longlong * 7)(*_strides(g_rgb, 3), *_strides(g_alpha, 2), *_strides(g_depth, 2))
         lib.anigs_composite_backward(n, M, width, height, _ptr(order), _ptr(gstart), _ptr(valid), _ptr(recs),
-                                     _ptr(tile_offsets),
-                                     _ptr(tile_splats), _ptr(pair_slots), _ptr(bg), _ptr(T), _ptr(accd), _ptr(last),
+                                     _ptr(tile_offsets), _ptr(tile_splats), _ptr(tile_rects), _ptr(pair_slots),
+                                     _ptr(bg), _ptr(T), _ptr(accd), _ptr(last),
                                      _ptr(g_rgb), _ptr(g_alpha), _ptr(g_depth), gstrides,
                                      _ptr(g_m2d), _ptr(g_con), _ptr(g_feat), _ptr(g_o), _threads())
         g_bg = None
@@ -268,8 +269,8 @@ def composite_weights_cpu(means, quats, scales, opacities, viewmat, K, width: in
         on_invalid(flags)
     order, gstart = torch.empty(nb, dtype=torch.int32), torch.empty(nb + 1, dtype=torch.int32)
     npairs = _build.ctypes.c_longlong(0)
-    M = lib.anigs_sort_count(n, _ptr(feats), _ptr(valid), _ptr(rects), width, height, _ptr(order), _ptr(gstart),
-                             _build.ctypes.byref(npairs))
+    M = lib.anigs_sort_count(n, _ptr(feats), _ptr(valid), _ptr(rects), _ptr(means2d), _ptr(conics), _ptr(o), width,
+                             height, _ptr(order), _ptr(gstart), _build.ctypes.byref(npairs), nt)
     if npairs.value >= 2**31:
         raise ValueError(f"composite_weights_cpu: {npairs.value} (tile, Gaussian) pairs exceed the int32 limit")
     out = torch.empty(nb, C, dtype=torch.float64)
@@ -278,3 +279,22 @@ def composite_weights_cpu(means, quats, scales, opacities, viewmat, K, width: in
     if rc != 0:
         raise MemoryError("composite_weights_cpu: the kernel could not allocate its buffers")
     return out[:n]
+
+
+def tile_pairs(means, quats, scales, opacities, viewmat, K, width: int, height: int) -> tuple[int, int]:
+    """The (tile, Gaussian) pairs the kernel composites for this view, and the pairs of the
+    Gaussians' whole pixel boxes (what binning by box alone would give): the work the tile
+    culling of ``csrc/cull.cpp`` saves. Diagnostic (tests, ``benchmarks/step_profile.py``)."""
+    _device_check(means)
+    m2d, con, feats, rects, _, valid = _Preprocess.apply(
+        means, quats, scales, opacities, torch.zeros(means.shape[0], 3), camera_params(viewmat, K, 0.01, 1e10), -1,
+        int(width), int(height), None)
+    n = means.shape[0]
+    order, gstart = torch.empty(max(n, 1), dtype=torch.int32), torch.empty(n + 1, dtype=torch.int32)
+    npairs = _build.ctypes.c_longlong(0)
+    _build.load().anigs_sort_count(n, _ptr(feats), _ptr(valid), _ptr(rects), _ptr(m2d.detach()), _ptr(con.detach()),
+                                   _ptr(_f32(opacities)), int(width), int(height), _ptr(order), _ptr(gstart),
+                                   _build.ctypes.byref(npairs), _threads())
+    r = rects[valid.bool()].long()
+    box = ((r[:, 2] - 1) // 16 - r[:, 0] // 16 + 1) * ((r[:, 3] - 1) // 16 - r[:, 1] // 16 + 1)
+    return int(npairs.value), int(box.sum())

@@ -4,8 +4,9 @@
 // alpha, expected depth) exactly; see their docstrings. Pipeline per call:
 //   anigs_preprocess          per-Gaussian projection + colour (project.cpp)
 //   anigs_sort_count          visible splats sorted front to back (stable radix sort on depth),
-//                             per-splat tile counts
-//   anigs_composite_forward   tile binning, compositing, rgb/alpha/depth
+//                             per-splat tile counts (the tiles its ellipse reaches, cull.cpp)
+//   anigs_composite_forward   tile binning (each pair with its sub-rectangle of the tile),
+//                             compositing, rgb/alpha/depth
 //   anigs_composite_backward  per-(tile, splat) gradient rows, reduced per splat in a fixed order
 //   anigs_composite_weights   forward-only alternative to forward + backward for the per-splat
 //                             blend weight sums sum_p alpha T factor(p) (mask lifting, visibility)
@@ -23,6 +24,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <algorithm>
+#include <memory>
 #include <vector>
 #include "pool.cpp"
 #if defined(__x86_64__) || defined(__i386__)
@@ -303,12 +305,7 @@ struct BwdTile {
   alignas(64) int32_t last[TILE * RS];
 };
 
-// Tile-rect overlap of splat s with tile (px0, py0, tw, th); false when empty.
-inline bool overlap(const Rec& s, int px0, int py0, int tw, int th, int& x0, int& y0, int& x1, int& y1) {
-  x0 = std::max(s.x0, px0); x1 = std::min(s.x1, px0 + tw);
-  y0 = std::max(s.y0, py0); y1 = std::min(s.y1, py0 + th);
-  return x0 < x1 && y0 < y1;
-}
+#include "cull.cpp"
 
 // Composite splat s (list position jl1 - 1) over rows [by0, by1) of the L-lane window at
 // pixel column ax (= px0 + off). Returns true when some pixel hit the transmittance floor.
@@ -356,15 +353,16 @@ ANIGS_INLINE bool forward_pair(const Rec& s, int ax, int off, int bx0, int bx1, 
 // pixels, until every pixel has stopped (forward_pair's NCW; with NCW > 0 pair_w[j * NCW + c]
 // gets pair j's weight sums and must be zero on entry).
 template <int NCW = 0>
-ANIGS_INLINE void composite_tile(const Rec* recs, const int* tile_splats, int j0, int j1, int px0, int py0, int tw,
-                                 int th, FwdTile& tl, const float* fac = nullptr, float* pair_w = nullptr) {
+ANIGS_INLINE void composite_tile(const Rec* recs, const int* tile_splats, const int32_t* tile_rects, int j0, int j1,
+                                 int px0, int py0, int tw, int th, FwdTile& tl, const float* fac = nullptr,
+                                 float* pair_w = nullptr) {
   int ndone = 0;
   const int npix = tw * th;
   for (int j = j0; j < j1 && ndone < npix; ++j) {
     if (j + PREFETCH < j1) __builtin_prefetch(recs + tile_splats[j + PREFETCH]);
     const Rec& s = recs[tile_splats[j]];
     int bx0, by0, bx1, by1;
-    if (!overlap(s, px0, py0, tw, th, bx0, by0, bx1, by1)) continue;
+    if (!unpack_rect(tile_rects[j], px0, py0, bx0, by0, bx1, by1)) continue;
     const int jl1 = j - j0 + 1;
     float* out = NCW > 0 ? pair_w + (size_t)j * NCW : nullptr;
     bool term;
@@ -440,15 +438,20 @@ inline uint32_t float_key(float x) {
 }
 
 // Binning (the first part of anigs_composite_forward): packs the M sorted splats into recs
-// and bins the (tile, splat) pairs by tile (tile_offsets, tile_splats, and pair_slots unless
-// null); see anigs_composite_forward.
+// and bins the (tile, splat) pairs by tile (tile_offsets, tile_splats, tile_rects, and
+// pair_slots unless null): the tiles of each splat's box that its ellipse reaches (cull.cpp);
+// see anigs_composite_forward.
 void bin_splats(int M, int W, int H, const int* order, const int* gstart, const float* means2d, const float* conics,
                 const float* feats, const float* opac, const int* rects, Rec* recs, int* tile_offsets,
-                int* tile_splats, int* pair_slots, int nthreads) {
+                int* tile_splats, int32_t* tile_rects, int* pair_slots, int nthreads) {
   const int TX = tiles_of(W), TY = tiles_of(H), NT = TX * TY;
-  // Binning: chunk k of the sorted splats packs its records and counts its pairs per tile;
-  // after a prefix sum over (tile, chunk) it fills its slots. The result is the stable
+  // Chunk k of the sorted splats packs its records, lists each splat's pairs (tile and
+  // sub-rectangle, splat-major at gstart[m]) and counts its pairs per tile; after a prefix sum
+  // over (tile, chunk) it moves its pairs to their tile-major slots. The result is the stable
   // order whatever the chunking.
+  const size_t npairs = (size_t)gstart[M];
+  std::unique_ptr<int32_t[]> ptile(new int32_t[std::max<size_t>(npairs, 1)]);
+  std::unique_ptr<int32_t[]> prect(new int32_t[std::max<size_t>(npairs, 1)]);
   const int nchunk = std::max(1, std::min(4 * nthreads, M / 512));
   std::vector<int> hist((size_t)nchunk * NT, 0);
   const auto chunk_range = [&](int k, int& m0, int& m1) {
@@ -470,8 +473,8 @@ void bin_splats(int M, int W, int H, const int* order, const int* gstart, const 
         s.pad0 = s.pad1 = 0.f;
         for (int c = 0; c < NCH; ++c) s.f[c] = feats[NCH * g + c];
         s.x0 = r[0]; s.y0 = r[1]; s.x1 = r[2]; s.y1 = r[3];
-        for (int ty = r[1] / TILE; ty <= (r[3] - 1) / TILE; ++ty)
-          for (int tx = r[0] / TILE; tx <= (r[2] - 1) / TILE; ++tx) h[ty * TX + tx]++;
+        const int n = splat_pairs(s, TX, ptile.get() + gstart[m], prect.get() + gstart[m]);
+        for (int i = gstart[m]; i < gstart[m] + n; ++i) h[ptile[i]]++;
       }
     }
   });
@@ -491,16 +494,13 @@ void bin_splats(int M, int W, int H, const int* order, const int* gstart, const 
       int m0, m1;
       chunk_range(k, m0, m1);
       int* h = hist.data() + (size_t)k * NT;
-      for (int m = m0; m < m1; ++m) {
-        const Rec& s = recs[m];
-        int slot = gstart[m];
-        for (int ty = s.y0 / TILE; ty <= (s.y1 - 1) / TILE; ++ty)
-          for (int tx = s.x0 / TILE; tx <= (s.x1 - 1) / TILE; ++tx) {
-            const int pos = h[ty * TX + tx]++;
-            tile_splats[pos] = m;
-            if (pair_slots) pair_slots[slot++] = pos;
-          }
-      }
+      for (int m = m0; m < m1; ++m)
+        for (int i = gstart[m]; i < gstart[m + 1]; ++i) {
+          const int pos = h[ptile[i]]++;
+          tile_splats[pos] = m;
+          tile_rects[pos] = prect[i];
+          if (pair_slots) pair_slots[i] = pos;
+        }
     }
   });
 }
@@ -508,7 +508,7 @@ void bin_splats(int M, int W, int H, const int* order, const int* gstart, const 
 // The tiles of anigs_composite_weights with NCW factor channels: pair_w [npairs, NCW].
 template <int NCW>
 void weights_tiles(int W, int H, const Rec* recs, const int* tile_offsets, const int* tile_splats,
-                   const float* factors, float* pair_w, int nthreads) {
+                   const int32_t* tile_rects, const float* factors, float* pair_w, int nthreads) {
   const int TX = tiles_of(W), TY = tiles_of(H), NT = TX * TY;
   pool::parallel_for(NT, nthreads, 1, [&](int tb, int te) {
     for (int t = tb; t < te; ++t) {
@@ -530,7 +530,7 @@ void weights_tiles(int W, int H, const Rec* recs, const int* tile_offsets, const
         for (int x = 0; x < tw; ++x)
           for (int c = 0; c < NCW; ++c) fac[c][r * RS + x] = src[(size_t)x * NCW + c];
       }
-      composite_tile<NCW>(recs, tile_splats, j0, j1, px0, py0, tw, th, tl, &fac[0][0], pair_w);
+      composite_tile<NCW>(recs, tile_splats, tile_rects, j0, j1, px0, py0, tw, th, tl, &fac[0][0], pair_w);
     }
   });
 }
@@ -538,7 +538,7 @@ void weights_tiles(int W, int H, const Rec* recs, const int* tile_offsets, const
 
 extern "C" {
 
-int anigs_abi_version() { return 4; }
+int anigs_abi_version() { return 5; }
 
 int anigs_simd_bytes() {
 #if defined(__AVX512F__)
@@ -552,10 +552,12 @@ int anigs_simd_bytes() {
 
 // Visible splats in front-to-back order: order[0..M) = indices g with valid[g], sorted by
 // depth (feats[4g+3]) with ties in input order (stable LSD radix sort); gstart[0..M] =
-// prefix sums of the number of tiles each sorted splat touches. Returns M; *npairs =
-// gstart[M] (the number of (tile, splat) pairs).
-int anigs_sort_count(int N, const float* feats, const unsigned char* valid, const int* rects, int W, int H,
-                     int* order, int* gstart, long long* npairs) {
+// prefix sums of the number of tiles each sorted splat touches: the tiles of its box (rects
+// [N,4]) that its ellipse reaches (means2d [N,2], conics [N,3], opac [N]; cull.cpp). Returns M;
+// *npairs = gstart[M] (the number of (tile, splat) pairs).
+int anigs_sort_count(int N, const float* feats, const unsigned char* valid, const int* rects, const float* means2d,
+                     const float* conics, const float* opac, int W, int H, int* order, int* gstart,
+                     long long* npairs, int nthreads) {
   (void)W; (void)H;
   int M = 0;
   std::vector<uint32_t> key((size_t)std::max(N, 1)), key2;
@@ -592,12 +594,15 @@ int anigs_sort_count(int N, const float* feats, const unsigned char* valid, cons
     }
     if (ia != order) std::memcpy(order, ia, sizeof(int) * M);
   }
+  std::vector<int> ntiles((size_t)std::max(N, 1));  // in input order: sequential reads
+  pool::parallel_for(N, nthreads_or_max(nthreads), 1024, [&](int gb, int ge) {
+    for (int g = gb; g < ge; ++g)
+      if (valid[g]) ntiles[g] = culled_tiles(means2d + 2 * g, conics + 3 * g, opac[g], rects + 4 * g);
+  });
   long long total = 0;
   gstart[0] = 0;
   for (int m = 0; m < M; ++m) {
-    const int* r = rects + 4 * order[m];
-    const int n = (r[2] - 1) / TILE - r[0] / TILE + 1;
-    total += (long long)n * ((r[3] - 1) / TILE - r[1] / TILE + 1);
+    total += ntiles[order[m]];
     gstart[m + 1] = total > 0x7fffffffLL ? 0x7fffffff : int(total);
   }
   *npairs = total;
@@ -606,6 +611,7 @@ int anigs_sort_count(int N, const float* feats, const unsigned char* valid, cons
 
 // Forward. Packs the M sorted splats into recs [M,16] floats, bins (tile, splat) pairs by
 // tile (tile_offsets [ntiles+1], tile_splats [npairs] = sorted splat index, depth order kept;
+// tile_rects [npairs] = the pair's packed sub-rectangle of its tile (cull.cpp);
 // pair_slots [npairs] splat-major: slot of the k-th tile of sorted splat m at gstart[m]+k),
 // composites, and writes rgb [H,W,3] = acc + T bg, alpha [H,W] = 1 - T, depth [H,W] =
 // acc_depth / alpha (0 where alpha = 0), and for the backward (all null when no gradient is
@@ -614,15 +620,15 @@ int anigs_sort_count(int N, const float* feats, const unsigned char* valid, cons
 void anigs_composite_forward(int M, int W, int H, const int* order, const int* gstart,
                              const float* means2d, const float* conics, const float* feats,
                              const float* opac, const int* rects, const float* bg,
-                             float* recs_f, int* tile_offsets, int* tile_splats, int* pair_slots,
-                             float* out_rgb, float* out_alpha, float* out_depth,
+                             float* recs_f, int* tile_offsets, int* tile_splats, int32_t* tile_rects,
+                             int* pair_slots, float* out_rgb, float* out_alpha, float* out_depth,
                              float* out_T, float* out_accd, int* out_last, int nthreads) {
   Rec* recs = reinterpret_cast<Rec*>(recs_f);
   const int TX = tiles_of(W), TY = tiles_of(H), NT = TX * TY;
   nthreads = nthreads_or_max(nthreads);
   const float bgv[3] = {bg[0], bg[1], bg[2]};
   bin_splats(M, W, H, order, gstart, means2d, conics, feats, opac, rects, recs, tile_offsets, tile_splats,
-             pair_slots, nthreads);
+             tile_rects, pair_slots, nthreads);
 
   pool::parallel_for(NT, nthreads, 1, [&](int tb, int te) {
     for (int t = tb; t < te; ++t) {
@@ -635,7 +641,7 @@ void anigs_composite_forward(int M, int W, int H, const int* order, const int* g
         tl.last[i] = tl.done[i] = 0;
         for (int c = 0; c < NCH; ++c) tl.acc[c][i] = 0.f;
       }
-      composite_tile(recs, tile_splats, tile_offsets[t], tile_offsets[t + 1], px0, py0, tw, th, tl);
+      composite_tile(recs, tile_splats, tile_rects, tile_offsets[t], tile_offsets[t + 1], px0, py0, tw, th, tl);
       for (int r = 0; r < th; ++r) {
         const int k = r * RS;
         const size_t o = (size_t)(py0 + r) * W + px0;
@@ -678,15 +684,16 @@ int anigs_composite_weights(int N, int M, int W, int H, const int* order, const 
   int* tile_offsets = static_cast<int*>(std::malloc(sizeof(int) * (size_t)(NT + 1)));
   int* tile_splats = static_cast<int*>(std::malloc(sizeof(int) * std::max<size_t>(npairs, 1)));
   int* pair_slots = static_cast<int*>(std::malloc(sizeof(int) * std::max<size_t>(npairs, 1)));
+  int32_t* tile_rects = static_cast<int32_t*>(std::malloc(sizeof(int32_t) * std::max<size_t>(npairs, 1)));
   float* pair_w = static_cast<float*>(std::malloc(sizeof(float) * C * std::max<size_t>(npairs, 1)));
   int rc = -1;
-  if (recs && tile_offsets && tile_splats && pair_slots && pair_w) {
+  if (recs && tile_offsets && tile_splats && pair_slots && tile_rects && pair_w) {
     rc = 0;
     bin_splats(M, W, H, order, gstart, means2d, conics, feats, opac, rects, recs, tile_offsets, tile_splats,
-               pair_slots, nthreads);
-    if (C == 1) weights_tiles<1>(W, H, recs, tile_offsets, tile_splats, factors, pair_w, nthreads);
-    else if (C == 2) weights_tiles<2>(W, H, recs, tile_offsets, tile_splats, factors, pair_w, nthreads);
-    else weights_tiles<3>(W, H, recs, tile_offsets, tile_splats, factors, pair_w, nthreads);
+               tile_rects, pair_slots, nthreads);
+    if (C == 1) weights_tiles<1>(W, H, recs, tile_offsets, tile_splats, tile_rects, factors, pair_w, nthreads);
+    else if (C == 2) weights_tiles<2>(W, H, recs, tile_offsets, tile_splats, tile_rects, factors, pair_w, nthreads);
+    else weights_tiles<3>(W, H, recs, tile_offsets, tile_splats, tile_rects, factors, pair_w, nthreads);
     std::memset(out, 0, sizeof(double) * C * (size_t)N);  // splats not drawn
     pool::parallel_for(M, nthreads, 1024, [&](int mb, int me) {
       for (int m = mb; m < me; ++m) {
@@ -700,7 +707,8 @@ int anigs_composite_weights(int N, int M, int W, int H, const int* order, const 
       }
     });
   }
-  std::free(recs); std::free(tile_offsets); std::free(tile_splats); std::free(pair_slots); std::free(pair_w);
+  std::free(recs); std::free(tile_offsets); std::free(tile_splats); std::free(pair_slots); std::free(tile_rects);
+  std::free(pair_w);
   return rc;
 }
 
@@ -709,7 +717,8 @@ int anigs_composite_weights(int N, int M, int W, int H, const int* order, const 
 // (zero for splats that are not visible, valid[g] = 0).
 void anigs_composite_backward(int N, int M, int W, int H, const int* order, const int* gstart,
                               const unsigned char* valid, const float* recs_f, const int* tile_offsets,
-                              const int* tile_splats, const int* pair_slots, const float* bg,
+                              const int* tile_splats, const int32_t* tile_rects, const int* pair_slots,
+                              const float* bg,
                               const float* out_T, const float* out_accd, const int* out_last,
                               const float* g_rgb, const float* g_alpha, const float* g_depth,
                               const long long* gstrides, float* g_means2d, float* g_conics, float* g_feats,
@@ -773,7 +782,7 @@ void anigs_composite_backward(int N, int M, int W, int H, const int* order, cons
         float* row = pair_grads + (size_t)j * D;
         int bx0, by0, bx1, by1;
         std::memset(row, 0, sizeof(float) * D);
-        if (!overlap(s, px0, py0, tw, th, bx0, by0, bx1, by1)) {
+        if (!unpack_rect(tile_rects[j], px0, py0, bx0, by0, bx1, by1)) {
         } else if (WIDE16 && bx1 - bx0 > 8) {
           if (g_depth) backward_pair<16, 4>(s, px0, 0, bx0, bx1, by0, by1, py0, jl, tl, row);
           else backward_pair<16, 3>(s, px0, 0, bx0, bx1, by0, by1, py0, jl, tl, row);
