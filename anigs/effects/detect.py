@@ -189,7 +189,7 @@ def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground:
     new, cands, fragments = check_candidates(means, colours, region_of, height, cam_h or 1.0, radius, cfg, flat,
                                              above_cameras=means @ up > cam_top)
     for name, count in fragments.items():
-        log.info("effects: %d %s Gaussians in parts under %d Gaussians set aside by the rules", count, name,
+        log.info("effects: %d %s Gaussians in parts under %d Gaussians or on no plant (islands) set aside by the rules", count, name,
                  cfg.min_candidate)
     changed = [c for c in cands if not c.kept or c.moved_to]
     for p in maps:
