@@ -101,7 +101,7 @@ rule tradeoff:
         cmd=lambda wc: stage_command(
             "tradeoff",
             results=R,
-            points=_tradeoff_points(wc),
+            points=points_json(TRADEOFF),
             out=stage_out("tradeoff"),
             plot_metrics=list(config.get("tradeoff", {}).get("plot_metrics", [])),
         ),

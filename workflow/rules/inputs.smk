@@ -56,15 +56,6 @@ def _tradeoff_metrics(wc):
     ]
 
 
-def _tradeoff_points(wc):
-    return json.dumps(
-        {
-            s: [{"variant": p.variant, "knob": p.knob, "value": p.value, "scene_tag": p.scene_tag} for p in TRADEOFF[s]]
-            for s in SCENES
-        }
-    )
-
-
 def _tradeoff_plots():
     plot = report  # (a line starting with `report(` would parse as the rule keyword)
     knobs = [k for k, v in config.get("tradeoff", {}).get("knobs", {}).items() if v]
