@@ -6,7 +6,9 @@ import json
 import re
 
 from anigs.config import scene_pattern, with_globals
+from anigs.contract import FINAL_FILES, final_targets, stage_outputs
 from anigs.reports.tradeoff import points_json, workflow_sweep
+from anigs.stages.eval import Outputs as EvalOutputs, merge_halves
 from anigs.stages.shared_inputs import GroundTruthInputs, ground_truth
 
 
@@ -45,3 +47,22 @@ def test_ground_truth_fills_the_ground_truth_inputs_from_the_capture_folder():
     names = {f for f in GroundTruthInputs.__dataclass_fields__} - {"canonical"}
     assert set(gt) == names
     assert gt["labels"] == "res/demo/capture/gt/labels.npy" and gt["gt_cameras"] == "res/demo/capture/gt/cameras.json"
+
+
+def test_the_eval_rules_merge_joins_the_halves_and_notes_it(tmp_path):
+    out = EvalOutputs(tmp_path / "eval")
+    out.root.mkdir()
+    rec = {"scene": "demo", "variant": "full", "method": "anigs", "dataset": "synthetic", "inputs": {}}
+    out.path("clip_metrics").write_text(json.dumps({**rec, "part": "clips", "metrics": {"fvd": 1.0}}))
+    out.path("model_metrics").write_text(json.dumps({**rec, "part": "model", "metrics": {"psnr": 30.0}}))
+    log = tmp_path / "eval.log"
+    merge_halves(str(out.path("metrics")), "c.json", "m.json", [], str(log))
+    assert json.loads(out.path("metrics").read_text())["metrics"] == {"fvd": 1.0, "psnr": 30.0}
+    assert log.read_text() == f"merged c.json, m.json and 0 FVD-GT record(s) into {out.path('metrics')}\n"
+
+
+def test_the_default_target_asks_for_each_variants_final_files_then_the_effects_report():
+    files = final_targets("res", ["a", "b"], ["full", "x"])
+    assert len(files) == 2 * (2 * len(FINAL_FILES) + 1)
+    assert files[:len(FINAL_FILES)] == [stage_outputs(st).under("res", k, scene="a", variant="full") for st, k in FINAL_FILES]
+    assert files[2 * len(FINAL_FILES)] == "res/a/effects/effects.json" and files[-1] == "res/b/effects/effects.json"

@@ -12,7 +12,7 @@ rule render_clip:
     input:
         ply=stage_file("static", "canonical"),
         views=stage_file("views", "views"),
-        model=_render_model,
+        model=round_files("render_model"),
     output:
         stage_out("render_clip", "clip"),
     log:
@@ -82,11 +82,11 @@ rule round:
     input:
         ply=stage_file("static", "canonical"),
         views=stage_file("views", "views"),
-        model=_render_model,
+        model=round_files("render_model"),
         masks=stage_folder("masks"),
         effects=_effects_json,
-        earlier=_earlier_targets,
-        init=_init_model,
+        earlier=round_files("earlier_targets"),
+        init=round_files("init_model"),
     output:
         render=directory(stage_out("render_clip", "clips")),
         target=directory(stage_out("refine", "targets")),
@@ -146,8 +146,8 @@ rule update:
         ply=stage_file("static", "canonical"),
         views=stage_file("views", "views"),
         masks=stage_folder("masks"),
-        targets=_targets,
-        init=_init_model,
+        targets=round_files("targets"),
+        init=round_files("init_model"),
     output:
         model=stage_out("update", "model"),
         log_json=stage_out("update", "log"),

@@ -6,9 +6,9 @@ import anigs
 import yaml
 
 from anigs.config import scene_pattern, section, with_globals, workflow_scenes
-from anigs.contract import stage_outputs
+from anigs.contract import final_targets, stage_outputs
 from anigs.stages.command import stage_command
-from anigs.stages.eval import Outputs as EvalOutputs, merge_parts, table_row
+from anigs.stages.eval import merge_halves, table_row
 from anigs.stages.refine import listed_effects
 from anigs.stages.round_files import RoundFiles
 from anigs.stages.shared_inputs import ground_truth
@@ -95,20 +95,6 @@ def wants_gpu(scene, variant="full"):
     return int(dev.startswith("cuda") or sec(scene, "refine", variant)["prior"] == "ltx")
 
 
-def final_targets():
-    out = []
-    for s in SCENES:
-        for v in config["variants"]:
-            out += [
-                stage_out("final", "summary", scene=s, variant=v),
-                stage_out("export", "sidecar", scene=s, variant=v),
-                stage_out("eval", "metrics", scene=s, variant=v),
-                stage_out("view", scene=s, variant=v),
-            ]
-        out.append(stage_out("effects", "effects", scene=s))
-    return out
-
-
 # GPU-only settings on a machine without a GPU fail here, before any job starts (local runs).
 if workflow.local_exec and str(config["device"]).startswith("cuda"):
     import torch
@@ -162,20 +148,10 @@ def rounds(scene, variant):
     return RoundFiles(plan(scene, variant), R, scene, variant, ROUND_JOBS == "round")
 
 
-def _render_model(wc):
-    return rounds(wc.scene, wc.variant).render_model(int(wc.round))
-
-
-def _targets(wc):
-    return rounds(wc.scene, wc.variant).targets(int(wc.round))
-
-
-def _earlier_targets(wc):
-    return rounds(wc.scene, wc.variant).earlier_targets(int(wc.round))
-
-
-def _init_model(wc):
-    return rounds(wc.scene, wc.variant).init_model(int(wc.round))
+def round_files(name):
+    """Input function: the job's round's files ``name`` (a RoundFiles method: render_model,
+    targets, earlier_targets, init_model)."""
+    return lambda wc: getattr(rounds(wc.scene, wc.variant), name)(int(wc.round))
 
 
 def _update_extra(wc):

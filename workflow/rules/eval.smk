@@ -58,7 +58,7 @@ rule eval:
     params:
         version=ANIGS_VERSION,
     run:
-        merge_eval_halves(output[0], input, log[0])
+        merge_halves(output[0], input.clips, input.model, input.fvd_gt, log[0])
 
 
 rule tables:

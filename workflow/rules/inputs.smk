@@ -73,11 +73,3 @@ def _tradeoff_plots():
 def _study_variants():
     """The compared variants of the 2AFC study: the baselines among table_variants (paper Table 4)."""
     return [v for v in config["table_variants"] if v != "full" and method_of(next(iter(SCENES)), v) != "anigs"]
-
-
-def merge_eval_halves(metrics, input, log):
-    """The eval rule's job (in Snakemake: a JSON merge, no process start-up): ``metrics`` (the merged file)
-    from the clips and model halves beside it and the FVD-GT records of ``input.fvd_gt``."""
-    merge_parts(EvalOutputs(os.path.dirname(metrics)), extra=list(input.fvd_gt))
-    with open(log, "w") as f:
-        f.write(f"merged {input.clips}, {input.model} and {len(input.fvd_gt)} FVD-GT record(s) into {metrics}\n")
