@@ -28,6 +28,10 @@ class RoundFiles:
         """The model file round r's update writes."""
         return stage_outputs("update").under(self.results, "model", scene=self.scene, variant=self.variant, round=r)
 
+    def final_model(self) -> str:
+        """The last round's model (what the final stages use when the scene moves)."""
+        return self.model(self.plan.num_rounds)
+
     def render_model(self, r: int) -> list[str]:
         """The model that renders round r's clips; none when the static canonical model does (round 0)."""
         m = self.plan.render_model_round(r)

@@ -18,6 +18,7 @@ def test_folders_and_models_follow_the_update_stage_layout():
     assert rf.model(2) == str(UpdateOutputs(rf.folder(2)).path("model"))
     assert rf.render_model(1) == [] and rf.render_model(3) == [rf.model(2)]
     assert rf.init_model(1) == [] and rf.init_model(2) == [rf.model(1)]
+    assert rf.final_model() == rf.model(3)
 
 
 def test_without_dataset_update_each_target_comes_from_its_first_round():

@@ -9,11 +9,13 @@ from anigs.config import scene_pattern, section, with_globals, workflow_scenes
 from anigs.contract import final_targets, stage_outputs
 from anigs.stages.command import stage_command
 from anigs.stages.eval import merge_halves, table_row
+from anigs.stages.fvd_gt import wanted as fvd_gt_runs
 from anigs.stages.refine import listed_effects
 from anigs.stages.round_files import RoundFiles
+from anigs.stages.tradeoff import plot_files, swept_knobs
 from anigs.stages.shared_inputs import ground_truth
-from anigs.stages.update import baseline_params, round_seed, still_reason
-from anigs.reports.tradeoff import DERIVED_SEP, knob_filename, points_json, stage_owner, workflow_sweep
+from anigs.animate.round_policy import baseline_fields, round_seed, still_reason
+from anigs.reports.tradeoff import DERIVED_SEP, points_json, stage_owner, workflow_sweep
 from anigs.animate.config import METHODS, AnimateConfig
 from anigs.views.queue import queued_view_count
 
@@ -97,13 +99,9 @@ def wants_gpu(scene, variant="full"):
 
 # GPU-only settings on a machine without a GPU fail here, before any job starts (local runs).
 if workflow.local_exec and str(config["device"]).startswith("cuda"):
-    import torch
+    from anigs.device import check_workflow_device  # (imports torch: only when a GPU is asked for)
 
-    if not torch.cuda.is_available():
-        raise ValueError(
-            f"config: device is {config['device']!r} but this machine has no CUDA device; "
-            "use device: auto (or cpu), or submit to a GPU cluster with --profile workflow/profiles/slurm"
-        )
+    check_workflow_device(config["device"])
 
 
 # ---- input/param helpers of the stage rules ----
@@ -171,7 +169,6 @@ def update_command(wc, input):
     """Round r's model update: trains on one target clip per view of its dataset; the update stage
     decides from --round/--rounds whether it contains the motion (update.contain_rounds)."""
     rf, r = rounds(wc.scene, wc.variant), int(wc.round)
-    baseline = baseline_params(sec(wc.scene, "animate", wc.variant), sec(wc.scene, "update", wc.variant))
     return stage_command(
         "update",
         jparams("update", _update_extra)(wc),
@@ -183,17 +180,15 @@ def update_command(wc, input):
         views=stage_dir(wc.scene, "views"),
         round=r,
         rounds=rf.plan.num_rounds,
-        method=method_of(wc.scene, wc.variant) if baseline else None,
-        method_params=json.dumps(baseline, sort_keys=True) if baseline else None,
+        **baseline_fields(sec(wc.scene, "animate", wc.variant), sec(wc.scene, "update", wc.variant)),
     )
 
 
 def _chosen_effects(scene):
     """The effects the effects stage chose for ``scene`` (read once that checkpoint has run: the DAG
     below it depends on what the scene contains)."""
-    path = checkpoints.effects.get(scene=stage_owner(scene, "effects")).output.effects
-    with open(path) as f:
-        return json.load(f)
+    checkpoints.effects.get(scene=stage_owner(scene, "effects"))  # (raises until that job has run)
+    return stage_outputs("effects")(stage_dir(scene, "effects")).json("effects")
 
 
 def animates(scene):
@@ -208,9 +203,7 @@ def still_model(scene="{scene}", variant="{variant}"):
 
 def final_model_of(scene, variant):
     """The model the final stages use: the last round's, or the still model when nothing moves."""
-    if not animates(scene):
-        return still_model(scene, variant)
-    return rounds(scene, variant).model(plan(scene, variant).num_rounds)
+    return rounds(scene, variant).final_model() if animates(scene) else still_model(scene, variant)
 
 
 def final_model(wc):
@@ -222,23 +215,13 @@ def _still_reason(wc):
 
 
 def _table_row(wc):
-    """(method, variant) of the variant's table row (anigs.stages.eval.table_row)."""
-    return table_row(method_of(wc.scene, wc.variant), wc.variant)
+    """The variant's table row (anigs.stages.eval.table_row) as the ``--method --variant`` fields."""
+    return dict(zip(("method", "variant"), table_row(method_of(wc.scene, wc.variant), wc.variant)))
 
 
 def eval_command(wc, part, **inputs):
-    method, variant = _table_row(wc)
     params = jparams("eval", with_device_seed)(wc)
-    return stage_command(
-        "eval",
-        params,
-        out=job_out("eval", wc),
-        scene=wc.scene,
-        method=method,
-        variant=variant,
-        part=part,
-        **inputs,
-    )
+    return stage_command("eval", params, out=job_out("eval", wc), scene=wc.scene, part=part, **_table_row(wc), **inputs)
 
 
 # ---- accuracy versus time: the sweep's points are variants, or derived scenes for per-scene
@@ -248,7 +231,7 @@ TRADEOFF = workflow_sweep(config, SCENES, ALL_SCENES, sec)  # scene -> [SweepPoi
 
 def tradeoff_points():
     """Every scene's sweep points (`snakemake tradeoff`); an empty sweep is an error naming the key."""
-    if not any(v for v in config.get("tradeoff", {}).get("knobs", {}).values()):
+    if not swept_knobs(config.get("tradeoff", {})):
         raise ValueError("config: tradeoff.knobs is empty; name the knobs to sweep (see config/README.md)")
     return TRADEOFF
 

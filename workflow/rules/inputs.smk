@@ -13,9 +13,8 @@ def _roi_inputs(wc):
 
 
 def fvd_gt_wanted(scene, variant="full", target="tables"):
-    """Whether FVD-GT runs for (scene, variant) when ``target`` (tables | eval) is built."""
-    when = sec(scene, "fvd_gt", variant)["when"]
-    return is_synthetic(scene) and (when == "always" or (when == "tables" and target == "tables"))
+    """Whether FVD-GT runs for (scene, variant) when ``target`` (tables | eval) is built (fvd_gt.wanted)."""
+    return fvd_gt_runs(is_synthetic(scene), sec(scene, "fvd_gt", variant)["when"], target)
 
 
 def _fvd_gt_eval_input(wc):
@@ -58,16 +57,8 @@ def _tradeoff_metrics(wc):
 
 def _tradeoff_plots():
     plot = report  # (a line starting with `report(` would parse as the rule keyword)
-    knobs = [k for k, v in config.get("tradeoff", {}).get("knobs", {}).items() if v]
-    return [
-        plot(
-            stage_out("tradeoff", "plot", scene=s, knob=knob_filename(k)),
-            caption="../report/tradeoff.rst",
-            category="Accuracy versus time",
-        )
-        for s in SCENES
-        for k in knobs
-    ]
+    files = plot_files(R, list(SCENES), swept_knobs(config.get("tradeoff", {})))
+    return [plot(f, caption="../report/tradeoff.rst", category="Accuracy versus time") for f in files]
 
 
 def _study_variants():
