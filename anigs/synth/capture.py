@@ -38,7 +38,7 @@ import torch
 
 from anigs.typed_config import check_in, from_dict
 from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
-from anigs.io import Layout, atomic_path, write_json
+from anigs.io import StageFolder, atomic_path, write_json
 from anigs.render import render_gaussians
 from anigs.synth.motion import MotionParams, motion_tables
 from anigs.synth.build import build_scene
@@ -263,7 +263,7 @@ def _save_npy(path: Path, arr: np.ndarray) -> None:
             np.save(fh, arr)
 
 
-def write_capture(cfg: SynthConfig | None, out: Layout) -> dict:
+def write_capture(cfg: SynthConfig | None, out: StageFolder) -> dict:
     """Build the scene, render the capture at t=0 and write images + ground truth (see module doc).
 
     Returns a summary dict (counts, timing, image names).
