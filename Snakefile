@@ -41,7 +41,7 @@ localrules:
 rule all:
     default_target: True
     input:
-        final_targets(),
+        final_targets(R, list(SCENES), config["variants"]),
 
 
 rule animate:

@@ -161,3 +161,21 @@ def workflow_scenes(config: dict, schema: dict, basedir: str | Path, reserved: s
             raise ValueError(f"config: variant {v!r} is not defined under variant_overrides "
                              f"(defined: {sorted(config['variant_overrides'])})")
     return scenes
+
+
+def with_globals(section_dict: dict, globals_: dict) -> dict:
+    """The section with the workflow's global settings (device, seed, ...) filled in. A section's own
+    explicit device (anything but auto) wins over the global one, so ``static: {device: cpu}`` in a
+    scene file is kept rather than silently replaced."""
+    out = {**section_dict, **globals_}
+    own = section_dict.get("device")
+    if "device" in globals_ and own not in (None, "auto"):
+        out["device"] = own
+    return out
+
+
+def scene_pattern(scenes: dict[str, dict], source: str) -> str:
+    """A regular expression matching exactly the names of the ``scenes`` of ``source`` (synthetic |
+    photos): a rule's ``scene`` wildcard constraint; one that never matches when there is none."""
+    names = [re.escape(n) for n, s in scenes.items() if s["source"] == source]
+    return "|".join(names) if names else "(?!x)x"

@@ -178,6 +178,20 @@ def stage_outputs(stage: str, kind: str = "Outputs") -> type[Outputs]:
     return getattr(importlib.import_module(stage if "." in stage else f"anigs.stages.{stage}"), kind)
 
 
+# the files `snakemake` (the default target) asks for of each variant, by stage and key (None: the folder)
+FINAL_FILES = (("final", "summary"), ("export", "sidecar"), ("eval", "metrics"), ("view", None))
+
+
+def final_targets(results: str, scenes: list[str], variants: list[str]) -> list[str]:
+    """What the default target builds under ``results``: each scene's variants' :data:`FINAL_FILES`,
+    then the scene's effects report (the effects stage's choice, which a still scene shows too)."""
+    out = []
+    for s in scenes:
+        out += [stage_outputs(st).under(results, k, scene=s, variant=v) for v in variants for st, k in FINAL_FILES]
+        out.append(stage_outputs("effects").under(results, "effects", scene=s))
+    return out
+
+
 def scope_folder(stage: str) -> str:
     """The default folder of a stage's files under the results root, from its scope in the registry:
     ``{scene}/<name>`` (scene), ``{scene}/{variant}/<name>`` (variant), ``<name>`` (global)."""

@@ -26,3 +26,11 @@ def seed_everything(seed: int) -> torch.Generator:
     torch.manual_seed(seed)
     os.environ.setdefault("PYTHONHASHSEED", str(seed))
     return torch.Generator().manual_seed(seed)
+
+
+def check_workflow_device(device: str) -> None:
+    """The workflow's global ``device``: a cuda setting on a machine without a CUDA device fails when the
+    workflow is parsed, before any job starts, naming what to use instead."""
+    if str(device).startswith("cuda") and not torch.cuda.is_available():
+        raise ValueError(f"config: device is {device!r} but this machine has no CUDA device; use device: auto "
+                         "(or cpu), or submit to a GPU cluster with --profile workflow/profiles/slurm")

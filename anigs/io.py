@@ -1,7 +1,7 @@
 """Atomic artifact writes: write to a temporary name in the same folder, then rename.
 
 An interrupted job therefore never leaves a half-written artifact under its final name.
-A library writer that fills a stage's folder takes it as a :class:`Layout` (the stage's ``Outputs``),
+A library writer that fills a stage's folder takes it as a :class:`StageFolder` (the stage's ``Outputs``),
 so the file names stay with the stage.
 """
 from __future__ import annotations
@@ -16,7 +16,7 @@ from typing import Any, Iterator, Protocol
 import numpy as np
 
 
-class Layout(Protocol):
+class StageFolder(Protocol):
     """A stage's output folder as a library writer sees it (:class:`anigs.contract.Outputs`):
     its ``root`` and ``path(key, **fields)`` of each file; the names are the stage's."""
 

@@ -94,3 +94,10 @@ def _typed(ref: Any, value: Any, where: str) -> Any:
     if not ok:
         raise ValueError(f"{where}: expected {type(ref).__name__} like {ref!r}, got {value!r}")
     return value
+
+
+def check_in(name: str, value: float, lo: float, hi: float) -> None:
+    """A ``ValueError`` naming the setting (``capture.fov_deg must be in [20, 120], got 10``) when
+    ``value`` lies outside ``[lo, hi]``."""
+    if not lo <= value <= hi:
+        raise ValueError(f"{name} must be in [{lo}, {hi}], got {value}")

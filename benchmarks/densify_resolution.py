@@ -32,12 +32,9 @@ class _Grab(logging.Handler):
 
 
 def main() -> None:
-    import torch
-    import torch.nn.functional as F
+    from _scaled_capture import load_sfm_capture, scaled_view
 
-    from anigs.images import load_inputs
     from anigs.sfm.model import load_points
-    from anigs.stages.sfm import Outputs as SfmOutputs
     from anigs.static.densify import DensifyConfig
     from anigs.static.fit import FitConfig, fit_static
 
@@ -46,11 +43,7 @@ def main() -> None:
     ap.add_argument("--scales", default="1.0,0.5")
     ap.add_argument("--steps", type=int, default=600)
     ap.add_argument("--threshold", type=float, default=0.0002)
-    ap.add_argument("--threads", type=int, default=2)
-    args = ap.parse_args()
-    torch.set_num_threads(args.threads)
-    sfm = SfmOutputs(args.sfm)
-    imgs, cams = load_inputs(sfm.path("images"), sfm.path("cameras"))
+    args, sfm, imgs, cams = load_sfm_capture(ap)
     pts, cols = load_points(sfm.path("points"))
     grab = _Grab()
     lg = logging.getLogger("anigs.static.densify")
@@ -62,10 +55,9 @@ def main() -> None:
     for scale in [float(s) for s in args.scales.split(",")]:
         s_imgs, s_cams = [], []
         for im, c in zip(imgs, cams):
-            w, h = max(1, round(c.width * scale)), max(1, round(c.height * scale))
-            x = F.interpolate(im.permute(2, 0, 1)[None].float(), size=(h, w), mode="area")[0].permute(1, 2, 0)
+            x, cs = scaled_view(im, c, scale)
             s_imgs.append(x.clamp(0, 1))
-            s_cams.append(c.scaled(w, h))
+            s_cams.append(cs)
         grab.rows.clear()
         cfg = FitConfig(iterations=args.steps, eval_every=0, plateau_db=0.0,
                         densify=DensifyConfig(start=300, every=100, stop=args.steps, stop_fraction=1.0,

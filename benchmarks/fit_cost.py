@@ -31,11 +31,9 @@ def _timed(fn):
 def main() -> None:
     import numpy as np
     import torch
-    import torch.nn.functional as F
+    from _scaled_capture import load_sfm_capture, scaled_view
 
     from anigs.gaussians import load_ply
-    from anigs.images import load_inputs
-    from anigs.stages.sfm import Outputs as SfmOutputs
     from anigs.static.densify import DensifyState, update_state
     from anigs.static.evaluate import _render, loss_fn
     from anigs.static.init import _to_params, make_optimizer
@@ -46,11 +44,7 @@ def main() -> None:
     ap.add_argument("--scales", default="0.25,0.5,0.75,1.0")
     ap.add_argument("--gaussians", default="0")
     ap.add_argument("--reps", type=int, default=12)
-    ap.add_argument("--threads", type=int, default=2)
-    args = ap.parse_args()
-    torch.set_num_threads(args.threads)
-    sfm = SfmOutputs(args.sfm)
-    imgs, cams = load_inputs(sfm.path("images"), sfm.path("cameras"))
+    args, _, imgs, cams = load_sfm_capture(ap)
     base = load_ply(args.ply)
     gen = torch.Generator().manual_seed(0)
     rows = []
@@ -67,9 +61,7 @@ def main() -> None:
             opt = make_optimizer(params, {k: 1e-4 for k in params})
             views = []
             for im, c in list(zip(imgs, cams))[: args.reps]:
-                w, h = max(8, round(c.width * scale)), max(8, round(c.height * scale))
-                x = F.interpolate(im.permute(2, 0, 1)[None].float(), size=(h, w), mode="area")[0].permute(1, 2, 0)
-                cs = c.scaled(w, h)
+                x, cs = scaled_view(im, c, scale, min_side=8)
                 views.append((x.contiguous(), cs, (cs.torch_viewmat(), cs.torch_K())))
             parts = {k: [] for k in ("step", "step_cpu", "render", "loss", "backward", "stats", "adam")}
             state = DensifyState.empty(g.num)

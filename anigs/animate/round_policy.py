@@ -3,6 +3,7 @@ here): whether it contains the motion (:func:`contains`), its seed (:func:`round
 variant's fit config (:func:`baseline_params`) and why nothing moves (:func:`still_reason`)."""
 from __future__ import annotations
 
+import json
 from typing import Any
 
 from anigs.animate.config import UpdateConfig
@@ -23,6 +24,13 @@ def baseline_params(animate: dict[str, Any], update: dict[str, Any]) -> dict[str
     """A baseline variant's fit config (``animate.<method>`` with the update's ``num_bases``); None for ours."""
     m = animate["method"]
     return None if m == "anigs" else {"num_bases": update["num_bases"], **animate[m]}
+
+
+def baseline_fields(animate: dict[str, Any], update: dict[str, Any]) -> dict[str, str]:
+    """A baseline variant's update-stage fields (``--method --method-params``: :func:`baseline_params`
+    as canonical JSON); none for ours."""
+    p = baseline_params(animate, update)
+    return {} if p is None else {"method": animate["method"], "method_params": json.dumps(p, sort_keys=True)}
 
 
 def still_reason(effects: dict[str, Any]) -> str:

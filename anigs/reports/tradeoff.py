@@ -29,7 +29,7 @@ import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -168,6 +168,33 @@ def sweep_points(knobs: dict[str, list], base: str, variant_overrides: dict[str,
                 points.append(SweepPoint(base, knob, v, base_ov, scene_tag=DERIVED_SEP + variant_name(knob, v),
                                          scene_overrides={section: _knob_value(v, key)}))
     return points
+
+
+def workflow_sweep(config: dict, scenes: dict[str, dict], all_scenes: dict[str, dict],
+                   section_of: Callable[[str, str, str], dict]) -> dict[str, list[SweepPoint]]:
+    """Every scene's sweep points (scene -> points) of the workflow ``config``'s ``tradeoff`` section.
+
+    Each point's variant is added to ``config["variant_overrides"]`` and each derived scene to
+    ``all_scenes``, in place, so the workflow's jobs read them as any other; ``section_of(scene,
+    name, variant)`` is the effective config section (it sees the points added so far).
+    """
+    to = config.get("tradeoff", {})
+    out: dict[str, list[SweepPoint]] = {}
+    for s in scenes:
+        base = to.get("base", "full")
+        out[s] = sweep_points(to.get("knobs", {}), base, config["variant_overrides"],
+                              lambda knob, s=s: get_dotted(section_of(s, knob.split(".")[0], base), knob.split(".")[1:]))
+        for p in out[s]:
+            config["variant_overrides"].setdefault(p.variant, p.overrides)
+            if p.scene_tag:
+                all_scenes[p.scene(s)] = deep_merge(scenes[s], p.scene_overrides)
+    return out
+
+
+def points_json(sweep: dict[str, list[SweepPoint]]) -> str:
+    """The sweep's points as JSON (scene -> [{variant, knob, value, scene_tag}]: the report's ``--points``)."""
+    return json.dumps({s: [{"variant": p.variant, "knob": p.knob, "value": p.value, "scene_tag": p.scene_tag}
+                           for p in pts] for s, pts in sweep.items()})
 
 
 def point_benchmarks(results: str | Path, scene: str, variant: str) -> tuple[list[Path], list[Path]]:

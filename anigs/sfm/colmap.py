@@ -66,7 +66,7 @@ import numpy as np
 
 from anigs.sfm.align import pose_errors, umeyama, upright_similarity
 from anigs.cameras import Camera, load_cameras, save_cameras
-from anigs.io import Layout, write_json, write_npz
+from anigs.io import StageFolder, write_json, write_npz
 from anigs.photos import check_images, image_headers, list_images, report_unreadable, require_min_images
 from anigs.sfm.config import MAPPERS, MATCHERS, UNDISTORTED_MODELS, SfmConfig
 from anigs.sfm.escalate import Source, SfmError, map_escalating, rescale_model
@@ -114,7 +114,7 @@ def resolve_config(cfg: SfmConfig, cli_threads: int | None = None) -> tuple[SfmC
 
 # ---- the stage -----------------------------------------------------------------------------------
 
-def run_sfm(image_dir: str | Path, out: Layout, cfg: SfmConfig | None = None,
+def run_sfm(image_dir: str | Path, out: StageFolder, cfg: SfmConfig | None = None,
             gt_cameras: str | Path | None = None, model_dir: str | Path | None = None,
             keep_work: bool = False, threads: int | None = None, originals: str | Path | None = None) -> SfmResult:
     """Run the whole stage; see the module docstring for steps, failures and outputs.

@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import logging
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -123,6 +124,14 @@ def merge_parts(out: Outputs, extra: list[str | Path] | None = None) -> dict:
     """``metrics.json`` of ``out`` from its clips and model halves (and ``extra`` records, e.g. FVD-GT's)."""
 
     return merge_records(out.path("clip_metrics"), out.path("model_metrics"), out.path("metrics"), extra)
+
+
+def merge_halves(metrics: str, clips: str, model: str, fvd_gt: list[str], log: str) -> None:
+    """The eval rule's job (in Snakemake: a JSON merge, no process start-up): ``metrics`` (the merged
+    file) from the ``clips`` and ``model`` halves beside it and the FVD-GT records, noted in ``log``."""
+    merge_parts(Outputs(os.path.dirname(metrics)), extra=list(fvd_gt))
+    with open(log, "w") as f:
+        f.write(f"merged {clips}, {model} and {len(fvd_gt)} FVD-GT record(s) into {metrics}\n")
 
 
 # ---- command line: anigs eval ----

@@ -123,3 +123,9 @@ def write_record(inputs: Inputs, cfg: FvdGtConfig, ecfg) -> Outputs:
              f"{m['value']:.2f} ± {m['bootstrap']['std']:.2f} ({m['samples']['test']} clips)" if m["available"]
              else f"n/a ({m['reason']})")
     return out
+
+
+def wanted(synthetic: bool, when: str, target: str) -> bool:
+    """Whether FVD-GT runs for a variant when the workflow builds ``target`` (tables | eval): only on a
+    synthetic scene (it needs the ground-truth motion), with ``fvd_gt.when`` always, or tables for the tables."""
+    return synthetic and (when == "always" or (when == "tables" and target == "tables"))

@@ -33,6 +33,16 @@ class GroundTruthInputs(CanonicalInputs):
                                                 "--cameras to align the frames (default: same frame)")
 
 
+# the GroundTruthInputs fields and the capture stage's files that fill them
+GT_FILES = {"labels": "gt_labels", "motion": "gt_motion", "gt_gaussians": "gt_gaussians", "gt_cameras": "gt_cameras"}
+
+
+def ground_truth(results: str, scene: str) -> dict[str, str]:
+    """Synthetic ``scene``'s capture files under the results root as :class:`GroundTruthInputs` fields
+    (``--labels --motion --gt-gaussians --gt-cameras``: what the views and masks stages compare with)."""
+    return {f: CaptureOutputs.under(results, key, scene=scene) for f, key in GT_FILES.items()}
+
+
 def _row(default: str | None, what: str):
     return field(default=default, kw_only=True, metadata={"help": what})
 

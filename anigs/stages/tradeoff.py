@@ -92,3 +92,13 @@ def report(scene: str, points: list, results: str | Path, out: Outputs, plot_met
     for line in front_section(rows, fronts, directions, plot_metrics).splitlines():
         log.info("tradeoff: %s", line)
     return csv
+
+
+def swept_knobs(tradeoff: dict) -> list[str]:
+    """The knobs the config's ``tradeoff`` section sweeps (a null or empty value list drops one)."""
+    return [k for k, v in tradeoff.get("knobs", {}).items() if v]
+
+
+def plot_files(results: str, scenes: list[str], knobs: list[str]) -> list[str]:
+    """The report's plots under the results root: one per scene and swept knob, scene by scene."""
+    return [Outputs.under(results, "plot", scene=s, knob=knob_filename(k)) for s in scenes for k in knobs]

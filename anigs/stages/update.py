@@ -19,7 +19,7 @@ import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from anigs.animate.round_policy import baseline_params, contains, round_seed, still_reason  # noqa: F401 (the rules')
+from anigs.animate.round_policy import contains
 from anigs.animate.config import UpdateConfig
 from anigs import contract
 from anigs.stages.command import parse_params

@@ -36,9 +36,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from anigs.typed_config import from_dict
+from anigs.typed_config import check_in, from_dict
 from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
-from anigs.io import Layout, atomic_path, write_json
+from anigs.io import StageFolder, atomic_path, write_json
 from anigs.render import render_gaussians
 from anigs.synth.motion import MotionParams, motion_tables
 from anigs.synth.build import build_scene
@@ -74,16 +74,12 @@ class CaptureConfig:
             raise ValueError(f"capture.layout must be one of {CAPTURE_LAYOUTS}, got {self.layout!r}")
         if self.roll not in CAPTURE_ROLLS:
             raise ValueError(f"capture.roll must be one of {CAPTURE_ROLLS}, got {self.roll!r}")
-        if not 3 <= self.num_images <= 1000:
-            raise ValueError(f"capture.num_images must be in [3, 1000], got {self.num_images}")
+        check_in("capture.num_images", self.num_images, 3, 1000)
         if self.width < 16 or self.height < 16:
             raise ValueError(f"capture image size must be >= 16x16, got {self.width}x{self.height}")
-        if not 20 <= self.fov_deg <= 120:
-            raise ValueError(f"capture.fov_deg must be in [20, 120], got {self.fov_deg}")
-        if not 0.5 <= self.eye_height <= 3.0:
-            raise ValueError(f"capture.eye_height must be in [0.5, 3], got {self.eye_height}")
-        if not 0 <= self.walk_fraction <= 0.6:
-            raise ValueError(f"capture.walk_fraction must be in [0, 0.6], got {self.walk_fraction}")
+        check_in("capture.fov_deg", self.fov_deg, 20, 120)
+        check_in("capture.eye_height", self.eye_height, 0.5, 3)
+        check_in("capture.walk_fraction", self.walk_fraction, 0, 0.6)
         if self.pos_jitter < 0 or self.rot_jitter_deg < 0:
             raise ValueError("capture.pos_jitter and capture.rot_jitter_deg must be >= 0")
         self.background = tuple(float(v) for v in self.background)
@@ -267,7 +263,7 @@ def _save_npy(path: Path, arr: np.ndarray) -> None:
             np.save(fh, arr)
 
 
-def write_capture(cfg: SynthConfig | None, out: Layout) -> dict:
+def write_capture(cfg: SynthConfig | None, out: StageFolder) -> dict:
     """Build the scene, render the capture at t=0 and write images + ground truth (see module doc).
 
     Returns a summary dict (counts, timing, image names).

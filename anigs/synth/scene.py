@@ -23,7 +23,7 @@ from typing import Callable
 import numpy as np
 import torch
 
-from anigs.typed_config import from_dict
+from anigs.typed_config import check_in, from_dict
 from anigs.gaussians import Gaussians, rgb_to_sh0
 from anigs.geometry.quaternion import quat_from_matrix
 
@@ -75,12 +75,9 @@ class SceneConfig:
             raise ValueError(f"scene.layout must be one of {list(LAYOUTS)}, got {self.layout!r}")
         if self.pond and self.layout != "garden":
             raise ValueError(f"scene.pond needs layout 'garden' (got layout {self.layout!r})")
-        if not 3000 <= self.num_gaussians <= 2_000_000:
-            raise ValueError(f"scene.num_gaussians must be in [3000, 2000000], got {self.num_gaussians}")
-        if not 2 <= self.num_trees <= 4:
-            raise ValueError(f"scene.num_trees must be in [2, 4], got {self.num_trees}")
-        if not 0.0 <= self.texture <= 3.0:
-            raise ValueError(f"scene.texture must be in [0, 3], got {self.texture}")
+        check_in("scene.num_gaussians", self.num_gaussians, 3000, 2000000)
+        check_in("scene.num_trees", self.num_trees, 2, 4)
+        check_in("scene.texture", self.texture, 0, 3)
 
     @staticmethod
     def from_dict(d: dict | None) -> "SceneConfig":

@@ -25,7 +25,7 @@ from typing import Any
 
 from anigs.animate.deform import DCTDeformation, load_model, load_model_payload
 from anigs.gaussians import Gaussians
-from anigs.io import Layout, atomic_path, atomic_write_bytes, atomic_write_text, read_json
+from anigs.io import StageFolder, atomic_path, atomic_write_bytes, atomic_write_text, read_json
 from anigs.viewer.compact import decode_compact, encode_compact
 from anigs.views import cameras_from_views
 
@@ -69,7 +69,7 @@ def views_config(views_json: str | Path | dict | None) -> dict[str, Any]:
             "roi_centroid": data.get("roi_centroid")}
 
 
-def copy_static(out: Layout) -> list[str]:
+def copy_static(out: StageFolder) -> list[str]:
     """Copy the viewer's HTML/JS/CSS from the package data into ``out`` (the page as its ``index``);
     returns the names written."""
     pkg = resources.files("anigs.viewer") / "static"
@@ -79,12 +79,12 @@ def copy_static(out: Layout) -> list[str]:
     return [_name(out, "index"), *STATIC_FILES]
 
 
-def _name(out: Layout, key: str) -> str:
+def _name(out: StageFolder, key: str) -> str:
     """File ``key``'s name relative to the folder (what the page and the config refer to)."""
     return out.path(key).relative_to(out.root).as_posix()
 
 
-def build_viewer(model_path: str | Path, out: Layout, views_json: str | Path | dict | None = None,
+def build_viewer(model_path: str | Path, out: StageFolder, views_json: str | Path | dict | None = None,
                  canonical: str | Path | Gaussians | None = None, background: Sequence[float] | None = None,
                  fps: float = 12.0, embed: bool = True, title: str = "anigs") -> dict[str, Any]:
     """Write the viewer folder ``out`` (the view stage's ``Outputs``) for ``model_path`` (an update

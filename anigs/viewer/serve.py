@@ -14,7 +14,7 @@ import threading
 import time
 from typing import Any, ClassVar
 
-from anigs.io import Layout
+from anigs.io import StageFolder
 
 log = logging.getLogger("anigs.viewer")
 
@@ -41,7 +41,7 @@ class _Server(http.server.ThreadingHTTPServer):
 class ViewerServer:
     """A running server: ``url``, ``port``, ``stop()``."""
 
-    def __init__(self, folder: Layout, port: int = 0, host: str = "127.0.0.1") -> None:
+    def __init__(self, folder: StageFolder, port: int = 0, host: str = "127.0.0.1") -> None:
         if host not in LOOPBACK:
             raise ValueError(f"the viewer is served on the loopback interface only, not {host!r}")
         page = folder.path("index")
@@ -69,12 +69,12 @@ class ViewerServer:
         self.stop()
 
 
-def start_server(folder: Layout, port: int = 0, host: str = "127.0.0.1") -> ViewerServer:
+def start_server(folder: StageFolder, port: int = 0, host: str = "127.0.0.1") -> ViewerServer:
     """Serve ``folder`` in a background thread (port 0: any free port)."""
     return ViewerServer(folder, port, host)
 
 
-def serve_folder(folder: Layout, port: int = 8000, host: str = "127.0.0.1",
+def serve_folder(folder: StageFolder, port: int = 8000, host: str = "127.0.0.1",
                  duration: float | None = None) -> None:
     """Serve until Ctrl-C, or for ``duration`` seconds when given."""
     server = start_server(folder, port, host)

@@ -101,15 +101,15 @@ def test_update_is_deterministic_for_a_seed():
     assert not torch.equal(a.deformation.pos_coeffs, c.deformation.pos_coeffs)
 
 
-def test_config_rejects_unknown_and_bad_values():
-    with pytest.raises(KeyError, match="lamda_cano"):
-        UpdateConfig.from_dict({"lamda_cano": 1.0})
-    with pytest.raises(ValueError, match="param_groups"):
-        UpdateConfig.from_dict({"param_groups": "positions"})
-    with pytest.raises(ValueError, match="4m\\+1"):
-        UpdateConfig.from_dict({"sds_frames": 8})
-    with pytest.raises(KeyError, match="max_offset"):
-        UpdateConfig.from_dict({"effect_limits": {"1": {"max_offset": 0.1}}})
+@pytest.mark.parametrize("bad, error, match", [
+    ({"lamda_cano": 1.0}, KeyError, "lamda_cano"),
+    ({"param_groups": "positions"}, ValueError, "param_groups"),
+    ({"sds_frames": 8}, ValueError, "4m\\+1"),
+    ({"effect_limits": {"1": {"max_offset": 0.1}}}, KeyError, "max_offset"),
+])
+def test_config_rejects_unknown_and_bad_values(bad, error, match):
+    with pytest.raises(error, match=match):
+        UpdateConfig.from_dict(bad)
     assert UpdateConfig.from_dict({"steps": 3}).steps == 3
 
 

@@ -92,9 +92,14 @@ def test_accuracy_record_next_level_and_warning():
     assert "more photos" in street["warning"] and "9 dB better" in street["warning"]
 
 
+def _scene(n_cams: int, width: int, height: int) -> tuple:
+    """A small synthetic capture and its SfM-like points: (photos, cameras, points, colours)."""
+    gt, cams, imgs = make_scene(n_cams=n_cams, width=width, height=height)
+    return (imgs, cams, *sfm_points(gt, every=3))
+
+
 def test_fit_reports_plan_and_stops_on_a_flat_curve():
-    gt, cams, imgs = make_scene(n_cams=16, width=48, height=36)
-    p, c = sfm_points(gt, every=3)
+    imgs, cams, p, c = _scene(n_cams=16, width=48, height=36)
     cfg = FitConfig.from_dict({"iterations": 400, "eval_every": 40, "sh_degree": 0, "plateau_db": 5.0,
                                "densify": {"start": 20, "stop": 60, "every": 20}})
     _, m = fit_static(imgs, cams, p, c, cfg, progress=False)
@@ -112,8 +117,7 @@ def test_fit_reports_plan_and_stops_on_a_flat_curve():
 
 
 def test_fit_downscales_to_its_side_and_measures_there():
-    gt, cams, imgs = make_scene(n_cams=10, width=64, height=48)
-    p, c = sfm_points(gt, every=3)
+    imgs, cams, p, c = _scene(n_cams=10, width=64, height=48)
     cfg = FitConfig.from_dict({"iterations": 20, "eval_every": 0, "sh_degree": 0, "max_side": 32,
                                "densify": {"start": 10, "stop": 20, "every": 10}})
     g, m = fit_static(imgs, cams, p, c, cfg, progress=False)

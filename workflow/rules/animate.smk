@@ -12,7 +12,7 @@ rule render_clip:
     input:
         ply=stage_file("static", "canonical"),
         views=stage_file("views", "views"),
-        model=_render_model,
+        model=round_files("render_model"),
     output:
         stage_out("render_clip", "clip"),
     log:
@@ -30,7 +30,7 @@ rule render_clip:
             "render_clip",
             jparams("render_clip", _frames)(wc),
             static=stage_dir(wc.scene, "static"),
-            out=round_dir(wc.scene, wc.variant, wc.round),
+            out=rounds(wc.scene, wc.variant).folder(wc.round),
             model=_folder(input.model),
             views=stage_dir(wc.scene, "views"),
             view_id=wc.view,
@@ -64,9 +64,9 @@ rule refine:
         cmd=lambda wc, input: stage_command(
             "refine",
             jparams("refine", _refine_extra)(wc),
-            render_clip=round_dir(wc.scene, wc.variant, wc.round),
+            render_clip=rounds(wc.scene, wc.variant).folder(wc.round),
             view=wc.view,
-            out=round_dir(wc.scene, wc.variant, wc.round),
+            out=rounds(wc.scene, wc.variant).folder(wc.round),
             masks=stage_dir(wc.scene, "masks"),
             effects=_folder(input.effects),
             round=int(wc.round),
@@ -82,11 +82,11 @@ rule round:
     input:
         ply=stage_file("static", "canonical"),
         views=stage_file("views", "views"),
-        model=_render_model,
+        model=round_files("render_model"),
         masks=stage_folder("masks"),
         effects=_effects_json,
-        earlier=_earlier_targets,
-        init=_init_model,
+        earlier=round_files("earlier_targets"),
+        init=round_files("init_model"),
     output:
         render=directory(stage_out("render_clip", "clips")),
         target=directory(stage_out("refine", "targets")),
@@ -110,9 +110,9 @@ rule round:
             static=stage_dir(wc.scene, "static"),
             views=stage_dir(wc.scene, "views"),
             masks=stage_dir(wc.scene, "masks"),
-            view_ids=round_views(wc.scene, wc.variant, int(wc.round)),
+            view_ids=rounds(wc.scene, wc.variant).clip_views(int(wc.round)),
             round=int(wc.round),
-            out=round_dir(wc.scene, wc.variant, wc.round),
+            out=rounds(wc.scene, wc.variant).folder(wc.round),
             model=_folder(input.model),
             effects=_folder(input.effects),
             render_params=jparams("render_clip", _frames)(wc),
@@ -124,7 +124,7 @@ rule round:
         refine=jparams("refine", _refine_extra),
         up=jparams("update", _update_extra),
         animate=jparams("animate"),
-        views=lambda wc: ",".join(round_views(wc.scene, wc.variant, int(wc.round))),
+        views=lambda wc: ",".join(rounds(wc.scene, wc.variant).clip_views(int(wc.round))),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"
@@ -146,8 +146,8 @@ rule update:
         ply=stage_file("static", "canonical"),
         views=stage_file("views", "views"),
         masks=stage_folder("masks"),
-        targets=_targets,
-        init=_init_model,
+        targets=round_files("targets"),
+        init=round_files("init_model"),
     output:
         model=stage_out("update", "model"),
         log_json=stage_out("update", "log"),

@@ -1,19 +1,21 @@
 # Shared helpers: scenes, variants, effective config sections, the round plan.
 import json
 import os
-import re
 
 import anigs
 import yaml
 
-from anigs.config import deep_merge, section, workflow_scenes
-from anigs.contract import stage_outputs
+from anigs.config import scene_pattern, section, with_globals, workflow_scenes
+from anigs.contract import final_targets, stage_outputs
 from anigs.stages.command import stage_command
-from anigs.stages.eval import Outputs as EvalOutputs, merge_parts, table_row
+from anigs.stages.eval import merge_halves, table_row
+from anigs.stages.fvd_gt import wanted as fvd_gt_runs
 from anigs.stages.refine import listed_effects
-from anigs.stages.update import baseline_params, round_seed, still_reason
-from anigs.reports.tradeoff import DERIVED_SEP, get_dotted, knob_filename, stage_owner, sweep_points as _sweep_points
-from anigs.animate.plan import RoundPlan
+from anigs.stages.round_files import RoundFiles
+from anigs.stages.tradeoff import plot_files, swept_knobs
+from anigs.stages.shared_inputs import ground_truth
+from anigs.animate.round_policy import baseline_fields, round_seed, still_reason
+from anigs.reports.tradeoff import DERIVED_SEP, points_json, stage_owner, workflow_sweep
 from anigs.animate.config import METHODS, AnimateConfig
 from anigs.views.queue import queued_view_count
 
@@ -26,13 +28,8 @@ with open(os.path.join(workflow.basedir, "workflow", "schemas", "config.schema.y
 ALL_SCENES = dict(SCENES)  # and the accuracy-versus-time sweep's derived scenes (added below)
 
 
-def _names(source):
-    names = [re.escape(n) for n, s in SCENES.items() if s["source"] == source]
-    return "|".join(names) if names else "(?!x)x"  # never matches when no scene of that kind
-
-
-SYNTH_SCENES = _names("synthetic")
-PHOTO_SCENES = _names("photos")
+SYNTH_SCENES = scene_pattern(SCENES, "synthetic")
+PHOTO_SCENES = scene_pattern(SCENES, "photos")
 
 
 wildcard_constraints:
@@ -45,17 +42,6 @@ wildcard_constraints:
 def sec(scene, name, variant="full"):
     """Effective config section for (scene, variant)."""
     return section(config, ALL_SCENES[scene], variant, name)
-
-
-def with_globals(section_dict, globals_):
-    """The section with the workflow's global settings (device, seed, ...) filled in. A section's own
-    explicit device (anything but auto) wins over the global one, so `static: {device: cpu}` in a scene
-    file is kept rather than silently replaced."""
-    out = {**section_dict, **globals_}
-    own = section_dict.get("device")
-    if "device" in globals_ and own not in (None, "auto"):
-        out["device"] = own
-    return out
 
 
 def with_device_seed(wc):
@@ -85,10 +71,6 @@ def num_views(scene):
     return queued_view_count(checkpoints.views.get(scene=stage_owner(scene, "views")).output.views)
 
 
-def view_ids(scene):
-    return RoundPlan(num_views(scene)).view_ids()
-
-
 def plan(scene, variant):
     return AnimateConfig.from_dict(sec(scene, "animate", variant)).plan(num_views(scene))
 
@@ -96,20 +78,6 @@ def plan(scene, variant):
 def method_of(scene, variant):
     """The variant's animation method (animate.method): anigs, or a baseline."""
     return sec(scene, "animate", variant)["method"]
-
-
-def round_dir(scene, variant, r):
-    """Round r's folder (the render_clip, refine and update stages write into it)."""
-    return stage_out("update", scene=scene, variant=variant, round=r)
-
-
-def out_path(stage, root, key, **fields):
-    """A file of ``stage``'s folder ``root`` (its Outputs' layout; imported when a job's inputs are asked)."""
-    return str(stage_outputs(stage)(root).path(key, **fields))
-
-
-def model_path(scene, variant, r):
-    return stage_out("update", "model", scene=scene, variant=variant, round=r)
 
 
 def stage_dir(scene, stage):
@@ -129,39 +97,16 @@ def wants_gpu(scene, variant="full"):
     return int(dev.startswith("cuda") or sec(scene, "refine", variant)["prior"] == "ltx")
 
 
-def final_targets():
-    out = []
-    for s in SCENES:
-        for v in config["variants"]:
-            out += [
-                stage_out("final", "summary", scene=s, variant=v),
-                stage_out("export", "sidecar", scene=s, variant=v),
-                stage_out("eval", "metrics", scene=s, variant=v),
-                stage_out("view", scene=s, variant=v),
-            ]
-        out.append(stage_out("effects", "effects", scene=s))
-    return out
-
-
 # GPU-only settings on a machine without a GPU fail here, before any job starts (local runs).
 if workflow.local_exec and str(config["device"]).startswith("cuda"):
-    import torch
+    from anigs.device import check_workflow_device  # (imports torch: only when a GPU is asked for)
 
-    if not torch.cuda.is_available():
-        raise ValueError(
-            f"config: device is {config['device']!r} but this machine has no CUDA device; "
-            "use device: auto (or cpu), or submit to a GPU cluster with --profile workflow/profiles/slurm"
-        )
+    check_workflow_device(config["device"])
 
 
 # ---- input/param helpers of the stage rules ----
 
 VARIANT_DIR = f"{R}/{{scene}}/{{variant}}"
-
-
-def _render_model(wc):
-    r = plan(wc.scene, wc.variant).render_model_round(int(wc.round))
-    return [model_path(wc.scene, wc.variant, r)] if r > 0 else []
 
 
 def _frames(wc):
@@ -196,35 +141,15 @@ def _effects_json(wc):
 ROUND_JOBS = config["round_jobs"] if config["round_jobs"] != "auto" else ("round" if workflow.local_exec else "view")
 
 
-def round_views(scene, variant, r):
-    """Views whose clip round r renders and refines (the views whose target trains round r
-    that no earlier round made)."""
-    p = plan(scene, variant)
-    return [v for v in p.dataset(r) if p.target_round(r, v) == r]
+def rounds(scene, variant):
+    """The round files of (scene, variant) (anigs.stages.round_files)."""
+    return RoundFiles(plan(scene, variant), R, scene, variant, ROUND_JOBS == "round")
 
 
-def _targets(wc):
-    """Target clips of round r's update: files of per-view refine jobs, or round jobs' folders."""
-    p = plan(wc.scene, wc.variant)
-    r = int(wc.round)
-    rd = lambda v: round_dir(wc.scene, wc.variant, p.target_round(r, v))  # noqa: E731
-    if ROUND_JOBS == "round":
-        return sorted({out_path("refine", rd(v), "targets") for v in p.dataset(r)})
-    return [out_path("refine", rd(v), "target", view=v) for v in p.dataset(r)]
-
-
-def _earlier_targets(wc):
-    """Round jobs (round_jobs: round): the target folders of earlier rounds that round r's update
-    trains on (its own folder is the job's output); none in view mode (the update job's inputs)."""
-    if ROUND_JOBS != "round":
-        return []
-    own = out_path("refine", round_dir(wc.scene, wc.variant, wc.round), "targets")
-    return [t for t in _targets(wc) if t != own]
-
-
-def _init_model(wc):
-    r = int(wc.round)
-    return [model_path(wc.scene, wc.variant, r - 1)] if r > 1 else []
+def round_files(name):
+    """Input function: the job's round's files ``name`` (a RoundFiles method: render_model,
+    targets, earlier_targets, init_model)."""
+    return lambda wc: getattr(rounds(wc.scene, wc.variant), name)(int(wc.round))
 
 
 def _update_extra(wc):
@@ -243,34 +168,27 @@ def _folder(files):
 def update_command(wc, input):
     """Round r's model update: trains on one target clip per view of its dataset; the update stage
     decides from --round/--rounds whether it contains the motion (update.contain_rounds)."""
-    p = plan(wc.scene, wc.variant)
-    r = int(wc.round)
-    baseline = baseline_params(sec(wc.scene, "animate", wc.variant), sec(wc.scene, "update", wc.variant))
+    rf, r = rounds(wc.scene, wc.variant), int(wc.round)
     return stage_command(
         "update",
         jparams("update", _update_extra)(wc),
         static=stage_dir(wc.scene, "static"),
-        out=round_dir(wc.scene, wc.variant, r),
+        out=rf.folder(r),
         masks=stage_dir(wc.scene, "masks"),
-        targets=[
-            out_path("refine", round_dir(wc.scene, wc.variant, p.target_round(r, v)), "target", view=v)
-            for v in p.dataset(r)
-        ],
+        targets=rf.target_files(r),
         init=_folder(input.init),
         views=stage_dir(wc.scene, "views"),
         round=r,
-        rounds=p.num_rounds,
-        method=method_of(wc.scene, wc.variant) if baseline else None,
-        method_params=json.dumps(baseline, sort_keys=True) if baseline else None,
+        rounds=rf.plan.num_rounds,
+        **baseline_fields(sec(wc.scene, "animate", wc.variant), sec(wc.scene, "update", wc.variant)),
     )
 
 
 def _chosen_effects(scene):
     """The effects the effects stage chose for ``scene`` (read once that checkpoint has run: the DAG
     below it depends on what the scene contains)."""
-    path = checkpoints.effects.get(scene=stage_owner(scene, "effects")).output.effects
-    with open(path) as f:
-        return json.load(f)
+    checkpoints.effects.get(scene=stage_owner(scene, "effects"))  # (raises until that job has run)
+    return stage_outputs("effects")(stage_dir(scene, "effects")).json("effects")
 
 
 def animates(scene):
@@ -280,14 +198,12 @@ def animates(scene):
 
 def still_model(scene="{scene}", variant="{variant}"):
     """The still model (the update stage's model file in the variant's ``still`` folder: the still rule)."""
-    return out_path("update", f"{R}/{scene}/{variant}/still", "model")
+    return str(stage_outputs("update")(f"{R}/{scene}/{variant}/still").path("model"))
 
 
 def final_model_of(scene, variant):
     """The model the final stages use: the last round's, or the still model when nothing moves."""
-    if not animates(scene):
-        return still_model(scene, variant)
-    return model_path(scene, variant, plan(scene, variant).num_rounds)
+    return rounds(scene, variant).final_model() if animates(scene) else still_model(scene, variant)
 
 
 def final_model(wc):
@@ -299,45 +215,23 @@ def _still_reason(wc):
 
 
 def _table_row(wc):
-    """(method, variant) of the variant's table row (anigs.stages.eval.table_row)."""
-    return table_row(method_of(wc.scene, wc.variant), wc.variant)
+    """The variant's table row (anigs.stages.eval.table_row) as the ``--method --variant`` fields."""
+    return dict(zip(("method", "variant"), table_row(method_of(wc.scene, wc.variant), wc.variant)))
 
 
 def eval_command(wc, part, **inputs):
-    method, variant = _table_row(wc)
     params = jparams("eval", with_device_seed)(wc)
-    return stage_command(
-        "eval",
-        params,
-        out=job_out("eval", wc),
-        scene=wc.scene,
-        method=method,
-        variant=variant,
-        part=part,
-        **inputs,
-    )
+    return stage_command("eval", params, out=job_out("eval", wc), scene=wc.scene, part=part, **_table_row(wc), **inputs)
 
 
 # ---- accuracy versus time: the sweep's points are variants, or derived scenes for per-scene
 # stages (see anigs/reports/tradeoff.py) ----
-_TO = config.get("tradeoff", {})
-TRADEOFF = {}  # scene -> [SweepPoint]
-for _s in SCENES:
-    TRADEOFF[_s] = _sweep_points(
-        _TO.get("knobs", {}),
-        _TO.get("base", "full"),
-        config["variant_overrides"],
-        lambda knob, s=_s: get_dotted(sec(s, knob.split(".")[0], _TO.get("base", "full")), knob.split(".")[1:]),
-    )
-    for _p in TRADEOFF[_s]:
-        config["variant_overrides"].setdefault(_p.variant, _p.overrides)
-        if _p.scene_tag:
-            ALL_SCENES[_p.scene(_s)] = deep_merge(SCENES[_s], _p.scene_overrides)
+TRADEOFF = workflow_sweep(config, SCENES, ALL_SCENES, sec)  # scene -> [SweepPoint]
 
 
 def tradeoff_points():
     """Every scene's sweep points (`snakemake tradeoff`); an empty sweep is an error naming the key."""
-    if not any(v for v in config.get("tradeoff", {}).get("knobs", {}).values()):
+    if not swept_knobs(config.get("tradeoff", {})):
         raise ValueError("config: tradeoff.knobs is empty; name the knobs to sweep (see config/README.md)")
     return TRADEOFF
 
@@ -374,22 +268,17 @@ def stage_file(stage, key):
     return lambda wc: stage_file_of(wc.scene, stage, key)
 
 
-GT_KEYS = ("gt_labels", "gt_motion", "gt_gaussians", "gt_cameras")  # what masks and views compare with
-
-
 def gt_of(scene, key):
     """A ground-truth file of the capture stage (``gt_cameras``, ``gt_labels``, ...) of ``scene``."""
     return stage_file_of(scene, "capture", key)
 
 
-def gt_inputs(wc):
-    """Synthetic scenes: the ground truth the views and masks stages read."""
-    return [gt_of(wc.scene, k) for k in GT_KEYS] if is_synthetic(wc.scene) else []
-
-
 def gt_fields(scene):
     """A synthetic scene's ground truth as the views and masks stages' ``GroundTruthInputs`` fields
-    (``--labels --motion --gt-gaussians --gt-cameras``); none on photo scenes."""
-    if not is_synthetic(scene):
-        return {}
-    return {f: gt_of(scene, k) for f, k in zip(("labels", "motion", "gt_gaussians", "gt_cameras"), GT_KEYS)}
+    (anigs.stages.shared_inputs.ground_truth); none on photo scenes."""
+    return ground_truth(R, stage_owner(scene, "capture")) if is_synthetic(scene) else {}
+
+
+def gt_inputs(wc):
+    """Synthetic scenes: the ground truth the views and masks stages read."""
+    return list(gt_fields(wc.scene).values())

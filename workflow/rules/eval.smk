@@ -58,7 +58,7 @@ rule eval:
     params:
         version=ANIGS_VERSION,
     run:
-        merge_eval_halves(output[0], input, log[0])
+        merge_halves(output[0], input.clips, input.model, input.fvd_gt, log[0])
 
 
 rule tables:
@@ -101,7 +101,7 @@ rule tradeoff:
         cmd=lambda wc: stage_command(
             "tradeoff",
             results=R,
-            points=_tradeoff_points(wc),
+            points=points_json(TRADEOFF),
             out=stage_out("tradeoff"),
             plot_metrics=list(config.get("tradeoff", {}).get("plot_metrics", [])),
         ),

@@ -67,8 +67,7 @@ rule fvd_gt:
             reference_dir=stage_out("fvd_gt", kind="ReferenceOutputs", scene=wc.scene),
             model=_folder([input.model]),
             scene=wc.scene,
-            method=_table_row(wc)[0],
-            variant=_table_row(wc)[1],
+            **_table_row(wc),
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         p=jparams("fvd_gt", lambda wc: {"seed": config["seed"]}),

@@ -13,9 +13,8 @@ def _roi_inputs(wc):
 
 
 def fvd_gt_wanted(scene, variant="full", target="tables"):
-    """Whether FVD-GT runs for (scene, variant) when ``target`` (tables | eval) is built."""
-    when = sec(scene, "fvd_gt", variant)["when"]
-    return is_synthetic(scene) and (when == "always" or (when == "tables" and target == "tables"))
+    """Whether FVD-GT runs for (scene, variant) when ``target`` (tables | eval) is built (fvd_gt.wanted)."""
+    return fvd_gt_runs(is_synthetic(scene), sec(scene, "fvd_gt", variant)["when"], target)
 
 
 def _fvd_gt_eval_input(wc):
@@ -56,37 +55,12 @@ def _tradeoff_metrics(wc):
     ]
 
 
-def _tradeoff_points(wc):
-    return json.dumps(
-        {
-            s: [{"variant": p.variant, "knob": p.knob, "value": p.value, "scene_tag": p.scene_tag} for p in TRADEOFF[s]]
-            for s in SCENES
-        }
-    )
-
-
 def _tradeoff_plots():
     plot = report  # (a line starting with `report(` would parse as the rule keyword)
-    knobs = [k for k, v in config.get("tradeoff", {}).get("knobs", {}).items() if v]
-    return [
-        plot(
-            stage_out("tradeoff", "plot", scene=s, knob=knob_filename(k)),
-            caption="../report/tradeoff.rst",
-            category="Accuracy versus time",
-        )
-        for s in SCENES
-        for k in knobs
-    ]
+    files = plot_files(R, list(SCENES), swept_knobs(config.get("tradeoff", {})))
+    return [plot(f, caption="../report/tradeoff.rst", category="Accuracy versus time") for f in files]
 
 
 def _study_variants():
     """The compared variants of the 2AFC study: the baselines among table_variants (paper Table 4)."""
     return [v for v in config["table_variants"] if v != "full" and method_of(next(iter(SCENES)), v) != "anigs"]
-
-
-def merge_eval_halves(metrics, input, log):
-    """The eval rule's job (in Snakemake: a JSON merge, no process start-up): ``metrics`` (the merged file)
-    from the clips and model halves beside it and the FVD-GT records of ``input.fvd_gt``."""
-    merge_parts(EvalOutputs(os.path.dirname(metrics)), extra=list(input.fvd_gt))
-    with open(log, "w") as f:
-        f.write(f"merged {input.clips}, {input.model} and {len(input.fvd_gt)} FVD-GT record(s) into {metrics}\n")

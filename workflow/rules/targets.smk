@@ -26,14 +26,14 @@ def _rounds(scene, variant):
 
 def _fill(patterns, scene, variant):
     """``patterns`` for one (scene, variant): a ``{round}`` pattern once per round, a ``{view}`` one
-    once per view whose clip that round makes (:func:`round_views`)."""
+    once per view whose clip that round makes (:meth:`RoundFiles.clip_views`)."""
     out = []
     for p in patterns:
         if "{round}" not in p:
             out.append(p.format(scene=scene, variant=variant))
             continue
         for r in _rounds(scene, variant):
-            views = round_views(scene, variant, r) if "{view}" in p else [None]
+            views = rounds(scene, variant).clip_views(r) if "{view}" in p else [None]
             out += [p.format(scene=scene, variant=variant, round=r, view=v) for v in views]
     return out
 
