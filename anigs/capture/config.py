@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from anigs.typed_config import from_dict
-from anigs.synth.capture import SynthConfig
 
 
 @dataclass
@@ -28,5 +27,6 @@ def capture_config(source: str, params: dict | None):
     """The config ``--params`` gives: the photo import options, or the scene's ``synthetic`` section."""
     if source == "photos":
         return PhotosConfig.from_dict(params)
+    from anigs.synth.capture import SynthConfig  # torch: the synthetic scene only (photo runs stay light)
 
     return SynthConfig.from_dict(params)

@@ -21,10 +21,7 @@ from anigs.stages.command import parse_params
 from anigs.io import write_json
 from anigs import contract
 from anigs.contract import File
-from anigs.cameras import load_cameras
-from anigs.gaussians import Gaussians
 from anigs.photos import import_photos
-from anigs.synth.capture import write_capture
 
 log = logging.getLogger("anigs.capture")
 
@@ -77,6 +74,7 @@ class Outputs(contract.Outputs):
 
     def gt_cameras(self) -> list:
         """The ground-truth cameras (:class:`~anigs.cameras.Camera`)."""
+        from anigs.cameras import load_cameras  # torch: kept out of the import (benchmarks/scaling.py)
 
         return load_cameras(self.path("gt_cameras"))
 
@@ -87,6 +85,7 @@ class Outputs(contract.Outputs):
 
     def gt_gaussians(self):
         """The ground-truth :class:`~anigs.gaussians.Gaussians`."""
+        from anigs.gaussians import Gaussians  # torch: kept out of the import (benchmarks/scaling.py)
 
         return Gaussians.load_ply(self.path("gt_gaussians"))
 
@@ -130,6 +129,8 @@ def run(inputs: Inputs, cfg) -> Outputs:
         raise ValueError(f"capture: source must be 'synthetic' or 'photos', got {source!r}")
     if photos is not None:
         raise ValueError("--photos is only used with --source photos")
+
+    from anigs.synth.capture import write_capture  # torch: the synthetic scene only
 
     summary = write_capture(cfg, out)
     write_json(out.path("summary"), {"source": "synthetic", **summary})
