@@ -28,6 +28,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+import cv2  # noqa: E402
+import torch  # noqa: E402
+import torch.nn.functional as F  # noqa: E402
+
+from anigs.gaussians import load_ply  # noqa: E402
+from anigs.images import load_inputs  # noqa: E402
+from anigs.render import rasterize  # noqa: E402
+from anigs.stages.sfm import Outputs as SfmOutputs  # noqa: E402
+
 
 def _psnr(a, b, mask=None) -> float:
     import numpy as np
@@ -103,21 +112,11 @@ def _depth_error(depth, alpha, rows: np.ndarray, scale: float, sx: float, sy: fl
 
 
 def main() -> None:
-    import cv2
-    import numpy as np
-    import torch
-    import torch.nn.functional as F
-
-    from anigs.gaussians import load_ply
-    from anigs.images import load_inputs
-    from anigs.render import rasterize
-    from anigs.stages.sfm import Outputs as SfmOutputs
-
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sfm", required=True)
-    ap.add_argument("--static", required=True)
-    ap.add_argument("--out", default="heldout_diagnosis.png")
-    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--sfm", required=True, help="the sfm stage's folder (cameras.json, images/, points.npz)")
+    ap.add_argument("--static", required=True, help="the static stage's folder (canonical.ply, metrics.json)")
+    ap.add_argument("--out", default="heldout_diagnosis.png", help="contact sheet: render | photo | error | alpha")
+    ap.add_argument("--threads", type=int, default=2, help="torch threads")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     sfm = SfmOutputs(args.sfm)

@@ -368,17 +368,21 @@ def test_cluster_script_is_idempotent(slurm_cluster):
     assert node.startswith(("idle", "mix", "alloc")) and "gpu:2" in node, node
 
 
+def _start(case, cluster, tmp_path_factory, prefix: str):
+    """(reference digests, local seconds, local jobs, a fresh work folder, the cluster's jobs so far)
+    for a SLURM run of ``case`` (skips when the case cannot run here)."""
+    _require(case)
+    ref, local_s, local_jobs = _local_reference(case, tmp_path_factory.getbasetemp())
+    return ref, local_s, local_jobs, tmp_path_factory.mktemp(f"{prefix}-{case.name}"), set(cluster.jobs())
+
+
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
 def test_every_job_runs_through_slurm_and_matches_local(case, slurm_cluster, test_profile, tmp_path_factory):
-    _require(case)
     cluster = slurm_cluster
-    ref, local_s, local_jobs = _local_reference(case, tmp_path_factory.getbasetemp())
-
-    workdir = tmp_path_factory.mktemp(f"slurm-{case.name}")
+    ref, local_s, local_jobs, workdir, before = _start(case, cluster, tmp_path_factory, "slurm")
     # the jobs the local run ran (a dry run cannot see past the effects checkpoint on a fresh run)
     planned = _LOCAL_JOBS[case.name]
     assert sum(planned.values()) > 0
-    before = set(cluster.jobs())
     rc, log, slurm_s = _snakemake(case, workdir, cluster.env, "--profile", str(test_profile))
     assert rc == 0, f"SLURM run failed (rc {rc}):\n{_tail(log, 120)}"
 
@@ -413,11 +417,8 @@ def test_every_job_runs_through_slurm_and_matches_local(case, slurm_cluster, tes
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
 def test_cancelled_job_fails_and_rerun_resumes(case, slurm_cluster, test_profile, tmp_path_factory):
-    _require(case)
     cluster = slurm_cluster
-    ref, _, _ = _local_reference(case, tmp_path_factory.getbasetemp())
-    workdir = tmp_path_factory.mktemp(f"fault-{case.name}")
-    before = set(cluster.jobs())
+    ref, _, _, workdir, before = _start(case, cluster, tmp_path_factory, "fault")
 
     cmd = ["timeout", "-k", "10", str(case.timeout_s), str(SNAKEMAKE), "--snakefile", str(case.snakefile),
            "--nocolor", "--profile", str(test_profile)]
