@@ -22,6 +22,7 @@ from anigs.render.labels import render_label_map
 from anigs.synth import LABEL_IDS, CaptureConfig, SceneConfig, build_scene, camera_path, render_image
 from anigs.synth.scene import frame_from_normal, quat_from_matrix
 from anigs.stages.effects import Outputs as EffectsOutputs
+from anigs.synth.scene import SKY
 
 TRUTH = {"foliage_sway": "foliage", "leaf_flutter": "foliage", "grass_wave": "grass", "flower_bob": "flowers",
          "water_ripple": "water"}
@@ -183,7 +184,7 @@ def test_red_flower_next_to_leaves_is_a_flower_not_foliage():
     g = _gaussians(*[np.concatenate([p[k] for p in parts]) for k in range(4)],
                    labels=np.concatenate([np.full(len(p[0]), p[4]) for p in parts]))
     cams = _ring_cameras((0.0, 0.0, 0.8), 2.6, 1.5, 8, arc=math.pi, start=-math.pi * 0.95)
-    imgs = [render_image(g, c, (0.62, 0.76, 0.92)) for c in cams]
+    imgs = [render_image(g, c, SKY) for c in cams]
     res = detect_effects(imgs, cams, g, Config())
     labels = g.extras["label"].numpy()
     flowers = np.isin(np.arange(g.num), res.effects["flower_bob"].indices)
@@ -211,7 +212,7 @@ def test_green_picture_on_a_wall_is_not_foliage():
     labels = np.concatenate([np.zeros(len(floor[0])), np.where(pic, 1, 0)])
     g = _gaussians(*[np.concatenate([floor[k], wall_parts[k]]) for k in range(4)], opacity=0.98, labels=labels)
     cams = _ring_cameras((0.2, 2.0, 1.3), 3.0, 1.5, 6, arc=math.pi / 3, start=-math.pi / 2 - math.pi / 6)
-    imgs = [render_image(g, c, (0.62, 0.76, 0.92)) for c in cams]
+    imgs = [render_image(g, c, SKY) for c in cams]
     cfg = Config()
     # the picture is green by colour in every photo: only geometry can tell it from a plant
     pic_px = [render_label_map(g, labels, c) == 1 for c in cams]

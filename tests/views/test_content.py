@@ -14,6 +14,7 @@ from anigs.views import ViewsConfig, plan_views, scene_coverage
 from anigs.views.content import (ContentRule, content_fraction, edge_share, footprint_ratio, render_rgb,
                                  sharp_gaussians)
 from anigs.views.coverage import observation_counts
+from anigs.synth.scene import SKY
 from tests.masks.test_lift import toy_scene
 
 
@@ -48,7 +49,7 @@ def test_a_view_of_needled_sky_fails_that_the_coverage_rule_passes(needled):
     assert content_fraction(g, ss.sharp, sky) < 0.2
     assert content_fraction(g, ss.sharp, scene) >= ViewsConfig().min_content
     # the image figure does not see it: the needles are thin and crisp across, full of edges
-    assert edge_share(render_rgb(g, sky, (0.62, 0.76, 0.92))) > 0.5
+    assert edge_share(render_rgb(g, sky, SKY)) > 0.5
 
 
 def test_footprint_ratio_flags_a_blob_among_small_neighbours():
@@ -63,7 +64,7 @@ def test_edge_share_separates_texture_blur_and_sky():
     rng = np.random.default_rng(0)
     tex = rng.uniform(0, 1, (96, 128, 3)).astype(np.float32)
     blur = cv2.GaussianBlur(tex, (0, 0), 8)
-    sky = np.broadcast_to(np.array([0.62, 0.76, 0.92], np.float32), (96, 128, 3))
+    sky = np.broadcast_to(np.array(SKY, np.float32), (96, 128, 3))
     assert edge_share(tex) > 0.95
     assert edge_share(blur) < 0.3
     assert edge_share(sky) == 0.0
@@ -114,7 +115,7 @@ def test_a_view_closer_than_any_photo_shows_magnified_content_and_fails(needled)
     rule = ContentRule()
     close = _cam((1.9, 0.0, 1.0), (2.6, 0.0, 1.0))
     assert content_fraction(g, ss.sharp, close) > 0.9  # today's figure: all sharp content
-    check = ContentCheck(g, ss, rule, (0.62, 0.76, 0.92))
+    check = ContentCheck(g, ss, rule, SKY)
     fig = check.measure(close)
     assert fig["content"] < 0.1 and fig["magnified"] > 0.9
     assert "max_sampling_ratio" in check.failure(fig)
