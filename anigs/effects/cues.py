@@ -61,7 +61,7 @@ def clean(mask: np.ndarray, min_pixels: int, hole_pixels: int) -> np.ndarray:
     return fill_small_holes(remove_small(np.asarray(mask, bool), min_pixels), hole_pixels)
 
 
-def components(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+def mask_components(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
     """8-connected components: (count incl. background, labels [H,W] int32, areas [count])."""
     n, lab, stats, _ = cv2.connectedComponentsWithStats(np.asarray(mask, np.uint8), connectivity=8)
     return n, lab, stats[:, cv2.CC_STAT_AREA].astype(np.int64)

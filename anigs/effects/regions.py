@@ -88,7 +88,7 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
     green_all = cues.green(img, cfg.green_hue, cfg.green_min_saturation, cfg.min_value) & valid
     veg = green_all & ~wall
     # flat green rectangles are pictures, not plants
-    n, lab, areas = cues.components(veg)
+    n, lab, areas = cues.mask_components(veg)
     rect = cues.rectangularity(lab, n, areas, int(0.01 * h * w))
     var_med = cues.component_quantile(lab, n, p.variation, 0.5)
     picture = (rect >= cfg.max_rectangularity) & (np.nan_to_num(var_med, nan=1.0) < 2 * cfg.wall_max_variation)
@@ -101,7 +101,7 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
     # a plant pixel is tall within foliage_reach_frac of a part of its component that rises above
     # grass_max_height (a bush's lower leaves included), so low plants that merely touch a bush in
     # the photo (a lawn's tufts, a flower bed in front of it) stay low (all tall without a plane)
-    n_p, lab_p, _ = cues.components(plant)
+    n_p, lab_p, _ = cues.mask_components(plant)
     if plane is not None:
         core = cues.clean(plant & (height >= cfg.grass_max_height * cam_h), min_px, 0)
         has_core = np.bincount(lab_p[core], minlength=n_p)[:n_p] > 0
@@ -110,7 +110,7 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
         tall_px = plant & has_core[lab_p] & reach
     else:
         tall_px = plant.copy()
-    n_l, lab_l, _ = cues.components(plant & ~tall_px)
+    n_l, lab_l, _ = cues.mask_components(plant & ~tall_px)
     # flowers: saturated non-green (any hue) or white blobs next to plants
     r_f = _px(cfg.flower_radius_frac, h, w)
     col = cues.colourful(img, cfg.flower_green_hue, cfg.flower_min_saturation, cfg.flower_min_value,
@@ -118,7 +118,7 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
     near = cv2.dilate(plant.astype(np.uint8), cues.disk(r_f)) > 0
     # whole colourful blobs that reach within r_f of a plant: a large blossom's centre is farther
     # than r_f from any leaf, and belongs to the blossom all the same
-    n, lab, areas = cues.components(col)
+    n, lab, areas = cues.mask_components(col)
     touches = np.bincount(lab[near], minlength=n)[:n] > 0
     ring = cues.ring_share(lab, n, r_f, plant)
     # a blossom sits on its plant or in front of it; a wall or a bench seen past a bush lies behind it

@@ -83,7 +83,7 @@ class Candidate:
                 "figures": {k: round(float(v), 4) for k, v in self.figures.items()}}
 
 
-def components(points: np.ndarray, link: float) -> np.ndarray:
+def point_components(points: np.ndarray, link: float) -> np.ndarray:
     """Connected components [M] (labels 0..) of ``points`` [M,3] linked within ``link``."""
     m = len(points)
     if m == 0:
@@ -168,7 +168,7 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
         idx = np.flatnonzero(region_of == k)
         if not len(idx):
             continue
-        lab = components(means[idx], link)
+        lab = point_components(means[idx], link)
         if flat is not None:  # flat parts apart from the rest
             lab = split_flat(lab, flat[idx], cfg.min_candidate)
         sizes = np.bincount(lab)
