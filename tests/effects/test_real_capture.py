@@ -89,3 +89,31 @@ def test_flowers_the_photos_do_not_have_are_not_chosen(fern):
 def test_a_prompt_naming_nothing_that_moves_keeps_the_capture_still(fern):
     rep, sc = _effects(fern, "nothing")
     assert rep["chosen"] == [] and sc["recall"] == 0.0 and sc["still"] == 0.0
+
+
+def test_the_views_show_the_fronds_as_sharply_as_the_photos_and_no_holes(fern):
+    """The views stage on real photos (issue 36): each queued view's moving region is judged against
+    the photos; a view under the bar is a photo pose the queue fell back to, with its advice."""
+    from anigs.cli import main
+    from anigs.views import ViewsConfig
+
+    if not (fern / "user" / "effects" / "dynamic.npy").exists():
+        _effects(fern, "user")
+    out = fern / "user" / "views"
+    assert main(["--threads", "2", "views", "--canonical", str(fern / "static" / "canonical.ply"), "--cameras",
+                 str(fern / "sfm" / "cameras.json"), "--points", str(fern / "sfm" / "points.npz"), "--images",
+                 str(fern / "sfm" / "images"), "--effects", str(fern / "user" / "effects"), "--out", str(out),
+                 "--params", "{}"]) == 0
+    data = json.loads((out / "views.json").read_text())
+    cfg = ViewsConfig()
+    views = data["views"]
+    print("views:", [(v["id"], v.get("photo_pose"), round(v["motion_sharpness"] or 0, 2), round(v["unobserved"], 3))
+                     for v in views])
+    assert views and all(v["motion_sharpness"] is not None for v in views)
+    for v in views:
+        if v.get("photo_pose"):
+            assert data["motion"]["advice"], v
+        else:
+            assert v["motion_sharpness"] >= cfg.min_motion_sharpness and v["unobserved"] <= cfg.max_unobserved, v
+    # the fern's fronds fill the photos: most views are placed ones, not a fallback to the photos' poses
+    assert sum(not v.get("photo_pose") for v in views) >= len(views) // 2
