@@ -9,6 +9,12 @@ from anigs.animate.plan import RoundPlan
 from anigs.contract import stage_outputs
 
 
+def round_folder(results: str, scene: str, variant: str, r: int | str) -> str:
+    """Round r's folder without the round plan: a rule whose job reads no views checkpoint (refine)
+    can name it (the plan needs the queue's length, which a remote job cannot ask for)."""
+    return stage_outputs("update").under(results, scene=scene, variant=variant, round=r)
+
+
 @dataclass(frozen=True)
 class RoundFiles:
     """The round files of ``scene``/``variant`` under the results root ``results``; ``per_round``:
@@ -22,7 +28,7 @@ class RoundFiles:
 
     def folder(self, r: int | str) -> str:
         """Round r's folder (the render_clip, refine and update stages write into it)."""
-        return stage_outputs("update").under(self.results, scene=self.scene, variant=self.variant, round=r)
+        return round_folder(self.results, self.scene, self.variant, r)
 
     def model(self, r: int | str) -> str:
         """The model file round r's update writes."""

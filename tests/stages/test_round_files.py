@@ -37,3 +37,13 @@ def test_round_jobs_read_earlier_rounds_folders_but_not_their_own():
     assert rf.earlier_targets(3) == sorted(folders[:2])
     updated = _files(per_round=True)  # with dataset updates round r trains only on its own targets
     assert updated.clip_views(2) == ["v00", "v01"] and updated.earlier_targets(2) == []
+
+
+def test_a_round_folder_needs_no_round_plan():
+    """The refine rule names its round's folder without the views checkpoint (a remote SLURM job
+    cannot ask a checkpoint its rule does not list as input): the same folder the plan gives."""
+    from anigs.animate.plan import RoundPlan
+    from anigs.stages.round_files import RoundFiles, round_folder
+
+    files = RoundFiles(RoundPlan(6), "results", "demo", "full", False)
+    assert round_folder("results", "demo", "full", 2) == files.folder(2) == "results/demo/full/round2"

@@ -11,7 +11,7 @@ from anigs.stages.command import stage_command
 from anigs.stages.eval import merge_halves, table_row
 from anigs.stages.fvd_gt import wanted as fvd_gt_runs
 from anigs.stages.refine import listed_effects
-from anigs.stages.round_files import RoundFiles
+from anigs.stages.round_files import RoundFiles, round_folder
 from anigs.stages.tradeoff import plot_files, swept_knobs
 from anigs.stages.shared_inputs import ground_truth
 from anigs.animate.round_policy import baseline_fields, round_seed, still_reason
