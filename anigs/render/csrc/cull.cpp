@@ -71,23 +71,23 @@ inline void clip_range(double centre, double lo, double hi, int& i0, int& i1) {
   i1 = std::min(i1, int(std::floor(hi)) + 1);
 }
 
-// Narrow pixel rows [y0, y1) to those the ellipse reaches within columns [x0, x1); false if none.
-inline bool rows_within(const Ell& e, int x0, int x1, int& y0, int& y1) {
-  if (!e.ok) return y0 < y1 && x0 < x1;
+// Narrow the pixel range [b0, b1) along one axis to what the ellipse reaches within [a0, a1) along
+// the other: rows within columns (rows = true: a is x, b is y) or columns within rows; false if none.
+inline bool span_within(const Ell& e, bool rows, int a0, int a1, int& b0, int& b1) {
+  if (!e.ok) return b0 < b1 && a0 < a1;
+  const double ma = rows ? e.mx : e.my;
   double lo, hi;
-  if (!strip_span(e.B, e.C, e.det, e.L, e.xt, e.ye, x0 + 0.5 - e.mx, x1 - 0.5 - e.mx, lo, hi)) return false;
-  clip_range(e.my, lo, hi, y0, y1);
-  return y0 < y1;
+  if (!strip_span(e.B, rows ? e.C : e.A, e.det, e.L, rows ? e.xt : e.yt, rows ? e.ye : e.xe, a0 + 0.5 - ma,
+                  a1 - 0.5 - ma, lo, hi)) return false;
+  clip_range(rows ? e.my : e.mx, lo, hi, b0, b1);
+  return b0 < b1;
 }
 
+// Narrow pixel rows [y0, y1) to those the ellipse reaches within columns [x0, x1); false if none.
+inline bool rows_within(const Ell& e, int x0, int x1, int& y0, int& y1) { return span_within(e, true, x0, x1, y0, y1); }
+
 // Narrow pixel columns [x0, x1) to those the ellipse reaches within rows [y0, y1); false if none.
-inline bool cols_within(const Ell& e, int y0, int y1, int& x0, int& x1) {
-  if (!e.ok) return y0 < y1 && x0 < x1;
-  double lo, hi;
-  if (!strip_span(e.B, e.A, e.det, e.L, e.yt, e.xe, y0 + 0.5 - e.my, y1 - 0.5 - e.my, lo, hi)) return false;
-  clip_range(e.mx, lo, hi, x0, x1);
-  return x0 < x1;
-}
+inline bool cols_within(const Ell& e, int y0, int y1, int& x0, int& x1) { return span_within(e, false, y0, y1, x0, x1); }
 
 // Whether a pixel box is one tile high or one tile wide. The box bounds the ellipse tightly, so
 // the ellipse crosses the box's whole width and height and reaches each of its tiles: such a box
