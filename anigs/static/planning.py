@@ -7,6 +7,8 @@ import time
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
+import cv2
+import numpy as np
 import torch
 
 from anigs.cameras import Camera
@@ -66,22 +68,27 @@ def fit_side(cfg: "FitConfig") -> int:
     return LEVELS[b if isinstance(b, str) else "auto"].max_side
 
 
+def downscale(image: np.ndarray, cam: Camera, max_side: int) -> tuple[np.ndarray, Camera]:
+    """``image`` [H,W,3] (uint8 or float) and ``cam`` at most ``max_side`` px on the longest side (area
+    interpolation; 0 or already smaller: the same objects back)."""
+    f = fit_scale(cam.width, cam.height, max_side)
+    if f >= 1.0:
+        return image, cam
+    w, h = max(1, round(cam.width * f)), max(1, round(cam.height * f))
+    return cv2.resize(np.ascontiguousarray(image), (w, h), interpolation=cv2.INTER_AREA), cam.scaled(w, h)
+
+
 def downscaled(images: list[torch.Tensor], cameras: list[Camera], max_side: int
                ) -> tuple[list[torch.Tensor], list[Camera]]:
-    """Images [H,W,3] (uint8 or float) and cameras at most ``max_side`` on the longest side (area
-    interpolation; 0 or already smaller: unchanged)."""
-    import cv2
-    import numpy as np
-
+    """Images [H,W,3] (uint8 or float) and cameras at most ``max_side`` on the longest side
+    (:func:`downscale` each; 0 or already smaller: unchanged)."""
     out_i, out_c = [], []
     for img, cam in zip(images, cameras):
-        f = fit_scale(cam.width, cam.height, max_side)
-        if f >= 1.0:
+        if fit_scale(cam.width, cam.height, max_side) >= 1.0:
             out_i.append(img)
             out_c.append(cam)
             continue
-        w, h = max(1, round(cam.width * f)), max(1, round(cam.height * f))
-        arr = cv2.resize(np.ascontiguousarray(img.cpu().numpy()), (w, h), interpolation=cv2.INTER_AREA)
+        arr, small = downscale(img.cpu().numpy(), cam, max_side)
         out_i.append(torch.from_numpy(arr).to(img.device))
-        out_c.append(cam.scaled(w, h))
+        out_c.append(small)
     return out_i, out_c

@@ -41,6 +41,7 @@ from anigs.gaussians import Gaussians
 from anigs.images import find_image, load_image_compact
 from anigs.render.labels import render_effect_weights
 from anigs.render.visibility import blend_weights
+from anigs.static.planning import downscale
 from anigs.views.content import pixel_footprint
 from anigs.views.coverage import DYNAMIC_ALPHA, DYNAMIC_SHARE
 
@@ -91,17 +92,6 @@ class Photo:
     seen: np.ndarray
 
 
-def _scaled(cam: Camera, image: np.ndarray, max_side: int) -> tuple[Camera, np.ndarray]:
-    """``cam`` and ``image`` at most ``max_side`` px on the long side (never enlarged)."""
-    h, w = image.shape[:2]
-    s = min(1.0, max_side / max(h, w))
-    cam = cam if (w, h) == (cam.width, cam.height) else cam.scaled(w, h)
-    if s >= 1.0:
-        return cam, image
-    size = (max(8, round(w * s)), max(8, round(h * s)))
-    return cam.scaled(*size), cv2.resize(image, size, interpolation=cv2.INTER_AREA)
-
-
 class MotionSharpness:
     """The moving-region figures of candidate views against the capture photos (module docstring).
 
@@ -118,7 +108,8 @@ class MotionSharpness:
             pix = load_image_compact(find_image(Path(images), cam.name))
             if pix.dtype != np.uint8:
                 pix = (np.clip(pix, 0, 1) * 255 + 0.5).astype(np.uint8)
-            cam, pix = _scaled(cam, pix, max_side)
+            h, w = pix.shape[:2]
+            pix, cam = downscale(pix, cam if (w, h) == (cam.width, cam.height) else cam.scaled(w, h), max_side)
             moving, _ = moving_and_holes(g, self.roi, cam)
             if moving.sum() < MIN_REGION_PX:
                 continue
@@ -129,8 +120,8 @@ class MotionSharpness:
 
     def to_json(self) -> dict[str, Any]:
         """The figure's definition and constants, as recorded in ``views.json`` (``content.motion``)."""
-        return {"fine_sigma_px": FINE_SIGMA, "coarse_sigma_px": COARSE_SIGMA, "reference_share": REFERENCE_SHARE, "similar_share": SIMILAR_SHARE,
-                "min_region_px": MIN_REGION_PX, "hole_alpha": HOLE_ALPHA, "max_side": self.max_side,
+        return {"fine_sigma_px": FINE_SIGMA, "coarse_sigma_px": COARSE_SIGMA, "reference_share": REFERENCE_SHARE,
+                "similar_share": SIMILAR_SHARE, "min_region_px": MIN_REGION_PX, "hole_alpha": HOLE_ALPHA, "max_side": self.max_side,
                 "reference_photos": [p.camera.name for p in self.photos],
                 "definition": ("motion_sharpness: band sharpness (sum |I - blur(I, fine)| / sum |I - blur(I, coarse)| "
                                "of the grey image) of the view's render over its moving region (the ROI Gaussians "
