@@ -20,7 +20,10 @@ neighbourhood radius), numbered for the overview and the user's corrections, and
    the green band; a bed's stems and leaves make up the rest) or, with ``white_flowers``, at least
    ``flower_own_min_white_share`` are white (not greenish white: glare is white-ish, never a
    saturated colour). Pale, greenish or dull candidates are glare on leaves, bark or a blend of
-   them: rejected. A white candidate that lies above every camera (along the world's
+   them: rejected. So is a white candidate with at least as many pale, bright greenish Gaussians
+   (saturation under 0.3, every channel >= 0.6) as white ones and no blossom colour: sunlit glare
+   on a frond whitens toward its centre, while white petals are mostly white (rule ``leaf_glare``).
+   A white candidate that lies above every camera (along the world's
    up, no ground plane needed) is a light under a ceiling or a bright sky gap: rejected.
 4. *sunlit leaves* (flowers): a yellow-green candidate (median hue within ``leaf_hue_margin``
    degrees below the vegetation band) high in a tree's crown (most of it above
@@ -330,8 +333,10 @@ def _own_colour_rule(cand: Candidate, colours, above_cameras, cfg: Config) -> No
     # white petals; a greenish white (a green hue at saturation >= 0.06) is glare on leaves
     greenish = (hue >= cfg.green_hue[0]) & (hue <= cfg.green_hue[1]) & (sat >= 0.06)
     white = (sat < 0.15) & (mn >= 0.8) & ~greenish if cfg.white_flowers else np.zeros(len(rgb), bool)
-    c_share, w_share = float(coloured.mean()), float(white.mean())
-    cand.figures.update(own_coloured=c_share, own_white=w_share)
+    # sunlit glare on leaves: bright, pale and greenish (the bright rim of the white it blends into)
+    glare = greenish & (sat < 2 * 0.15) & (mn >= 0.6)
+    c_share, w_share, g_share = float(coloured.mean()), float(white.mean()), float(glare.mean())
+    cand.figures.update(own_coloured=c_share, own_white=w_share, own_glare=g_share)
     if w_share > c_share and above_cameras is not None:
         high = float(above_cameras[cand.indices].mean())
         cand.figures["above_cameras"] = high
@@ -340,6 +345,11 @@ def _own_colour_rule(cand: Candidate, colours, above_cameras, cfg: Config) -> No
             cand.reason = (f"white and above every camera ({high:.0%} of its Gaussians): a light under a ceiling or "
                            "a bright gap, not blossoms")
             return
+    if c_share < cfg.flower_own_min_share and w_share >= cfg.flower_own_min_white_share and g_share >= w_share:
+        cand.kept, cand.rule = False, "leaf_glare"
+        cand.reason = (f"white ({w_share:.0%}) but as often or more pale green ({g_share:.0%}), with no blossom colour "
+                       f"({c_share:.0%}): sunlit glare on leaves, which whitens toward its centre, not white petals")
+        return
     if c_share < cfg.flower_own_min_share and w_share < cfg.flower_own_min_white_share:
         cand.kept, cand.rule = False, "not_blossom_colour"
         cand.reason = (f"too few of its Gaussians have a blossom's own colour ({c_share:.0%} saturated and bright off "

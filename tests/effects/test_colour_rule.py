@@ -69,3 +69,12 @@ def test_a_white_light_above_every_camera_is_rejected_but_not_below():
     cand = _verdict(means, colours, region, above)
     assert not cand.kept and cand.rule == "light", cand.figures
     assert _verdict(means, colours, region, np.zeros(len(means), bool)).kept  # white petals at eye level
+
+
+def test_sunlit_glare_whitening_toward_its_centre_is_not_white_petals():
+    """The fern capture's "flowers" phrasing chose 64 Gaussians of sunlit frond as white blossoms: 42% white, 50%
+    pale green. White petals shaded green at their rim (30% pale green) stay blossoms."""
+    glare = _verdict(*_clump(_mix([((0.97, 0.98, 0.96), 0.42), ((0.86, 0.97, 0.83), 0.5), ((0.5, 0.7, 0.45), 0.08)])))
+    assert not glare.kept and glare.rule == "leaf_glare", glare.figures
+    petals = _verdict(*_clump(_mix([((0.96, 0.96, 0.94), 0.6), ((0.86, 0.97, 0.83), 0.3), ((0.3, 0.6, 0.25), 0.1)])))
+    assert petals.kept, (petals.reason, petals.figures)
