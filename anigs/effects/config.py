@@ -27,7 +27,7 @@ SEGMENTER_MODES: tuple[str, ...] = ("gate", "replace")
 class SegmenterConfig:
     """Optional learned segmentation (config section ``effects.segmenter``; :mod:`anigs.effects.segmenter`)."""
 
-    #: none (the weight-free cues alone: the default) | segformer (a transformers semantic segmenter, e.g. SegFormer
+    #: none (the weight-free cues alone: the default) or segformer (a transformers semantic segmenter, e.g. SegFormer
     #: fine-tuned on ADE20K, from the local folder ``weights``)
     backend: str = "none"
     #: local folder of the segmenter (config.json, model.safetensors or pytorch_model.bin, preprocessor_config.json),
@@ -37,10 +37,10 @@ class SegmenterConfig:
     #: (made things never move); replace: the segmenter's most likely kind is the pixel's region
     mode: str = "gate"
     min_prob: float = 0.5            # a pixel counts as a kind when the segmenter's summed probability reaches this
-    #: label name of the model (its config's id2label, matched by name) -> foliage | grass | flowers | water | still;
+    #: label name of the model (its config's id2label, matched by name) -> foliage, grass, flowers, water or still;
     #: merged over the built-in names (tree, plant, palm, grass, field, flower, water, sea, river, lake ...)
     classes: dict = field(default_factory=dict)
-    device: str = "auto"             # auto | cpu | cuda[:N]
+    device: str = "auto"             # the segmenter's torch device: auto, cpu or cuda[:N]
 
     def __post_init__(self) -> None:
         if self.backend not in SEGMENTER_BACKENDS:

@@ -306,6 +306,10 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
             conf = 1.0 - 0.5 * min(1.0, max(pf / cfg.min_pixel_fraction, gf / cfg.min_gaussian_fraction))
         rejected = sum(r.rejected_wall_green for r in regions) / max(sum(m.size for m in masks), 1)
         text = reason(name, ok, pf, gf, with_region, n_photos, cfg, ground, rejected)
+        if seg_record is not None:
+            from anigs.effects.segmenter import region_note
+
+            text += region_note(seg_record, name)
         if name not in kinds:
             text = f"No {name} ({' and '.join(REGION_EFFECTS[name])} skipped): not looked for, the prompt does not name it."
         for eff in REGION_EFFECTS[name]:

@@ -178,61 +178,73 @@ class Segmenter:
 
 
 def combine(masks: dict[str, np.ndarray], probs: np.ndarray, valid: np.ndarray, mode: str,
-            min_prob: float) -> dict[str, int]:
+            min_prob: float) -> dict[str, dict[str, int]]:
     """Combine one photo's weight-free region ``masks`` (bool [H,W] per name of ``REGIONS``, changed
     in place) with the segmenter's ``probs`` float [R,H,W]; ``valid`` bool [H,W]: the fitted model
-    covers the pixel. Returns the pixels removed from and added to the regions."""
-    before = sum(int(masks[r].sum()) for r in REGIONS)
+    covers the pixel. Returns per region the pixels removed from it and added to it."""
+    if mode not in ("gate", "replace"):
+        raise ValueError(f"effects.segmenter.mode must be gate or replace, got {mode!r}")
     if mode == "gate":
         plant = probs[[REGIONS.index(r) for r in PLANTS]].sum(0) >= min_prob
         water = probs[REGIONS.index("water")] >= min_prob
-        kept = 0
-        for r in REGIONS:
-            masks[r] = masks[r] & (water if r == "water" else plant)
-            kept += int(masks[r].sum())
-        return {"removed": before - kept, "added": 0}
-    if mode != "replace":
-        raise ValueError(f"effects.segmenter.mode must be gate or replace, got {mode!r}")
-    best = probs.argmax(0)
-    on = valid & (probs.max(0) >= min_prob)
-    removed = added = 0
-    for k, r in enumerate(REGIONS):
-        new = on & (best == k)
-        removed += int((masks[r] & ~new).sum())
-        added += int((new & ~masks[r]).sum())
-        masks[r] = new
-    return {"removed": removed, "added": added}
+        new = {r: masks[r] & (water if r == "water" else plant) for r in REGIONS}
+    else:
+        best = probs.argmax(0)
+        on = valid & (probs.max(0) >= min_prob)
+        new = {r: on & (best == k) for k, r in enumerate(REGIONS)}
+    counts = {"removed": {r: int((masks[r] & ~new[r]).sum()) for r in REGIONS},
+              "added": {r: int((new[r] & ~masks[r]).sum()) for r in REGIONS}}
+    masks.update(new)
+    return counts
 
 
 def apply_segmenter(maps: Sequence, regions: Sequence, cfg: SegmenterConfig, min_alpha: float) -> dict:
     """Segment every analysed photo (``maps``: :class:`~anigs.effects.regions.PhotoMaps`) and combine
     the result with its weight-free ``regions`` (:class:`~anigs.effects.regions.PhotoRegions`, changed
-    in place). Returns the ``segmenter`` record of effects.json (no timings: the record is deterministic)."""
+    in place). Returns the ``segmenter`` record of effects.json (no timings: the record is deterministic);
+    ``pixels_removed`` / ``pixels_added``: per region, the share of the photos' covered pixels."""
     t0 = time.process_time()
     seg = Segmenter(cfg)
-    removed = added = total = 0
+    removed, added = dict.fromkeys(REGIONS, 0), dict.fromkeys(REGIONS, 0)
+    total = 0
     for p, reg in zip(maps, regions):
         probs = seg.kind_probabilities(p.image)
         valid = (p.alpha >= min_alpha) & (p.depth > 0)
         counts = combine(reg.masks, probs, valid, cfg.mode, cfg.min_prob)
-        removed, added, total = removed + counts["removed"], added + counts["added"], total + int(valid.sum())
+        for r in REGIONS:
+            removed[r] += counts["removed"][r]
+            added[r] += counts["added"][r]
+        total += int(valid.sum())
     cpu = time.process_time() - t0
     record = {"backend": cfg.backend, "weights": str(seg.path), "mode": cfg.mode, "min_prob": cfg.min_prob,
               "device": str(seg.device), "labels": seg.labels(), "photos": len(maps),
-              "pixels_removed": round(removed / max(total, 1), 5), "pixels_added": round(added / max(total, 1), 5)}
+              "pixels_removed": {r: round(v / max(total, 1), 5) for r, v in removed.items()},
+              "pixels_added": {r: round(v / max(total, 1), 5) for r, v in added.items()}}
     log.info("effects: segmenter %s (%s, mode %s) on %d photos: %.2f%% of the covered pixels left the regions, "
-             "%.2f%% joined them (%.1f CPU s)", cfg.backend, seg.path, cfg.mode, len(maps), 100 * record["pixels_removed"],
-             100 * record["pixels_added"], cpu)
+             "%.2f%% joined them (%.1f CPU s)", cfg.backend, seg.path, cfg.mode, len(maps),
+             100 * sum(record["pixels_removed"].values()), 100 * sum(record["pixels_added"].values()), cpu)
     return record
+
+
+def region_note(record: dict | None, region: str) -> str:
+    """A sentence for ``region``'s reason: what the segmenter changed there ('' when it changed nothing)."""
+    if not record:
+        return ""
+    out, gone = record["pixels_added"][region], record["pixels_removed"][region]
+    if not gone and not out:
+        return ""
+    what = "does not call a plant or water" if record["mode"] == "gate" else "gives another kind (or none)"
+    text = f" The learned segmenter took {gone:.1%} of the photos' covered pixels out of {region} (pixels it {what})"
+    return text + (f" and put {out:.1%} in." if out else ".")
 
 
 def note(record: dict | None) -> str:
     """One overview line for the segmenter's ``record`` ('' when none ran)."""
     if not record:
         return ""
-    kinds = "; ".join(f"{r}: {', '.join(v)}" for r, v in record["labels"].items() if v)
+    kinds = "; ".join(f"{r}: {', '.join(repr(x) for x in v)}" for r, v in record["labels"].items() if v)
     how = ("kept only the pixels it calls plants or water" if record["mode"] == "gate"
            else "its most likely kind is each pixel's region")
     return (f"Segmenter {record['backend']} ({record['weights']}, mode {record['mode']}): {how}; "
-            f"{100 * record['pixels_removed']:.1f}% of the covered pixels left the regions, "
-            f"{100 * record['pixels_added']:.1f}% joined them ({kinds})")
+            f"{100 * sum(record['pixels_removed'].values()):.1f}% of the covered pixels left the regions, "
+            f"{100 * sum(record['pixels_added'].values()):.1f}% joined them (labels {kinds})")
