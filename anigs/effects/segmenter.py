@@ -157,7 +157,7 @@ class Segmenter:
 
     def labels(self) -> dict[str, list[str]]:
         """Kind -> the model's labels that count for it."""
-        names = dict(self.model.config.id2label)
+        names = {int(k): v for k, v in dict(self.model.config.id2label).items()}
         return {r: [str(names[c]) for c, k in sorted(self.class_region.items()) if k == r] for r in REGIONS}
 
     @torch.inference_mode()
