@@ -2,7 +2,8 @@
 
 ``detect_effects(images, cameras, gaussians, cfg) -> EffectsResult`` analyses capture photos with
 the fitted static model (colour indices, height above the fitted ground, planarity, texture,
-multi-view consistency; no downloaded weights). ``EffectsResult.to_json()`` is the
+multi-view consistency; no downloaded weights; optionally a semantic segmenter with local
+weights, :mod:`anigs.effects.segmenter`). ``EffectsResult.to_json()`` is the
 ``effects.json`` object, ``save_overview`` writes the overview PNG.
 """
 from anigs.effects.config import EFFECT_REGION, EFFECTS, REGION_EFFECTS, REGIONS, Config

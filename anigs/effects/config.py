@@ -19,6 +19,45 @@ REGION_EFFECTS: dict[str, tuple[str, ...]] = {
 }
 EFFECT_REGION: dict[str, str] = {e: r for r, effs in REGION_EFFECTS.items() for e in effs}
 EFFECTS: tuple[str, ...] = tuple(EFFECT_REGION)
+SEGMENTER_BACKENDS: tuple[str, ...] = ("none", "segformer")
+SEGMENTER_MODES: tuple[str, ...] = ("gate", "replace")
+
+
+@dataclass
+class SegmenterConfig:
+    """Optional learned segmentation (config section ``effects.segmenter``; :mod:`anigs.effects.segmenter`)."""
+
+    #: none (the weight-free cues alone: the default) or segformer (a transformers semantic segmenter, e.g. SegFormer
+    #: fine-tuned on ADE20K, from the local folder ``weights``)
+    backend: str = "none"
+    #: local folder of the segmenter (config.json, model.safetensors or pytorch_model.bin, preprocessor_config.json),
+    #: fetched once by the user (README: learned segmentation); nothing is downloaded at run time
+    weights: str = ""
+    #: gate: the weight-free regions keep only pixels the segmenter calls a plant (foliage, grass, flowers) or water
+    #: (made things never move); replace: the segmenter's most likely kind is the pixel's region
+    mode: str = "gate"
+    min_prob: float = 0.5            # a pixel counts as a kind when the segmenter's summed probability reaches this
+    #: label name of the model (its config's id2label, matched by name) -> foliage, grass, flowers, water or still;
+    #: merged over the built-in names (tree, plant, palm, grass, field, flower, water, sea, river, lake ...)
+    classes: dict = field(default_factory=dict)
+    device: str = "auto"             # the segmenter's torch device: auto, cpu or cuda[:N]
+
+    def __post_init__(self) -> None:
+        if self.backend not in SEGMENTER_BACKENDS:
+            raise ValueError(f"effects.segmenter.backend must be one of {list(SEGMENTER_BACKENDS)}, got {self.backend!r}")
+        if self.mode not in SEGMENTER_MODES:
+            raise ValueError(f"effects.segmenter.mode must be one of {list(SEGMENTER_MODES)}, got {self.mode!r}")
+        if not 0 < self.min_prob <= 1:
+            raise ValueError(f"effects.segmenter.min_prob must be in (0, 1], got {self.min_prob}")
+        bad = {k: v for k, v in dict(self.classes).items() if v not in (*REGIONS, "still")}
+        if bad:
+            raise ValueError(f"effects.segmenter.classes: {bad} map to no kind; each label name maps to one of "
+                             f"{[*REGIONS, 'still']}")
+
+    @staticmethod
+    def from_dict(d: dict | None) -> "SegmenterConfig":
+        """Build from ``effects.segmenter``; unknown keys are an error naming them."""
+        return from_dict(SegmenterConfig, d, "effects.segmenter config", ValueError)
 
 
 @dataclass
@@ -128,6 +167,8 @@ class Config:
     selection_tol: float = 0.0001
     vote_threshold: float = 0.5      # a Gaussian joins the region voted by this share of the photos that see it
     propagate_k: int = 8             # Gaussians seen by no photo take the majority of their k neighbours
+    #: optional learned segmentation of the photos with local weights (default backend none: the weight-free cues)
+    segmenter: SegmenterConfig = field(default_factory=SegmenterConfig)
 
     def __post_init__(self) -> None:
         if isinstance(self.requested, str) and self.requested != "auto":
@@ -163,5 +204,9 @@ class Config:
         return from_dict(Config, d, "effects config", ValueError)
 
     def to_dict(self) -> dict:
+        """The section as plain values; ``segmenter`` only when a backend is set (a weight-free run records what
+        it recorded before the segmenter existed)."""
         out = asdict(self)
+        if self.segmenter.backend == "none":
+            del out["segmenter"]
         return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}

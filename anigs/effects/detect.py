@@ -7,6 +7,8 @@ Pipeline (no downloaded weights):
    ``|normal . up|`` (:func:`~anigs.effects.geometry.local_shape`), multi-view colour spread;
 3. per photo: the model's depth/alpha and the cue maps rendered at its camera, then the region
    masks of :func:`~anigs.effects.regions.classify_photo`;
+   with ``segmenter.backend`` set, a learned segmenter with local weights gates (or replaces) those
+   masks (:mod:`anigs.effects.segmenter`);
 4. lift: every Gaussian votes, over the photos where it is visible (depth test), for the region
    under its centre; it joins the region voted by >= ``vote_threshold`` of them. Gaussians no
    photo sees take the majority of their ``propagate_k`` nearest decided neighbours
@@ -81,6 +83,7 @@ class EffectsResult:
     candidates: list = field(default_factory=list)  # numbered 3D candidates (anigs.effects.rules.Candidate)
     rejected_masks: list = field(default_factory=list)  # per photo: int8 [H,W], 1 + region of a rejected candidate's pixel, 0 none
     fragments: dict = field(default_factory=dict)  # region -> Gaussians of unnumbered small parts the rules set aside
+    segmenter: dict | None = None  # the learned segmenter's record (anigs.effects.segmenter); None: weight-free
 
     @property
     def detected(self) -> list[str]:
@@ -102,7 +105,8 @@ class EffectsResult:
                 "ground": self.ground.to_dict(), "config": self.cfg.to_dict(),
                 "candidates": [c.to_json() for c in self.candidates],
                 "rejected": [c.to_json() for c in self.candidates if not c.kept or c.moved_to],
-                "fragments": {k: int(v) for k, v in self.fragments.items()}}
+                "fragments": {k: int(v) for k, v in self.fragments.items()},
+                **({"segmenter": self.segmenter} if self.segmenter is not None else {})}
 
 
 def photo_indices(num_photos: int, max_photos: int) -> np.ndarray:
@@ -264,6 +268,11 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
         log.info("effects: ground cut %.3g above the plane (seen ground; the centres' layer reaches %.3g)",
                  ground.cut, ground.plane.cut_height())
     regions = [classify_photo(p, ground, cfg) for p in maps]
+    seg_record = None
+    if cfg.segmenter.backend != "none":  # learned segmentation gates or replaces the colour cues' regions
+        from anigs.effects.segmenter import apply_segmenter
+
+        seg_record = apply_segmenter(maps, regions, cfg.segmenter, cfg.min_alpha)
     kinds = list(REGIONS) if kinds is None else list(kinds)
     unknown = [k for k in kinds if k not in REGIONS]
     if unknown:
@@ -297,11 +306,16 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
             conf = 1.0 - 0.5 * min(1.0, max(pf / cfg.min_pixel_fraction, gf / cfg.min_gaussian_fraction))
         rejected = sum(r.rejected_wall_green for r in regions) / max(sum(m.size for m in masks), 1)
         text = reason(name, ok, pf, gf, with_region, n_photos, cfg, ground, rejected)
+        if seg_record is not None:
+            from anigs.effects.segmenter import region_note
+
+            text += region_note(seg_record, name)
         if name not in kinds:
             text = f"No {name} ({' and '.join(REGION_EFFECTS[name])} skipped): not looked for, the prompt does not name it."
         for eff in REGION_EFFECTS[name]:
             effects[eff] = EffectResult(eff, name, ok, pf, gf, conf, text, masks, idx, photo_frac, agreement)
     res = EffectsResult(effects, photos, cams, region_of, ground, cfg, candidates,
-                        [getattr(p, "rejected", np.zeros(p.depth.shape, np.int8)) for p in maps], fragments)
+                        [getattr(p, "rejected", np.zeros(p.depth.shape, np.int8)) for p in maps], fragments,
+                        seg_record)
     log.info("effects: detected %s", res.detected or "nothing")
     return res

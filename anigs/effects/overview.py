@@ -115,6 +115,10 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
     found = res.detected
     lines = ["Effects found: " + (", ".join(found) if found else "none: the scene stays still")]
     lines += getattr(res, "prompt_lines", [])  # how the prompt was read, and its words not understood
+    if getattr(res, "segmenter", None):  # the learned segmenter's part (none: weight-free, nothing to say)
+        from anigs.effects.segmenter import note
+
+        lines.append(note(res.segmenter))
     lines += [res.effects[REGION_EFFECTS[r][0]].reason for r in REGIONS]
     if res.ground.note:
         lines.append(res.ground.note)

@@ -2,7 +2,8 @@
 
 Analyses the capture photos the SfM cameras describe (the undistorted ``sfm/images``) with the
 fitted static model (:func:`anigs.effects.detect_effects`: colour indices, height above the
-fitted ground, planarity, texture, multi-view consistency; no downloaded weights) and decides,
+fitted ground, planarity, texture, multi-view consistency; no downloaded weights, or optionally a
+semantic segmenter with local weights: ``effects.segmenter``) and decides,
 per effect, whether the scene contains it.
 
 Which of the detected effects the scene simulates (its ``effects:`` list and its prompt) is
