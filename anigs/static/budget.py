@@ -100,13 +100,14 @@ def fit_scale(width: int, height: int, max_side: int) -> float:
 class StepCost:
     """Seconds per training step: ``scale * (a + b * pixels + c * gaussians + d * pixels * gaussians)``
     (the last term: larger splats on larger photos cover more pixels each). The coefficients are one
-    thread's CPU seconds measured by ``benchmarks/fit_cost.py`` on the street walk (12 points, 76k-697k
-    pixels, 20k-150k Gaussians, within 6%); ``scale`` brings them to this machine and its threads."""
+    thread's CPU seconds measured by ``benchmarks/fit_cost.py`` on the street walk with the ellipse-culled
+    rasterizer (anigs 0.9; 12 points, 76k-697k pixels, 20k-150k Gaussians, within 11%); ``scale`` brings
+    them to this machine and its threads."""
 
-    a: float = 5.4e-3  # fixed part (s)
-    b: float = 1.94e-7  # per pixel of the photo (s)
-    c: float = 7.2e-7  # per Gaussian (s)
-    d: float = 5.0e-12  # per pixel and Gaussian (s)
+    a: float = 2.28e-3  # fixed part (s)
+    b: float = 2.3e-7  # per pixel of the photo (s)
+    c: float = 7.7e-7  # per Gaussian (s)
+    d: float = 3.49e-12  # per pixel and Gaussian (s)
     scale: float = 1.0  # measured / predicted on this machine (:meth:`calibrated`)
 
     def _model(self, pixels: int, gaussians: float) -> float:
