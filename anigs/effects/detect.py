@@ -15,7 +15,12 @@ Pipeline (no downloaded weights):
    (:func:`anigs.geometry.propagate.propagate_labels`); foliage, grass and flowers stop at the ground;
 5. decide per region: detected when it covers >= ``min_pixel_fraction`` of the photos' pixels,
    >= ``min_gaussian_fraction`` (and ``min_gaussians``) of the Gaussians and appears in
-   >= ``min_photo_fraction`` of the photos (at least 2).
+   >= ``min_photo_fraction`` of the photos (at least 2);
+6. what stays still though a photo shows it: per region, the share of its mask pixels with less than
+   half of the render from the region's Gaussians (``unlifted`` in the record, :func:`unlifted_share`).
+   For foliage, whose mask is the plants' own silhouette, a large share (>= 10%) means the model lacks
+   those plants (a crown seen in one photo, placed among what the other photos see as sky): the reason
+   says so and the overview hatches them grey.
 
 Confidence: detected, ``0.5 + 0.5 * mean(strength_px, strength_g, photo share, agreement)`` with
 ``strength = min(1, fraction / (3 * minimum))`` and ``agreement`` the mean vote share of the
@@ -34,7 +39,7 @@ from anigs.cameras import Camera
 from anigs.effects.config import EFFECTS, REGION_EFFECTS, REGIONS, Config
 from anigs.effects.geometry import (Ground, colour_spread, local_shape, render_features, scene_ground, seen_ground_cut,
                                    world_up)
-from anigs.effects.reasons import reason
+from anigs.effects.reasons import UNLIFTED_NOTE, reason, unlifted_note
 from anigs.effects.regions import PhotoMaps, PhotoRegions, classify_photo
 from anigs.effects.rules import check_candidates
 from anigs.gaussians import Gaussians
@@ -61,13 +66,17 @@ class EffectResult:
     indices: np.ndarray
     photo_fraction: float = 0.0
     agreement: float = 0.0
+    unlifted: float = 0.0  # share of the masks' pixels with none of the region's Gaussians in front (they stay still)
+    #: per photo: bool [H,W], those pixels (foliage only: the grass, flower and water masks reach past their
+    #: plants by design, a lawn's soil, a blossom's rim; empty: none)
+    unlifted_masks: list = field(default_factory=list)
 
     def to_json(self) -> dict:
         return {"detected": bool(self.detected), "pixel_fraction": round(float(self.pixel_fraction), 5),
                 "gaussian_fraction": round(float(self.gaussian_fraction), 5),
                 "confidence": round(float(self.confidence), 3), "reason": self.reason, "region": self.region,
                 "num_gaussians": int(len(self.indices)), "photo_fraction": round(float(self.photo_fraction), 4),
-                "agreement": round(float(self.agreement), 4)}
+                "agreement": round(float(self.agreement), 4), "unlifted": round(float(self.unlifted), 4)}
 
 
 @dataclass
@@ -226,6 +235,33 @@ def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground:
     return new, cands, fragments
 
 
+def unlifted_share(g: Gaussians, region_of: np.ndarray, cams: Sequence[Camera], masks: dict[str, list[np.ndarray]],
+                   min_share: float = 0.5, out_masks: dict[str, list[np.ndarray]] | None = None) -> dict[str, float]:
+    """Per region with mask pixels: the share of its photos' mask pixels (``masks[region]``, one bool [H,W]
+    per camera of ``cams``) where the region's Gaussians (``region_of`` [N]) carry less than
+    ``min_share`` of the render: the photo shows the region there, the 3D model has none of it (a crown
+    seen in one photo, or put where the other photos see sky), so those pixels stay still. ``out_masks``
+    (when given) receives, per region, those pixels: bool [H,W] per camera."""
+    todo = [r for r in REGIONS if sum(int(m.sum()) for m in masks[r])]
+    out = {r: 0.0 for r in REGIONS}
+    for part in (todo[:3], todo[3:]):
+        if not part:
+            continue
+        onehot = np.stack([region_of == REGIONS.index(r) for r in part], 1).astype(np.float32)
+        miss, tot = np.zeros(len(part)), np.zeros(len(part))
+        for i, cam in enumerate(cams):
+            share = render_features(g, onehot, cam)[0]
+            for j, r in enumerate(part):
+                m = masks[r][i]
+                missing = m & (share[..., j] < min_share)
+                miss[j] += int(missing.sum())
+                tot[j] += int(m.sum())
+                if out_masks is not None:
+                    out_masks.setdefault(r, [np.zeros_like(x) for x in masks[r]])[i] = missing
+        out.update({r: float(miss[j] / max(tot[j], 1)) for j, r in enumerate(part)})
+    return out
+
+
 def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaussians: Gaussians,
                    cfg: Config | None = None, kinds: Sequence[str] | None = None) -> EffectsResult:
     """Detect foliage, grass, flowers and water in a scene (see module docstring).
@@ -284,6 +320,9 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
     region_of, share = _lift(means, max_scale, maps, regions, ground, cfg)
     region_of, candidates, fragments = _apply_rules(g, means, region_of, ground, radius, maps, regions, cfg,
                                                     variation < cfg.wall_max_variation, cams)
+    unlifted_px: dict[str, list[np.ndarray]] = {}
+    unlifted = unlifted_share(g, region_of, cams, {r: [reg.masks[r] for reg in regions] for r in REGIONS},
+                              out_masks=unlifted_px)
     effects: dict[str, EffectResult] = {}
     n_photos = len(maps)
     min_photos = max(2, int(np.ceil(cfg.min_photo_fraction * n_photos))) if n_photos > 1 else 1
@@ -306,6 +345,8 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
             conf = 1.0 - 0.5 * min(1.0, max(pf / cfg.min_pixel_fraction, gf / cfg.min_gaussian_fraction))
         rejected = sum(r.rejected_wall_green for r in regions) / max(sum(m.size for m in masks), 1)
         text = reason(name, ok, pf, gf, with_region, n_photos, cfg, ground, rejected)
+        if ok and name == "foliage" and unlifted[name] >= UNLIFTED_NOTE:  # the others' masks grow past them
+            text += unlifted_note(name, unlifted[name])
         if seg_record is not None:
             from anigs.effects.segmenter import region_note
 
@@ -313,7 +354,8 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
         if name not in kinds:
             text = f"No {name} ({' and '.join(REGION_EFFECTS[name])} skipped): not looked for, the prompt does not name it."
         for eff in REGION_EFFECTS[name]:
-            effects[eff] = EffectResult(eff, name, ok, pf, gf, conf, text, masks, idx, photo_frac, agreement)
+            effects[eff] = EffectResult(eff, name, ok, pf, gf, conf, text, masks, idx, photo_frac, agreement,
+                                        unlifted[name], unlifted_px.get(name, []) if name == "foliage" else [])
     res = EffectsResult(effects, photos, cams, region_of, ground, cfg, candidates,
                         [getattr(p, "rejected", np.zeros(p.depth.shape, np.int8)) for p in maps], fragments,
                         seg_record)

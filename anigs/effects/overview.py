@@ -6,7 +6,8 @@ names its effects and the decision, and the reasons are printed below the grid. 
 candidate (:mod:`anigs.effects.rules`) is labelled with its number at its centre in its region's
 column (white: kept, red: rejected by a geometry rule, whose pixels are hatched red); the
 rejections and their reasons are listed below, so a scene file can drop or force a candidate by
-number (``effects: {drop: [N], force: [N]}``).
+number (``effects: {drop: [N], force: [N]}``). Pixels a photo shows as a region with none of the
+region's Gaussians in front of them (they stay still; ``unlifted`` in the record) are hatched grey.
 """
 from __future__ import annotations
 
@@ -96,7 +97,11 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
         for r in REGIONS:
             e = res.effects[REGION_EFFECTS[r][0]]
             m = e.masks[i]
-            tinted = overlay(img, m, COLOURS[r], 0.55 if e.detected else 0.3)
+            # pixels the photo shows as the region but no region Gaussian lies in front of stay still: hatched grey
+            still = e.unlifted_masks[i] if e.unlifted_masks else np.zeros_like(m)
+            tinted = overlay(img, m & ~still, COLOURS[r], 0.55 if e.detected else 0.3)
+            grey = still & (((np.arange(h)[:, None] - np.arange(w)[None]) // 2) % 3 == 0)
+            tinted = np.where(grey[..., None], np.array([0.55, 0.55, 0.55], np.float32), tinted)
             if not e.detected:
                 tinted = 0.55 * tinted + 0.45 * img.mean(-1, keepdims=True)
             if res.rejected_masks:
@@ -106,7 +111,8 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
             panel = (np.clip(cv2.resize(tinted, (panel_width, ph), interpolation=cv2.INTER_AREA), 0, 1) * 255
                      ).astype(np.uint8)
             _numbers(panel, res, i, r, panel_width / w)
-            cv2.putText(panel, f"{res.cameras[i].name} {100 * m.mean():.1f}%", (4, ph - 6), FONT, 0.38,
+            moving = f" ({100 * (m & ~still).mean():.1f}% in 3D)" if still.any() else ""
+            cv2.putText(panel, f"{res.cameras[i].name} {100 * m.mean():.1f}%{moving}", (4, ph - 6), FONT, 0.38,
                         (255, 255, 255), 1, cv2.LINE_AA)
             panel = panel.astype(np.float32) / 255.0
             panels.append(np.pad(panel, ((2, 2), (2, 2), (0, 0)), constant_values=1.0))

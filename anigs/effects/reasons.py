@@ -38,3 +38,14 @@ def reason(region: str, detected: bool, pixel_fraction: float, gaussian_fraction
         text += (f" {rejected_green:.1%} of the pixels are green but lie on flat vertical surfaces or fill a "
                  "rectangle (a wall, a picture, a screen), so they were left still.")
     return text
+
+
+UNLIFTED_NOTE = 0.1  # share of a region's photo pixels with no region Gaussians in front, from which the reason says so
+
+
+def unlifted_note(region: str, share: float) -> str:
+    """The sentence for a region the photos show but the 3D model mostly lacks (share: of its photo pixels)."""
+    return (f" {share:.0%} of the pixels the photos show as {region} have none of the model's {region} in front of "
+            "them, so they stay still: parts seen in too few photos to be placed in 3D, or placed where the other "
+            "photos see something else such as sky (more photos of them, from nearby, would let them move), or "
+            f"colours the photos' votes did not take for {region}.")
