@@ -73,6 +73,11 @@ class ViewsConfig:
     #: directions that no location shows sharply enough (min_motion_sharpness) are filled with views at the poses of
     #: the photos that show the moving region best, and views.json says where more photos would help
     photo_pose_fallback: bool = True
+    #: two directions queued at one location differ by at least this angle (deg, yaw and pitch together): a
+    #: replacement closer to one already queued there is skipped (the street walk queued three near-copies of one
+    #: view, 94-99% overlapping, when every planned yaw fell back to the same best direction; the planned yaws are
+    #: 90 deg apart, the walk views 95 deg wide); 0: off
+    min_separation_deg: float = 30.0
     #: render background of the edge figure (the scene's sky colour)
     background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
 
@@ -113,6 +118,8 @@ class ViewsConfig:
         if self.min_motion_sharpness < 0 or not 0.0 <= self.max_unobserved <= 1.0:
             raise ValueError(f"views.min_motion_sharpness must be >= 0 (0: off) and max_unobserved in [0, 1], got "
                              f"{self.min_motion_sharpness}, {self.max_unobserved}")
+        if not 0.0 <= self.min_separation_deg <= 180.0:
+            raise ValueError(f"views.min_separation_deg must be in [0, 180], got {self.min_separation_deg}")
         if self.max_sampling_ratio < 0:
             raise ValueError(f"views.max_sampling_ratio must be >= 0 (0: off), got {self.max_sampling_ratio}")
         if self.sharp_fraction <= 0 or self.footprint_ratio <= 0 or self.near_points <= 0 or self.min_sharp_observations < 0:

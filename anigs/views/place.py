@@ -21,6 +21,13 @@ from anigs.views.policy import LayoutPolicy
 
 log = logging.getLogger("anigs.views")
 
+def _angle_deg(yaw0: float, pitch0: float, yaw1: float, pitch1: float) -> float:
+    """Angle (deg) between two view directions given as yaw and pitch (deg) about the same heading."""
+    p0, p1, dy = math.radians(pitch0), math.radians(pitch1), math.radians(_rel_deg(yaw0 - yaw1))
+    c = math.sin(p0) * math.sin(p1) + math.cos(p0) * math.cos(p1) * math.cos(dy)
+    return math.degrees(math.acos(min(max(c, -1.0), 1.0)))
+
+
 class Placed(NamedTuple):
     """A direction that passed: its camera, scene coverage, and yaw and pitch (deg)."""
 
@@ -89,6 +96,8 @@ class Placer:
         for y, p in replacement_directions(yaw, self.policy.pitch_deg, roi_rel, self.cfg):
             if any(abs(_rel_deg(y - uy)) < 1e-6 and abs(p - up_) < 1e-6 for uy, up_ in self.used.get(ci, [])):
                 continue
+            if any(_angle_deg(y, p, uy, up_) < self.cfg.min_separation_deg for uy, up_ in self.used.get(ci, [])):
+                continue  # a near-copy of a view queued here (not tested, not drawn)
             cam, cov, fig = self.coverage_of(ci, y, p)
             why = (f"coverage {cov:.2f} < min_coverage {self.cfg.min_coverage:g}" if fig is None
                    else self.check.failure(fig))
