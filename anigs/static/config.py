@@ -38,6 +38,7 @@ class FitConfig:
     #: training photo observes (the sfm stage's tracks.npz; photos only: a synthetic scene gets no tracks); 0: off
     depth_weight: float = 0.0
     depth_weight_final: float = 0.0  # its weight at the last step (log-linear in between; 0: linear to 0)
+    depth_tolerance: float = 0.0  # depth errors up to this log ratio (0.02: 2%) cost nothing: SfM depths are not exact
     #: learning rate of a per-training-photo affine colour map (3x3 + 3, identity at the start) applied to the
     #: render before the loss (exposure, white balance); held-out photos and every later render use none; 0: off
     exposure_lr: float = 0.0
@@ -102,6 +103,8 @@ class FitConfig:
         if self.depth_weight < 0 or self.depth_weight_final < 0:
             raise ValueError(f"static.depth_weight and depth_weight_final must be >= 0, got {self.depth_weight} "
                              f"and {self.depth_weight_final}")
+        if self.depth_tolerance < 0:
+            raise ValueError(f"static.depth_tolerance must be >= 0, got {self.depth_tolerance}")
         if self.exposure_lr < 0:
             raise ValueError(f"static.exposure_lr must be >= 0 (0: off), got {self.exposure_lr}")
         if not 0 < self.init_opacity < 1:

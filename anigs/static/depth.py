@@ -3,7 +3,8 @@
 Few photos of a large scene (a street walk: 2-3 photos per facade at grazing angles) let the fit
 memorise each training photo with splats at the wrong depth, which the held-out photos then see
 smeared. The SfM points each training photo observes fix the depth where they are: the loss is the
-mean ``|log(d_render / d_sfm)|`` over a photo's observed points where the render is opaque
+mean ``|log(d_render / d_sfm)|`` (less a tolerance, ``static.depth_tolerance``: the SfM depths are not
+exact either) over a photo's observed points where the render is opaque
 (alpha > :data:`MIN_ALPHA`), ``d_render`` the rasterizer's expected depth (already divided by alpha)
 at the observation's pixel, weighted by :func:`depth_weight` (decaying over the fit: the points
 place the surfaces early, the photos refine them).
@@ -71,12 +72,15 @@ def depth_targets(tracks: dict[str, np.ndarray], sizes: Sequence[tuple[int, int]
     return out
 
 
-def depth_loss(depth: torch.Tensor, alpha: torch.Tensor, target: DepthTarget) -> torch.Tensor:
-    """Mean ``|log(depth / SfM depth)|`` at ``target``'s pixels where ``alpha`` > :data:`MIN_ALPHA`
-    (0-dim; 0 when none is). ``depth``, ``alpha``: the render's [H,W] (expected depth divided by alpha)."""
+def depth_loss(depth: torch.Tensor, alpha: torch.Tensor, target: DepthTarget, tolerance: float = 0.0) -> torch.Tensor:
+    """Mean ``max(|log(depth / SfM depth)| - tolerance, 0)`` at ``target``'s pixels where ``alpha`` >
+    :data:`MIN_ALPHA` (0-dim; 0 when none is). ``depth``, ``alpha``: the render's [H,W] (expected depth
+    divided by alpha); ``tolerance``: what the SfM depths are trusted to (log ratio: 0.02 is 2%)."""
     d = depth.reshape(-1)[target.pixel]
     opaque = alpha.detach().reshape(-1)[target.pixel] > MIN_ALPHA
     err = (torch.log(d.clamp_min(1e-6)) - target.log_depth).abs()
+    if tolerance > 0:
+        err = (err - tolerance).clamp_min(0)
     return torch.where(opaque, err, torch.zeros_like(err)).sum() / opaque.sum().clamp_min(1)
 
 

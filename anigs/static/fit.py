@@ -59,7 +59,7 @@ def train_step(params: dict[str, torch.nn.Parameter], optimizer: torch.optim.Opt
                target: torch.Tensor, sh_degree: int, bg: torch.Tensor, backend: str, ssim_weight: float,
                mats: tuple[torch.Tensor, torch.Tensor] | None = None, stats: DensifyState | None = None,
                guard: DivergenceGuard | None = None, step: int = 0, depth: DepthTarget | None = None,
-               depth_w: float = 0.0, colour: tuple[Exposure, int] | None = None
+               depth_w: float = 0.0, depth_tol: float = 0.0, colour: tuple[Exposure, int] | None = None
                ) -> tuple[torch.Tensor, torch.Tensor]:
     """One optimisation step on view ``cam`` with image ``target`` [H,W,3]: render, loss (plus
     ``depth_w`` times the depth loss at ``depth``'s SfM points, :mod:`anigs.static.depth`; with
@@ -75,7 +75,7 @@ def train_step(params: dict[str, torch.nn.Parameter], optimizer: torch.optim.Opt
         rgb = colour[0].apply(rgb, colour[1])
     loss = loss_fn(rgb, target, ssim_weight)
     if depth is not None and depth_w > 0:
-        loss = loss + depth_w * depth_loss(meta["depth"], alpha, depth)
+        loss = loss + depth_w * depth_loss(meta["depth"], alpha, depth, depth_tol)
     loss.backward()
     if guard is not None:
         guard.record(step, loss, params)
@@ -229,6 +229,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         metrics["exposure"] = {"lr": cfg.exposure_lr, **run.exposure.report()}
     if train_depth is not None:
         metrics["depth"] = {"weight": cfg.depth_weight, "weight_final": cfg.depth_weight_final,
+                            "tolerance": cfg.depth_tolerance,
                             "train_points": sum(t.num for t in train_depth if t is not None),
                             "train": _depth_error(params, train_cams, train_depth, final_deg, bg, cfg.backend),
                             "test": _depth_error(params, test_cams, test_depth, final_deg, bg, cfg.backend)}
@@ -337,7 +338,7 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
         dw = depth_weight(step - 1, cfg.iterations, cfg.depth_weight, cfg.depth_weight_final) if depth else 0.0
         loss, rgb = train_step(run.params, optimizer, cam, target, deg, step_bg, cfg.backend, cfg.ssim_weight,
                                mats=train_mats[v], stats=stats, guard=guard, step=step,
-                               depth=depth[v] if dw > 0 else None, depth_w=dw,
+                               depth=depth[v] if dw > 0 else None, depth_w=dw, depth_tol=cfg.depth_tolerance,
                                colour=None if run.exposure is None else (run.exposure, v))
 
         ckpt_due = cfg.checkpoint_every > 0 and step % cfg.checkpoint_every == 0

@@ -68,6 +68,9 @@ def test_zero_loss_where_the_depths_agree():
     # 10% too far: |log 1.1| at every point
     far = DepthTarget(t.pixel, agree.log_depth - np.log(1.1))
     assert float(depth_loss(depth, alpha, far)) == pytest.approx(np.log(1.1), rel=1e-4)
+    # within the tolerance: nothing; beyond it: the excess
+    assert float(depth_loss(depth, alpha, far, tolerance=0.1)) == 0.0
+    assert float(depth_loss(depth, alpha, far, tolerance=0.05)) == pytest.approx(np.log(1.1) - 0.05, rel=1e-3)
 
 
 def test_a_misplaced_wall_is_pulled_to_the_sfm_depth():
