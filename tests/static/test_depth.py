@@ -169,3 +169,31 @@ def test_depth_loss_moves_the_fit_toward_the_sfm_depths_and_is_deterministic(sce
     for k, v in g1.params().items():
         assert torch.equal(v, g2.params()[k]), k
     assert json.dumps(m1["depth"]) == json.dumps(m2["depth"])
+
+
+def test_cli_passes_the_tracks_file(scene, tmp_path, caplog):
+    from anigs.cameras import save_cameras
+    from anigs.cli import main
+    from anigs.io import write_npz
+    from anigs.sfm.tracks import save_tracks
+    from anigs.video import save_png
+
+    gt, cams, imgs = scene
+    for cam, im in zip(cams, imgs):
+        save_png(tmp_path / "images" / cam.name, im.numpy())
+    save_cameras(tmp_path / "cameras.json", cams)
+    p, c = sfm_points(gt, every=4)
+    write_npz(tmp_path / "points.npz", xyz=p.astype(np.float32), rgb=c.astype(np.float32))
+    save_tracks(tmp_path / "tracks.npz", _tracks(p, cams))
+    args = ["static", "--images", str(tmp_path / "images"), "--cameras", str(tmp_path / "cameras.json"),
+            "--points", str(tmp_path / "points.npz"), "--no-progress"]
+    params = json.dumps({**FAST, "depth_weight": 0.2})
+    assert main([*args, "--out", str(tmp_path / "a"), "--tracks", str(tmp_path / "tracks.npz"), "--params", params]) == 0
+    m = json.loads((tmp_path / "a" / "metrics.json").read_text())
+    assert m["inputs"]["tracks"] == str(tmp_path / "tracks.npz") and m["depth"]["weight"] == 0.2
+    assert m["config"]["depth_weight"] == 0.2
+    # tracks of another capture: a clear error (exit status 1) naming an image
+    save_tracks(tmp_path / "other.npz", {"elsewhere.png": np.ones((2, 3), np.float32)})
+    caplog.clear()
+    assert main([*args, "--out", str(tmp_path / "b"), "--tracks", str(tmp_path / "other.npz"), "--params", params]) == 1
+    assert "without a camera, e.g. ['elsewhere.png']" in caplog.text
