@@ -176,7 +176,7 @@ def test_cli_from_existing_model(ring, tmp_path, capsys):
     assert "registered 20/20 images" in capsys.readouterr().out
     report = json.loads((out / "report.json").read_text())
     assert report["mapping"]["source"].endswith("selected") and report["gt_errors"]["rotation_error_deg"]["max"] < 0.5
-    assert sorted(p.name for p in out.iterdir()) == ["cameras.json", "images", "points.npz", "report.json", "sparse"]
+    assert sorted(p.name for p in out.iterdir()) == ["cameras.json", "images", "points.npz", "report.json", "sparse", "tracks.npz"]
     assert main(["sfm", "--images", str(ring["images"]), "--out", str(out), "--params", '{"bogus": 1}']) == 1
 
 
