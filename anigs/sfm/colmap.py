@@ -47,7 +47,8 @@ the sfm stage's ``Outputs`` (:mod:`anigs.stages.sfm`) name its files: ``sparse``
 binary model in the output frame, PINHOLE cameras after undistortion), ``images`` (the images the
 cameras describe: undistorted, or copies), ``cameras`` (project convention, one camera per
 registered image, ``name`` = file name), ``points`` (``xyz`` [P,3] float32, ``rgb`` [P,3] float32
-in [0,1], ``error`` [P] float32 reprojection error in px, ``track_length`` [P] int32), ``report``,
+in [0,1], ``error`` [P] float32 reprojection error in px, ``track_length`` [P] int32), ``tracks``
+(per image, the points it observes: :mod:`anigs.sfm.tracks`), ``report``,
 ``work`` (kept with ``keep_work``).
 """
 from __future__ import annotations
@@ -75,6 +76,7 @@ from anigs.sfm.model import (find_model_dir, reconstruction_cameras, reconstruct
 from anigs.sfm.bundle import adjust_intrinsics
 from anigs.sfm.fingerprint import database_fingerprints, model_fingerprint
 from anigs.sfm import steps
+from anigs.sfm.tracks import model_tracks, save_tracks
 from anigs.sfm.plan import resolve_threads
 from anigs.sfm.steps import _device, camera_mode, cpu_seconds, larger_originals, refine_model, select_model
 
@@ -169,6 +171,7 @@ def run_sfm(image_dir: str | Path, out: StageFolder, cfg: SfmConfig | None = Non
         replace_dir(images_tmp, out.path("images"))
         save_cameras(out.path("cameras"), cams, extra={"source": "colmap", "frame": report["frame"]["mode"]})
         write_npz(out.path("points"), **pts)
+        save_tracks(out.path("tracks"), model_tracks(rec))
         report["timings_s"]["total"], report["cpu_s"]["total"] = time.perf_counter() - t_start, cpu_seconds() - c_start
         report["load_average"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
         write_json(out.path("report"), report)

@@ -3,7 +3,7 @@
     anigs sfm --images results/demo/capture/images --out results/demo/sfm \\
         [--gt-cameras results/demo/capture/gt/cameras.json] [--model DIR] --params '{"camera_model": "PINHOLE"}'
 
-Writes ``sparse/0/``, ``images/``, ``cameras.json``, ``points.npz`` and ``report.json`` into ``--out``
+Writes ``sparse/0/``, ``images/``, ``cameras.json``, ``points.npz``, ``tracks.npz`` and ``report.json`` into ``--out``
 (see :mod:`anigs.sfm.colmap`).
 """
 from __future__ import annotations
@@ -31,6 +31,8 @@ class Outputs(contract.Outputs):
         "cameras": File("cameras.json", "one camera per registered image (anigs convention, name = file name)"),
         "points": File("points.npz", "xyz [P,3] float32, rgb [P,3] float32 in [0,1], error [P] float32 "
                                      "(reprojection px), track_length [P] int32"),
+        "tracks": File("tracks.npz", "per registered image, the SfM points it observes: rows (x, y, depth) in its "
+                                     "pixels and the output frame (anigs.sfm.tracks)"),
         "report": File("report.json", "registered images, points, mapping, escalation, ground-truth pose errors"),
         "work": File("work/", "COLMAP database and raw models (--keep-work only)", optional=True),
     }

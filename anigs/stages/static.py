@@ -1,7 +1,7 @@
 """Stage ``static``: fit the static canonical 3DGS from posed images and SfM points.
 
     anigs static --images DIR --cameras sfm/cameras.json --points sfm/points.npz \
-                 --out results/demo/static [--params JSON]
+                 [--tracks sfm/tracks.npz] --out results/demo/static [--params JSON]
 
 Writes ``OUT/canonical.ply`` (standard 3DGS layout) and ``OUT/metrics.json``. While it runs,
 ``OUT/checkpoint.ply`` holds the last good state; it is removed on success and kept when the
@@ -23,6 +23,7 @@ from anigs.gaussians import load_ply
 from anigs.images import load_inputs
 from anigs.io import write_json
 from anigs.sfm.model import load_points
+from anigs.sfm.tracks import load_tracks
 from anigs.static.fit import fit_static
 from anigs.static.report import draw_fit
 
@@ -65,6 +66,9 @@ class Inputs(contract.Inputs):
     cameras: Path = contract.upstream(SfmOutputs, "cameras", "cameras (anigs convention), one entry per used image")
     points: Path = contract.upstream(SfmOutputs, "points", "the SfM points: xyz [P,3] and rgb [P,3]")
     out: Outputs = contract.output_folder(Outputs)
+    tracks: Path | None = contract.upstream(SfmOutputs, "tracks", "the SfM points each photo observes, for the "
+                                            "depth loss (static.depth_weight); without it: no depth loss",
+                                            default=None)
     no_progress: bool = field(default=False, metadata={"help": "hide the progress bar"})
 
 
@@ -76,10 +80,11 @@ def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
     out, images, cameras, points = inputs.out, inputs.images, inputs.cameras, inputs.points
     imgs, cams = load_inputs(images, cameras, compact=True)  # uint8: a quarter of the memory
     pts, cols = load_points(points)
+    tracks = load_tracks(inputs.tracks) if inputs.tracks is not None else None
     out.root.mkdir(parents=True, exist_ok=True)
     ckpt = out.path("checkpoint")
     gaussians, metrics = fit_static(imgs, cams, pts, cols, cfg, progress=not inputs.no_progress,
-                                    checkpoint_path=ckpt)
+                                    checkpoint_path=ckpt, tracks=tracks)
     ply = out.path("canonical")
     gaussians.save_ply(ply)
     back = load_ply(ply)  # the artifact must round-trip
@@ -87,6 +92,8 @@ def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
         raise RuntimeError(f"{ply}: wrote {gaussians.num} Gaussians but read back {back.num}")
     metrics["inputs"] = {"images": str(images), "cameras": str(cameras), "points": str(points),
                          "num_points": int(len(pts))}
+    if inputs.tracks is not None:
+        metrics["inputs"]["tracks"] = str(inputs.tracks)
     metrics["config"] = _config_dict(cfg)
     write_json(out.path("metrics"), metrics)
     draw_fit(metrics, out.path("fit"))

@@ -34,6 +34,14 @@ class FitConfig:
     lr_scales: float = 5e-3  # learning rate of the log-scales
     lr_quats: float = 1e-3  # learning rate of the rotations
     ssim_weight: float = 0.2  # loss = (1-w) L1 + w (1 - SSIM)
+    #: weight of the depth loss at the first step: mean |log(render depth / SfM depth)| at the SfM points each
+    #: training photo observes (the sfm stage's tracks.npz; photos only: a synthetic scene gets no tracks); 0: off
+    depth_weight: float = 0.0
+    depth_weight_final: float = 0.0  # its weight at the last step (log-linear in between; 0: linear to 0)
+    depth_tolerance: float = 0.0  # depth errors up to this log ratio (0.02: 2%) cost nothing: SfM depths are not exact
+    #: learning rate of a per-training-photo affine colour map (3x3 + 3, identity at the start) applied to the
+    #: render before the loss (exposure, white balance); held-out photos and every later render use none; 0: off
+    exposure_lr: float = 0.0
     init_opacity: float = 0.1  # opacity of the initial Gaussians
     #: the fit's photos are downscaled to at most this longest side (px; 0: as captured; null: the budget
     #: level's: auto 640, fast and quality as captured); held-out and train PSNR are measured at that size
@@ -92,6 +100,13 @@ class FitConfig:
             raise ValueError(f"static.max_side must be >= 0 (0: as captured), got {self.max_side}")
         if not 0 <= self.far_share < 1:
             raise ValueError(f"static.far_share must be in [0, 1), got {self.far_share}")
+        if self.depth_weight < 0 or self.depth_weight_final < 0:
+            raise ValueError(f"static.depth_weight and depth_weight_final must be >= 0, got {self.depth_weight} "
+                             f"and {self.depth_weight_final}")
+        if self.depth_tolerance < 0:
+            raise ValueError(f"static.depth_tolerance must be >= 0, got {self.depth_tolerance}")
+        if self.exposure_lr < 0:
+            raise ValueError(f"static.exposure_lr must be >= 0 (0: off), got {self.exposure_lr}")
         if not 0 < self.init_opacity < 1:
             raise ValueError(f"static.init_opacity must be in (0,1), got {self.init_opacity}")
         self.densify.validate()

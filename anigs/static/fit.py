@@ -30,10 +30,13 @@ from anigs.static.report import accuracy_record
 from anigs.static.densify import (DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
 from anigs.static.divergence import DivergenceGuard, FitDivergedError, raise_diverged
+from anigs.static.depth import DepthTarget, depth_loss, depth_targets, depth_weight
+from anigs.static.exposure import Exposure
 from anigs.static.far import far_points
 from anigs.static.evaluate import _render, evaluate, loss_fn, pixels, stored_image
 from anigs.static.init import _to_params, init_gaussians, make_optimizer, params_to_gaussians, split_holdout
 from anigs.static.regularize import NeedleRegularizer, last_densify_step, prune_rows
+from anigs.sfm.tracks import Tracks, check_tracks
 from anigs.device import get_device, seed_everything
 from anigs.render.rasterize import select_backend
 from anigs.ssim import kernel as ssim_kernel
@@ -55,16 +58,24 @@ EVAL_BACKGROUND = (0.5, 0.5, 0.5)  # behind the evaluation renders of a fit trai
 def train_step(params: dict[str, torch.nn.Parameter], optimizer: torch.optim.Optimizer, cam: Camera,
                target: torch.Tensor, sh_degree: int, bg: torch.Tensor, backend: str, ssim_weight: float,
                mats: tuple[torch.Tensor, torch.Tensor] | None = None, stats: DensifyState | None = None,
-               guard: DivergenceGuard | None = None, step: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
-    """One optimisation step on view ``cam`` with image ``target`` [H,W,3]: render, loss, backward,
+               guard: DivergenceGuard | None = None, step: int = 0, depth: DepthTarget | None = None,
+               depth_w: float = 0.0, depth_tol: float = 0.0, colour: tuple[Exposure, int] | None = None
+               ) -> tuple[torch.Tensor, torch.Tensor]:
+    """One optimisation step on view ``cam`` with image ``target`` [H,W,3]: render, loss (plus
+    ``depth_w`` times the depth loss at ``depth``'s SfM points, :mod:`anigs.static.depth`; with
+    ``colour`` = (exposure, photo) the render is colour-mapped first, :mod:`anigs.static.exposure`), backward,
     densification statistics into ``stats`` (None: skipped), divergence record, Adam step.
 
     Returns the detached loss (0-dim, on the device; not read here) and rendered rgb [H,W,3].
     """
-    rgb, _, meta = _render(params, cam, sh_degree, bg, backend, mats)
+    rgb, alpha, meta = _render(params, cam, sh_degree, bg, backend, mats)
     if stats is not None:
         meta["means2d"].retain_grad()
+    if colour is not None:
+        rgb = colour[0].apply(rgb, colour[1])
     loss = loss_fn(rgb, target, ssim_weight)
+    if depth is not None and depth_w > 0:
+        loss = loss + depth_w * depth_loss(meta["depth"], alpha, depth, depth_tol)
     loss.backward()
     if guard is not None:
         guard.record(step, loss, params)
@@ -72,6 +83,8 @@ def train_step(params: dict[str, torch.nn.Parameter], optimizer: torch.optim.Opt
         update_state(stats, meta, cam.width, cam.height)
     optimizer.step()
     optimizer.zero_grad(set_to_none=True)
+    if colour is not None:
+        colour[0].step()
     return loss.detach(), rgb.detach()
 
 
@@ -95,7 +108,8 @@ def _check_inputs(images: Sequence[torch.Tensor], cameras: Sequence[Camera]) -> 
 
 # ---------------------------------------------------------------------------- the fit
 def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, init_colors, cfg: FitConfig,
-               progress: bool = True, checkpoint_path: str | Path | None = None) -> tuple[Gaussians, dict[str, Any]]:
+               progress: bool = True, checkpoint_path: str | Path | None = None,
+               tracks: Tracks | None = None) -> tuple[Gaussians, dict[str, Any]]:
     """Fit 3D Gaussians to posed images.
 
     Args:
@@ -106,6 +120,10 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         progress: show a tqdm bar with loss and PSNR.
         checkpoint_path: where to keep the last good PLY (written atomically every
             ``cfg.checkpoint_every`` steps and kept when the fit diverges).
+        tracks: the SfM tracks (:mod:`anigs.sfm.tracks`: image name -> rows (x, y, depth) [N,3] in the
+            photo's pixels as given): the training photos' rows feed the depth loss
+            (``cfg.depth_weight``), and the render's depth error at every photo's rows is reported;
+            None: neither (a synthetic scene).
     Returns:
         (Gaussians on CPU at SH degree ``cfg.sh_degree``, metrics dict).
     Raises:
@@ -119,7 +137,14 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     t_start, c_start = time.perf_counter(), time.process_time()
     train_idx, test_idx = split_holdout(len(images), cfg.holdout_every)
     size = CaptureSize.of([(cameras[i].width, cameras[i].height) for i in train_idx])  # as captured
+    sizes = [(c.width, c.height) for c in cameras]
     images, cameras = downscaled(list(images), list(cameras), fit_side(cfg))
+    if tracks is not None:
+        tracks = check_tracks(tracks, "depth tracks")
+        train_depth = depth_targets(tracks, sizes, cameras, train_idx, device)
+        test_depth = depth_targets(tracks, sizes, cameras, test_idx, device)
+    else:
+        train_depth = test_depth = None
     imgs = [stored_image(im, device) for im in images]
     train_imgs, train_cams = [imgs[i] for i in train_idx], [cameras[i] for i in train_idx]
     test_imgs, test_cams = [imgs[i] for i in test_idx], [cameras[i] for i in test_idx]
@@ -169,7 +194,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         run.bar = tqdm(total=cfg.iterations, desc="static fit", unit="it", dynamic_ncols=True,
                        mininterval=0.1 if sys.stderr.isatty() else 10.0)
     deg, reg, step_seconds, last_refine, steps = _train(run, optimizer, guard, gen, train_imgs, train_cams, extent,
-                                                        dstate, curve, device)
+                                                        dstate, curve, device, train_depth)
     if run.bar is not None:
         run.bar.close()
     guard.check()
@@ -200,6 +225,16 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         "holdout": [cameras[i].name for i in test_idx], "curve": curve, "regularize": reg.report(params),
         **_step_summary(step_seconds, last_refine),
     }
+    if run.exposure is not None:
+        metrics["exposure"] = {"lr": cfg.exposure_lr, **run.exposure.report()}
+    if train_depth is not None:
+        metrics["depth"] = {"weight": cfg.depth_weight, "weight_final": cfg.depth_weight_final,
+                            "tolerance": cfg.depth_tolerance,
+                            "train_points": sum(t.num for t in train_depth if t is not None),
+                            "train": _depth_error(params, train_cams, train_depth, final_deg, bg, cfg.backend),
+                            "test": _depth_error(params, test_cams, test_depth, final_deg, bg, cfg.backend)}
+        log.info("static fit: render depth at the SfM points off by a median %.1f%% (train), %.1f%% (held-out)",
+                 100 * metrics["depth"]["train"]["median_rel"], 100 * metrics["depth"]["test"]["median_rel"])
     log.info("static fit done: %d Gaussians, held-out PSNR %.2f dB, train PSNR %.2f dB, %.1f s",
              gaussians.num, te["test_psnr"], tr["psnr"], metrics["seconds"])
     metrics["plan"]["estimate_ratio"] = round(train_seconds / max(fit_plan.estimated_seconds, 1e-9), 3)
@@ -228,6 +263,7 @@ class _FitRun:
         self.eval_seconds = self.eval_cpu = 0.0
         self.last_good: dict[str, Any] = {"iteration": None, "path": None}
         self.bar = None
+        self.exposure: Exposure | None = None  # the training photos' colour maps (static.exposure_lr)
 
     def checkpoint(self, step: int, deg: int) -> dict[str, Any]:
         """A row of the accuracy-versus-time curve: held-out PSNR and SSIM at ``step``."""
@@ -269,10 +305,10 @@ def _ssim_path(device: torch.device) -> str:
 
 def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuard, gen: torch.Generator,
            train_imgs: list[torch.Tensor], train_cams: list[Camera], extent: float, dstate: DensifyState,
-           curve: list[dict[str, Any]], device: torch.device
+           curve: list[dict[str, Any]], device: torch.device, depth: list[DepthTarget | None] | None = None
            ) -> tuple[int, NeedleRegularizer, list[float], int, int]:
     """The optimisation loop (``run.params`` is replaced by each refinement; held-out rows are
-    appended to ``curve``). Returns (last active SH degree, the regulariser, seconds per step,
+    appended to ``curve``; ``depth``: the training photos' depth targets, or None). Returns (last active SH degree, the regulariser, seconds per step,
     the last step whose refinement changed the set, the steps run: fewer than ``cfg.iterations``
     when the held-out curve flattened, :func:`anigs.static.planning.flat_curve`)."""
     cfg, bar = run.cfg, run.bar
@@ -283,6 +319,7 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
     means_group = next(g for g in optimizer.param_groups if g["name"] == "means")  # refine keeps the groups
     train_mats = [(c.torch_viewmat(device), c.torch_K(device)) for c in train_cams]
     reg = NeedleRegularizer(cfg.regularize, extent, train_cams, train_mats)
+    run.exposure = Exposure(len(train_cams), cfg.exposure_lr, device) if cfg.exposure_lr > 0 else None
     last_densify = last_densify_step(densify_cfg.start, densify_cfg.stop, densify_cfg.every, cfg.iterations)
     step_seconds: list[float] = []  # per step, checkpoints and evaluations excluded
     last_refine = 0  # last step whose refinement changed the set
@@ -298,8 +335,11 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
             raise RuntimeError(f"static fit: no Gaussians left at iteration {step}")
         stats = dstate if stats_needed(densify_cfg, step) else None
         step_bg = torch.rand(3, generator=gen).to(device) if cfg.background == "random" else run.bg
+        dw = depth_weight(step - 1, cfg.iterations, cfg.depth_weight, cfg.depth_weight_final) if depth else 0.0
         loss, rgb = train_step(run.params, optimizer, cam, target, deg, step_bg, cfg.backend, cfg.ssim_weight,
-                               mats=train_mats[v], stats=stats, guard=guard, step=step)
+                               mats=train_mats[v], stats=stats, guard=guard, step=step,
+                               depth=depth[v] if dw > 0 else None, depth_w=dw, depth_tol=cfg.depth_tolerance,
+                               colour=None if run.exposure is None else (run.exposure, v))
 
         ckpt_due = cfg.checkpoint_every > 0 and step % cfg.checkpoint_every == 0
         eval_due = cfg.eval_every > 0 and step % cfg.eval_every == 0 and step != cfg.iterations
@@ -335,6 +375,25 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
             if log_due:
                 bar.set_postfix(loss=f"{ema_loss:.4f}", psnr=f"{ema_psnr:.2f}", n=int(run.params["means"].shape[0]))
     return deg, reg, step_seconds, last_refine, cfg.iterations
+
+
+@torch.no_grad()
+def _depth_error(params: dict[str, torch.Tensor], cams: list[Camera], targets: list[DepthTarget | None], deg: int,
+                 bg: torch.Tensor, backend: str) -> dict[str, Any]:
+    """The render's depth error at the photos' SfM points where it is opaque: the median over the
+    photos of each photo's median ``|d_render / d_sfm - 1|``, and the points compared."""
+    per_view, compared = [], 0
+    for cam, t in zip(cams, targets):
+        if t is None:
+            continue
+        _, alpha, meta = _render(params, cam, deg, bg, backend)
+        d, a = meta["depth"].reshape(-1)[t.pixel], alpha.reshape(-1)[t.pixel]
+        ok = a > 0.5
+        if ok.any():
+            per_view.append(float((d[ok] / t.log_depth[ok].exp() - 1).abs().median()))
+            compared += int(ok.sum())
+    return {"median_rel": float(np.median(per_view)) if per_view else float("nan"), "views": len(per_view),
+            "points": compared}
 
 
 def _step_summary(step_seconds: list[float], last_refine: int) -> dict[str, Any]:

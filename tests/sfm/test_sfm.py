@@ -29,6 +29,7 @@ from anigs.cameras import Camera, intrinsics_from_fov, load_cameras, look_at  # 
 from anigs.gaussians import Gaussians  # noqa: E402
 from anigs.sfm.colmap import SfmConfig, SfmError, run_sfm  # noqa: E402
 from anigs.sfm.fingerprint import database_fingerprints, model_fingerprint  # noqa: E402
+from anigs.sfm.tracks import load_tracks  # noqa: E402
 from anigs.stages.sfm import Outputs as SfmOutputs  # noqa: E402
 from _captures import render as render_capture, textured_discs  # noqa: E402
 
@@ -121,6 +122,22 @@ def test_ring_outputs_follow_the_contract(ring):
                 assert z[0] > 0
                 errs.append(np.linalg.norm(uv[0] - p2.xy))
     assert np.mean(errs) < 1.0
+    # tracks.npz: each image's observations and their depths in the cameras' frame
+    tracks = load_tracks(out / "tracks.npz")
+    assert sorted(tracks) == names
+    for c in cams:
+        rows = tracks[c.name]
+        assert len(rows) > 20
+        assert (rows[:, 0] >= 0).all() and (rows[:, 0] <= c.width).all()
+        assert (rows[:, 1] >= 0).all() and (rows[:, 1] <= c.height).all()
+    im = rec.images[next(iter(rec.reg_image_ids()))]
+    cam = by_name[im.name]
+    seen = [p2 for p2 in im.points2D if p2.has_point3D()]
+    xy = np.array([p2.xy for p2 in seen])
+    uv, z = cam.project(np.array([rec.points3D[p2.point3D_id].xyz for p2 in seen]))
+    inside = (xy[:, 0] >= 0) & (xy[:, 0] <= cam.width) & (xy[:, 1] >= 0) & (xy[:, 1] <= cam.height)
+    assert np.allclose(tracks[im.name][:, :2], xy[inside], atol=1e-3)
+    assert np.allclose(tracks[im.name][:, 2], z[inside], rtol=1e-5)
     rep = ring["res"].report
     for key in ("registered", "images", "mapping", "timings_s", "frame", "gt_errors", "features"):
         assert key in rep
@@ -159,7 +176,7 @@ def test_cli_from_existing_model(ring, tmp_path, capsys):
     assert "registered 20/20 images" in capsys.readouterr().out
     report = json.loads((out / "report.json").read_text())
     assert report["mapping"]["source"].endswith("selected") and report["gt_errors"]["rotation_error_deg"]["max"] < 0.5
-    assert sorted(p.name for p in out.iterdir()) == ["cameras.json", "images", "points.npz", "report.json", "sparse"]
+    assert sorted(p.name for p in out.iterdir()) == ["cameras.json", "images", "points.npz", "report.json", "sparse", "tracks.npz"]
     assert main(["sfm", "--images", str(ring["images"]), "--out", str(out), "--params", '{"bogus": 1}']) == 1
 
 

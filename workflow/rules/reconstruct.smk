@@ -11,6 +11,7 @@ rule sfm:
         sparse=directory(stage_out("sfm", "sparse")),
         cameras=stage_out("sfm", "cameras"),
         points=stage_out("sfm", "points"),
+        tracks=stage_out("sfm", "tracks"),
         report=report(stage_out("sfm", "report"), caption="../report/sfm.rst", category="Structure from motion"),
     log:
         f"{R}/{{scene}}/logs/sfm.log",
@@ -42,6 +43,8 @@ rule static:
         images=stage_file("sfm", "images"),
         cameras=stage_file("sfm", "cameras"),
         points=stage_file("sfm", "points"),
+        # photos: the SfM points each photo observes, for the depth loss (a synthetic scene fits without it)
+        tracks=lambda wc: [] if is_synthetic(wc.scene) else [stage_file_of(wc.scene, "sfm", "tracks")],
     output:
         ply=stage_out("static", "canonical"),
         metrics=stage_out("static", "metrics"),
@@ -67,6 +70,7 @@ rule static:
             images=input.images,
             cameras=input.cameras,
             points=input.points,
+            tracks=None if is_synthetic(wc.scene) else stage_file_of(wc.scene, "sfm", "tracks"),
             out=job_out("static", wc),
             no_progress=True,
         ),
