@@ -19,6 +19,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
+from anigs.static.evaluate import _render
 
 MIN_ALPHA = 0.5  # render alpha above which a pixel's expected depth is compared with the SfM depth
 
@@ -93,3 +94,22 @@ def depth_weight(step: int, total: int, first: float, final: float) -> float:
     if final <= 0:
         return first * (1 - t)
     return math.exp((1 - t) * math.log(first) + t * math.log(final))
+
+
+@torch.no_grad()
+def depth_error(params: dict[str, torch.Tensor], cams: list[Camera], targets: list[DepthTarget | None], deg: int,
+                 bg: torch.Tensor, backend: str) -> dict[str, object]:
+    """The render's depth error at the photos' SfM points where it is opaque: the median over the
+    photos of each photo's median ``|d_render / d_sfm - 1|``, and the points compared."""
+    per_view, compared = [], 0
+    for cam, t in zip(cams, targets):
+        if t is None:
+            continue
+        _, alpha, meta = _render(params, cam, deg, bg, backend)
+        d, a = meta["depth"].reshape(-1)[t.pixel], alpha.reshape(-1)[t.pixel]
+        ok = a > 0.5
+        if ok.any():
+            per_view.append(float((d[ok] / t.log_depth[ok].exp() - 1).abs().median()))
+            compared += int(ok.sum())
+    return {"median_rel": float(np.median(per_view)) if per_view else float("nan"), "views": len(per_view),
+            "points": compared}

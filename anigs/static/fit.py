@@ -30,7 +30,7 @@ from anigs.static.report import accuracy_record
 from anigs.static.densify import (DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
 from anigs.static.divergence import DivergenceGuard, FitDivergedError, raise_diverged
-from anigs.static.depth import DepthTarget, depth_loss, depth_targets, depth_weight
+from anigs.static.depth import DepthTarget, depth_error, depth_loss, depth_targets, depth_weight
 from anigs.static.exposure import Exposure
 from anigs.static.far import far_points
 from anigs.static.evaluate import _render, evaluate, loss_fn, pixels, stored_image
@@ -231,8 +231,8 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         metrics["depth"] = {"weight": cfg.depth_weight, "weight_final": cfg.depth_weight_final,
                             "tolerance": cfg.depth_tolerance,
                             "train_points": sum(t.num for t in train_depth if t is not None),
-                            "train": _depth_error(params, train_cams, train_depth, final_deg, bg, cfg.backend),
-                            "test": _depth_error(params, test_cams, test_depth, final_deg, bg, cfg.backend)}
+                            "train": depth_error(params, train_cams, train_depth, final_deg, bg, cfg.backend),
+                            "test": depth_error(params, test_cams, test_depth, final_deg, bg, cfg.backend)}
         log.info("static fit: render depth at the SfM points off by a median %.1f%% (train), %.1f%% (held-out)",
                  100 * metrics["depth"]["train"]["median_rel"], 100 * metrics["depth"]["test"]["median_rel"])
     log.info("static fit done: %d Gaussians, held-out PSNR %.2f dB, train PSNR %.2f dB, %.1f s",
@@ -375,25 +375,6 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
             if log_due:
                 bar.set_postfix(loss=f"{ema_loss:.4f}", psnr=f"{ema_psnr:.2f}", n=int(run.params["means"].shape[0]))
     return deg, reg, step_seconds, last_refine, cfg.iterations
-
-
-@torch.no_grad()
-def _depth_error(params: dict[str, torch.Tensor], cams: list[Camera], targets: list[DepthTarget | None], deg: int,
-                 bg: torch.Tensor, backend: str) -> dict[str, Any]:
-    """The render's depth error at the photos' SfM points where it is opaque: the median over the
-    photos of each photo's median ``|d_render / d_sfm - 1|``, and the points compared."""
-    per_view, compared = [], 0
-    for cam, t in zip(cams, targets):
-        if t is None:
-            continue
-        _, alpha, meta = _render(params, cam, deg, bg, backend)
-        d, a = meta["depth"].reshape(-1)[t.pixel], alpha.reshape(-1)[t.pixel]
-        ok = a > 0.5
-        if ok.any():
-            per_view.append(float((d[ok] / t.log_depth[ok].exp() - 1).abs().median()))
-            compared += int(ok.sum())
-    return {"median_rel": float(np.median(per_view)) if per_view else float("nan"), "views": len(per_view),
-            "points": compared}
 
 
 def _step_summary(step_seconds: list[float], last_refine: int) -> dict[str, Any]:
