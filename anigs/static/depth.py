@@ -11,6 +11,7 @@ place the surfaces early, the photos refine them).
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 from typing import Sequence
@@ -20,6 +21,8 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.static.evaluate import _render
+
+log = logging.getLogger("anigs.static.fit")
 
 MIN_ALPHA = 0.5  # render alpha above which a pixel's expected depth is compared with the SfM depth
 
@@ -113,3 +116,16 @@ def depth_error(params: dict[str, torch.Tensor], cams: list[Camera], targets: li
             compared += int(ok.sum())
     return {"median_rel": float(np.median(per_view)) if per_view else float("nan"), "views": len(per_view),
             "points": compared}
+
+
+def depth_record(cfg, params: dict[str, torch.Tensor], train: tuple[list[Camera], list[DepthTarget | None]],
+                 test: tuple[list[Camera], list[DepthTarget | None]], deg: int, bg: torch.Tensor) -> dict[str, object]:
+    """``static/metrics.json`` ``depth``: the loss's settings (``cfg``: the fit's config) and the render's depth
+    error at the SfM points of the training and the held-out photos ((cameras, targets) each); also logged."""
+    rec = {"weight": cfg.depth_weight, "weight_final": cfg.depth_weight_final, "tolerance": cfg.depth_tolerance,
+           "train_points": sum(t.num for t in train[1] if t is not None),
+           "train": depth_error(params, *train, deg, bg, cfg.backend),
+           "test": depth_error(params, *test, deg, bg, cfg.backend)}
+    log.info("static fit: render depth at the SfM points off by a median %.1f%% (train), %.1f%% (held-out)",
+             100 * rec["train"]["median_rel"], 100 * rec["test"]["median_rel"])
+    return rec

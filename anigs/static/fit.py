@@ -26,11 +26,11 @@ from anigs.cameras import Camera
 from anigs.static.budget import CaptureSize
 from anigs.static.config import FitConfig
 from anigs.static.planning import downscaled, fit_side, flat_curve, plan_fit, resolved
-from anigs.static.report import accuracy_record
+from anigs.static.report import accuracy_record, log_accuracy
 from anigs.static.densify import (DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
 from anigs.static.divergence import DivergenceGuard, FitDivergedError, raise_diverged
-from anigs.static.depth import DepthTarget, depth_error, depth_loss, depth_targets, depth_weight
+from anigs.static.depth import DepthTarget, depth_loss, depth_record, depth_targets, depth_weight
 from anigs.static.exposure import Exposure
 from anigs.static.far import far_points
 from anigs.static.evaluate import _render, evaluate, loss_fn, pixels, stored_image
@@ -139,12 +139,9 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     size = CaptureSize.of([(cameras[i].width, cameras[i].height) for i in train_idx])  # as captured
     sizes = [(c.width, c.height) for c in cameras]
     images, cameras = downscaled(list(images), list(cameras), fit_side(cfg))
-    if tracks is not None:
-        tracks = check_tracks(tracks, "depth tracks")
-        train_depth = depth_targets(tracks, sizes, cameras, train_idx, device)
-        test_depth = depth_targets(tracks, sizes, cameras, test_idx, device)
-    else:
-        train_depth = test_depth = None
+    tracks = None if tracks is None else check_tracks(tracks, "depth tracks")
+    train_depth, test_depth = ((depth_targets(tracks, sizes, cameras, ix, device) for ix in (train_idx, test_idx))
+                               if tracks is not None else (None, None))
     imgs = [stored_image(im, device) for im in images]
     train_imgs, train_cams = [imgs[i] for i in train_idx], [cameras[i] for i in train_idx]
     test_imgs, test_cams = [imgs[i] for i in test_idx], [cameras[i] for i in test_idx]
@@ -171,15 +168,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         params = _to_params(g0, device)
     optimizer = make_optimizer(params, lr)
     dstate = DensifyState.empty(g0.num, device)
-    log.info("static fit: %d train / %d held-out views, %d initial Gaussians, scene extent %.3f, %s Adam, "
-             "rasterizer %s, SSIM %s", len(train_idx), len(test_idx), g0.num, extent,
-             "fused" if optimizer.defaults.get("fused") else "foreach", select_backend(cfg.backend, device),
-             _ssim_path(device))
-    log.info("static fit plan (budget %s%s): photos at %dx%d, at most %d steps, at most %d Gaussians (densifying "
-             "until step %d), held-out PSNR every %d steps; estimated %.1f min of training on this machine",
-             fit_plan.level, f"; set: {', '.join(fit_plan.pinned)}" if fit_plan.pinned else "", train_cams[0].width,
-             train_cams[0].height, fit_plan.iterations,
-             fit_plan.max_gaussians, fit_plan.densify_stop, fit_plan.eval_every, fit_plan.estimated_seconds / 60)
+    _log_start(cfg, fit_plan, optimizer, device, (len(train_idx), len(test_idx)), g0.num, extent, train_cams[0])
 
     run = _FitRun(cfg, params, bg, test_imgs, test_cams, checkpoint_path, t_start, c_start)
     curve = [run.checkpoint(0, 0)]
@@ -228,25 +217,25 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     if run.exposure is not None:
         metrics["exposure"] = {"lr": cfg.exposure_lr, **run.exposure.report()}
     if train_depth is not None:
-        metrics["depth"] = {"weight": cfg.depth_weight, "weight_final": cfg.depth_weight_final,
-                            "tolerance": cfg.depth_tolerance,
-                            "train_points": sum(t.num for t in train_depth if t is not None),
-                            "train": depth_error(params, train_cams, train_depth, final_deg, bg, cfg.backend),
-                            "test": depth_error(params, test_cams, test_depth, final_deg, bg, cfg.backend)}
-        log.info("static fit: render depth at the SfM points off by a median %.1f%% (train), %.1f%% (held-out)",
-                 100 * metrics["depth"]["train"]["median_rel"], 100 * metrics["depth"]["test"]["median_rel"])
+        metrics["depth"] = depth_record(cfg, params, (train_cams, train_depth), (test_cams, test_depth), final_deg, bg)
     log.info("static fit done: %d Gaussians, held-out PSNR %.2f dB, train PSNR %.2f dB, %.1f s",
              gaussians.num, te["test_psnr"], tr["psnr"], metrics["seconds"])
     metrics["plan"]["estimate_ratio"] = round(train_seconds / max(fit_plan.estimated_seconds, 1e-9), 3)
-    metrics["accuracy"] = acc = accuracy_record(metrics, fit_plan, size, cost, g0.num)
-    if "next" in acc:
-        log.info("the next level, %s (%d steps, %d Gaussians), would take about %.0f min here%s", acc["next"]["level"],
-                 acc["next"]["steps"], acc["next"]["gaussians"], acc["next"]["estimated_minutes"],
-                 "" if acc["next"]["test_psnr_from_curve"] is None else
-                 f"; the held-out curve extrapolates to {acc['next']['test_psnr_from_curve']:.1f} dB with its steps")
-    if acc["warning"]:
-        log.warning("%s", acc["warning"])
+    metrics["accuracy"] = log_accuracy(accuracy_record(metrics, fit_plan, size, cost, g0.num))
     return gaussians, metrics
+
+
+def _log_start(cfg: FitConfig, fit_plan, optimizer, device, views: tuple[int, int], num: int, extent: float,
+               cam: Camera) -> None:
+    """The fit's set-up and plan, in the log before the first step."""
+    log.info("static fit: %d train / %d held-out views, %d initial Gaussians, scene extent %.3f, %s Adam, "
+             "rasterizer %s, SSIM %s", *views, num, extent, "fused" if optimizer.defaults.get("fused") else "foreach",
+             select_backend(cfg.backend, device), _ssim_path(device))
+    log.info("static fit plan (budget %s%s): photos at %dx%d, at most %d steps, at most %d Gaussians (densifying "
+             "until step %d), held-out PSNR every %d steps; estimated %.1f min of training on this machine",
+             fit_plan.level, f"; set: {', '.join(fit_plan.pinned)}" if fit_plan.pinned else "", cam.width,
+             cam.height, fit_plan.iterations,
+             fit_plan.max_gaussians, fit_plan.densify_stop, fit_plan.eval_every, fit_plan.estimated_seconds / 60)
 
 
 class _FitRun:

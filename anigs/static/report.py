@@ -11,10 +11,13 @@ static fit costs", has the table.
 """
 from __future__ import annotations
 
+import logging
 import math
 from typing import Any
 
 from anigs.static.budget import CaptureSize, FitPlan, StepCost, next_level, plan
+
+log = logging.getLogger("anigs.static.fit")
 
 MIN_TEST_PSNR = 21.0  # dB, held out
 MIN_TRAIN_PSNR = 24.0  # dB
@@ -135,3 +138,15 @@ def draw_fit(metrics: dict[str, Any], path) -> None:
     with atomic_path(path) as tmp:
         if not cv2.imwrite(str(tmp), np.concatenate([plot, block], 0)):
             raise OSError(f"could not write {path}")
+
+
+def log_accuracy(acc: dict[str, Any]) -> dict[str, Any]:
+    """Log what the next level would cost and reach, and the warning; returns ``acc``."""
+    nxt = acc.get("next")
+    if nxt:
+        log.info("the next level, %s (%d steps, %d Gaussians), would take about %.0f min here%s", nxt["level"],
+                 nxt["steps"], nxt["gaussians"], nxt["estimated_minutes"], "" if nxt["test_psnr_from_curve"] is None
+                 else f"; the held-out curve extrapolates to {nxt['test_psnr_from_curve']:.1f} dB with its steps")
+    if acc["warning"]:
+        log.warning("%s", acc["warning"])
+    return acc
