@@ -51,16 +51,21 @@ def _fmt(v) -> str:
     return "`" + json.dumps(v) + "`"
 
 
+def _cell(text: str) -> str:
+    """A Markdown table cell: a ``|`` in the text is escaped, so it does not split the row."""
+    return text.replace("|", "\\|")
+
+
 def _rows(node: dict, prefix: str, out: list[str]) -> None:
     for key, p in node.get("properties", {}).items():
         name = prefix + key
         if p.get("type") == "object" and "properties" in p:
-            out.append(f"| `{name}` | object | | {p.get('description', '')} (keys below) |")
+            out.append(f"| `{name}` | object | | {_cell(p.get('description', ''))} (keys below) |")
             _rows(p, name + ".", out)
         else:
             t = p.get("type", "")
             t = " or ".join(t) if isinstance(t, list) else t
-            out.append(f"| `{name}` | {t} | {_fmt(p.get('default'))} | {p.get('description', '')} |")
+            out.append(f"| `{name}` | {t} | {_cell(_fmt(p.get('default')))} | {_cell(p.get('description', ''))} |")
 
 
 VOCABULARY = """## What the prompt names
