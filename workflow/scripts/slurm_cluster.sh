@@ -109,7 +109,7 @@ is_running() {
 
 write_config() {
     local cpus mem_total real_mem def_mem
-    cpus="$(nproc)"
+    cpus="$(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc)"   # nproc alone obeys OMP_NUM_THREADS (a 1-CPU node)
     mem_total="$(awk '/MemTotal/ {print int($2/1024)}' /proc/meminfo)"
     real_mem=$(( mem_total * 9 / 10 ))            # slightly below the real value
     def_mem=$(( real_mem / cpus / 4 ))            # without it one job takes the whole node
