@@ -164,7 +164,9 @@ def _ring_cameras(target, radius: float, height: float, count: int, arc: float =
     return cams
 
 
-def test_red_flower_next_to_leaves_is_a_flower_not_foliage():
+def bush_with_a_blossom():
+    """A bush (green leaves on an ellipsoid shell) on a grey floor with a red blossom on its front, seen
+    by 8 cameras: (Gaussians with labels 0 floor, 1 leaves, 2 blossom, cameras, their images)."""
     rng = np.random.default_rng(1)
     parts = [_floor(rng, 3.0, 0.08, (0.45, 0.4, 0.35)) + (0,)]
     # a bush: leaves on an ellipsoid shell, standing on the floor
@@ -184,7 +186,11 @@ def test_red_flower_next_to_leaves_is_a_flower_not_foliage():
     g = _gaussians(*[np.concatenate([p[k] for p in parts]) for k in range(4)],
                    labels=np.concatenate([np.full(len(p[0]), p[4]) for p in parts]))
     cams = _ring_cameras((0.0, 0.0, 0.8), 2.6, 1.5, 8, arc=math.pi, start=-math.pi * 0.95)
-    imgs = [render_image(g, c, SKY) for c in cams]
+    return g, cams, [render_image(g, c, SKY) for c in cams]
+
+
+def test_red_flower_next_to_leaves_is_a_flower_not_foliage():
+    g, cams, imgs = bush_with_a_blossom()
     res = detect_effects(imgs, cams, g, Config())
     labels = g.extras["label"].numpy()
     flowers = np.isin(np.arange(g.num), res.effects["flower_bob"].indices)

@@ -9,21 +9,18 @@ the colour of the input it was given (an oracle standing in for trained weights)
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import pytest
 import torch
 
-from tests.effects.test_effects import _floor, _gaussians, _ring_cameras
+from tests.effects.test_effects import bush_with_a_blossom
 
 pytest.importorskip("transformers", reason="transformers not installed (extra: anigs[ltx])")
 
 from anigs.effects import REGIONS, Config, detect_effects  # noqa: E402
 from anigs.effects.segmenter import Segmenter, check_weights, class_regions, combine  # noqa: E402
 from anigs.effects.segmenter_tiny import save_random_segformer  # noqa: E402
-from anigs.synth import render_image  # noqa: E402
-from anigs.synth.scene import SKY  # noqa: E402
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 LABELS = ["wall", "tree", "flower", "grass", "painting, picture", "water", "lamp"]
@@ -37,26 +34,8 @@ def weights(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def bush():
-    """A bush (green leaves on an ellipsoid shell) on a grey floor with a red blossom on its front, seen
-    by 8 cameras; labels 0 floor, 1 leaves, 2 blossom (as tests/effects/test_effects.py's)."""
-    rng = np.random.default_rng(1)
-    parts = [_floor(rng, 3.0, 0.08, (0.45, 0.4, 0.35)) + (0,)]
-    d = rng.normal(size=(2500, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    leaves = np.array([0.0, 0, 0.75]) + d * rng.uniform(0.85, 1.0, (len(d), 1)) * [0.6, 0.6, 0.55]
-    keep = leaves[:, 2] > 0.25
-    leaves, d = leaves[keep], d[keep]
-    green = np.array([0.2, 0.42, 0.12]) * rng.uniform(0.6, 1.3, (len(leaves), 1))
-    parts.append((leaves, np.tile([0.05, 0.035, 0.006], (len(leaves), 1)), rng.normal(size=(len(leaves), 3)), green, 1))
-    e = rng.normal(size=(500, 3))
-    e /= np.linalg.norm(e, axis=1, keepdims=True)
-    head = np.array([0.0, -0.62, 0.95]) + e * rng.uniform(0.0, 0.14, (len(e), 1))
-    red = np.array([0.85, 0.1, 0.08]) * rng.uniform(0.85, 1.1, (len(e), 1))
-    parts.append((head, np.tile([0.025, 0.02, 0.005], (len(e), 1)), e, red, 2))
-    g = _gaussians(*[np.concatenate([p[k] for p in parts]) for k in range(4)],
-                   labels=np.concatenate([np.full(len(p[0]), p[4]) for p in parts]))
-    cams = _ring_cameras((0.0, 0.0, 0.8), 2.6, 1.5, 8, arc=math.pi, start=-math.pi * 0.95)
-    return g, cams, [render_image(g, c, SKY) for c in cams]
+    """tests/effects/test_effects.py's bush with a red blossom; labels 0 floor, 1 leaves, 2 blossom."""
+    return bush_with_a_blossom()
 
 
 def _cfg(weights=None, **seg) -> Config:
