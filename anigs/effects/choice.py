@@ -69,6 +69,20 @@ def unknown_note(kinds) -> str:
             f"English dictionary): {', '.join(kinds.unknown)}; they name nothing that moves")
 
 
+def switched_off_note(kinds) -> str:
+    """One sentence naming the prompt's words that were switched off ('' when none): negated or said to
+    stay still ("no flowers", "the flowers stay still") and depicted or made ("a painting of trees",
+    "plastic plants")."""
+    if kinds is None or not (kinds.negated or kinds.depicted):
+        return ""
+    parts = []
+    if kinds.negated:
+        parts.append(f"negated or said to stay still: {', '.join(kinds.negated)}")
+    if kinds.depicted:
+        parts.append(f"depicted or made, not alive: {', '.join(kinds.depicted)}")
+    return f"words of the prompt that name nothing that moves here ({'; '.join(parts)})"
+
+
 @dataclass
 class Decision:
     """``result``: the detection (:class:`~anigs.effects.detect.EffectsResult`, its ``region_of``
@@ -115,7 +129,9 @@ def decide_effects(photos: Sequence[np.ndarray], cams: Sequence, g, cfg: Config,
                    "num_dynamic": int(dynamic.sum()), "dynamic_fraction": float(dynamic.mean()) if len(dynamic) else 0.0})
     unknown = unknown_note(kinds)
     report["prompt"]["unknown_note"] = unknown
-    res.prompt_lines = [f"Prompt: {report['prompt']['note']}"] + ([unknown] if unknown else [])
+    off = switched_off_note(kinds)
+    report["prompt"]["switched_off_note"] = off
+    res.prompt_lines = [f"Prompt: {report['prompt']['note']}"] + [x for x in (off, unknown) if x]
     log.info("effects: %s", report["prompt"]["note"])
     if unknown:
         log.warning("effects: %s", unknown)

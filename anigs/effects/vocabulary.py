@@ -14,7 +14,20 @@ dictionary forms (:mod:`anigs.effects.lexicon` lists only those):
    and bush; when the head names nothing ("flowerpot", "treehouse") the compound names nothing;
 4. two-word terms ("water lily", "flower bed") before their parts.
 
-A word after a negation ("no", "not", "without") names nothing ("a room without plants"). Words
+Words that name nothing that moves here, listed in effects.json and on the overview:
+
+5. a word after a negation ("no", "not", "without") is *negated* ("a room without plants");
+6. what the prompt says stays still is negated too: the words of the lexicon before a negated motion
+   verb ("the flowers must not move") or a stillness after a verb of staying ("the grass stays still",
+   "is motionless"), back to the start of their clause (a mark, "but", "while", or a motion verb:
+   "the trees sway and the flowers stay still" keeps the trees);
+7. a depiction or a made thing is *depicted*: the words after a picture's noun and "of" ("a painting
+   of trees", "a still life of tulips", "the reflection of trees"), a word just before such a noun
+   ("rose wallpaper", "a tree sculpture"), and the words right after an adjective of made things
+   ("plastic plants", "fake flowers"; its reach ends at another noun: "a stone wall with ivy").
+
+A scene word's kinds ("a garden") lose those of its negated words ("a garden with no flowers"); a
+plant named outright keeps its own ("a rose garden without trees": the rose's leaves). Words
 that are neither in the lexicon, nor in the lemmatizer's English dictionary, nor a function word
 are *not understood* (a typo, a rare name): ``unknown``, listed in effects.json and on the
 overview so the user sees why a scene stays still.
@@ -29,7 +42,8 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 from anigs.effects.config import REGION_EFFECTS, REGIONS
-from anigs.effects.lexicon import FUNCTION_WORDS, GENERIC, PLANTS, SCENES, STILL, VERBS, table
+from anigs.effects.lexicon import (ARTIFICIAL, CLAUSE, DEPICTIONS, FUNCTION_WORDS, GENERIC, MOTION, PLANTS, SCENES,
+                                   STAY, STILL, STILLNESS, VERBS, table)
 
 NEGATIONS = ("no", "not", "without", "nor", "never")
 _TOKEN = re.compile(r"[a-z]+(?:'[a-z]+)?|[,.;:!?]")
@@ -37,18 +51,23 @@ TERMS = table()
 #: derived adjectives: suffix -> what replaces it ("leafy" -> "leaf", "wooded" -> "wood", "flowery" -> "flower")
 _DERIVED = (("iest", "y"), ("ier", "y"), ("y", ""), ("ed", ""), ("s", ""))
 _MIN_PART = 3  # the shortest part of a compound
+#: the words a depiction's list ("a painting of trees and a lake") goes on through
+_DEPICTED_LIST = frozenset(("a", "an", "the", "and", "or", "of", "with", "some", "many", "few", "two", "three", "its",
+                            "their"))
 
 
 @dataclass
 class PromptKinds:
     """What a prompt names: ``regions`` in ``REGIONS`` order, ``matches`` word -> regions it named,
-    ``negated`` the words a negation switched off, ``unknown`` the words not understood."""
+    ``negated`` the words a negation or a stillness switched off, ``unknown`` the words not understood,
+    ``depicted`` the words of depictions and made things."""
 
     prompt: str
     regions: list[str] = field(default_factory=list)
     matches: dict[str, list[str]] = field(default_factory=dict)
     negated: list[str] = field(default_factory=list)
     unknown: list[str] = field(default_factory=list)
+    depicted: list[str] = field(default_factory=list)
 
     @property
     def effects(self) -> list[str]:
@@ -57,7 +76,7 @@ class PromptKinds:
 
     def to_json(self) -> dict:
         return {"prompt": self.prompt, "regions": list(self.regions), "words": dict(self.matches),
-                "negated": list(self.negated), "unknown": list(self.unknown)}
+                "negated": list(self.negated), "depicted": list(self.depicted), "unknown": list(self.unknown)}
 
 
 def _lemmas(word: str) -> list[str]:
@@ -133,40 +152,123 @@ def _compound(word: str) -> tuple[str, ...] | None:
     return None
 
 
+def _lemma_in(word: str, words: frozenset, pos: str | None = None) -> bool:
+    """Whether ``word`` or one of its lemmas (of part of speech ``pos``, any when None) is in ``words``."""
+    from lemminflect import getAllLemmas
+
+    if word in words:
+        return True
+    return any(lem in words for p, lems in getAllLemmas(word).items() if pos is None or p == pos for lem in lems)
+
+
+def _is_noun(word: str) -> bool:
+    """A word the dictionary knows as a noun ("wall", "fence"; not "potted", "leafy") or a function word."""
+    from lemminflect import getAllLemmas
+
+    return word in FUNCTION_WORDS or "NOUN" in getAllLemmas(word)
+
+
+def _tokens(text: str) -> list[str]:
+    """Lower-case words and punctuation marks; "n't" is "not", "'s" is dropped."""
+    text = text.lower().replace("\u2019", "'").replace("n't", " not")
+    return [t.replace("'s", "").replace("'", "") for t in _TOKEN.findall(text)]
+
+
+def _stillness_at(tokens: list[str], i: int) -> bool:
+    """Whether ``tokens[i]`` says that what comes before it stays still: a negated motion verb ("do
+    not move") or a stillness word after a verb of being or staying ("stay still", "is motionless")."""
+    tok = tokens[i]
+    if _lemma_in(tok, MOTION, "VERB") and "not" in tokens[max(i - 3, 0):i] and "only" not in tokens[i - 1:i]:
+        return True
+    if tok in STILLNESS:
+        before = tokens[max(i - 3, 0):i]
+        after = tokens[i + 1] if i + 1 < len(tokens) else ""
+        return any(_lemma_in(b, STAY, "VERB") or b in ("is", "are", "was", "were", "be", "being") for b in before) \
+            and not _lemma_in(after, MOTION, "VERB")
+    return False
+
+
+def _term_at(tokens: list[str], i: int) -> tuple[tuple[str, ...], int, str, bool]:
+    """(regions, tokens used, the term as written, understood) of the word or two-word term at ``i``."""
+    tok = tokens[i]
+    if i + 1 < len(tokens) and tokens[i + 1][:1].isalpha():
+        nxt = tokens[i + 1]
+        for second in dict.fromkeys([nxt, *_lemmas(nxt)]):
+            if f"{tok} {second}" in TERMS:
+                return TERMS[f"{tok} {second}"], 2, f"{tok} {nxt}", True
+    regions, understood = lookup(tok)
+    return regions, 1, tok, understood or tok in FUNCTION_WORDS or _lemma_in(tok, DEPICTIONS, "NOUN") \
+        or tok in ARTIFICIAL or tok in STILLNESS
+
+
 def prompt_kinds(prompt: str | None) -> PromptKinds:
     """The regions ``prompt`` names (see module docstring); an empty prompt names none."""
     text = str(prompt or "")
-    tokens = [t.replace("'s", "").replace("'", "") for t in _TOKEN.findall(text.lower())]
-    found: dict[str, list[str]] = {}
-    negated: list[str] = []
+    tokens = _tokens(text)
+    hits: list[list] = []  # [term, regions, state: named | negated | depicted] in prompt order
     unknown: list[str] = []
-    neg_left = 0  # a negation covers the next few words up to a punctuation mark ("no trees or flowers")
+    neg_left = art_left = 0  # how far a negation ("no trees or flowers") and a made-thing adjective reach
+    depicting = False  # inside "a painting of ..." up to the next mark or clause word
+    clause = 0  # the first hit of the current clause (what a stillness switches off)
     i = 0
     while i < len(tokens):
         tok = tokens[i]
-        if tok in NEGATIONS:
+        if not tok[:1].isalpha() or tok in CLAUSE:  # a mark or a clause word ends every reach
+            neg_left = art_left = 0
+            depicting, clause, i = False, len(hits), i + 1
+            continue
+        if _stillness_at(tokens, i):  # "... stay still", "... do not move": off with the clause's words
+            for h in hits[clause:]:
+                h[2] = "negated" if h[2] == "named" else h[2]
+            i += 1
+            continue
+        if _lemma_in(tok, MOTION, "VERB") and not lookup(tok)[0]:  # "the trees sway and ...": a new reach
+            clause, i = len(hits), i + 1
+            continue
+        if tok in NEGATIONS and tokens[i + 1:i + 2] != ["only"]:
             neg_left, i = 4, i + 1
             continue
-        if not tok or not tok[0].isalpha():  # , . ; ! ? end a negation's reach
-            neg_left, i = 0, i + 1
+        if tok in ARTIFICIAL:
+            art_left, i = 3, i + 1
             continue
-        regions, step, term = (), 1, tok
-        if i + 1 < len(tokens) and tokens[i + 1][:1].isalpha():
-            nxt = tokens[i + 1]
-            for second in dict.fromkeys([nxt, *_lemmas(nxt)]):
-                pair = f"{tok} {second}"
-                if pair in TERMS:
-                    regions, step, term = TERMS[pair], 2, f"{tok} {nxt}"
-                    break
-        if step == 1:
-            regions, understood = lookup(tok)
-            if not understood and tok not in FUNCTION_WORDS and tok not in unknown:
-                unknown.append(tok)
+        if _lemma_in(tok, DEPICTIONS, "NOUN") or (tok == "still" and tokens[i + 1:i + 2] == ["life"]):
+            step = 2 if tok == "still" else 1
+            depicting = depicting or tokens[i + step:i + step + 1] == ["of"]
+            if hits and hits[-1][3] == i - 1 and hits[-1][2] == "named" and not _is_scene(hits[-1][0]):
+                hits[-1][2] = "depicted"  # "rose wallpaper", "a leaf print"
+            i += step
+            continue
+        if depicting and tok in FUNCTION_WORDS and tok not in _DEPICTED_LIST:
+            depicting = False  # "the reflection of trees in the lake": the lake is real
+        regions, step, term, understood = _term_at(tokens, i)
+        if not understood and tok not in unknown:
+            unknown.append(tok)
         if regions:
-            (negated.append(term) if neg_left > 0 else found.setdefault(term, [r for r in REGIONS if r in regions]))
-        neg_left, i = max(neg_left - step, 0), i + step
-    regions = [r for r in REGIONS if any(r in v for v in found.values())]
-    return PromptKinds(text, regions, found, negated, unknown)
+            state = "negated" if neg_left > 0 else "depicted" if (depicting or art_left > 0) else "named"
+            hits.append([term, [r for r in REGIONS if r in regions], state, i + step - 1])
+            art_left = 0
+        elif art_left and _is_noun(tok):
+            art_left = 0  # "a stone wall with ivy": the adjective was the wall's
+        neg_left, art_left, i = max(neg_left - step, 0), max(art_left - step, 0), i + step
+    return _kinds(text, hits, unknown)
+
+
+def _is_scene(term: str) -> bool:
+    return any(f in SCENES for f in (term, *_lemmas(term)))
+
+
+def _kinds(text: str, hits: list[list], unknown: list[str]) -> PromptKinds:
+    """The prompt's kinds from its hits: the named words' regions, less those of switched-off words
+    where only a scene word ("a garden with no flowers") named them."""
+    found: dict[str, list[str]] = {}
+    for term, regions, state, _ in hits:
+        if state == "named":
+            found.setdefault(term, regions)
+    off = {r for _, regions, state, _ in hits if state == "negated" for r in regions}
+    named = {r for t, regions in found.items() if not _is_scene(t) for r in regions}
+    regions = [r for r in REGIONS if any(r in v for v in found.values()) and (r in named or r not in off)]
+    return PromptKinds(text, regions, found, [h[0] for h in hits if h[2] == "negated"],
+                       unknown, [h[0] for h in hits if h[2] == "depicted"])
 
 
 def vocabulary_markdown() -> str:
@@ -180,4 +282,10 @@ def vocabulary_markdown() -> str:
     for regions, words in groups.items():
         effects = ", ".join(e for r in regions for e in REGION_EFFECTS[r])
         rows.append(f"| {', '.join(regions)} ({effects}) | {', '.join(words)} |")
+    rows += ["", "Words that switch the lexicon's words off (they then name nothing that moves, and effects.json "
+             "and the overview list them): a negation (" + ", ".join(NEGATIONS) + "); a negated motion verb ("
+             + ", ".join(sorted(MOTION)) + ") or a stillness (" + ", ".join(sorted(STILLNESS)) + ") after a verb of "
+             "staying, for the words before it in its clause; a depiction (" + ", ".join(sorted(DEPICTIONS))
+             + ") for the words after its \"of\" and the word just before it; an adjective of made things ("
+             + ", ".join(sorted(ARTIFICIAL)) + ") for the words right after it."]
     return "\n".join(rows)

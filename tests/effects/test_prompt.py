@@ -53,7 +53,7 @@ def test_every_lexicon_word_names_its_kinds_and_the_table_lists_it():
     ("wolves and oxen under birches", {"birches": ["foliage"]}),
     # derived adjectives
     ("a leafy street and grassy hills", {"leafy": ["foliage"], "grassy": ["grass"]}),
-    ("flowery wallpaper", {"flowery": ["flowers"]}),
+    ("a flowery hillside", {"flowery": ["flowers"]}),
     # compounds by their parts
     ("wildflowers on a hillside", {"wildflowers": ["foliage", "flowers"]}),
     ("a rosebush", {"rosebush": ["foliage", "flowers"]}),
@@ -71,6 +71,34 @@ def test_every_lexicon_word_names_its_kinds_and_the_table_lists_it():
 ])
 def test_words_as_people_write_them(prompt, words):
     assert prompt_kinds(prompt).matches == words
+
+
+@pytest.mark.parametrize("prompt, regions, negated, depicted", [
+    # depictions and made things name nothing that moves (the words after "of", a word before the image)
+    ("a painting of trees", [], [], ["trees"]),
+    ("a fox on a wall covered in rose wallpaper, next to a painting of trees", [], [], ["rose", "trees"]),
+    ("a room with flowers on the wall and a picture of trees", ["flowers"], [], ["trees"]),
+    ("a still life of tulips", [], [], ["tulips"]),
+    ("the reflection of trees in the lake", ["water"], [], ["trees"]),  # the lake itself is real
+    ("plastic potted plants and fake flowers", [], [], ["plants", "flowers"]),
+    ("a metal tree sculpture", [], [], ["tree"]),
+    ("a stone wall with ivy", ["foliage"], [], []),  # "stone" is the wall's, not the ivy's
+    ("a wooden planter with ferns", ["foliage"], [], []),
+    # what the prompt says stays still: a negated motion verb or a stillness after a verb of staying
+    ("the trees sway and the flowers stay still", ["foliage"], ["flowers"], []),
+    ("the trees and the flowers must not move", [], ["trees", "flowers"], []),
+    ("trees that don't move", [], ["trees"], []),
+    ("the trees are still swaying", ["foliage"], [], []),  # "still" as "yet"
+    ("the grass is motionless, but the trees sway", ["foliage"], ["grass"], []),
+    ("not only the trees but also the flowers sway", ["foliage", "flowers"], [], []),
+    # a scene word's kinds less those switched off; a plant named outright keeps its own
+    ("a garden with no flowers", ["foliage", "grass"], ["flowers"], []),
+    ("a rose garden without trees", ["foliage", "grass", "flowers"], ["trees"], []),
+])
+def test_what_is_depicted_or_said_to_stay_still_names_nothing(prompt, regions, negated, depicted):
+    k = prompt_kinds(prompt)
+    assert (k.regions, k.negated, k.depicted) == (regions, negated, depicted), k
+    assert k.unknown == []
 
 
 def test_words_not_understood_are_listed():
@@ -130,6 +158,14 @@ def test_a_prompt_naming_nothing_that_moves_gives_a_still_scene(garden_stage):
     assert not EffectsOutputs(garden_stage / "still").dynamic().any()
     for e, r in doc["effects"].items():
         assert "the prompt does not name it" in r["reason"], (e, r["reason"])
+
+
+def test_a_prompt_naming_only_painted_or_still_plants_gives_a_still_scene_and_says_why(garden_stage):
+    doc = _run(garden_stage, "painted", {"prompt": "a painting of trees; the grass stays still"})
+    assert doc["chosen"] == [] and not EffectsOutputs(garden_stage / "painted").dynamic().any()
+    assert doc["prompt"]["depicted"] == ["trees"] and doc["prompt"]["negated"] == ["grass"]
+    note = doc["prompt"]["switched_off_note"]
+    assert "depicted or made, not alive: trees" in note and "said to stay still: grass" in note
 
 
 def test_a_prompt_naming_only_trees_never_chooses_flowers(garden_stage):
