@@ -101,6 +101,9 @@ class Config:
     green_hue: tuple = (62.0, 170.0)  # hue band of vegetation (degrees)
     green_min_saturation: float = 0.16  # HSV saturation a vegetation pixel needs at least
     min_value: float = 0.03          # darker pixels carry no colour (dark foliage is still found above this)
+    #: a vegetation pixel's chroma (brightest minus darkest channel, RGB in [0,1]) at least this: below it the
+    #: hue is noise (a dark stone or a shadow with a faint green cast; shaded leaves keep 0.1 and more)
+    green_min_chroma: float = 0.04
     flower_min_saturation: float = 0.45  # HSV saturation a blossom pixel needs at least
     flower_min_value: float = 0.4    # brightest channel of a blossom (darker saturated: soil, bark)
     #: blossoms are saturated colours outside this band (red, yellow, blue, violet)
@@ -166,6 +169,11 @@ class Config:
     #: a selected splat matches the fitted Gaussian within this x the model's bounding-box diagonal
     selection_tol: float = 0.0001
     vote_threshold: float = 0.5      # a Gaussian joins the region voted by this share of the photos that see it
+    #: ... and only when at least this share of its blending weight over the photos falls on that region's pixels
+    #: (its whole footprint, not its centre: a blurred splat reaching from a bush over a gate or a facade stays
+    #: still); 0: off
+    footprint_share: float = 0.3
+    footprint_reach_px: int = 2      # ... counting pixels within this of the region's (a splat's soft edge)
     propagate_k: int = 8             # Gaussians seen by no photo take the majority of their k neighbours
     #: optional learned segmentation of the photos with local weights (default backend none: the weight-free cues)
     segmenter: SegmenterConfig = field(default_factory=SegmenterConfig)
@@ -192,6 +200,10 @@ class Config:
         if not 0 <= self.island_min_share <= 1 or self.island_neighbours < 1:
             raise ValueError(f"effects.island_min_share must be in [0, 1] (got {self.island_min_share}) and "
                              f"island_neighbours >= 1 (got {self.island_neighbours})")
+        if not 0 <= self.footprint_share <= 1 or not 0 <= self.green_min_chroma < 1 or self.footprint_reach_px < 0:
+            raise ValueError(f"effects.footprint_share must be in [0, 1], effects.green_min_chroma in [0, 1) and "
+                             f"effects.footprint_reach_px >= 0, got {self.footprint_share}, {self.green_min_chroma} "
+                             f"and {self.footprint_reach_px}")
         if not 0 < self.vote_threshold <= 1:
             raise ValueError(f"effects.vote_threshold must be in (0, 1], got {self.vote_threshold}")
         for name in ("neighbour_radius", "grass_max_height", "water_max_height", "ground_margin"):

@@ -30,11 +30,15 @@ def in_band(hue: np.ndarray, band: tuple[float, float]) -> np.ndarray:
     return (hue >= band[0]) & (hue <= band[1])
 
 
-def green(img: np.ndarray, hue_band: tuple[float, float], min_sat: float, min_value: float) -> np.ndarray:
+def green(img: np.ndarray, hue_band: tuple[float, float], min_sat: float, min_value: float,
+          min_chroma: float = 0.0) -> np.ndarray:
     """Vegetation colour: a green hue at any brightness above ``min_value`` (dark, shaded foliage
-    included), saturated enough to be a colour, and green not below red (``G >= R``)."""
+    included), saturated enough to be a colour, with a chroma (max - min channel) of at least
+    ``min_chroma`` (below it the hue of a dark pixel is noise), and green not below red (``G >= R``)."""
     h, s, v = hsv(img)
-    return in_band(h, hue_band) & (s >= min_sat) & (v >= min_value) & (img[..., 1] >= img[..., 0])
+    chroma = img.max(-1) - img.min(-1)
+    return in_band(h, hue_band) & (s >= min_sat) & (v >= min_value) & (chroma >= min_chroma) & \
+        (img[..., 1] >= img[..., 0])
 
 
 def colourful(img: np.ndarray, green_band: tuple[float, float], min_sat: float, min_value: float,

@@ -10,7 +10,9 @@ Pipeline (no downloaded weights):
    with ``segmenter.backend`` set, a learned segmenter with local weights gates (or replaces) those
    masks (:mod:`anigs.effects.segmenter`);
 4. lift: every Gaussian votes, over the photos where it is visible (depth test), for the region
-   under its centre; it joins the region voted by >= ``vote_threshold`` of them. Gaussians no
+   under its centre; it joins the region voted by >= ``vote_threshold`` of them, when at least
+   ``footprint_share`` of its blending weight over the photos falls on that region's pixels (its
+   whole footprint: a blurred splat reaching from a bush over a gate stays still). Gaussians no
    photo sees take the majority of their ``propagate_k`` nearest decided neighbours
    (:func:`anigs.geometry.propagate.propagate_labels`); foliage, grass and flowers stop at the ground;
 5. decide per region: detected when it covers >= ``min_pixel_fraction`` of the photos' pixels,
@@ -45,7 +47,7 @@ from anigs.effects.rules import check_candidates
 from anigs.gaussians import Gaussians
 from anigs.pixels import check_image
 from anigs.cameras import camera_for_size
-from anigs.render.visibility import VisibilityConfig, project_to_pixels, visible_depth
+from anigs.render.visibility import VisibilityConfig, blend_weights, project_to_pixels, visible_depth
 from anigs.geometry.propagate import propagate_labels
 
 log = logging.getLogger("anigs.effects")
@@ -157,8 +159,30 @@ def _median_depth(means: np.ndarray, cams: Sequence[Camera]) -> float:
     return float(np.median(zs))
 
 
-def _lift(means: np.ndarray, max_scale: np.ndarray, maps: Sequence[PhotoMaps], regions: Sequence[PhotoRegions],
-          ground: Ground, cfg: Config) -> tuple[np.ndarray, np.ndarray]:
+def footprint_shares(g: Gaussians, maps: Sequence[PhotoMaps], regions: Sequence[PhotoRegions],
+                     reach: int = 0) -> np.ndarray:
+    """Per Gaussian and region: the share [N, R] of its blending weight, summed over the photos, that falls
+    on the region's mask pixels or within ``reach`` px of them (its whole footprint,
+    :func:`~anigs.render.visibility.blend_weights`; the reach forgives a splat's soft edge); 0 for a
+    Gaussian no photo renders and for a region no photo shows."""
+    total = np.zeros(g.num)
+    inside = np.zeros((g.num, len(REGIONS)))
+    for p, reg in zip(maps, regions):
+        shown = [k for k, name in enumerate(REGIONS) if reg.masks[name].any()]
+        if not shown:
+            total += blend_weights(g, p.camera)[0]
+        for j, k in enumerate(shown):
+            m = reg.masks[REGIONS[k]]
+            if reach > 0:
+                m = cv2.dilate(m.astype(np.uint8), np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)) > 0
+            t, inside_k = blend_weights(g, p.camera, m)
+            inside[:, k] += inside_k
+            total += t if j == 0 else 0.0
+    return inside / np.maximum(total, 1e-12)[:, None]
+
+
+def _lift(g: Gaussians, means: np.ndarray, max_scale: np.ndarray, maps: Sequence[PhotoMaps],
+          regions: Sequence[PhotoRegions], ground: Ground, cfg: Config) -> tuple[np.ndarray, np.ndarray]:
     """Region id [N] (-1 none) and vote share [N] of every Gaussian (see module docstring)."""
     n, r = len(means), len(REGIONS)
     votes = np.zeros((n, r + 1))
@@ -177,9 +201,16 @@ def _lift(means: np.ndarray, max_scale: np.ndarray, maps: Sequence[PhotoMaps], r
     top = share[np.arange(n), best]
     region = np.where(top >= cfg.vote_threshold, best, -1)
     decided = seen_n > 0
+    foot = None
+    if cfg.footprint_share > 0 and (region >= 0).any():
+        foot = footprint_shares(g, maps, regions, cfg.footprint_reach_px)
+        region[(region >= 0) & (foot[np.arange(n), best] < cfg.footprint_share)] = -1
     out = region.copy()
     for k in range(r):
         out[propagate_labels(means, decided, region == k, cfg.propagate_k) & ~decided] = k
+    if foot is not None:  # a Gaussian no photo sees in the depth test but that renders elsewhere: its footprint too
+        late = (out >= 0) & ~decided
+        out[late & (foot[np.arange(n), np.maximum(out, 0)] < cfg.footprint_share) & (foot.sum(1) > 0)] = -1
     if ground.plane is not None:  # plants stop at the ground (water lies on it)
         hgt = means @ ground.plane.normal - ground.plane.offset
         below = hgt < 0.5 * ground.plane.min_height
@@ -317,7 +348,7 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
         for name in REGIONS:
             if name not in kinds:
                 reg.masks[name] = np.zeros_like(reg.masks[name])
-    region_of, share = _lift(means, max_scale, maps, regions, ground, cfg)
+    region_of, share = _lift(g, means, max_scale, maps, regions, ground, cfg)
     region_of, candidates, fragments = _apply_rules(g, means, region_of, ground, radius, maps, regions, cfg,
                                                     variation < cfg.wall_max_variation, cams)
     unlifted_px: dict[str, list[np.ndarray]] = {}

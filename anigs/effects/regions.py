@@ -6,7 +6,8 @@ rendered per-Gaussian maps (surface variation, ``|normal . up|``, multi-view col
 
 1. *valid*: the model covers the pixel (alpha >= ``min_alpha``; sky and empty space are not);
 2. *wall*: locally planar and vertical (walls, fences, pictures and screens on walls);
-3. *vegetation*: green hue at any brightness (shaded foliage included), not on a wall; green
+3. *vegetation*: green hue at any brightness (shaded foliage included) with a chroma above noise
+   (``green_min_chroma``: not a dark stone's faint cast), not on a wall; green
    components that fill their bounding rectangle and are flat are pictures and are dropped;
 4. *lawn*: vegetation lower than the ground cut (the flat ground sheet: static; the cut is how high
    the photos see the fitted ground reach, :func:`~anigs.effects.geometry.seen_ground_cut`); the rest
@@ -85,7 +86,8 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
         height = np.full((h, w), np.nan)
         cam_h = 1.0
         low = np.zeros((h, w), bool)
-    green_all = cues.green(img, cfg.green_hue, cfg.green_min_saturation, cfg.min_value) & valid
+    green_all = cues.green(img, cfg.green_hue, cfg.green_min_saturation, cfg.min_value,
+                           cfg.green_min_chroma) & valid
     veg = green_all & ~wall
     # flat green rectangles are pictures, not plants
     n, lab, areas = cues.mask_components(veg)
