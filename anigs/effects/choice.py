@@ -54,8 +54,9 @@ def prompt_note(kinds, by_prompt: bool, chosen: Sequence[str]) -> str:
     if not by_prompt:
         return "the scene's effects list overrides the prompt"
     if not kinds.regions:
-        return (f"the prompt {kinds.prompt!r} names nothing that moves (no word of the vocabulary in "
-                "anigs/effects/vocabulary.py), so the scene stays still")
+        why = ("its words of the vocabulary are negated, said to stay still or depicted"
+               if kinds.negated or kinds.depicted else "no word of the vocabulary in anigs/effects/vocabulary.py")
+        return f"the prompt {kinds.prompt!r} names nothing that moves ({why}), so the scene stays still"
     words = "; ".join(f"{w} -> {', '.join(r)}" for w, r in kinds.matches.items())
     return f"the prompt names {', '.join(kinds.regions)} ({words}); only these were looked for" + (
         "" if chosen else ", and none was found, so the scene stays still")

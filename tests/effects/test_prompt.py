@@ -166,6 +166,7 @@ def test_a_prompt_naming_only_painted_or_still_plants_gives_a_still_scene_and_sa
     assert doc["prompt"]["depicted"] == ["trees"] and doc["prompt"]["negated"] == ["grass"]
     note = doc["prompt"]["switched_off_note"]
     assert "depicted or made, not alive: trees" in note and "said to stay still: grass" in note
+    assert "names nothing that moves (its words of the vocabulary are negated" in doc["prompt"]["note"]
 
 
 def test_a_prompt_naming_only_trees_never_chooses_flowers(garden_stage):
