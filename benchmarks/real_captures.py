@@ -60,13 +60,14 @@ def default_captures() -> Path:
     return Path(env) if env else ROOT.parent / "shared" / "captures"
 
 
-def phrasings(capture: str) -> list[dict]:
-    """The capture's phrasings: [{kind, expect, prompt}] (``benchmarks/real/phrasings.yaml``)."""
+def phrasings(capture: str, path: Path | None = None) -> list[dict]:
+    """The capture's phrasings: [{kind, expect, prompt}] (``benchmarks/real/phrasings.yaml`` or ``path``)."""
     import yaml
 
-    table = yaml.safe_load((REAL / "phrasings.yaml").read_text())
+    path = path or REAL / "phrasings.yaml"
+    table = yaml.safe_load(path.read_text())
     if capture not in table:
-        raise KeyError(f"{REAL / 'phrasings.yaml'}: no phrasings for capture {capture!r}")
+        raise KeyError(f"{path}: no phrasings for capture {capture!r}")
     return table[capture]
 
 
@@ -279,6 +280,8 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=ROOT / "results" / "real_captures")
     ap.add_argument("--capture", nargs="*", default=None)
     ap.add_argument("--kind", nargs="*", default=None, help="phrasing kinds to run (default all)")
+    ap.add_argument("--phrasings", type=Path, default=None,
+                    help="a phrasings file (default benchmarks/real/phrasings.yaml; phrasings_holdout.yaml: the held-back set)")
     ap.add_argument("--cores", type=int, default=1)
     ap.add_argument("--config", nargs="*", default=[], help="workflow config KEY=VALUE for SfM and the fit")
     ap.add_argument("--effects", nargs="*", default=[], help="effects section KEY=VALUE overrides")
@@ -307,7 +310,7 @@ def main() -> None:
             img = read_photo(a.captures / capture / p.name)
             sizes[p.name] = (img.shape[1], img.shape[0])
         columns = []
-        for ph in phrasings(capture):
+        for ph in phrasings(capture, a.phrasings):
             if a.kind and ph["kind"] not in a.kind:
                 continue
             folder, s, cpu, cached = run_effects(capture, a.cache, ph["prompt"], overrides)

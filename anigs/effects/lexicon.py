@@ -57,6 +57,8 @@ MOTION = frozenset(("move", "sway", "flutter", "wave", "ripple", "rustle", "blow
 STILLNESS = frozenset(("still", "static", "motionless", "frozen", "unmoving", "stationary", "rigid", "immobile",
                        "fixed", "steady"))
 STAY = frozenset(("stay", "remain", "keep", "be", "stand", "sit", "hold", "look", "appear", "seem"))
+#: what moves things: "no wind", "without any breeze" say the whole scene stays still (as does "nothing moves")
+MOVERS = frozenset(("wind", "breeze", "gust", "motion", "movement", "animation"))
 #: words that end the reach of a stillness or a negated motion backwards (and of a negation forwards)
 CLAUSE = frozenset(("but", "while", "whereas", "although", "though", "yet", "except", "whilst"))
 

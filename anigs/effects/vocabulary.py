@@ -21,6 +21,7 @@ Words that name nothing that moves here, listed in effects.json and on the overv
    verb ("the flowers must not move") or a stillness after a verb of staying ("the grass stays still",
    "is motionless"), back to the start of their clause (a mark, "but", "while", or a motion verb:
    "the trees sway and the flowers stay still" keeps the trees);
+   and a whole scene said to stay still ("nothing moves", "no wind") negates every word;
 7. a depiction or a made thing is *depicted*: the words after a picture's noun and "of" ("a painting
    of trees", "a still life of tulips", "the reflection of trees"), a word just before such a noun
    ("rose wallpaper", "a tree sculpture"), and the words right after an adjective of made things
@@ -42,8 +43,8 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 from anigs.effects.config import REGION_EFFECTS, REGIONS
-from anigs.effects.lexicon import (ARTIFICIAL, CLAUSE, DEPICTIONS, FUNCTION_WORDS, GENERIC, MOTION, PLANTS, SCENES,
-                                   STAY, STILL, STILLNESS, VERBS, table)
+from anigs.effects.lexicon import (ARTIFICIAL, CLAUSE, DEPICTIONS, FUNCTION_WORDS, GENERIC, MOTION, MOVERS, PLANTS,
+                                   SCENES, STAY, STILL, STILLNESS, VERBS, table)
 
 NEGATIONS = ("no", "not", "without", "nor", "never")
 _TOKEN = re.compile(r"[a-z]+(?:'[a-z]+)?|[,.;:!?]")
@@ -188,6 +189,17 @@ def _stillness_at(tokens: list[str], i: int) -> bool:
     return False
 
 
+def _all_still_at(tokens: list[str], i: int) -> bool:
+    """Whether ``tokens[i]`` starts a stillness of the whole scene: "nothing" or "none" before a motion
+    verb ("nothing moves", "nothing is moving"), a negation before a mover ("no wind", "without any breeze")."""
+    tok, after = tokens[i], tokens[i + 1:i + 4]
+    if tok in ("nothing", "none"):
+        return any(_lemma_in(t, MOTION, "VERB") for t in after)
+    if tok in NEGATIONS or tok == "windless":
+        return tok == "windless" or any(_lemma_in(t, MOVERS, "NOUN") for t in after[:2])
+    return False
+
+
 def _term_at(tokens: list[str], i: int) -> tuple[tuple[str, ...], int, str, bool]:
     """(regions, tokens used, the term as written, understood) of the word or two-word term at ``i``."""
     tok = tokens[i]
@@ -210,6 +222,7 @@ def prompt_kinds(prompt: str | None) -> PromptKinds:
     neg_left = art_left = 0  # how far a negation ("no trees or flowers") and a made-thing adjective reach
     depicting = False  # inside "a painting of ..." up to the next mark or clause word
     clause = 0  # the first hit of the current clause (what a stillness switches off)
+    everything_still = False
     i = 0
     while i < len(tokens):
         tok = tokens[i]
@@ -225,6 +238,8 @@ def prompt_kinds(prompt: str | None) -> PromptKinds:
         if _lemma_in(tok, MOTION, "VERB") and not lookup(tok)[0]:  # "the trees sway and ...": a new reach
             clause, i = len(hits), i + 1
             continue
+        if _all_still_at(tokens, i):  # "nothing moves", "no wind": the whole scene stays still
+            everything_still = True
         if tok in NEGATIONS and tokens[i + 1:i + 2] != ["only"]:
             neg_left, i = 4, i + 1
             continue
@@ -250,6 +265,9 @@ def prompt_kinds(prompt: str | None) -> PromptKinds:
         elif art_left and _is_noun(tok):
             art_left = 0  # "a stone wall with ivy": the adjective was the wall's
         neg_left, art_left, i = max(neg_left - step, 0), max(art_left - step, 0), i + step
+    if everything_still:
+        for h in hits:
+            h[2] = "negated" if h[2] == "named" else h[2]
     return _kinds(text, hits, unknown)
 
 

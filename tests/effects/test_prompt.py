@@ -91,6 +91,9 @@ def test_words_as_people_write_them(prompt, words):
     ("the trees are still swaying", ["foliage"], [], []),  # "still" as "yet"
     ("the grass is motionless, but the trees sway", ["foliage"], ["grass"], []),
     ("not only the trees but also the flowers sway", ["foliage", "flowers"], [], []),
+    ("a tree trunk, nothing moving", [], ["tree"], []),  # the whole scene
+    ("trees and a lawn on a day with no wind", [], ["trees", "lawn"], []),
+    ("trees bending in the wind, no flowers", ["foliage"], ["flowers"], []),
     # a scene word's kinds less those switched off; a plant named outright keeps its own
     ("a garden with no flowers", ["foliage", "grass"], ["flowers"], []),
     ("a rose garden without trees", ["foliage", "grass", "flowers"], ["trees"], []),
