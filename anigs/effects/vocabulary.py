@@ -305,5 +305,6 @@ def vocabulary_markdown() -> str:
              + ", ".join(sorted(MOTION)) + ") or a stillness (" + ", ".join(sorted(STILLNESS)) + ") after a verb of "
              "staying, for the words before it in its clause; a depiction (" + ", ".join(sorted(DEPICTIONS))
              + ") for the words after its \"of\" and the word just before it; an adjective of made things ("
-             + ", ".join(sorted(ARTIFICIAL)) + ") for the words right after it."]
+             + ", ".join(sorted(ARTIFICIAL)) + ") for the words right after it; \"nothing\" or \"none\" before a "
+             "motion verb, or a negation before a mover (" + ", ".join(sorted(MOVERS)) + "), for every word."]
     return "\n".join(rows)
