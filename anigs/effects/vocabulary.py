@@ -47,7 +47,7 @@ from anigs.effects.lexicon import (ARTIFICIAL, CLAUSE, DEPICTIONS, FUNCTION_WORD
                                    SCENES, STAY, STILL, STILLNESS, VERBS, table)
 
 NEGATIONS = ("no", "not", "without", "nor", "never")
-_TOKEN = re.compile(r"[a-z]+(?:'[a-z]+)?|[,.;:!?]")
+_TOKEN = re.compile(r"[^\W\d_]+(?:'[^\W\d_]+)?|[,.;:!?]")  # words of letters (any script), marks
 TERMS = table()
 #: derived adjectives: suffix -> what replaces it ("leafy" -> "leaf", "wooded" -> "wood", "flowery" -> "flower")
 _DERIVED = (("iest", "y"), ("ier", "y"), ("y", ""), ("ed", ""), ("s", ""))

@@ -109,6 +109,7 @@ def test_words_not_understood_are_listed():
     assert k.unknown == ["flwers", "zorbleflax"]  # typos and rare words; function words and still things are not listed
     assert k.regions == ["foliage", "grass", "flowers"]  # the garden
     assert prompt_kinds("a fox on a table in a living room").unknown == []
+    assert prompt_kinds("Bäume and trees").unknown == ["bäume"]  # a word of another language, whole
 
 
 def test_words_matched_are_recorded():
