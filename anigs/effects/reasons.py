@@ -47,5 +47,6 @@ def unlifted_note(region: str, share: float) -> str:
     """The sentence for a region the photos show but the 3D model mostly lacks (share: of its photo pixels)."""
     return (f" {share:.0%} of the pixels the photos show as {region} have none of the model's {region} in front of "
             "them, so they stay still: parts seen in too few photos to be placed in 3D, or placed where the other "
-            "photos see something else such as sky (more photos of them, from nearby, would let them move), or "
-            f"colours the photos' votes did not take for {region}.")
+            "photos see something else such as sky (more photos of them, from nearby, would let them move), "
+            f"colours the photos' votes did not take for {region}, or blurred splats reaching mostly past the "
+            "plant (effects.footprint_share: a sharper fit lets them move).")
