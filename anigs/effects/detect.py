@@ -167,16 +167,16 @@ def footprint_shares(g: Gaussians, maps: Sequence[PhotoMaps], regions: Sequence[
     Gaussian no photo renders and for a region no photo shows."""
     total = np.zeros(g.num)
     inside = np.zeros((g.num, len(REGIONS)))
+    grow = np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)
     for p, reg in zip(maps, regions):
         shown = [k for k, name in enumerate(REGIONS) if reg.masks[name].any()]
-        if not shown:
-            total += blend_weights(g, p.camera)[0]
-        for j, k in enumerate(shown):
-            m = reg.masks[REGIONS[k]]
-            if reach > 0:
-                m = cv2.dilate(m.astype(np.uint8), np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)) > 0
-            t, inside_k = blend_weights(g, p.camera, m)
-            inside[:, k] += inside_k
+        for j in range(0, max(len(shown), 1), 2):  # two masks per pass; one pass for the total at least
+            pair = shown[j:j + 2]
+            masks = [reg.masks[REGIONS[k]].astype(np.uint8) for k in pair]
+            masks = [cv2.dilate(m, grow) if reach > 0 else m for m in masks]
+            t, w = blend_weights(g, p.camera, np.stack(masks, -1) if masks else None)
+            if pair:
+                inside[:, pair] += w
             total += t if j == 0 else 0.0
     return inside / np.maximum(total, 1e-12)[:, None]
 

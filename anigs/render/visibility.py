@@ -135,8 +135,18 @@ def _blend_backend() -> str:
     return select_backend("auto", torch.device("cpu"))
 
 
+def _mask_channels(mask: np.ndarray, cam: Camera) -> torch.Tensor:
+    """``mask`` [H,W] or [H,W,K] (K <= 2) as float32 [H,W,K]."""
+    m = torch.from_numpy(np.asarray(mask, dtype=np.float32))
+    m = m.reshape(cam.height, cam.width, -1)
+    if m.shape[2] > 2:
+        raise ValueError(f"blend_weights: at most 2 masks per pass, got {m.shape[2]}")
+    return m
+
+
 def blend_weights(g: Gaussians, cam: Camera, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Per-Gaussian blending weight summed over pixels: (total [N], inside ``mask`` [N]).
+    """Per-Gaussian blending weight summed over pixels: (total [N], inside ``mask`` [N]); ``mask``
+    [H,W,K] (K <= 2 masks in the one pass) gives inside [N,K].
 
     Exact (see module docstring). With the cpu rasterizer one forward-only kernel pass
     (:func:`anigs.render.cpu_backend.composite_weights_cpu`) sums them during compositing;
@@ -145,30 +155,31 @@ def blend_weights(g: Gaussians, cam: Camera, mask: np.ndarray | None = None) -> 
     backend = _blend_backend()
     if backend != "cpu":
         return blend_weights_backward(g, cam, mask, backend)
+    masks = None if mask is None else _mask_channels(mask, cam)
     idx = frustum_subset(g, cam)
     total = np.zeros(g.num)
-    inside = np.zeros(g.num)
+    inside = np.zeros(g.num) if masks is None or np.ndim(mask) == 2 else np.zeros((g.num, masks.shape[2]))
     if len(idx) == 0:
         return total, inside
     ones = torch.ones(cam.height, cam.width, 1)
-    factors = ones if mask is None else torch.cat(
-        [ones, torch.from_numpy(np.asarray(mask, dtype=np.float32)).reshape(cam.height, cam.width, 1)], 2)
+    factors = ones if masks is None else torch.cat([ones, masks], 2)
     w = composite_weights_cpu(*render_inputs(g, idx), cam.torch_viewmat(), cam.torch_K(), cam.width, cam.height,
                               factors).numpy()
     total[idx.numpy()] = w[:, 0]
-    if mask is not None:
-        inside[idx.numpy()] = w[:, 1]
+    if masks is not None:
+        inside[idx.numpy()] = w[:, 1] if inside.ndim == 1 else w[:, 1:]
     return total, inside
 
 
 def blend_weights_backward(g: Gaussians, cam: Camera, mask: np.ndarray | None = None,
                            backend: str = "auto") -> tuple[np.ndarray, np.ndarray]:
     """:func:`blend_weights` via one backward pass of the rasterizer ``backend`` with zero
-    colours (``d(sum_p rgb_0(p)) / d colour_i0``; channel 1 weighted by the mask); the path of
+    colours (``d(sum_p rgb_0(p)) / d colour_i0``; channels 1 and 2 weighted by the masks); the path of
     the torch and gsplat backends, and the reference of the forward-only one."""
+    masks = None if mask is None else _mask_channels(mask, cam)
     idx = frustum_subset(g, cam)
     total = np.zeros(g.num)
-    inside = np.zeros(g.num)
+    inside = np.zeros(g.num) if masks is None or np.ndim(mask) == 2 else np.zeros((g.num, masks.shape[2]))
     if len(idx) == 0:
         return total, inside
     colors = torch.zeros(len(idx), 3, requires_grad=True)
@@ -176,12 +187,14 @@ def blend_weights_backward(g: Gaussians, cam: Camera, mask: np.ndarray | None = 
                           backend=backend)
     gout = torch.zeros_like(rgb)
     gout[..., 0] = 1.0
-    if mask is not None:
-        gout[..., 1] = torch.from_numpy(np.asarray(mask, dtype=np.float32))
+    if masks is not None:
+        gout[..., 1:1 + masks.shape[2]] = masks
     rgb.backward(gout)
     if colors.grad is not None:
         total[idx.numpy()] = colors.grad[:, 0].double().numpy()
-        inside[idx.numpy()] = colors.grad[:, 1].double().numpy()
+        k = 1 if masks is None else masks.shape[2]
+        grad = colors.grad[:, 1:1 + k].double().numpy()
+        inside[idx.numpy()] = grad[:, 0] if inside.ndim == 1 else grad
     return total, inside
 
 

@@ -244,6 +244,25 @@ def test_blend_weights_forward_matches_backward(W, H):
         assert not i0.any()
 
 
+def test_blend_weights_of_two_masks_in_one_pass_are_those_of_each_alone():
+    W, H = 70, 45
+    g, cams = _lift_scene(W, H)
+    cam = cams[0]
+    masks = _factors(H, W, 2, seed=95, binary=True).bool().numpy()
+    for fn, exact in ((visibility.blend_weights, True), (visibility.blend_weights_backward, False)):
+        total, inside = fn(g, cam, masks)
+        assert inside.shape == (g.num, 2) and (inside > 0).sum() > 20
+        for k in range(2):
+            t, i = fn(g, cam, masks[..., k])
+            np.testing.assert_array_equal(t, total)
+            if exact:  # the cpu kernel sums each channel on its own: the same bits
+                np.testing.assert_array_equal(i, inside[:, k])
+            else:  # the backward pass's float32 reductions round differently
+                np.testing.assert_allclose(i, inside[:, k], rtol=1e-6, atol=1e-6)
+    with pytest.raises(ValueError, match="at most 2 masks"):
+        visibility.blend_weights(g, cam, np.ones((H, W, 3), bool))
+
+
 def test_blend_weights_fallback_backend(monkeypatch):
     """Without the cpu kernel, blend_weights takes the backward pass of the backend in use."""
     W, H = 70, 45
