@@ -184,8 +184,7 @@ def _stillness_at(tokens: list[str], i: int) -> bool:
     if tok in STILLNESS:
         before = tokens[max(i - 3, 0):i]
         after = tokens[i + 1] if i + 1 < len(tokens) else ""
-        return any(_lemma_in(b, STAY, "VERB") or b in ("is", "are", "was", "were", "be", "being") for b in before) \
-            and not _lemma_in(after, MOTION, "VERB")
+        return any(_lemma_in(b, STAY, "VERB") for b in before) and not _lemma_in(after, MOTION, "VERB")
     return False
 
 
