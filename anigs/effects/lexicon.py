@@ -34,7 +34,7 @@ GENERIC: dict[str, tuple[str, ...]] = {
     "greenhouse": FB,
 }
 #: scene words that head no compound ("courtyard", "graveyard" are no gardens)
-SCENES = ("garden", "park", "backyard", "yard")
+SCENES = ("garden", "park", "backyard", "yard", "parkland")
 
 #: nouns of made images and objects: the words after "of" ("a painting of trees") and a word of the lexicon
 #: just before one ("rose wallpaper", "a leaf print") are depicted, not alive: they name nothing that moves

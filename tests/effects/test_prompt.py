@@ -97,6 +97,7 @@ def test_words_as_people_write_them(prompt, words):
     # a scene word's kinds less those switched off; a plant named outright keeps its own
     ("a garden with no flowers", ["foliage", "grass"], ["flowers"], []),
     ("a rose garden without trees", ["foliage", "grass", "flowers"], ["trees"], []),
+    ("a parkland without trees", ["grass", "flowers"], ["trees"], []),  # a scene word like "garden"
 ])
 def test_what_is_depicted_or_said_to_stay_still_names_nothing(prompt, regions, negated, depicted):
     k = prompt_kinds(prompt)
