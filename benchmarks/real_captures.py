@@ -7,7 +7,8 @@
 Per capture of ``benchmarks/real/scenes/`` (its photos in ``--captures/<capture>``, never in the
 project): SfM and the static fit through the workflow (``snakemake`` with ``results=--cache``,
 ``scene_dir=benchmarks/real/scenes``; Snakemake's rerun triggers redo them when their config
-changes, ``--config`` passes workflow config such as ``static.iterations=500``), then, per
+changes; ``--config`` passes top-level workflow config, e.g. ``scene_dir=DIR``: a copy of the scene
+files whose ``static:`` sections change the fit, such as ``holdout_every: 0``), then, per
 phrasing of ``benchmarks/real/phrasings.yaml``, the effects stage on the cached fit (in this
 process; cached under ``--cache/<capture>/phrasings/<key>/`` keyed by the prompt, the effects
 config, the fitted model and the source of ``anigs/effects``).
@@ -97,6 +98,11 @@ def fit(capture: str, captures: Path, cache: Path, cores: int, config: list[str]
     met = json.loads((cache / capture / "static" / "metrics.json").read_text())
     out.update(registered=rep["registered"], images=rep["images"], test_psnr=met.get("test_psnr"))
     return out
+
+
+def _db(psnr: float | None) -> str:
+    """A held-out PSNR for the table ("none held out" under ``static.holdout_every: 0``)."""
+    return "none held out" if psnr is None else f"{psnr:.1f} dB"
 
 
 def _code_hash() -> str:
@@ -329,7 +335,7 @@ def main() -> None:
         if fit_rec:
             print(f"<!-- {capture}: SfM {fit_rec['registered']}/{fit_rec['images']} {fit_rec['sfm_s']:.0f} s "
                   f"(cpu {fit_rec['sfm_cpu_s']:.0f}), static fit {fit_rec['static_s']:.0f} s (cpu "
-                  f"{fit_rec['static_cpu_s']:.0f}), held-out {fit_rec['test_psnr']:.1f} dB -->", flush=True)
+                  f"{fit_rec['static_cpu_s']:.0f}), held-out {_db(fit_rec['test_psnr'])} -->", flush=True)
         if a.sheets and columns:
             write_sheet(a.sheets / f"{capture}.png", capture, a.captures, labels, columns)
     if a.json:

@@ -116,7 +116,8 @@ def _config_dict(cfg) -> dict:
 def main(args: argparse.Namespace) -> int:
     out = run(Inputs.from_args(args), FitConfig.from_dict(parse_params(args.params)))
     metrics = out.metrics()
-    print(f"static fit: {metrics['num_gaussians']} Gaussians, held-out PSNR {metrics['test_psnr']:.2f} dB "
-          f"(SSIM {metrics['test_ssim']:.3f}), train PSNR {metrics['train_psnr']:.2f} dB, "
+    held = ("no held-out photos (static.holdout_every: 0)" if metrics.get("test_psnr") is None else
+            f"held-out PSNR {metrics['test_psnr']:.2f} dB (SSIM {metrics['test_ssim']:.3f})")
+    print(f"static fit: {metrics['num_gaussians']} Gaussians, {held}, train PSNR {metrics['train_psnr']:.2f} dB, "
           f"{metrics['seconds']:.0f} s -> {out.path('canonical')}")
     return 0
