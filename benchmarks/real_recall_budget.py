@@ -1,0 +1,186 @@
+"""Where a capture's recall goes: the must-move marks through each step of the effects stage, against
+what the fit itself allows.
+
+    python benchmarks/real_recall_budget.py --cache DIR [--captures ../shared/captures] [--capture NAME ...]
+        [--kind user] [--effects KEY=VALUE ...] [--json OUT] [--sheets DIR]
+
+Per capture, on its cached SfM and fit (``DIR/<capture>/{sfm,static}``, as ``real_captures.py`` leaves
+them) and one phrasing of ``benchmarks/real/phrasings.yaml`` (``--kind``, default the user's), the
+effects stage runs (:func:`anigs.effects.choice.decide_effects`, with ``--effects`` overrides) and
+the labels (``benchmarks/real/labels``) are scored at each step:
+
+- ``2D masks``: per labelled photo the stage analyses, the share of its must-move (and must-stay-still)
+  pixels inside the photo's 2D masks of the chosen regions, before the 3D rules (and pooled over them);
+- ``lift``: recall / pooled still share / worst still mark of the Gaussians the photos' votes and
+  footprints lifted into the chosen regions (rendered as ``real_captures.py`` does);
+- ``rules``: the same for the stage's moving Gaussians (after the geometry rules);
+- ``bound``: the fit's own limit. Gaussians are chosen by the share of their blending weight, summed
+  over the labelled photos, that falls on the must-move marks themselves (an oracle that sees the
+  answers; no rule working from the photos does better on these photos), at shares 0.3, 0.5 and 0.7.
+
+A capture whose ``bound`` cannot reach recall 0.8 with every still mark at 1% or less needs a better
+fit (more photos); one whose bound can, loses its recall in the steps where the figures drop.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import real_captures as rc  # noqa: E402
+from real.labels import load_labels, read_photo  # noqa: E402
+
+BOUND_SHARES = (0.3, 0.5, 0.7)
+
+
+def moving(g, dyn: np.ndarray, cams: dict, names: list[str]) -> dict[str, np.ndarray]:
+    """Per labelled photo its camera sees: int8 [h,w], 1 where the Gaussians ``dyn`` [N] make the pixel move."""
+    from anigs.effects.geometry import render_features
+
+    out = {}
+    for n in names:
+        cam = cams.get(Path(n).stem)
+        if cam is None:
+            continue
+        share, alpha = render_features(g, dyn[:, None].astype(np.float32), cam)[:2]
+        out[n] = ((share[..., 0] >= rc.MOVE_AT) & (alpha >= 0.5) & bool(dyn.any())).astype(np.int8)
+    return out
+
+
+def mark_shares(g, labels, cams: dict, sizes: dict) -> np.ndarray:
+    """Per Gaussian [N]: the share of its blending weight, over the labelled photos, on the must-move marks."""
+    from anigs.render.visibility import blend_weights
+
+    total, inside = np.zeros(g.num), np.zeros(g.num)
+    for p in labels.photos:
+        cam = cams.get(Path(p.name).stem)
+        if cam is None:
+            continue
+        move, _ = p.masks(cam.height, cam.width, sizes[p.name])
+        t, w = blend_weights(g, cam, move.astype(np.uint8)[..., None])
+        total, inside = total + t, inside + w[:, 0]
+    return inside / np.maximum(total, 1e-12)
+
+
+def stage_steps(g, photos, cams, cfg, requested) -> tuple[dict, np.ndarray, list]:
+    """The effects stage on the fit, watched: (its decision's report, the lifted region per Gaussian [N]
+    before the rules, [(camera name, {region: 2D mask})] of the analysed photos before the rules) and
+    the stage's moving Gaussians in the report's ``_dynamic``."""
+    from anigs.effects import detect
+    from anigs.effects.choice import decide_effects
+    from anigs.effects.config import REGIONS
+
+    seen: dict = {}
+    lift = detect._lift
+
+    def watched(g_, means, max_scale, maps, regions, ground, cfg_):
+        seen["masks"] = [(p.camera.name, {k: r.masks[k].copy() for k in REGIONS}) for p, r in zip(maps, regions)]
+        out = lift(g_, means, max_scale, maps, regions, ground, cfg_)
+        seen["lifted"] = out[0].copy()
+        return out
+
+    detect._lift = watched
+    try:
+        decision = decide_effects(photos, cams, g, cfg, requested)
+    finally:
+        detect._lift = lift
+    report = dict(decision.report, _dynamic=decision.dynamic)
+    return report, seen.get("lifted", np.full(g.num, -1)), seen.get("masks", [])
+
+
+def budget(capture: str, captures: Path, cache: Path, kind: str, overrides: dict, sheets: Path | None = None) -> dict:
+    """The figures of one capture (see module docstring)."""
+    from anigs.cameras import load_cameras
+    from anigs.effects.config import REGIONS, REGION_EFFECTS, Config
+    from anigs.effects.detect import photo_indices
+    from anigs.gaussians import load_ply
+    from anigs.images import find_image, load_image
+
+    scene = cache / capture
+    labels = load_labels(capture)
+    ph = next(p for p in rc.phrasings(capture) if p["kind"] == kind)
+    g = load_ply(scene / "static" / "canonical.ply")
+    all_cams = load_cameras(scene / "sfm" / "cameras.json")
+    cfg = Config.from_dict({**overrides, "prompt": ph["prompt"], "requested": "auto"})
+    picked = [all_cams[i] for i in photo_indices(len(all_cams), cfg.max_photos)]
+    photos = [load_image(find_image(scene / "sfm" / "images", c.name)) for c in picked]
+    report, lifted, masks = stage_steps(g, photos, picked, cfg, "auto")
+    regions = sorted({REGIONS.index(r) for r in REGIONS for e in report["chosen"] if e in REGION_EFFECTS[r]})
+    sizes = {}
+    for p in labels.photos:
+        img = read_photo(captures / capture / p.name)
+        sizes[p.name] = (img.shape[1], img.shape[0])
+    cams = {Path(c.name).stem: c for c in all_cams}
+    names = [p.name for p in labels.photos]
+    out = {"capture": capture, "kind": kind, "prompt": ph["prompt"], "chosen": report["chosen"], "masks": []}
+    maps = {"2D masks": {}}
+    for p in labels.photos:
+        hit = [m for n, m in masks if Path(n).stem == Path(p.name).stem]
+        if not hit:
+            continue
+        region_mask = np.zeros(next(iter(hit[0].values())).shape, bool)
+        for k in regions:
+            region_mask |= hit[0][REGIONS[k]]
+        maps["2D masks"][p.name] = region_mask.astype(np.int8)
+        move, still = p.masks(*region_mask.shape, sizes[p.name])
+        out["masks"].append({"photo": p.name, "move": float((region_mask & move).sum() / move.sum()) if move.any() else None,
+                             "still": float((region_mask & still).sum() / still.sum()) if still.any() else None})
+    steps = {"lift": np.isin(lifted, regions), "rules": np.asarray(report["_dynamic"], bool)}
+    shares = mark_shares(g, labels, cams, sizes)
+    steps.update({f"bound {s:g}": shares >= s for s in BOUND_SHARES})
+    for name, dyn in steps.items():
+        maps[name] = moving(g, dyn, cams, names)
+    for name, m in maps.items():
+        sc = rc.score(labels, m, sizes)
+        out[name] = {"gaussians": int(steps[name].sum()) if name in steps else None, "recall": sc["recall"],
+                     "still": sc["still"], "worst_still": sc["worst_still"], "worst_what": sc["worst_what"]}
+    if sheets is not None:
+        rc.write_sheet(sheets / f"{capture}.png", capture, captures, labels,
+                       [(f"{name} ({kind}: {ph['prompt']})" if name == "2D masks" else name,
+                         {"chosen": report["chosen"], "score": out[name], "moving": m}) for name, m in maps.items()])
+    return out
+
+
+def _fmt(x: float | None, pct: bool = False) -> str:  # noqa: D103
+    return "n/a" if x is None else (f"{100 * x:.1f}%" if pct else f"{x:.2f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--captures", type=Path, default=rc.default_captures())
+    ap.add_argument("--cache", type=Path, required=True, help="real_captures.py's cache (its fits)")
+    ap.add_argument("--capture", nargs="*", default=None, help="captures (default: all labelled)")
+    ap.add_argument("--kind", default="user", help="the phrasing kind to run (default: the user's)")
+    ap.add_argument("--effects", nargs="*", default=[], help="effects section KEY=VALUE overrides")
+    ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--sheets", type=Path, default=None, help="write DIR/<capture>.png: a column per step, "
+                    "moving (or masked) pixels tinted, the marks outlined")
+    a = ap.parse_args()
+    overrides = rc.parse_kv(a.effects)
+    caps = a.capture or sorted(p.stem for p in (rc.REAL / "labels").glob("*.json"))
+    rows = []
+    print("| capture | step | Gaussians | recall | still moving (worst mark) |\n|---|---|---|---|---|")
+    for cap in caps:
+        if not (a.cache / cap / "static" / "canonical.ply").exists():
+            print(f"<!-- {cap}: no fit in {a.cache / cap}; run real_captures.py first -->")
+            continue
+        r = budget(cap, a.captures, a.cache, a.kind, overrides, a.sheets)
+        rows.append(r)
+        for m in r["masks"]:
+            print(f"| {cap} | 2D masks, {m['photo']} | | {_fmt(m['move'])} (of its marks) | {_fmt(m['still'], True)} |")
+        for step in ("2D masks", "lift", "rules", *(f"bound {s:g}" for s in BOUND_SHARES)):
+            f = r[step]
+            print(f"| {cap} | {step} | {f['gaussians'] or ''} | {_fmt(f['recall'])} | {_fmt(f['still'], True)} "
+                  f"({_fmt(f['worst_still'], True)} {f['worst_what']}) |", flush=True)
+    if a.json:
+        a.json.write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()
