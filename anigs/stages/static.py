@@ -25,7 +25,7 @@ from anigs.io import write_json
 from anigs.sfm.model import load_points
 from anigs.sfm.tracks import load_tracks
 from anigs.static.fit import fit_static
-from anigs.static.report import draw_fit
+from anigs.static.report import draw_fit, held_out_text
 
 Config = FitConfig  # the `static` config section
 
@@ -116,8 +116,7 @@ def _config_dict(cfg) -> dict:
 def main(args: argparse.Namespace) -> int:
     out = run(Inputs.from_args(args), FitConfig.from_dict(parse_params(args.params)))
     metrics = out.metrics()
-    held = ("no held-out photos (static.holdout_every: 0)" if metrics.get("test_psnr") is None else
-            f"held-out PSNR {metrics['test_psnr']:.2f} dB (SSIM {metrics['test_ssim']:.3f})")
+    held = held_out_text(metrics.get("test_psnr"), metrics.get("test_ssim"))
     print(f"static fit: {metrics['num_gaussians']} Gaussians, {held}, train PSNR {metrics['train_psnr']:.2f} dB, "
           f"{metrics['seconds']:.0f} s -> {out.path('canonical')}")
     return 0

@@ -26,7 +26,7 @@ from anigs.cameras import Camera
 from anigs.static.budget import CaptureSize
 from anigs.static.config import FitConfig
 from anigs.static.planning import downscaled, fit_side, flat_curve, plan_fit, resolved
-from anigs.static.report import accuracy_record, log_accuracy
+from anigs.static.report import accuracy_record, held_out_text, log_accuracy
 from anigs.static.densify import (DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
 from anigs.static.divergence import DivergenceGuard, FitDivergedError, raise_diverged
@@ -218,8 +218,8 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         metrics["exposure"] = {"lr": cfg.exposure_lr, **run.exposure.report()}
     if train_depth is not None:
         metrics["depth"] = depth_record(cfg, params, (train_cams, train_depth), (test_cams, test_depth), final_deg, bg)
-    log.info("static fit done: %d Gaussians, held-out PSNR %.2f dB, train PSNR %.2f dB, %.1f s",
-             gaussians.num, te["test_psnr"], tr["psnr"], metrics["seconds"])
+    log.info("static fit done: %d Gaussians, %s, train PSNR %.2f dB, %.1f s",
+             gaussians.num, held_out_text(te["test_psnr"], te["test_ssim"]), tr["psnr"], metrics["seconds"])
     metrics["plan"]["estimate_ratio"] = round(train_seconds / max(fit_plan.estimated_seconds, 1e-9), 3)
     metrics["accuracy"] = log_accuracy(accuracy_record(metrics, fit_plan, size, cost, g0.num))
     return gaussians, metrics
@@ -263,8 +263,8 @@ class _FitRun:
         row = {"iteration": step, "train_seconds": time.perf_counter() - self.t_start - self.eval_seconds,
                "train_cpu_seconds": time.process_time() - self.c_start - self.eval_cpu,
                "test_psnr": ev["psnr"], "test_ssim": ev["ssim"], "num_gaussians": int(self.params["means"].shape[0])}
-        log.info("iteration %d: held-out PSNR %.2f dB, SSIM %.3f, %d Gaussians, %.1f s (cpu %.1f s)", step,
-                 row["test_psnr"], row["test_ssim"], row["num_gaussians"], row["train_seconds"],
+        log.info("iteration %d: %s, %d Gaussians, %.1f s (cpu %.1f s)", step,
+                 held_out_text(row["test_psnr"], row["test_ssim"]), row["num_gaussians"], row["train_seconds"],
                  row["train_cpu_seconds"])
         return row
 

@@ -100,6 +100,13 @@ def _warning(metrics: dict[str, Any], fit_plan: FitPlan, size: CaptureSize, cost
         f"; or {options[1][1]}" if len(options) > 1 else "")
 
 
+def held_out_text(psnr: float | None, ssim: float | None) -> str:
+    """The held-out PSNR and SSIM in words, or that no photo was held out (``static.holdout_every: 0``)."""
+    if psnr is None or not math.isfinite(psnr):
+        return "no held-out photos (static.holdout_every: 0)"
+    return f"held-out PSNR {psnr:.2f} dB, SSIM {ssim:.3f}"
+
+
 def draw_fit(metrics: dict[str, Any], path) -> None:
     """``static/fit.png``: held-out PSNR against the steps (points labelled by the Gaussian count) and
     the accuracy record in words (the plan, now, the next level, the warning). Only what the same
@@ -112,17 +119,23 @@ def draw_fit(metrics: dict[str, Any], path) -> None:
     from anigs.io import atomic_path
     from anigs.knob_chart import knob_image
 
+    curve = metrics.get("curve", [])
     rows = [{"knob": "fit", "seconds": r["iteration"], "test_psnr": r["test_psnr"],
-             "value": f"{r['num_gaussians'] / 1000:.0f}k"} for r in metrics.get("curve", [])
-            if math.isfinite(r["test_psnr"])]
-    plot = knob_image(rows, "fit", ["test_psnr"], panel=(640, 300), x_label="steps (labels: Gaussians)")
+             "value": f"{r['num_gaussians'] / 1000:.0f}k"} for r in curve
+            if r["test_psnr"] is not None and math.isfinite(r["test_psnr"])]
+    if rows:
+        plot = knob_image(rows, "fit", ["test_psnr"], panel=(640, 300), x_label="steps (labels: Gaussians)")
+    else:  # no held-out photos: the Gaussians the fit grew
+        rows = [{"knob": "fit", "seconds": r["iteration"], "num_gaussians": r["num_gaussians"], "value": ""}
+                for r in curve]
+        plot = knob_image(rows, "fit", ["num_gaussians"], panel=(640, 300), x_label="steps (no held-out photos)")
     acc, pl = metrics.get("accuracy", {}), metrics.get("plan", {})
     now = acc.get("now", {})
     flat = " (the held-out curve flattened)" if pl.get("stopped_early") else ""
     lines = [f"budget {pl.get('level')}: {now.get('steps')} of {pl.get('iterations')} steps{flat}, "
              f"{now.get('gaussians', 0):,} of {pl.get('max_gaussians', 0):,} Gaussians",
-             f"now: held-out PSNR {now.get('test_psnr', float('nan')):.2f} dB, SSIM "
-             f"{now.get('test_ssim', float('nan')):.3f}; train PSNR {now.get('train_psnr', float('nan')):.2f} dB"]
+             f"now: {held_out_text(now.get('test_psnr'), now.get('test_ssim'))}; "
+             f"train PSNR {now.get('train_psnr', float('nan')):.2f} dB"]
     nxt = acc.get("next")
     if nxt:
         curve = ("" if nxt.get("test_psnr_from_curve") is None
