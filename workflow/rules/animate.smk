@@ -47,6 +47,7 @@ rule refine:
         clip=stage_out("render_clip", "clip"),
         masks=stage_folder("masks"),
         effects=_effects_json,
+        weights=lambda wc: refine_weights(sec(wc.scene, "refine", wc.variant)),
     output:
         stage_out("refine", "target"),
     log:

@@ -18,6 +18,7 @@ from anigs.animate.round_policy import baseline_fields, round_seed, still_reason
 from anigs.reports.tradeoff import DERIVED_SEP, points_json, stage_owner, workflow_sweep
 from anigs.animate.config import METHODS, AnimateConfig
 from anigs.views.queue import queued_view_count
+from anigs.weight_inputs import effects_weights, eval_weights, masks_weights, refine_weights
 
 ANIGS_VERSION = anigs.__version__
 R = config["results"]

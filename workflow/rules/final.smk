@@ -8,6 +8,7 @@ rule final:
         views=stage_file("views", "views"),
         cameras=stage_file("sfm", "cameras"),
         masks=stage_folder("masks"),
+        weights=lambda wc: eval_weights(sec(wc.scene, "eval", wc.variant)),  # FVD's I3D (the clips half)
     output:
         summary=stage_out("final", "summary"),
         slices=report(

@@ -46,6 +46,7 @@ rule fvd_gt:
         model=final_model,
         cameras=stage_file("sfm", "cameras"),
         gt=lambda wc: [gt_of(wc.scene, "gt_cameras")],
+        weights=lambda wc: eval_weights(sec(wc.scene, "eval", wc.variant)),
     output:
         stage_out("fvd_gt", "record"),
     log:

@@ -8,6 +8,7 @@ checkpoint effects:
         cameras=stage_file("sfm", "cameras"),
         images=stage_file("sfm", "images"),  # undistorted: the images the sfm cameras describe
         selections=lambda wc: [s["ply"] for s in sec(wc.scene, "effects")["selections"] if "ply" in s],  # SuperSplat exports
+        weights=lambda wc: effects_weights(sec(wc.scene, "effects")),  # a changed weight file re-runs the job
     output:
         effects=stage_out("effects", "effects"),
         regions=stage_out("effects", "regions"),
@@ -90,6 +91,7 @@ rule masks:
         cameras=stage_file("sfm", "cameras"),
         effects=stage_file("effects", "effects"),
         gt=gt_inputs,
+        weights=lambda wc: masks_weights(sec(wc.scene, "masks")),
     output:
         # the whole folder: a mask (+ overlay, per-effect masks) per queued view, the dynamic set, the
         # report (anigs.stages.masks.Outputs)
