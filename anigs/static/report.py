@@ -119,15 +119,15 @@ def draw_fit(metrics: dict[str, Any], path) -> None:
     from anigs.io import atomic_path
     from anigs.knob_chart import knob_image
 
-    curve = metrics.get("curve", [])
+    checkpoints = metrics.get("curve", [])
     rows = [{"knob": "fit", "seconds": r["iteration"], "test_psnr": r["test_psnr"],
-             "value": f"{r['num_gaussians'] / 1000:.0f}k"} for r in curve
+             "value": f"{r['num_gaussians'] / 1000:.0f}k"} for r in checkpoints
             if r["test_psnr"] is not None and math.isfinite(r["test_psnr"])]
     if rows:
         plot = knob_image(rows, "fit", ["test_psnr"], panel=(640, 300), x_label="steps (labels: Gaussians)")
     else:  # no held-out photos: the Gaussians the fit grew
         rows = [{"knob": "fit", "seconds": r["iteration"], "num_gaussians": r["num_gaussians"], "value": ""}
-                for r in curve]
+                for r in checkpoints]
         plot = knob_image(rows, "fit", ["num_gaussians"], panel=(640, 300), x_label="steps (no held-out photos)")
     acc, pl = metrics.get("accuracy", {}), metrics.get("plan", {})
     now = acc.get("now", {})
