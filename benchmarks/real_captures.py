@@ -2,13 +2,14 @@
 
     python benchmarks/real_captures.py [--captures ../shared/captures] [--cache results/real_captures]
         [--capture NAME ...] [--kind user plain ...] [--cores 1] [--config KEY=VALUE ...]
-        [--effects KEY=VALUE ...] [--sheets DIR] [--json OUT] [--no-fit]
+        [--static KEY=VALUE ...] [--effects KEY=VALUE ...] [--sheets DIR] [--json OUT] [--no-fit]
 
 Per capture of ``benchmarks/real/scenes/`` (its photos in ``--captures/<capture>``, never in the
 project): SfM and the static fit through the workflow (``snakemake`` with ``results=--cache``,
 ``scene_dir=benchmarks/real/scenes``; Snakemake's rerun triggers redo them when their config
-changes; ``--config`` passes top-level workflow config, e.g. ``scene_dir=DIR``: a copy of the scene
-files whose ``static:`` sections change the fit, such as ``holdout_every: 0``), then, per
+changes; ``--static KEY=VALUE`` changes every scene's fit, e.g. ``holdout_every=0`` or
+``budget=quality``, through copies of the scene files; ``--config`` passes top-level workflow
+config, such as ``scene_dir=DIR``, a folder of your own scene files), then, per
 phrasing of ``benchmarks/real/phrasings.yaml``, the effects stage on the cached fit (in this
 process; cached under ``--cache/<capture>/phrasings/<key>/`` keyed by the prompt, the effects
 config, the fitted model and the source of ``anigs/effects``).
@@ -280,6 +281,24 @@ def parse_kv(items: list[str]) -> dict:
     return out
 
 
+def scene_copies(folder: Path, static: dict) -> Path:
+    """The benchmark's scene files written to ``folder`` with ``static`` (dotted keys nest:
+    ``densify.max_gaussians``) merged into each one's ``static:`` section; returns ``folder``."""
+    import yaml
+
+    folder.mkdir(parents=True, exist_ok=True)
+    for src in sorted(SCENES.glob("*.yaml")):
+        scene = yaml.safe_load(src.read_text())
+        for key, value in static.items():
+            node = scene.setdefault("static", {})
+            *path, last = key.split(".")
+            for part in path:
+                node = node.setdefault(part, {})
+            node[last] = value
+        (folder / src.name).write_text(yaml.safe_dump(scene, sort_keys=False))
+    return folder
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--captures", type=Path, default=default_captures())
@@ -291,6 +310,9 @@ def main() -> None:
     ap.add_argument("--cores", type=int, default=1)
     ap.add_argument("--config", nargs="*", default=[], help="workflow config KEY=VALUE for SfM and the fit")
     ap.add_argument("--effects", nargs="*", default=[], help="effects section KEY=VALUE overrides")
+    ap.add_argument("--static", nargs="*", default=[], help="static section KEY=VALUE overrides of every scene's fit "
+                    "(e.g. holdout_every=0 budget=quality densify.max_gaussians=100000): written into copies of the "
+                    "scene files under CACHE/_scenes, passed as scene_dir")
     ap.add_argument("--sheets", type=Path, default=None)
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--no-fit", action="store_true", help="use the cached fit as it is (no snakemake)")
@@ -302,6 +324,8 @@ def main() -> None:
     torch.set_num_threads(max(a.cores, 1))
     names = a.capture or sorted(p.stem for p in SCENES.glob("*.yaml"))
     overrides = parse_kv(a.effects)
+    if a.static:
+        a.config = [*a.config, f"scene_dir={scene_copies(a.cache / '_scenes', parse_kv(a.static)).resolve()}"]
     records = []
     print("| capture | phrasing | prompt | chosen | recall | blossoms | still moving (worst mark) | effects s (cpu) | verdict |")
     print("|---|---|---|---|---|---|---|---|---|")
