@@ -143,18 +143,24 @@ def moving_maps(folder: Path, scene: Path, names: list[str]) -> dict[str, np.nda
     """Per labelled photo name: int8 [h, w], 0 still, else 1 + the moving region's index in
     ``REGIONS`` where the chosen effects' Gaussians make the pixel move, rendered from the photo's
     SfM camera (absent: the photo was not registered)."""
-    from anigs.effects.config import REGIONS
     from anigs.cameras import load_cameras
-    from anigs.effects.geometry import render_features
     from anigs.gaussians import load_ply
     from anigs.stages.effects import Outputs
 
     g = load_ply(scene / "static" / "canonical.ply")
     res = Outputs(folder)
-    dyn, reg = res.dynamic(g.num), res.regions(g.num)
-    onehot = np.stack([dyn & (reg == k) for k in range(len(REGIONS))], 1).astype(np.float32)
     # by the photo's stem: the capture stage may re-encode a photo (a JPEG's camera is NAME.png)
     cams = {Path(c.name).stem: c for c in load_cameras(scene / "sfm" / "cameras.json")}
+    return moving_of(g, res.dynamic(g.num), res.regions(g.num), cams, names)
+
+
+def moving_of(g, dyn: np.ndarray, reg: np.ndarray, cams: dict, names: list[str]) -> dict[str, np.ndarray]:
+    """:func:`moving_maps` of the moving Gaussians ``dyn`` [N] bool with their regions ``reg`` [N]
+    (indices into ``REGIONS``), seen from ``cams`` (by photo stem)."""
+    from anigs.effects.config import REGIONS
+    from anigs.effects.geometry import render_features
+
+    onehot = np.stack([dyn & (reg == k) for k in range(len(REGIONS))], 1).astype(np.float32)
     out = {}
     for n in names:
         cam = cams.get(Path(n).stem)
@@ -169,6 +175,15 @@ def moving_maps(folder: Path, scene: Path, names: list[str]) -> dict[str, np.nda
             m[moves] = 1 + np.argmax(share, -1)[moves]
         out[n] = m
     return out
+
+
+def photo_sizes(captures: Path, capture: str, labels: CaptureLabels) -> dict[str, tuple[int, int]]:
+    """(width, height) of each labelled photo as captured (the marks' pixel frame)."""
+    sizes = {}
+    for p in labels.photos:
+        img = read_photo(captures / capture / p.name)
+        sizes[p.name] = (img.shape[1], img.shape[0])
+    return sizes
 
 
 def score(labels: CaptureLabels, moving: dict[str, np.ndarray], sizes: dict[str, tuple[int, int]]) -> dict:
@@ -335,10 +350,7 @@ def main() -> None:
         if not a.no_fit:
             fit_rec = fit(capture, a.captures, a.cache, a.cores, a.config)
         scene = a.cache / capture
-        sizes = {}
-        for p in labels.photos:
-            img = read_photo(a.captures / capture / p.name)
-            sizes[p.name] = (img.shape[1], img.shape[0])
+        sizes = photo_sizes(a.captures, capture, labels)
         columns = []
         for ph in phrasings(capture, a.phrasings):
             if a.kind and ph["kind"] not in a.kind:

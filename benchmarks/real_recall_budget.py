@@ -34,23 +34,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 import real_captures as rc  # noqa: E402
-from real.labels import load_labels, read_photo  # noqa: E402
+from real.labels import load_labels  # noqa: E402
 
 BOUND_SHARES = (0.3, 0.5, 0.7)
-
-
-def moving(g, dyn: np.ndarray, cams: dict, names: list[str]) -> dict[str, np.ndarray]:
-    """Per labelled photo its camera sees: int8 [h,w], 1 where the Gaussians ``dyn`` [N] make the pixel move."""
-    from anigs.effects.geometry import render_features
-
-    out = {}
-    for n in names:
-        cam = cams.get(Path(n).stem)
-        if cam is None:
-            continue
-        share, alpha = render_features(g, dyn[:, None].astype(np.float32), cam)[:2]
-        out[n] = ((share[..., 0] >= rc.MOVE_AT) & (alpha >= 0.5) & bool(dyn.any())).astype(np.int8)
-    return out
 
 
 def mark_shares(g, labels, cams: dict, sizes: dict) -> np.ndarray:
@@ -68,10 +54,10 @@ def mark_shares(g, labels, cams: dict, sizes: dict) -> np.ndarray:
     return inside / np.maximum(total, 1e-12)
 
 
-def stage_steps(g, photos, cams, cfg, requested) -> tuple[dict, np.ndarray, list]:
-    """The effects stage on the fit, watched: (its decision's report, the lifted region per Gaussian [N]
-    before the rules, [(camera name, {region: 2D mask})] of the analysed photos before the rules) and
-    the stage's moving Gaussians in the report's ``_dynamic``."""
+def stage_steps(g, photos, cams, cfg, requested) -> tuple:
+    """The effects stage on the fit, watched: (its :class:`~anigs.effects.choice.Decision`, the lifted
+    region per Gaussian [N] before the rules, [(camera name, {region: 2D mask})] of the analysed photos
+    before the rules)."""
     from anigs.effects import detect
     from anigs.effects.choice import decide_effects
     from anigs.effects.config import REGIONS
@@ -90,17 +76,15 @@ def stage_steps(g, photos, cams, cfg, requested) -> tuple[dict, np.ndarray, list
         decision = decide_effects(photos, cams, g, cfg, requested)
     finally:
         detect._lift = lift
-    report = dict(decision.report, _dynamic=decision.dynamic)
-    return report, seen.get("lifted", np.full(g.num, -1)), seen.get("masks", [])
+    return decision, seen.get("lifted", np.full(g.num, -1)), seen.get("masks", [])
 
 
 def budget(capture: str, captures: Path, cache: Path, kind: str, overrides: dict, sheets: Path | None = None) -> dict:
     """The figures of one capture (see module docstring)."""
     from anigs.cameras import load_cameras
-    from anigs.effects.config import REGIONS, REGION_EFFECTS, Config
-    from anigs.effects.detect import photo_indices
+    from anigs.effects.config import EFFECT_REGION, REGIONS, Config
     from anigs.gaussians import load_ply
-    from anigs.images import find_image, load_image
+    from anigs.stages.effects import analysed_photos
 
     scene = cache / capture
     labels = load_labels(capture)
@@ -108,14 +92,11 @@ def budget(capture: str, captures: Path, cache: Path, kind: str, overrides: dict
     g = load_ply(scene / "static" / "canonical.ply")
     all_cams = load_cameras(scene / "sfm" / "cameras.json")
     cfg = Config.from_dict({**overrides, "prompt": ph["prompt"], "requested": "auto"})
-    picked = [all_cams[i] for i in photo_indices(len(all_cams), cfg.max_photos)]
-    photos = [load_image(find_image(scene / "sfm" / "images", c.name)) for c in picked]
-    report, lifted, masks = stage_steps(g, photos, picked, cfg, "auto")
-    regions = sorted({REGIONS.index(r) for r in REGIONS for e in report["chosen"] if e in REGION_EFFECTS[r]})
-    sizes = {}
-    for p in labels.photos:
-        img = read_photo(captures / capture / p.name)
-        sizes[p.name] = (img.shape[1], img.shape[0])
+    photos, picked = analysed_photos(scene / "sfm" / "images", all_cams, cfg)
+    decision, lifted, masks = stage_steps(g, photos, picked, cfg, "auto")
+    report = decision.report
+    regions = sorted({REGIONS.index(EFFECT_REGION[e]) for e in report["chosen"]})
+    sizes = rc.photo_sizes(captures, capture, labels)
     cams = {Path(c.name).stem: c for c in all_cams}
     names = [p.name for p in labels.photos]
     out = {"capture": capture, "kind": kind, "prompt": ph["prompt"], "chosen": report["chosen"], "masks": []}
@@ -131,11 +112,12 @@ def budget(capture: str, captures: Path, cache: Path, kind: str, overrides: dict
         move, still = p.masks(*region_mask.shape, sizes[p.name])
         out["masks"].append({"photo": p.name, "move": float((region_mask & move).sum() / move.sum()) if move.any() else None,
                              "still": float((region_mask & still).sum() / still.sum()) if still.any() else None})
-    steps = {"lift": np.isin(lifted, regions), "rules": np.asarray(report["_dynamic"], bool)}
+    steps = {"lift": np.isin(lifted, regions), "rules": np.asarray(decision.dynamic, bool)}
     shares = mark_shares(g, labels, cams, sizes)
     steps.update({f"bound {s:g}": shares >= s for s in BOUND_SHARES})
+    foliage = np.full(g.num, REGIONS.index("foliage"))  # one tint for every step's moving pixels
     for name, dyn in steps.items():
-        maps[name] = moving(g, dyn, cams, names)
+        maps[name] = rc.moving_of(g, dyn, foliage, cams, names)
     for name, m in maps.items():
         sc = rc.score(labels, m, sizes)
         out[name] = {"gaussians": int(steps[name].sum()) if name in steps else None, "recall": sc["recall"],

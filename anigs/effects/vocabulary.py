@@ -194,9 +194,9 @@ def _all_still_at(tokens: list[str], i: int) -> bool:
     tok, after = tokens[i], tokens[i + 1:i + 4]
     if tok in ("nothing", "none"):
         return any(_lemma_in(t, MOTION, "VERB") for t in after)
-    if tok in NEGATIONS or tok == "windless":
-        return tok == "windless" or any(_lemma_in(t, MOVERS, "NOUN") for t in after[:2])
-    return False
+    if tok == "windless":
+        return True
+    return tok in NEGATIONS and any(_lemma_in(t, MOVERS, "NOUN") for t in after[:2])
 
 
 def _term_at(tokens: list[str], i: int) -> tuple[tuple[str, ...], int, str, bool]:

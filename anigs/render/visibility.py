@@ -135,13 +135,16 @@ def _blend_backend() -> str:
     return select_backend("auto", torch.device("cpu"))
 
 
-def _mask_channels(mask: np.ndarray, cam: Camera) -> torch.Tensor:
-    """``mask`` [H,W] or [H,W,K] (K <= 2) as float32 [H,W,K]."""
+def _mask_channels(mask: np.ndarray | None, cam: Camera, n: int) -> tuple[torch.Tensor | None, np.ndarray]:
+    """(``mask`` [H,W] or [H,W,K] (K <= 2) as float32 [H,W,K] or None, the zero inside weights: [n] for
+    no mask or one [H,W] mask, else [n,K])."""
+    if mask is None:
+        return None, np.zeros(n)
     m = torch.from_numpy(np.asarray(mask, dtype=np.float32))
     m = m.reshape(cam.height, cam.width, -1)
     if m.shape[2] > 2:
         raise ValueError(f"blend_weights: at most 2 masks per pass, got {m.shape[2]}")
-    return m
+    return m, np.zeros(n) if np.ndim(mask) == 2 else np.zeros((n, m.shape[2]))
 
 
 def blend_weights(g: Gaussians, cam: Camera, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -155,10 +158,9 @@ def blend_weights(g: Gaussians, cam: Camera, mask: np.ndarray | None = None) -> 
     backend = _blend_backend()
     if backend != "cpu":
         return blend_weights_backward(g, cam, mask, backend)
-    masks = None if mask is None else _mask_channels(mask, cam)
+    masks, inside = _mask_channels(mask, cam, g.num)
     idx = frustum_subset(g, cam)
     total = np.zeros(g.num)
-    inside = np.zeros(g.num) if masks is None or np.ndim(mask) == 2 else np.zeros((g.num, masks.shape[2]))
     if len(idx) == 0:
         return total, inside
     ones = torch.ones(cam.height, cam.width, 1)
@@ -176,10 +178,9 @@ def blend_weights_backward(g: Gaussians, cam: Camera, mask: np.ndarray | None = 
     """:func:`blend_weights` via one backward pass of the rasterizer ``backend`` with zero
     colours (``d(sum_p rgb_0(p)) / d colour_i0``; channels 1 and 2 weighted by the masks); the path of
     the torch and gsplat backends, and the reference of the forward-only one."""
-    masks = None if mask is None else _mask_channels(mask, cam)
+    masks, inside = _mask_channels(mask, cam, g.num)
     idx = frustum_subset(g, cam)
     total = np.zeros(g.num)
-    inside = np.zeros(g.num) if masks is None or np.ndim(mask) == 2 else np.zeros((g.num, masks.shape[2]))
     if len(idx) == 0:
         return total, inside
     colors = torch.zeros(len(idx), 3, requires_grad=True)

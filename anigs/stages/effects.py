@@ -82,6 +82,13 @@ class Inputs(CanonicalInputs):
     prompt: str | None = field(default=None, metadata={"help": "the scene's prompt, instead of the section's `prompt`"})
 
 
+def analysed_photos(images: Path, cams: list, cfg: Config) -> tuple[list[np.ndarray], list]:
+    """(photos, cameras) the detection analyses: the evenly spaced ``effects.max_photos`` of the capture's
+    cameras, and only those photos read from the folder ``images``."""
+    cams = [cams[i] for i in photo_indices(len(cams), cfg.max_photos)]
+    return [load_image(find_image(images, c.name)) for c in cams], cams
+
+
 def run(inputs: Inputs, cfg: Config) -> Outputs:
     """Detect the scene's effects and write the stage's outputs (``inputs.requested`` and
     ``inputs.prompt``, when given, replace the section's)."""
@@ -95,8 +102,7 @@ def run(inputs: Inputs, cfg: Config) -> Outputs:
     cams = load_cameras(inputs.cameras)
     if not cams:
         raise ValueError(f"{inputs.cameras}: no cameras")
-    cams = [cams[i] for i in photo_indices(len(cams), cfg.max_photos)]  # only these are analysed: read only them
-    photos = [load_image(find_image(Path(inputs.images), c.name)) for c in cams]
+    photos, cams = analysed_photos(Path(inputs.images), cams, cfg)
     decision = decide_effects(photos, cams, g, cfg, requested)
     out = inputs.out
     out.root.mkdir(parents=True, exist_ok=True)
