@@ -140,6 +140,12 @@ class Config:
     #: ... each a surface: its band from 1 to 2 plane_tol off holds at most this x its Gaussians (a slice through
     #: flower heads holds more)
     plane_max_outside: float = 0.2
+    #: ... unless (foliage) the sheet is a crown the fit smeared in depth (anigs/effects/outline.py): its longest axis
+    #: runs along the rays of the photos that show it (median |cos| at least plane_smear_min_cos; walls, pictures,
+    #: rugs and lawns spread across the view) and at least plane_free_outline of its outline ring in those photos
+    #: sees the sky or something deeper (paint and pictures lie flush); plane_free_outline > 1: off
+    plane_smear_min_cos: float = 0.8
+    plane_free_outline: float = 0.15  # ... and this share of its outline sees the sky or deeper (> 1: off)
     #: a plant Gaussian (foliage, grass, flowers) with fewer than this share of its island_neighbours nearest Gaussians
     #: in plant regions does not move: green on a surface that is not a plant (moss on a stone, paint); 0: off (the
     #: default: on the real-capture benchmark 0.35 stills less of the marked stones and gate but moves less of the plants)
@@ -147,6 +153,10 @@ class Config:
     island_neighbours: int = 16      # ... among this many nearest Gaussians
     #: flowers: this share of a candidate must lie within the link of leaves or stems (held by a plant)
     min_attached: float = 0.3
+    #: a prompt that names plants (foliage) but no flowers: the blossoms the flower rules keep and that the named
+    #: plants hold (min_attached of them within the link of foliage) sway with them as foliage (a flowering shrub's
+    #: blossoms); false: blossoms stay still unless the prompt names flowers
+    blossoms_with_plants: bool = True
     #: flowers: a median hue this many degrees below the green band, high in a crown, is sunlit leaves (foliage)
     leaf_hue_margin: float = 20.0
     #: ... high in a crown: most of it above this x camera height (flower heads stay lower)

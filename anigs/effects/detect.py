@@ -15,6 +15,9 @@ Pipeline (no downloaded weights):
    whole footprint: a blurred splat reaching from a bush over a gate stays still). Gaussians no
    photo sees take the majority of their ``propagate_k`` nearest decided neighbours
    (:func:`anigs.geometry.propagate.propagate_labels`); foliage, grass and flowers stop at the ground;
+   a prompt that names plants (foliage) but no flowers has the flowers looked for all the same, as the
+   plants' blossoms: those the geometry rules keep and the plants hold sway with them
+   (``blossoms_with_plants``; rule 5 of :mod:`anigs.effects.rules`);
 5. decide per region: detected when it covers >= ``min_pixel_fraction`` of the photos' pixels,
    >= ``min_gaussian_fraction`` (and ``min_gaussians``) of the Gaussians and appears in
    >= ``min_photo_fraction`` of the photos (at least 2);
@@ -42,11 +45,11 @@ from anigs.effects.config import EFFECTS, REGION_EFFECTS, REGIONS, Config
 from anigs.effects.geometry import (Ground, colour_spread, local_shape, render_features, scene_ground, seen_ground_cut,
                                    world_up)
 from anigs.effects.reasons import UNLIFTED_NOTE, reason, unlifted_note
+from anigs.effects.analysed import prepare_photos
+from anigs.effects.outline import release_smeared
 from anigs.effects.regions import PhotoMaps, PhotoRegions, classify_photo
 from anigs.effects.rules import check_candidates
 from anigs.gaussians import Gaussians
-from anigs.pixels import check_image
-from anigs.cameras import camera_for_size
 from anigs.render.visibility import VisibilityConfig, blend_weights, project_to_pixels, visible_depth
 from anigs.geometry.propagate import propagate_labels
 
@@ -118,34 +121,6 @@ class EffectsResult:
                 "rejected": [c.to_json() for c in self.candidates if not c.kept or c.moved_to],
                 "fragments": {k: int(v) for k, v in self.fragments.items()},
                 **({"segmenter": self.segmenter} if self.segmenter is not None else {})}
-
-
-def photo_indices(num_photos: int, max_photos: int) -> np.ndarray:
-    """The evenly spaced photos the detection analyses (indices into the capture's cameras): a caller
-    need read only these (``effects.max_photos``, 24: not all of a 384-photo capture in memory at once)."""
-    return np.unique(np.round(np.linspace(0, num_photos - 1, min(num_photos, max_photos))).astype(int))
-
-
-def _prepare(images: Sequence[np.ndarray], cameras: Sequence[Camera], cfg: Config) -> tuple[list, list]:
-    """Evenly spaced photos (float32 [H,W,3]) downscaled to ``max_side``, with their cameras."""
-    if len(images) != len(cameras):
-        raise ValueError(f"detect_effects: {len(images)} images but {len(cameras)} cameras")
-    if not len(images):
-        raise ValueError("detect_effects: no photos")
-    pick = photo_indices(len(images), cfg.max_photos)
-    photos, cams = [], []
-    for i in pick:
-        img = check_image(images[i], cameras[i].name)
-        h, w = img.shape[:2]
-        cam = camera_for_size(cameras[i], h, w, f"photo {cameras[i].name!r}")
-        s = cfg.max_side / max(h, w)
-        if s < 1:
-            nw, nh = max(int(round(w * s)), 1), max(int(round(h * s)), 1)
-            img = cv2.resize(img, (nw, nh), interpolation=cv2.INTER_AREA)
-            cam = cam.scaled(nw, nh)
-        photos.append(np.ascontiguousarray(img, np.float32))
-        cams.append(cam)
-    return photos, cams
 
 
 def _median_depth(means: np.ndarray, cams: Sequence[Camera]) -> float:
@@ -220,7 +195,8 @@ def _lift(g: Gaussians, means: np.ndarray, max_scale: np.ndarray, maps: Sequence
 
 def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground: Ground, radius: float,
                  maps: Sequence[PhotoMaps], regions: Sequence[PhotoRegions], cfg: Config,
-                 flat: np.ndarray, cams: Sequence[Camera] = ()) -> tuple[np.ndarray, list, dict]:
+                 flat: np.ndarray, cams: Sequence[Camera] = (), blossoms_of: str | None = None
+                 ) -> tuple[np.ndarray, list, dict]:
     """The geometry rules (:mod:`anigs.effects.rules`) on the lifted regions; the photos' masks lose
     the pixels of rejected candidates and small parts (and sunlit leaves move from flowers to foliage)."""
     colours = (0.5 + 0.28209479 * g.sh[:, 0, :]).clamp(0, 1).double().numpy()
@@ -231,10 +207,11 @@ def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground:
     up = world_up(cams, cfg.up, means) if cams else np.array([0.0, 0.0, 1.0])
     cam_top = max(float(np.asarray(c.center) @ up) for c in cams) if cams else np.inf
     new, cands, fragments = check_candidates(means, colours, region_of, height, cam_h or 1.0, radius, cfg, flat,
-                                             above_cameras=means @ up > cam_top)
+                                             above_cameras=means @ up > cam_top, blossoms_of=blossoms_of)
     for name, count in fragments.items():
         log.info("effects: %d %s Gaussians in parts under %d Gaussians or on no plant (islands) set aside by the rules", count, name,
                  cfg.min_candidate)
+    release_smeared(g, cands, new, maps, cfg)  # sheets a sparse fit smeared along the rays are plants
     changed = [c for c in cands if not c.kept or c.moved_to]
     for p in maps:
         p.rejected = np.zeros(p.depth.shape, np.int8)
@@ -242,6 +219,8 @@ def _apply_rules(g: Gaussians, means: np.ndarray, region_of: np.ndarray, ground:
         log.info("effects: candidate %d (%s, %d Gaussians) %s: %s", c.number, c.region, len(c.indices),
                  f"moved to {c.moved_to}" if c.moved_to else "rejected", c.reason)
     dropped = (new == -1) & (region_of >= 0)  # rejected candidates and small parts
+    if blossoms_of:  # flowers the prompt did not ask for are not shown as set aside
+        dropped &= region_of != REGIONS.index("flowers")
     if not dropped.any() and not changed:
         return new, cands, fragments
     flags = np.zeros((len(means), 3), np.float32)
@@ -307,7 +286,7 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
     Returns an :class:`EffectsResult` with one :class:`EffectResult` per effect of ``EFFECTS``.
     """
     cfg = cfg or Config()
-    photos, cams = _prepare(images, cameras, cfg)
+    photos, cams = prepare_photos(images, cameras, cfg)
     g = gaussians.detach()
     means = g.means.double().numpy()
     max_scale = g.scales.max(1).values.double().numpy()
@@ -344,13 +323,20 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
     unknown = [k for k in kinds if k not in REGIONS]
     if unknown:
         raise ValueError(f"detect_effects: unknown kind(s) {unknown}; known: {list(REGIONS)}")
+    # a flowering plant's blossoms sway with it: flowers are looked for as the named plants' blossoms
+    blossoms_of = "foliage" if cfg.blossoms_with_plants and "foliage" in kinds and "flowers" not in kinds else None
+    looked_for = kinds + ["flowers"] if blossoms_of else kinds
     for reg in regions:  # kinds the prompt does not name are not localised
         for name in REGIONS:
-            if name not in kinds:
+            if name not in looked_for:
                 reg.masks[name] = np.zeros_like(reg.masks[name])
     region_of, share = _lift(g, means, max_scale, maps, regions, ground, cfg)
     region_of, candidates, fragments = _apply_rules(g, means, region_of, ground, radius, maps, regions, cfg,
-                                                    variation < cfg.wall_max_variation, cams)
+                                                    variation < cfg.wall_max_variation, cams, blossoms_of)
+    if blossoms_of:  # the blossoms the plants hold joined them; no flowers region of its own
+        region_of[region_of == REGIONS.index("flowers")] = -1
+        for reg in regions:
+            reg.masks["flowers"] = np.zeros_like(reg.masks["flowers"])
     unlifted_px: dict[str, list[np.ndarray]] = {}
     unlifted = unlifted_share(g, region_of, cams, {r: [reg.masks[r] for reg in regions] for r in REGIONS},
                               out_masks=unlifted_px)

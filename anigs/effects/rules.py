@@ -29,6 +29,11 @@ neighbourhood radius), numbered for the overview and the user's corrections, and
    degrees below the vegetation band) high in a tree's crown (most of it above
    ``crown_min_height`` x the camera height), is foliage in the sun, not blossoms: moved to
    foliage. This rule runs first; the others apply to the candidates it leaves.
+5. *blossoms of the named plants* (flowers, only when ``blossoms_of`` is given: the prompt names
+   plants but no flowers): a candidate the other rules keep and that the plants of region
+   ``blossoms_of`` hold (``min_attached`` of it within ``link`` of their Gaussians) sways with them:
+   moved there (a flowering shrub's blossoms). The others stay still and are not numbered (the
+   prompt asked for no flowers; a lamp or a bed on a lawn is none of its business).
 
 0. *islands* (opt-in, ``island_min_share`` > 0; foliage, grass, flowers; before the candidates are formed):
    a plant Gaussian with fewer than ``island_min_share`` of its ``island_neighbours`` nearest Gaussians (any
@@ -139,7 +144,7 @@ def _hue(rgb: np.ndarray) -> np.ndarray:
 
 def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarray, height: np.ndarray | None,
                      cam_height: float, radius: float, cfg: Config, flat: np.ndarray | None = None,
-                     seed: int = 0, above_cameras: np.ndarray | None = None
+                     seed: int = 0, above_cameras: np.ndarray | None = None, blossoms_of: str | None = None
                      ) -> tuple[np.ndarray, list[Candidate], dict[str, int]]:
     """Split each region into numbered 3D candidates and apply the rules (module docstring).
 
@@ -151,6 +156,7 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
         flat: bool [N], Gaussians whose neighbourhood is planar: flat and other Gaussians form separate
             candidates (a lawn bank under a tree, a facade behind it are not the crown).
         above_cameras: bool [N], Gaussians higher (along up) than every camera (None: not checked).
+        blossoms_of: the region whose plants' blossoms the flowers are (rule 5; None: flowers are their own region).
     Returns the new region ids [N] and the candidates, numbered from 1 in ``REGIONS`` order, largest first.
     """
     out = region_of.copy()
@@ -166,6 +172,8 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
     tree_all = cKDTree(means)
     holders = np.flatnonzero(np.isin(region_of, [REGIONS.index("foliage"), REGIONS.index("grass")]) | green)
     holder_tree = cKDTree(means[holders]) if len(holders) else None
+    bearers = np.flatnonzero(region_of == REGIONS.index(blossoms_of)) if blossoms_of else np.zeros(0, np.int64)
+    bearer_tree = cKDTree(means[bearers]) if len(bearers) else None
     cands: list[Candidate] = []
     for k, name in enumerate(REGIONS):
         idx = np.flatnonzero(region_of == k)
@@ -189,8 +197,12 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
                 _plane_rule(cand, means, is_plant, tree_all, link, tol, radius, cfg, rng)
             if name == "flowers" and cand.kept and not cand.moved_to:
                 _held_rule(cand, means, holder_tree, holders, link, cfg)
+            if name == "flowers" and blossoms_of:
+                _blossom_rule(cand, means, bearer_tree, blossoms_of, link, cfg)
             if not cand.kept or cand.moved_to:
                 out[sel] = REGIONS.index(cand.moved_to) if cand.moved_to else -1
+            if name == "flowers" and blossoms_of and not cand.moved_to:
+                continue  # flowers the prompt did not ask for: still, not listed
             if sizes[c] >= cfg.min_candidate:
                 cands.append(cand)
             else:  # a small part (a lone blossom, a speck on a lawn) is checked, not numbered; under 3
@@ -304,6 +316,24 @@ def _held_rule(cand: Candidate, means, holder_tree, holders, link, cfg: Config) 
         cand.kept, cand.rule = False, "not_held"
         cand.reason = (f"is not held by a plant (only {share:.0%} of its Gaussians lie within {link:.3g} of leaves or "
                        "stems): a blossom grows on a plant, this is a lamp, a window surround or paint seen next to one")
+
+
+def _blossom_rule(cand: Candidate, means, bearer_tree, bearer: str, link, cfg: Config) -> None:
+    """Rule 5: a kept flower candidate that the plants of region ``bearer`` hold sways with them."""
+    if not cand.kept or cand.moved_to:
+        return
+    share = 0.0
+    if bearer_tree is not None:
+        d, _ = bearer_tree.query(means[cand.indices], k=1, distance_upper_bound=link)
+        share = float(np.isfinite(d).mean())
+    cand.figures["on_plants"] = share
+    if share >= cfg.min_attached:
+        cand.moved_to, cand.rule = bearer, "blossoms"
+        cand.reason = (f"blossoms on the {bearer} the prompt names ({share:.0%} of its Gaussians within {link:.3g} of "
+                       f"it): they sway with their plant (the prompt names no flowers to bob)")
+    else:
+        cand.kept, cand.rule = False, "blossoms"
+        cand.reason = f"flowers the prompt does not name, on no {bearer} it names: they stay still"
 
 
 def _sunlit_rule(cand: Candidate, colours, height, cam_height: float, cfg: Config) -> None:

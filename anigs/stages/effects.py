@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from anigs.effects.choice import decide_effects
-from anigs.effects.detect import photo_indices
+from anigs.effects.analysed import photo_indices
 from anigs.effects.config import Config
 from anigs import contract
 from anigs.contract import File

@@ -1,10 +1,10 @@
-"""The effects stage reads only the photos the detection analyses (anigs.effects.detect.photo_indices):
+"""The effects stage reads only the photos the detection analyses (anigs.effects.analysed.photo_indices):
 picking again from the picked photos keeps every one of them, so the detection sees the same photos."""
 from __future__ import annotations
 
 import numpy as np
 
-from anigs.effects.detect import photo_indices
+from anigs.effects.analysed import photo_indices
 
 
 def test_picked_photos_are_kept_when_picked_again():

@@ -1,0 +1,39 @@
+"""The photos effect detection analyses: evenly spaced, downscaled, with their cameras."""
+from __future__ import annotations
+
+from typing import Sequence
+
+import cv2
+import numpy as np
+
+from anigs.cameras import Camera, camera_for_size
+from anigs.effects.config import Config
+from anigs.pixels import check_image
+
+
+def photo_indices(num_photos: int, max_photos: int) -> np.ndarray:
+    """The evenly spaced photos the detection analyses (indices into the capture's cameras): a caller
+    need read only these (``effects.max_photos``, 24: not all of a 384-photo capture in memory at once)."""
+    return np.unique(np.round(np.linspace(0, num_photos - 1, min(num_photos, max_photos))).astype(int))
+
+
+def prepare_photos(images: Sequence[np.ndarray], cameras: Sequence[Camera], cfg: Config) -> tuple[list, list]:
+    """Evenly spaced photos (float32 [H,W,3]) downscaled to ``max_side``, with their cameras."""
+    if len(images) != len(cameras):
+        raise ValueError(f"detect_effects: {len(images)} images but {len(cameras)} cameras")
+    if not len(images):
+        raise ValueError("detect_effects: no photos")
+    pick = photo_indices(len(images), cfg.max_photos)
+    photos, cams = [], []
+    for i in pick:
+        img = check_image(images[i], cameras[i].name)
+        h, w = img.shape[:2]
+        cam = camera_for_size(cameras[i], h, w, f"photo {cameras[i].name!r}")
+        s = cfg.max_side / max(h, w)
+        if s < 1:
+            nw, nh = max(int(round(w * s)), 1), max(int(round(h * s)), 1)
+            img = cv2.resize(img, (nw, nh), interpolation=cv2.INTER_AREA)
+            cam = cam.scaled(nw, nh)
+        photos.append(np.ascontiguousarray(img, np.float32))
+        cams.append(cam)
+    return photos, cams

@@ -1,0 +1,76 @@
+"""A flowering plant's blossoms sway with it when the prompt names the plant but no flowers (rule 5 of
+anigs.effects.rules, ``effects.blossoms_with_plants``).
+
+On the street capture the prompt "a street with potted plants, shrubs and climbing plants" named no
+flowers, so the yellow climbing rose's blossoms stayed still while its leaves swayed (its mark in
+12.jpg: 0.27 of it inside the photo's masks).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from anigs.effects import Config, detect_effects
+from anigs.effects.config import REGIONS
+from anigs.effects.rules import check_candidates
+from tests.effects.test_effects import bush_with_a_blossom
+
+FOLIAGE, FLOWERS = REGIONS.index("foliage"), REGIONS.index("flowers")
+RED, GREEN = (0.9, 0.2, 0.3), (0.2, 0.55, 0.15)
+
+
+def _moving(res, effect: str, n: int) -> np.ndarray:
+    out = np.zeros(n, bool)
+    if res.effects[effect].detected:
+        out[res.effects[effect].indices] = True
+    return out
+
+
+def test_a_shrubs_blossom_sways_with_it_when_the_prompt_names_only_plants():
+    g, cams, imgs = bush_with_a_blossom()
+    labels = g.extras["label"].numpy()
+    blossom, leaf = labels == 2, labels == 1
+    res = detect_effects(imgs, cams, g, Config(), kinds=["foliage"])
+    foliage = _moving(res, "foliage_sway", g.num)
+    print(f"blossom in foliage {foliage[blossom].mean():.3f}, leaves {foliage[leaf].mean():.3f}")
+    assert not res.effects["flower_bob"].detected
+    assert "not looked for" in res.effects["flower_bob"].reason
+    assert foliage[blossom].mean() >= 0.6 and foliage[leaf].mean() >= 0.7
+    moved = [c for c in res.candidates if c.rule == "blossoms"]
+    assert moved and all(c.moved_to == "foliage" and c.region == "flowers" for c in moved)
+    assert all("sway with their plant" in c.reason for c in moved)
+    # the photos' foliage masks take the blossom's pixels
+    assert not any(m.any() for m in res.effects["flower_bob"].masks)
+    # switched off, the blossom stays still
+    off = detect_effects(imgs, cams, g, Config(blossoms_with_plants=False), kinds=["foliage"])
+    assert _moving(off, "foliage_sway", g.num)[blossom].mean() <= 0.1
+    assert not [c for c in off.candidates if c.region == "flowers"]
+
+
+def _ball(rng, centre, radius: float, n: int) -> np.ndarray:
+    d = rng.normal(size=(n, 3))
+    return np.asarray(centre) + d / np.linalg.norm(d, axis=1, keepdims=True) * rng.uniform(0.6, 1.0, (n, 1)) * radius
+
+
+def test_only_blossoms_the_named_plants_hold_join_them():
+    """Rules level: blossoms on a bush join its foliage; a bed of flowers on a lawn far from any bush stays
+    still and is not listed; without ``blossoms_of`` both stay flowers."""
+    rng = np.random.default_rng(0)
+    bush = _ball(rng, (0, 0, 1.0), 0.6, 600)
+    on_bush = _ball(rng, (0, -0.55, 1.1), 0.12, 60)
+    grass = np.column_stack([rng.uniform(3, 5, (400, 2)), rng.uniform(0, 0.05, 400)])
+    bed = np.column_stack([rng.uniform(3.6, 4.2, (80, 2)), rng.uniform(0.05, 0.5, 80)])
+    means = np.vstack([bush, on_bush, grass, bed])
+    region = np.concatenate([np.full(600, FOLIAGE), np.full(60, FLOWERS), np.full(400, REGIONS.index("grass")),
+                             np.full(80, FLOWERS)])
+    colours = np.vstack([np.tile(GREEN, (600, 1)), np.tile(RED, (60, 1)), np.tile(GREEN, (400, 1)),
+                         np.tile(RED, (80, 1))])
+    height = means[:, 2]
+    out, cands, _ = check_candidates(means, colours, region, height, 1.6, 0.25, Config(), None, blossoms_of="foliage")
+    assert (out[600:660] == FOLIAGE).all()
+    assert (out[1060:] == -1).all()
+    flowers = [c for c in cands if c.region == "flowers"]
+    assert len(flowers) == 1 and flowers[0].moved_to == "foliage" and flowers[0].rule == "blossoms"
+    assert flowers[0].figures["on_plants"] >= 0.9
+    plain, cands, _ = check_candidates(means, colours, region, height, 1.6, 0.25, Config(), None)
+    assert (plain[600:660] == FLOWERS).all() and (plain[1060:] == FLOWERS).all()
+    assert not [c for c in cands if c.rule == "blossoms"]
