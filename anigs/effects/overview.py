@@ -128,13 +128,13 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
     lines += [res.effects[REGION_EFFECTS[r][0]].reason for r in REGIONS]
     if res.ground.note:
         lines.append(res.ground.note)
-    changed = [c for c in res.candidates if not c.kept or c.moved_to]
+    changed = [c for c in res.candidates if not c.kept or c.moved_to or c.reason]  # kept with a reason: released
     if res.candidates:
         lines.append(f"{len(res.candidates)} numbered candidates; {len(changed)} changed by geometry "
                      "(drop or force one in the scene file: effects: {drop: [N], force: [N]}):")
     for c in changed[:12]:
         lines.append(f"  #{c.number} {c.region} ({len(c.indices)} Gaussians) "
-                     f"{'-> ' + c.moved_to if c.moved_to else 'rejected'}: {c.reason}")
+                     f"{'-> ' + c.moved_to if c.moved_to else 'kept' if c.kept else 'rejected'}: {c.reason}")
     if len(changed) > 12:
         lines.append(f"  ... and {len(changed) - 12} more (the effects record: rejected)")
     for note in getattr(res, "notes", []):

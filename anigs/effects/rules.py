@@ -329,8 +329,8 @@ def _blossom_rule(cand: Candidate, means, bearer_tree, bearer: str, link, cfg: C
     cand.figures["on_plants"] = share
     if share >= cfg.min_attached:
         cand.moved_to, cand.rule = bearer, "blossoms"
-        cand.reason = (f"blossoms on the {bearer} the prompt names ({share:.0%} of its Gaussians within {link:.3g} of "
-                       f"it): they sway with their plant (the prompt names no flowers to bob)")
+        cand.reason = (f"blossoms on the {bearer} the prompt names ({share:.0%} of its Gaussians within {link:.3g} of a "
+                       f"{bearer} Gaussian): they sway with their plant (the prompt names no flowers to bob)")
     else:
         cand.kept, cand.rule = False, "blossoms"
         cand.reason = f"flowers the prompt does not name, on no {bearer} it names: they stay still"

@@ -33,7 +33,7 @@ def test_a_shrubs_blossom_sways_with_it_when_the_prompt_names_only_plants():
     foliage = _moving(res, "foliage_sway", g.num)
     print(f"blossom in foliage {foliage[blossom].mean():.3f}, leaves {foliage[leaf].mean():.3f}")
     assert not res.effects["flower_bob"].detected
-    assert "not looked for" in res.effects["flower_bob"].reason
+    assert "the prompt names none; blossoms on the foliage it names sway with it" in res.effects["flower_bob"].reason
     assert foliage[blossom].mean() >= 0.6 and foliage[leaf].mean() >= 0.7
     moved = [c for c in res.candidates if c.rule == "blossoms"]
     assert moved and all(c.moved_to == "foliage" and c.region == "flowers" for c in moved)
@@ -44,6 +44,7 @@ def test_a_shrubs_blossom_sways_with_it_when_the_prompt_names_only_plants():
     off = detect_effects(imgs, cams, g, Config(blossoms_with_plants=False), kinds=["foliage"])
     assert _moving(off, "foliage_sway", g.num)[blossom].mean() <= 0.1
     assert not [c for c in off.candidates if c.region == "flowers"]
+    assert "not looked for, the prompt does not name it" in off.effects["flower_bob"].reason
 
 
 def _ball(rng, centre, radius: float, n: int) -> np.ndarray:
