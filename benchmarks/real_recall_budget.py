@@ -134,10 +134,6 @@ def budget(capture: str, captures: Path, cache: Path, kind: str, overrides: dict
     return out
 
 
-def _fmt(x: float | None, pct: bool = False) -> str:  # noqa: D103
-    return "n/a" if x is None else (f"{100 * x:.1f}%" if pct else f"{x:.2f}")
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--captures", type=Path, default=rc.default_captures())
@@ -160,15 +156,15 @@ def main() -> None:
         r = budget(cap, a.captures, a.cache, a.kind, overrides, a.sheets)
         rows.append(r)
         for m in r["masks"]:
-            print(f"| {cap} | 2D masks, {m['photo']} | | {_fmt(m['move'])} (of its marks) | {_fmt(m['still'], True)} |")
+            print(f"| {cap} | 2D masks, {m['photo']} | | {rc._fmt(m['move'])} (of its marks) | {rc._fmt(m['still'], True)} |")
         for step in ("2D masks", "lift", "rules", *(f"bound {s:g}" for s in BOUND_SHARES)):
             f = r[step]
-            print(f"| {cap} | {step} | {f['gaussians'] or ''} | {_fmt(f['recall'])} | {_fmt(f['still'], True)} "
-                  f"({_fmt(f['worst_still'], True)} {f['worst_what']}) |", flush=True)
+            print(f"| {cap} | {step} | {f['gaussians'] or ''} | {rc._fmt(f['recall'])} | {rc._fmt(f['still'], True)} "
+                  f"({rc._fmt(f['worst_still'], True)} {f['worst_what']}) |", flush=True)
         b = r["within bar"]
         if b is not None:
-            print(f"| {cap} | oracle within the still bar (share {b['share']:g}) | {b['gaussians']} | {_fmt(b['recall'])} | "
-                  f"{_fmt(b['still'], True)} ({_fmt(b['worst_still'], True)} {b['worst_what']}) |", flush=True)
+            print(f"| {cap} | oracle within the still bar (share {b['share']:g}) | {b['gaussians']} | {rc._fmt(b['recall'])} | "
+                  f"{rc._fmt(b['still'], True)} ({rc._fmt(b['worst_still'], True)} {b['worst_what']}) |", flush=True)
     if a.json:
         a.json.write_text(json.dumps(rows, indent=1))
 

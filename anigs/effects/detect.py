@@ -333,8 +333,7 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
     region_of, share = _lift(g, means, max_scale, maps, regions, ground, cfg)
     region_of, candidates, fragments = _apply_rules(g, means, region_of, ground, radius, maps, regions, cfg,
                                                     variation < cfg.wall_max_variation, cams, blossoms_of)
-    if blossoms_of:  # the blossoms the plants hold joined them; no flowers region of its own
-        region_of[region_of == REGIONS.index("flowers")] = -1
+    if blossoms_of:  # rule 5 moved the held blossoms to foliage and stilled the rest: no flowers region of its own
         for reg in regions:
             reg.masks["flowers"] = np.zeros_like(reg.masks["flowers"])
     unlifted_px: dict[str, list[np.ndarray]] = {}

@@ -59,15 +59,16 @@ def sheet_signs(g: Gaussians, groups: Sequence[np.ndarray], maps: Sequence[Photo
                 min_alpha: float) -> list[SheetSigns]:
     """Per group of Gaussian indices: its :class:`SheetSigns` over the photos ``maps`` (module docstring)."""
     means = g.means.double().numpy()
+    groups = [np.asarray(idx, np.int64) for idx in groups]
     behind, total = np.zeros(len(groups)), np.zeros(len(groups))
     cosines: list[list[float]] = [[] for _ in groups]
-    axes = [longest_axis(means[np.asarray(idx, np.int64)]) for idx in groups]
-    centres = [means[np.asarray(idx, np.int64)].mean(0) for idx in groups]
+    axes = [longest_axis(means[idx]) for idx in groups]
+    centres = [means[idx].mean(0) for idx in groups]
     for start in range(0, len(groups), 3):  # three candidates per render pass
         part = list(groups[start:start + 3])
         ind = np.zeros((g.num, len(part)), np.float32)
         for j, idx in enumerate(part):
-            ind[np.asarray(idx, np.int64), j] = 1.0
+            ind[idx, j] = 1.0
         for p in maps:
             f, a, d = render_features(g, ind, p.camera)
             h, w = a.shape

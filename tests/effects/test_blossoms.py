@@ -12,17 +12,11 @@ import numpy as np
 from anigs.effects import Config, detect_effects
 from anigs.effects.config import REGIONS
 from anigs.effects.rules import check_candidates
+from tests.effects.test_decoys import _chosen
 from tests.effects.test_effects import bush_with_a_blossom
 
 FOLIAGE, FLOWERS = REGIONS.index("foliage"), REGIONS.index("flowers")
 RED, GREEN = (0.9, 0.2, 0.3), (0.2, 0.55, 0.15)
-
-
-def _moving(res, effect: str, n: int) -> np.ndarray:
-    out = np.zeros(n, bool)
-    if res.effects[effect].detected:
-        out[res.effects[effect].indices] = True
-    return out
 
 
 def test_a_shrubs_blossom_sways_with_it_when_the_prompt_names_only_plants():
@@ -30,7 +24,7 @@ def test_a_shrubs_blossom_sways_with_it_when_the_prompt_names_only_plants():
     labels = g.extras["label"].numpy()
     blossom, leaf = labels == 2, labels == 1
     res = detect_effects(imgs, cams, g, Config(), kinds=["foliage"])
-    foliage = _moving(res, "foliage_sway", g.num)
+    foliage = _chosen(res, "foliage_sway")
     print(f"blossom in foliage {foliage[blossom].mean():.3f}, leaves {foliage[leaf].mean():.3f}")
     assert not res.effects["flower_bob"].detected
     assert "the prompt names none; blossoms on the foliage it names sway with it" in res.effects["flower_bob"].reason
@@ -42,7 +36,7 @@ def test_a_shrubs_blossom_sways_with_it_when_the_prompt_names_only_plants():
     assert not any(m.any() for m in res.effects["flower_bob"].masks)
     # switched off, the blossom stays still
     off = detect_effects(imgs, cams, g, Config(blossoms_with_plants=False), kinds=["foliage"])
-    assert _moving(off, "foliage_sway", g.num)[blossom].mean() <= 0.1
+    assert _chosen(off, "foliage_sway")[blossom].mean() <= 0.1
     assert not [c for c in off.candidates if c.region == "flowers"]
     assert "not looked for, the prompt does not name it" in off.effects["flower_bob"].reason
 
