@@ -371,8 +371,9 @@ def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaus
             text = f"No {name} ({' and '.join(REGION_EFFECTS[name])} skipped): not looked for, the prompt does not name it."
             if name == "flowers" and blossoms_of:
                 joined = sum(len(c.indices) for c in candidates if c.rule == "blossoms" and c.moved_to)
-                text = (f"No flowers (flower_bob skipped): the prompt names none; blossoms on the {blossoms_of} it names "
-                        f"sway with it ({joined} Gaussians).")
+                text = ("No flowers (flower_bob skipped): the prompt names none; " +
+                        (f"blossoms on the {blossoms_of} it names sway with it ({joined} Gaussians)." if joined else
+                         f"no blossoms were found on the {blossoms_of} it names."))
         for eff in REGION_EFFECTS[name]:
             effects[eff] = EffectResult(eff, name, ok, pf, gf, conf, text, masks, idx, photo_frac, agreement,
                                         unlifted[name], unlifted_px.get(name, []) if name == "foliage" else [])

@@ -8,10 +8,13 @@ flowers, so the yellow climbing rose's blossoms stayed still while its leaves sw
 from __future__ import annotations
 
 import numpy as np
+import torch
 
 from anigs.effects import Config, detect_effects
 from anigs.effects.config import REGIONS
 from anigs.effects.rules import check_candidates
+from anigs.synth import render_image
+from anigs.synth.scene import SKY
 from tests.effects.test_decoys import _chosen
 from tests.effects.test_effects import bush_with_a_blossom
 
@@ -69,3 +72,13 @@ def test_only_blossoms_the_named_plants_hold_join_them():
     plain, cands, _ = check_candidates(means, colours, region, height, 1.6, 0.25, Config(), None)
     assert (plain[600:660] == FLOWERS).all() and (plain[1060:] == FLOWERS).all()
     assert not [c for c in cands if c.rule == "blossoms"]
+
+
+def test_a_bush_without_blossoms_says_none_were_found():
+    g, cams, _ = bush_with_a_blossom()
+    bare = g.subset(torch.from_numpy(np.flatnonzero(g.extras["label"].numpy() != 2)))
+    imgs = [render_image(bare, c, SKY) for c in cams]
+    res = detect_effects(imgs, cams, bare, Config(), kinds=["foliage"])
+    assert res.effects["foliage_sway"].detected
+    assert not [c for c in res.candidates if c.rule == "blossoms"]
+    assert "the prompt names none; no blossoms were found on the foliage it names" in res.effects["flower_bob"].reason
