@@ -6,8 +6,15 @@ points: positions (3 x 24-bit signed fixed point, ``fractional_bits`` = 12: 1/40
 (8 bits of the sigmoid), colours (8 bits of ``0.5 + 0.15 f_dc``), scales (8 bits of
 ``(log s + 10) * 16``), rotations (the largest of x, y, z, w by 2 bits, the three others by a sign and
 9 bits of ``|q| / sqrt(1/2)``), and the higher SH coefficients (8 bits of ``128 + 128 c``; degree 1
-kept to 5 bits, degree 2 and 3 to 4 bits, as the library writes them). Version 4 (zstd) is newer;
-splat-transform, Spark and gsply read version 3.
+kept to 5 bits, degree 2 and 3 to 4 bits, as the library writes them). The writer writes version 3,
+which splat-transform, Spark and gsply read.
+
+The reader also takes version 2 (3-byte rotations) and version 4 (``NGSP_V4``, the reference's newest:
+a 32-byte uncompressed header, optional extension records, a table of contents of 16 bytes per stream
+(compressed and uncompressed size, u64), then each attribute block above as its own zstd stream, empty
+ones left out). Version 4 needs the ``zstandard`` module (not a core dependency: ``pip install
+zstandard``); its extension records (such as a coordinate-system tag) are skipped: the values are read
+as stored, as for version 3.
 
 Coordinates are written as they are (the library's ``UNSPECIFIED`` frame, as splat-transform
 writes them): anigs's +z-up frame, the same as ``canonical.ply``, so the same rotation stands both
@@ -17,6 +24,7 @@ from __future__ import annotations
 
 import gzip
 import math
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +38,7 @@ VERSION = 3
 FRACTIONAL_BITS = 12
 COLOR_SCALE = 0.15
 SH_BITS = (5, 4, 4)  # per SH degree 1, 2, 3
+NGSP_V4 = struct.Struct("<IIIBBBBI12x")  # magic, version, points, SH degree, fractional bits, flags, streams, TOC offset
 
 
 def _u8(x: np.ndarray) -> np.ndarray:
@@ -110,29 +119,73 @@ def save_spz(path: str | Path, g: Gaussians) -> None:
         tmp.write_bytes(gzip.compress(spz_bytes(g), compresslevel=9, mtime=0))
 
 
-def load_spz(path: str | Path) -> Gaussians:
-    """Read an SPZ file of version 2 or 3 (gzip); version 4 (zstd) is refused with a clear message."""
-    path = Path(path)
-    raw = path.read_bytes()
-    if raw[:4] == b"NGSP":
-        raise ValueError(f"{path}: SPZ version 4 (zstd); this reader takes versions 2 and 3")
+def _block_sizes(n: int, deg: int, version: int) -> list[int]:
+    """Bytes of the six attribute blocks (positions, alphas, colours, scales, rotations, SH)."""
+    return [9 * n, n, 3 * n, 3 * n, (3 if version == 2 else 4) * n, 3 * ((deg + 1) ** 2 - 1) * n]
+
+
+def _legacy_blocks(raw: bytes, path: Path) -> tuple[int, int, int, int, list[bytes]]:
+    """(version, points, SH degree, fractional bits, blocks) of a gzip SPZ (versions 2 and 3)."""
     try:
         raw = gzip.decompress(raw)
-    except OSError as err:
-        raise ValueError(f"{path}: not an SPZ file (no gzip stream: {err})") from None
+    except (OSError, EOFError) as err:
+        raise ValueError(f"{path}: not an SPZ file (neither NGSP nor a gzip stream: {err})") from None
+    if len(raw) < 16:
+        raise ValueError(f"{path}: not an SPZ file ({len(raw)} bytes after gzip)")
     magic, version, n = np.frombuffer(raw[:12], "<u4")
     deg, frac = raw[12], raw[13]
     if magic != MAGIC or version not in (2, 3) or deg > 3:
         raise ValueError(f"{path}: not an SPZ v2/v3 file (magic {magic:#x}, version {version}, SH degree {deg})")
-    rot_bytes = 3 if version == 2 else 4
-    n_rest = (deg + 1) ** 2 - 1
-    sizes = [9 * n, n, 3 * n, 3 * n, rot_bytes * n, 3 * n_rest * n]
+    sizes = _block_sizes(int(n), deg, int(version))
     if len(raw) < 16 + sum(sizes):
         raise ValueError(f"{path}: truncated SPZ ({len(raw)} bytes, {16 + sum(sizes)} expected)")
-    blocks, off = [], 16
-    for s in sizes:
-        blocks.append(np.frombuffer(raw, np.uint8, s, off))
-        off += s
+    offsets = np.cumsum([16] + sizes)
+    return int(version), int(n), deg, frac, [raw[o:o + s] for o, s in zip(offsets, sizes)]
+
+
+def _v4_blocks(raw: bytes, path: Path) -> tuple[int, int, int, int, list[bytes]]:
+    """(version, points, SH degree, fractional bits, blocks) of an SPZ version 4 (NGSP, zstd streams)."""
+    if len(raw) < NGSP_V4.size:
+        raise ValueError(f"{path}: SPZ version 4 header truncated ({len(raw)} of {NGSP_V4.size} bytes)")
+    magic, version, n, deg, frac, _flags, streams, toc = NGSP_V4.unpack_from(raw)
+    if version != 4:
+        raise ValueError(f"{path}: NGSP header of version {version}; this reader takes SPZ version 4 "
+                         "uncompressed headers (versions 2 and 3 are gzip files)")
+    if deg > 3:
+        raise ValueError(f"{path}: SPZ version 4 with SH degree {deg}; anigs reads degrees 0 to 3")
+    try:
+        import zstandard
+    except ImportError:
+        raise ValueError(f"{path}: SPZ version 4 is zstd-compressed and the zstandard module is missing: "
+                         "pip install zstandard") from None
+    sizes = _block_sizes(n, deg, version)
+    kept = [i for i, s in enumerate(sizes) if s]
+    if streams != len(kept) or toc < NGSP_V4.size or toc + 16 * streams > len(raw):
+        raise ValueError(f"{path}: SPZ version 4 with {streams} streams at byte {toc} "
+                         f"({len(kept)} expected, file {len(raw)} bytes)")
+    blocks, off = [b""] * 6, toc + 16 * streams
+    for k, i in enumerate(kept):
+        packed, size = struct.unpack_from("<QQ", raw, toc + 16 * k)
+        if size != sizes[i] or off + packed > len(raw):
+            raise ValueError(f"{path}: SPZ version 4 stream {k}: {packed} bytes to {size} "
+                             f"({sizes[i]} expected, file {len(raw)} bytes)")
+        try:
+            blocks[i] = zstandard.ZstdDecompressor().decompress(raw[off:off + packed], max_output_size=size)
+        except zstandard.ZstdError as err:
+            raise ValueError(f"{path}: SPZ version 4 stream {k} is not valid zstd: {err}") from None
+        if len(blocks[i]) != size:
+            raise ValueError(f"{path}: SPZ version 4 stream {k} holds {len(blocks[i])} bytes, {size} expected")
+        off += packed
+    return version, n, deg, frac, blocks
+
+
+def load_spz(path: str | Path) -> Gaussians:
+    """Read an SPZ file of version 2 or 3 (gzip) or 4 (zstd streams; needs ``pip install zstandard``)."""
+    path = Path(path)
+    raw = path.read_bytes()
+    version, n, deg, frac, raw_blocks = (_v4_blocks if raw[:4] == b"NGSP" else _legacy_blocks)(raw, path)
+    blocks = [np.frombuffer(b, np.uint8) for b in raw_blocks]
+    n_rest = (deg + 1) ** 2 - 1
     p = blocks[0].reshape(n, 3, 3).astype(np.int64)
     fixed = p[..., 0] | (p[..., 1] << 8) | (p[..., 2] << 16)
     fixed = np.where(fixed & 0x800000, fixed - (1 << 24), fixed)

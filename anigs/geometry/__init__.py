@@ -1,5 +1,8 @@
 """Scene geometry shared by the stages: up direction, ground plane, scene extent, capture layout,
-quaternions (one module each: basics, planes, up, ground, layout, quaternion).
+quaternions (one module each: basics, planes, up, ground, layout, quaternion), the real spherical harmonics
+of 3DGS colours (``sh``: the renderer's basis), and a similarity
+applied to a Gaussian set, SH colours rotated (``transform``: import it from
+:mod:`anigs.geometry.transform`).
 
 One home for what used to be three estimates (``views.estimate_up``, ``align.estimate_up``,
 ``masks.vegetation.estimate_ground``, now ``ground.ground_plane`` on top of ``ground.estimate_ground``).

@@ -6,7 +6,7 @@
 Backends: ``torch`` (pure PyTorch reference), ``cpu`` (compiled tile kernel),
 ``gsplat`` (CUDA). ``auto`` picks gsplat on CUDA tensors when gsplat imports, else cpu
 for CPU tensors, else torch. The torch path below is the readable reference: projection
-(:mod:`anigs.render.projection`), colours (:mod:`anigs.render.sh`), depth sort and
+(:mod:`anigs.render.projection`), colours (:mod:`anigs.geometry.sh`), depth sort and
 compositing (:mod:`anigs.render.torch_backend`). The cpu backend
 (:mod:`anigs.render.cpu_backend`) computes the same thing in fused C++ kernels.
 """
@@ -21,7 +21,7 @@ from anigs.render import _build, gsplat_backend
 from anigs.render.checks import validate, check_inputs
 from anigs.render.cpu_backend import render_cpu
 from anigs.render.projection import project_gaussians
-from anigs.render.sh import sh_colors
+from anigs.geometry.sh import sh_colors
 from anigs.render.torch_backend import composite_torch
 
 BACKENDS = ("auto", "torch", "cpu", "gsplat")

@@ -6,7 +6,7 @@ import torch
 
 from anigs.render import rasterize
 from anigs.render.projection import covariance_3d, project_gaussians
-from anigs.render.sh import eval_sh
+from anigs.geometry.sh import eval_sh
 from tests._scenes import random_scene
 
 CASES = [  # (N, sh_degree, seed, W, H)

@@ -1,6 +1,6 @@
 // Per-Gaussian preprocessing for the CPU rasterizer, forward and analytic backward:
 // EWA projection (mirrors anigs/render/projection.py, the reference) fused with the
-// view-dependent colour (mirrors anigs/render/sh.py, degrees 0-3) and input validation.
+// view-dependent colour (mirrors anigs/geometry/sh.py, degrees 0-3) and input validation.
 // Gradients flow to means, quats, scales and colours/SH (cameras are fixed).
 // Included by raster.cpp into one library.
 #include <cmath>
@@ -227,7 +227,7 @@ inline void gather(const float* a, int stride, int comps, int g0, int N, PV* out
   }
 }
 
-// ---- spherical harmonics (anigs/render/sh.py: same basis, signs and operation order) ----
+// ---- spherical harmonics (anigs/geometry/sh.py: same basis, signs and operation order) ----
 constexpr float SH_C0 = 0.28209479177387814f;
 constexpr float SH_C1 = 0.4886025119029199f;
 constexpr float SH_C2[5] = {1.0925484305920792f, -1.0925484305920792f, 0.31539156525252005f,

@@ -79,7 +79,7 @@ void main() {
   if (!(x1 > x0 && y1 > y0)) { cull(); return; }
   v_rect = vec4(x0, y0, x1, y1);  // pixels whose centre lies in the box (half-open)
   v_r1 = vec4(m, op, 0.0); v_r2 = vec4(c / det, -b / det, a / det, 0.0);
-  // colour: SH of the direction camera -> (moved) Gaussian, max(SH + 0.5, 0) (anigs.render.sh)
+  // colour: SH of the direction camera -> (moved) Gaussian, max(SH + 0.5, 0) (anigs.geometry.sh)
   #define SH(n) fetch(u_sh, i * u_shTexels + (n)).rgb
   vec3 col = 0.28209479177387814 * SH(0);
   if (u_shDegree > 0) {
