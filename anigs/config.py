@@ -16,13 +16,13 @@ import yaml
 from anigs.registry import sections as _stage_sections
 
 STAGE_SECTIONS = _stage_sections()  # from the stage registry (anigs/registry.py)
-SCENE_KEYS = {"name", "source", "synthetic", "photos", "colmap", "ply", "effects", "prompt", "background",
+SCENE_KEYS = {"name", "source", "synthetic", "photos", "images", "sparse", "splat", "effects", "prompt", "background",
               *STAGE_SECTIONS}
 # Where a scene's `background` (the sky colour every rendering stage composites onto) goes: the
 # stage sections with a `background` key (tests check this against the schema), the multiview
 # fits of eval, and the synthetic capture.
 BACKGROUND_SECTIONS = ("static", "masks", "render_clip", "update", "final", "view", "views", "fvd_gt")
-SOURCES = ("synthetic", "photos")
+SOURCES = ("synthetic", "photos", "colmap")
 _ENV_REF = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
 
 
@@ -99,17 +99,23 @@ def load_scene(scene_dir: str | Path, name: str, schema: dict | None = None) -> 
     if src not in SOURCES:
         raise ValueError(f"scene file {path}: 'source' must be one of {SOURCES}, got {src!r}")
     if src == "photos":
-        photos = scene.get("photos")
-        if not photos:
-            raise ValueError(f"scene file {path}: source 'photos' needs 'photos: /path/to/your/photos'")
-        given = str(photos)
-        photos = scene["photos"] = expand_env(given, f"scene file {path}: photos")
-        p = Path(photos)
+        p, given = _scene_path(scene, "photos", path, "source 'photos' needs 'photos: /path/to/your/photos'")
         if not p.is_dir():
-            raise FileNotFoundError(f"scene {name!r}: photo folder {p} does not exist"
-                                    + (f" (photos: {given} in {path})" if given != photos else ""))
+            raise FileNotFoundError(f"scene {name!r}: photo folder {p} does not exist ({given})")
         if not any(f.suffix.lower() in (".jpg", ".jpeg", ".png") for f in p.iterdir()):
             raise ValueError(f"scene {name!r}: photo folder {p} holds no .jpg/.jpeg/.png files")
+    elif src == "colmap":
+        _check_colmap(scene, path)
+    if src != "colmap" and ("images" in scene or "sparse" in scene):
+        raise ValueError(f"scene file {path}: 'images' and 'sparse' belong to source 'colmap' (a COLMAP project), "
+                         f"not {src!r}")
+    if "splat" in scene:
+        if src == "synthetic":
+            raise ValueError(f"scene file {path}: 'splat' needs the photos it was trained on: source 'colmap' "
+                             "(their COLMAP project) or 'photos'")
+        p, given = _scene_path(scene, "splat", path, "'splat' names a splat file (PLY, compressed PLY, SPZ, glb, .splat)")
+        if not p.is_file():
+            raise FileNotFoundError(f"scene {name!r}: splat file {p} does not exist ({given})")
     bg = scene.get("background")
     if bg is not None:
         if not (isinstance(bg, list) and len(bg) == 3 and all(isinstance(x, (int, float)) and 0 <= x <= 1 for x in bg)):
@@ -123,6 +129,34 @@ def load_scene(scene_dir: str | Path, name: str, schema: dict | None = None) -> 
     if eff is None or isinstance(eff, (list, str)):
         scene["effects"] = {"requested": "auto" if eff in (None, [], "auto") else eff}
     return scene
+
+
+def _scene_path(scene: dict, key: str, path: Path, missing: str) -> tuple[Path, str]:
+    """The scene's path ``key`` with ``${NAME}`` and ``~`` expanded (written back into ``scene``) and the
+    text the file gave, for errors; a missing key is an error with ``missing``."""
+    value = scene.get(key)
+    if not value:
+        raise ValueError(f"scene file {path}: {missing}")
+    given = str(value)
+    scene[key] = expand_env(given, f"scene file {path}: {key}")
+    return Path(scene[key]), f"{key}: {given} in {path}"
+
+
+def _check_colmap(scene: dict, path: Path) -> None:
+    """A COLMAP project scene: ``images`` (the photos the model names) and ``sparse`` (a model folder:
+    ``sparse/0``, or ``sparse`` holding ``0/``; binary or text)."""
+    name = scene["name"]
+    need = "source 'colmap' needs 'images: PROJECT/images' and 'sparse: PROJECT/sparse/0'"
+    images, given = _scene_path(scene, "images", path, need)
+    sparse, given_sparse = _scene_path(scene, "sparse", path, need)
+    if not images.is_dir():
+        raise FileNotFoundError(f"scene {name!r}: image folder {images} does not exist ({given})")
+    model = sparse / "0" if (sparse / "0").is_dir() and not any(sparse.glob("cameras.*")) else sparse
+    found = {f.stem for f in model.glob("*.bin")} | {f.stem for f in model.glob("*.txt")} if model.is_dir() else set()
+    if not {"cameras", "images", "points3D"} <= found:
+        raise FileNotFoundError(f"scene {name!r}: {model} holds no COLMAP model (cameras, images, points3D as .bin or "
+                                f".txt; {given_sparse})")
+    scene["sparse"] = str(model)
 
 
 def section(config: dict, scene: dict, variant: str, name: str) -> dict[str, Any]:

@@ -43,6 +43,10 @@ class Similarity:
         """The similarity that applies ``first`` and then ``self``."""
         return Similarity(self.scale * first.scale, self.R @ first.R, self.scale * self.R @ first.t + self.t)
 
+    def inverse(self) -> "Similarity":
+        """The similarity that undoes this one."""
+        return Similarity(1.0 / self.scale, self.R.T, -(self.R.T @ self.t) / self.scale)
+
     def apply_viewmat(self, viewmat: np.ndarray) -> np.ndarray:
         """World-to-camera [4,4] in the old world -> the same camera in the new world.
 

@@ -152,7 +152,7 @@ def run_sfm(image_dir: str | Path, out: StageFolder, cfg: SfmConfig | None = Non
     cfg, report["auto"] = resolve_config(cfg, threads)
     try:
         if model_dir is not None:
-            rec = _existing_model(Path(model_dir), image_dir, names, cfg, report)
+            rec = _existing_model(Path(model_dir), image_dir, names, headers, cfg, report)
         else:
             rec = _map(work, image_dir, names, cfg, mode, headers, originals, report)
         report["registered"] = int(rec.num_reg_images())
@@ -209,24 +209,69 @@ def _check_capture(image_dir: Path, cfg: SfmConfig, model_dir: str | Path | None
     return names, bad, headers, mode
 
 
-def _existing_model(model_dir: Path, image_dir: Path, names: list[str], cfg: SfmConfig, report: dict):
-    """The given COLMAP model (checked against the images and ``min_registered_fraction``)."""
+def _existing_model(model_dir: Path, image_dir: Path, names: list[str], headers: dict, cfg: SfmConfig,
+                    report: dict):
+    """The given COLMAP model (binary or text; a COLMAP project's ``sparse/0``): checked against the images
+    (every image it registers must be there; a folder of the images at another size, such as a project's
+    ``images_2``, rescales the cameras; the images it does not register are named in the log) and
+    ``min_registered_fraction``."""
     import pycolmap
 
     total = len(names)
     model_dir = find_model_dir(model_dir)
-    rec = pycolmap.Reconstruction(str(model_dir))
-    unknown = sorted({rec.images[i].name for i in rec.reg_image_ids()} - set(names))
+    try:
+        rec = pycolmap.Reconstruction(str(model_dir))
+    except Exception as err:  # pycolmap raises plain RuntimeErrors on malformed files
+        raise SfmError(f"COLMAP model {model_dir} cannot be read ({err}); check it opens in COLMAP "
+                       "(`colmap model_analyzer --path DIR`)") from None
+    registered = {rec.images[i].name for i in rec.reg_image_ids()}
+    unknown = sorted(registered - set(names))
     if unknown:
         raise ValueError(f"COLMAP model {model_dir} registers images missing from {image_dir}: {unknown[:5]}")
     reg = rec.num_reg_images()
     if reg < cfg.min_registered_fraction * total:
         raise SfmError(f"COLMAP model {model_dir} registers {reg}/{total} images, below "
                        f"min_registered_fraction={cfg.min_registered_fraction}")
-    report["mapping"] = {"source": str(model_dir), "models_found": [reg], "other_models": [], "retries": 0}
+    left_out = sorted(set(names) - registered)
+    if left_out:
+        log.warning("COLMAP model %s does not register %d of the %d images in %s (they are left out): %s",
+                    model_dir, len(left_out), total, image_dir, ", ".join(left_out))
+    rescaled = _images_size(rec, headers, model_dir, image_dir)
+    report["mapping"] = {"source": str(model_dir), "models_found": [reg], "other_models": [], "retries": 0,
+                         "model_format": "text" if (model_dir / "cameras.txt").exists()
+                         and not (model_dir / "cameras.bin").exists() else "binary"}
+    if rescaled:
+        report["mapping"]["rescaled_to_images"] = rescaled
     report["status"] = "complete"
     report["refine"] = {"applied": False, "reason": "existing model (no feature database)"}
     return rec
+
+
+def _images_size(rec, headers: dict, model_dir: Path, image_dir: Path) -> dict | None:
+    """Rescale ``rec``'s cameras to the sizes of the images in ``image_dir`` when they are one uniform
+    downscale of them (a project's ``images_2``, ``images_4``); None when they already match. Another
+    shape is an error naming the image."""
+    scales = set()
+    for i in rec.reg_image_ids():
+        im = rec.images[i]
+        cam = rec.cameras[im.camera_id]
+        w, h = headers[im.name][:2]
+        if (w, h) == (cam.width, cam.height):
+            scales.add(1.0)
+            continue
+        sx, sy = w / cam.width, h / cam.height
+        if abs(w - round(cam.width * sy)) > 1 or abs(h - round(cam.height * sx)) > 1:
+            raise ValueError(f"{image_dir / im.name} is {w}x{h} but its camera in {model_dir} is {cam.width}x"
+                             f"{cam.height} (another shape): point 'images:' at the folder the model was made from")
+        scales.add(round(sx, 4))
+    if scales == {1.0}:
+        return None
+    if len(scales) > 1 or any(s > 1 for s in scales):
+        raise ValueError(f"the images in {image_dir} are not one uniform downscale of the model's cameras in "
+                         f"{model_dir} (scales {sorted(scales)}): point 'images:' at the folder the model was made from")
+    log.info("the images in %s are %.4g times the size of the cameras in %s: rescaling the cameras", image_dir,
+             next(iter(scales)), model_dir)
+    return rescale_model(rec, {n: hw[:2] for n, hw in headers.items()})
 
 
 def _map(work: Path, image_dir: Path, names: list[str], cfg: SfmConfig, mode: str | None, headers: dict,

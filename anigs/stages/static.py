@@ -2,10 +2,13 @@
 
     anigs static --images DIR --cameras sfm/cameras.json --points sfm/points.npz \
                  [--tracks sfm/tracks.npz] --out results/demo/static [--params JSON]
+    anigs static ... --splat PATH --report sfm/report.json   # a splat trained elsewhere: no fit
 
 Writes ``OUT/canonical.ply`` (standard 3DGS layout) and ``OUT/metrics.json``. While it runs,
 ``OUT/checkpoint.ply`` holds the last good state; it is removed on success and kept when the
-fit diverges.
+fit diverges. With ``--splat`` the fit is skipped: the splat is read in its trainer's frame, brought
+into the sfm folder's and measured against the photos (:mod:`anigs.static.imported`); one that does
+not render them stops the stage with the frames it tried.
 """
 from __future__ import annotations
 
@@ -70,6 +73,10 @@ class Inputs(contract.Inputs):
                                             "depth loss (static.depth_weight); without it: no depth loss",
                                             default=None)
     no_progress: bool = field(default=False, metadata={"help": "hide the progress bar"})
+    splat: Path | None = field(default=None, metadata={
+        "help": "a splat trained elsewhere (PLY, compressed PLY, SPZ, glb, .splat): imported instead of fitted"})
+    report: Path | None = contract.upstream(SfmOutputs, "report", "the sfm stage's report: its frame (the COLMAP "
+                                            "project's normalisation) for an imported splat", default=None)
 
 
 def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
@@ -80,6 +87,8 @@ def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
     out, images, cameras, points = inputs.out, inputs.images, inputs.cameras, inputs.points
     imgs, cams = load_inputs(images, cameras, compact=True)  # uint8: a quarter of the memory
     pts, cols = load_points(points)
+    if inputs.splat is not None:
+        return _import(inputs, cfg, imgs, cams, pts)
     tracks = load_tracks(inputs.tracks) if inputs.tracks is not None else None
     out.root.mkdir(parents=True, exist_ok=True)
     ckpt = out.path("checkpoint")
@@ -103,6 +112,26 @@ def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
     return out
 
 
+def _import(inputs: Inputs, cfg: FitConfig, imgs, cams, pts) -> Outputs:
+    """The static folder of a splat trained elsewhere (no fit): canonical.ply in the sfm folder's frame,
+    metrics.json with its PSNR against the photos and where its frame came from, fit.png photo | render."""
+    from anigs.static.imported import draw_import, import_splat, sfm_frame
+
+    out = inputs.out
+    colmap_to_sfm = sfm_frame(inputs.report)
+    g, metrics = import_splat(inputs.splat, [im.numpy() for im in imgs], cams, pts, colmap_to_sfm, cfg.imported,
+                              cfg.holdout_every)
+    out.root.mkdir(parents=True, exist_ok=True)
+    g.save_ply(out.path("canonical"))
+    metrics["inputs"] = {"images": str(inputs.images), "cameras": str(inputs.cameras), "points": str(inputs.points),
+                         "splat": str(inputs.splat), "report": str(inputs.report) if inputs.report else None}
+    metrics["config"] = _config_dict(cfg)
+    write_json(out.path("metrics"), metrics)
+    draw_import(g, [im.numpy() for im in imgs], cams, metrics, out.path("fit"))
+    log.info("static: imported %d Gaussians -> %s", g.num, out.path("canonical"))
+    return out
+
+
 def _config_dict(cfg) -> dict:
     import dataclasses
 
@@ -117,6 +146,12 @@ def main(args: argparse.Namespace) -> int:
     out = run(Inputs.from_args(args), FitConfig.from_dict(parse_params(args.params)))
     metrics = out.metrics()
     held = held_out_text(metrics.get("test_psnr"), metrics.get("test_ssim"))
+    if "imported" in metrics:
+        im = metrics["imported"]
+        print(f"static: imported {metrics['num_gaussians']} Gaussians (SH {metrics['sh_degree']}) from {im['path']} in "
+              f"the {im['frame']} frame ({im['frame_source']}), {held}, train PSNR {metrics['train_psnr']:.2f} dB at "
+              f"{metrics['image_size'][0]}x{metrics['image_size'][1]} -> {out.path('canonical')}")
+        return 0
     print(f"static fit: {metrics['num_gaussians']} Gaussians, {held}, train PSNR {metrics['train_psnr']:.2f} dB, "
           f"{metrics['seconds']:.0f} s -> {out.path('canonical')}")
     return 0

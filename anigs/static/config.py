@@ -2,12 +2,50 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 from anigs.static.budget import parse_budget
 from anigs.static.densify import DensifyConfig
 from anigs.static.regularize import RegularizeConfig
-from anigs.typed_config import reject_unknown_keys
+from anigs.typed_config import Section, reject_unknown_keys
+
+#: the frames an imported splat may be read in (``static.imported.frame``; :mod:`anigs.static.imported`)
+IMPORT_FRAMES = ("auto", "cameras", "sfm", "colmap", "nerfstudio", "gsplat")
+
+
+@dataclass
+class ImportConfig(Section):
+    """A splat trained elsewhere (the scene's ``splat:``), imported instead of fitted (config ``static.imported``)."""
+
+    #: the splat's frame: auto (the trainer's files beside the splat first: its cameras.json, nerfstudio's
+    #: dataparser_transforms.json; then the known trainers' conventions, each checked by rendering the photos);
+    #: cameras (the cameras.json beside it), sfm (the sfm folder's frame as it is), colmap (the COLMAP project's
+    #: own frame: INRIA 3DGS), nerfstudio, gsplat (its normalize_world_space)
+    frame: str = "auto"
+    #: refuse the splat when it renders the training photos below this PSNR (dB) ...
+    min_psnr: float = 14.0
+    #: ... or less than this many dB above a flat image of each photo's mean colour (what an empty or shifted
+    #: scene scores)
+    min_gain_db: float = 3.0
+    #: the photos are compared at most this size on the longest side (px; 0: as the sfm folder holds them)
+    eval_max_side: int = 640
+    #: what the splat is rendered onto for the comparison: "trainer" (INRIA's cfg_args white_background, else
+    #: black, as INRIA, OpenSplat, gsplat and nerfstudio's exports are trained) or an RGB in [0,1]
+    background: tuple[float, float, float] | str = "trainer"
+
+    WHERE: ClassVar[str] = "static.imported config"
+
+    def validate(self) -> None:
+        if self.frame not in IMPORT_FRAMES:
+            raise ValueError(f"static.imported.frame must be one of {list(IMPORT_FRAMES)}, got {self.frame!r}")
+        if self.eval_max_side < 0:
+            raise ValueError(f"static.imported.eval_max_side must be >= 0 (0: as stored), got {self.eval_max_side}")
+        if isinstance(self.background, str):
+            if self.background != "trainer":
+                raise ValueError(f"static.imported.background must be 'trainer' or 3 values in [0,1], "
+                                 f"got {self.background!r}")
+        elif len(self.background) != 3 or not all(0 <= x <= 1 for x in self.background):
+            raise ValueError(f"static.imported.background must be 'trainer' or 3 values in [0,1], got {self.background}")
 
 
 @dataclass
@@ -60,6 +98,8 @@ class FitConfig:
     #: densification strategy (clone, split, prune, opacity reset)
     densify: DensifyConfig = field(default_factory=DensifyConfig)
     regularize: RegularizeConfig = field(default_factory=RegularizeConfig)  # needles / unresolved splats
+    #: a splat trained elsewhere (the scene's ``splat:``): its frame and the check against the photos
+    imported: ImportConfig = field(default_factory=ImportConfig)
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "FitConfig":
@@ -69,6 +109,8 @@ class FitConfig:
             d["densify"] = DensifyConfig.from_dict(d["densify"])
         if "regularize" in d and not isinstance(d["regularize"], RegularizeConfig):
             d["regularize"] = RegularizeConfig.from_dict(d["regularize"])
+        if "imported" in d and not isinstance(d["imported"], ImportConfig):
+            d["imported"] = ImportConfig.from_dict(d["imported"])
         if "background" in d and not isinstance(d["background"], str):
             d["background"] = tuple(float(x) for x in d["background"])
         cfg = FitConfig(**d)
@@ -111,3 +153,4 @@ class FitConfig:
             raise ValueError(f"static.init_opacity must be in (0,1), got {self.init_opacity}")
         self.densify.validate()
         self.regularize.validate()
+        self.imported.validate()

@@ -31,6 +31,8 @@ ALL_SCENES = dict(SCENES)  # and the accuracy-versus-time sweep's derived scenes
 
 SYNTH_SCENES = scene_pattern(SCENES, "synthetic")
 PHOTO_SCENES = scene_pattern(SCENES, "photos")
+COLMAP_SCENES = scene_pattern(SCENES, "colmap")  # a COLMAP project: no capture job, no SfM (colmap_import)
+SFM_SCENES = f"{SYNTH_SCENES}|{PHOTO_SCENES}"  # the scenes whose cameras anigs's SfM finds
 
 
 wildcard_constraints:
@@ -64,6 +66,11 @@ def jparams(name, extra=None):
 
 def is_synthetic(scene):
     return ALL_SCENES[scene]["source"] == "synthetic"
+
+
+def splat_of(scene):
+    """The scene's splat trained elsewhere (``splat:``), imported by the static stage; None: anigs fits."""
+    return ALL_SCENES[scene].get("splat")
 
 
 def num_views(scene):

@@ -15,7 +15,11 @@ def _stage_patterns(stage, scene):
             "all_round: the round stage runs only with round_jobs: round (now "
             f"{ROUND_JOBS!r}); all_render_clip, all_refine and all_update name the per-view jobs' files"
         )
-    name = stage if rules.has(stage) else f"{stage}_{ALL_SCENES[scene]['source']}"
+    source = ALL_SCENES[scene]["source"]
+    if source == "colmap" and stage in ("capture", "sfm"):
+        # a COLMAP project is not captured; its sfm folder is the colmap_import job's
+        return [] if stage == "capture" else [str(o) for o in rules.colmap_import.output]
+    name = stage if rules.has(stage) else f"{stage}_{source}"
     return [str(o) for o in getattr(rules, name).output]
 
 
