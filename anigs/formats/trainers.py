@@ -9,8 +9,10 @@ sfm folder's frame):
   ``rotation`` = camera-to-world rotation [3,3] in OpenCV axes, ``fx``, ``fy``, ``width``, ``height``)
   and ``cfg_args`` (the training arguments as a Python ``Namespace(...)`` line: ``source_path``,
   ``white_background``, ``sh_degree``).
-- **OpenSplat**: centres and scales the COLMAP poses before training, and writes a ``cameras.json``
-  of the same layout in that frame beside its PLY.
+- **OpenSplat** (1.1.5, ``autoScaleAndCenterPoses``): centres the COLMAP camera centres on their mean and
+  scales them so the largest coordinate is 1 (:func:`opensplat_normalisation`), and writes a
+  ``cameras.json`` of the same layout in that frame beside its PLY (rotations in OpenCV axes; with
+  ``--keep-crs`` both are written back in the COLMAP frame).
 - **nerfstudio** (``ns-export gaussian-splat``): the splat is in the dataparser's frame;
   ``dataparser_transforms.json`` (in the run's folder) holds ``transform`` [3,4] and ``scale``:
   ``p_ns = scale * (T[:, :3] @ p_data + T[:, 3])``, where ``p_data`` is the frame of its
@@ -167,6 +169,14 @@ def read_dataparser_transforms(path: str | Path) -> np.ndarray:
     M = np.eye(4)
     M[:3, :] = s * T
     return M
+
+
+def opensplat_normalisation(centers: np.ndarray) -> tuple[np.ndarray, float]:
+    """(centre [3], factor): OpenSplat's frame of COLMAP points ``x`` is ``(x - centre) * factor``, from the
+    COLMAP camera centres [N,3] (their mean, and one over the largest absolute coordinate about it)."""
+    c = np.asarray(centers, float)
+    centre = c.mean(0)
+    return centre, 1.0 / float(np.abs(c - centre).max())
 
 
 def gsplat_normalisation(c2w: np.ndarray, points: np.ndarray) -> np.ndarray:

@@ -10,7 +10,7 @@ from anigs.static.regularize import RegularizeConfig
 from anigs.typed_config import Section, reject_unknown_keys
 
 #: the frames an imported splat may be read in (``static.imported.frame``; :mod:`anigs.static.imported`)
-IMPORT_FRAMES = ("auto", "cameras", "sfm", "colmap", "nerfstudio", "gsplat")
+IMPORT_FRAMES = ("auto", "cameras", "sfm", "colmap", "opensplat", "nerfstudio", "gsplat")
 
 
 @dataclass
@@ -20,7 +20,7 @@ class ImportConfig(Section):
     #: the splat's frame: auto (the trainer's files beside the splat first: its cameras.json, nerfstudio's
     #: dataparser_transforms.json; then the known trainers' conventions, each checked by rendering the photos);
     #: cameras (the cameras.json beside it), sfm (the sfm folder's frame as it is), colmap (the COLMAP project's
-    #: own frame: INRIA 3DGS), nerfstudio, gsplat (its normalize_world_space)
+    #: own frame: INRIA 3DGS), opensplat (its centred and scaled poses), nerfstudio, gsplat (its normalize_world_space)
     frame: str = "auto"
     #: refuse the splat when it renders the training photos below this PSNR (dB) ...
     min_psnr: float = 14.0

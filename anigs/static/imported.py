@@ -15,6 +15,8 @@ Frames, each a similarity from the splat's frame to the sfm folder's (``x_sfm = 
 - ``sfm``: the sfm folder's own frame (a trainer run on anigs's sfm folder, or a splat anigs wrote);
 - ``colmap``: the COLMAP project's frame (INRIA 3DGS on the user's project): the sfm stage's
   normalisation (``sfm/report.json`` ``frame.matrix``);
+- ``opensplat``: OpenSplat's centring and scaling recomputed from the COLMAP camera centres (its
+  ``cameras.json`` gives the same frame when it is there);
 - ``nerfstudio``: ``dataparser_transforms.json`` after nerfstudio's COLMAP axes (or without them);
 - ``gsplat``: gsplat's ``normalize_world_space`` recomputed from the COLMAP cameras and points, with
   each sign of its principal axes.
@@ -38,12 +40,12 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.formats.trainers import (NERFSTUDIO_APPLIED, OPENGL_AXES, TrainerCameras, TrainerFiles,
-                                    gsplat_normalisation, trainer_files)
+                                    gsplat_normalisation, opensplat_normalisation, trainer_files)
 from anigs.gaussians import Gaussians
 from anigs.render import render_gaussians
 from anigs.sfm.align import Similarity
 from anigs.ssim import fused_ssim, psnr
-from anigs.static.config import ImportConfig
+from anigs.static.config import IMPORT_FRAMES, ImportConfig
 from anigs.static.init import split_holdout
 from anigs.static.planning import downscale
 
@@ -162,6 +164,9 @@ def frame_candidates(files: TrainerFiles, cameras: Sequence[Camera], points: np.
         conventions.append(Candidate("colmap", "the COLMAP project's frame (INRIA 3DGS)", colmap_to_sfm))
     to_colmap = colmap_to_sfm.inverse()
     c2w = np.stack([_c2w(to_colmap.apply_camera(c)) for c in cameras])
+    shift, f = opensplat_normalisation(c2w[:, :3, 3])
+    conventions.append(Candidate("opensplat", "OpenSplat's centred and scaled poses",
+                                 colmap_to_sfm.compose(Similarity(1 / f, np.eye(3), shift))))
     G = gsplat_normalisation(c2w, to_colmap.apply(points))
     for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)):
         flipped = np.diag([*signs, 1.0]) @ G
@@ -286,7 +291,7 @@ def import_splat(splat: str | Path, images: Sequence[np.ndarray], cameras: Seque
             f"Trainer files found: {files.found() or 'none'}. Likely cause: the splat was trained on other photos or "
             "cameras, or in a frame whose file is missing (OpenSplat and INRIA write cameras.json beside the splat, "
             "nerfstudio dataparser_transforms.json in its run folder); set static.imported.frame "
-            f"({'/'.join(('cameras', 'sfm', 'colmap', 'nerfstudio', 'gsplat'))}) or put the trainer's file beside it")
+            f"({'/'.join(IMPORT_FRAMES[1:])}) or put the trainer's file beside it")
     s = best.to_sfm
     g = transform_gaussians(g, s.scale, s.R, s.t)
     log.info("imported %s (%s, %d Gaussians, SH %d) in the %s frame (%s, scale %.4g): %.2f dB on %d small "

@@ -20,7 +20,8 @@ from scipy.spatial.transform import Rotation
 pytest.importorskip("pycolmap")
 
 from anigs.cameras import Camera, intrinsics_from_fov, load_cameras  # noqa: E402
-from anigs.formats.trainers import NERFSTUDIO_APPLIED, OPENGL_AXES, gsplat_normalisation, trainer_files  # noqa: E402
+from anigs.formats.trainers import (NERFSTUDIO_APPLIED, OPENGL_AXES, gsplat_normalisation,  # noqa: E402
+                                    opensplat_normalisation, trainer_files)
 from anigs.gaussians import Gaussians  # noqa: E402
 from anigs.geometry.transform import transform_gaussians  # noqa: E402
 from anigs.images import load_inputs  # noqa: E402
@@ -125,17 +126,32 @@ def test_a_bare_splat_in_the_colmap_frame(capture, reference, tmp_path):
     _same(rec, reference)
 
 
-def test_opensplat_centred_scaled_frame_with_opengl_cameras(capture, reference, tmp_path):
-    """OpenSplat's convention: the poses centred and scaled, its cameras.json beside the PLY in that frame
-    (here in OpenGL camera axes, as nerfstudio-style trainers keep them)."""
+def _opensplat(capture) -> Similarity:
+    """OpenSplat 1.1.5's frame (autoScaleAndCenterPoses): camera centres about their mean, the largest
+    coordinate scaled to 1."""
     centres = np.stack([c.center for c in capture["user_cams"]])
-    own = Similarity(1 / np.abs(centres - centres.mean(0)).max(), np.eye(3), -centres.mean(0) / np.abs(
-        centres - centres.mean(0)).max())
+    centre, f = opensplat_normalisation(centres)
+    assert np.abs((centres - centre) * f).max() == pytest.approx(1.0)
+    return Similarity(f, np.eye(3), -centre * f)
+
+
+def test_opensplat_frame_from_its_cameras_json(capture, reference, tmp_path):
+    """OpenSplat writes its cameras.json (img_name with the extension, OpenCV rotations) in its frame;
+    here the rotations are written in OpenGL camera axes too, as nerfstudio-style trainers keep them."""
+    own = _opensplat(capture)
     _moved(capture["user"], own).save_ply(tmp_path / "splat.ply")
-    _cameras_json(tmp_path / "cameras.json", capture["user_cams"], own, OPENGL_AXES, stems=False)
+    for axes, name in ((np.eye(3), "opencv"), (OPENGL_AXES, "opengl")):
+        _cameras_json(tmp_path / "cameras.json", capture["user_cams"], own, axes, stems=False)
+        g, rec = _import(capture, tmp_path / "splat.ply")
+        fit = rec["imported"]["cameras_fit"]
+        assert rec["imported"]["frame"] == "cameras" and fit["axes"] == name and fit["rotation_residual_deg"] < 1e-6
+        _same(rec, reference)
+
+
+def test_opensplat_frame_without_its_cameras_json(capture, reference, tmp_path):
+    _moved(capture["user"], _opensplat(capture)).save_ply(tmp_path / "splat.ply")
     g, rec = _import(capture, tmp_path / "splat.ply")
-    fit = rec["imported"]["cameras_fit"]
-    assert rec["imported"]["frame"] == "cameras" and fit["axes"] == "opengl" and fit["rotation_residual_deg"] < 1e-6
+    assert rec["imported"]["frame"] == "opensplat"
     _same(rec, reference)
 
 
