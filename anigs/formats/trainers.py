@@ -40,6 +40,8 @@ NERFSTUDIO_APPLIED = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0
 OPENGL_AXES = np.diag([1.0, -1.0, -1.0])
 #: how many folders above the splat a trainer's files are looked for (INRIA: point_cloud/iteration_N/)
 SEARCH_UP = 3
+#: OpenSplat 1.1.5 renders onto this fixed colour (model.hpp: nerfstudio's default, not optimised)
+OPENSPLAT_BACKGROUND = (0.6130, 0.0101, 0.3984)
 
 
 @dataclass
@@ -76,11 +78,26 @@ class TrainerFiles:
         return [str(p) for p in (self.cameras.path if self.cameras else None, self.cfg_args_path,
                                  self.dataparser_path) if p is not None]
 
-    def background(self) -> tuple[float, float, float] | None:
-        """The background the trainer rendered onto, when its files say (INRIA's ``white_background``)."""
-        if self.cfg_args is None or "white_background" not in self.cfg_args:
-            return None
-        return (1.0, 1.0, 1.0) if self.cfg_args["white_background"] else (0.0, 0.0, 0.0)
+    def trainer(self) -> str | None:
+        """Which trainer the files look like: ``inria`` (its ``cfg_args``), ``opensplat`` (a ``cameras.json``
+        whose photo names keep their extension, no ``cfg_args``), ``nerfstudio``; None when unknown."""
+        if self.cfg_args is not None:
+            return "inria"
+        if self.dataparser is not None:
+            return "nerfstudio"
+        if self.cameras is not None and all(Path(n).suffix for n in self.cameras.names):
+            return "opensplat"
+        return None
+
+    def background(self) -> tuple[tuple[float, float, float], str] | None:
+        """The background the trainer rendered onto and why, when its files tell (INRIA's
+        ``white_background``; OpenSplat's fixed colour)."""
+        if self.cfg_args is not None and "white_background" in self.cfg_args:
+            white = bool(self.cfg_args["white_background"])
+            return ((1.0, 1.0, 1.0) if white else (0.0, 0.0, 0.0)), f"{self.cfg_args_path} white_background"
+        if self.trainer() == "opensplat":
+            return OPENSPLAT_BACKGROUND, f"OpenSplat's fixed background ({self.cameras.path.name} names keep extensions)"
+        return None
 
 
 def _near(splat: Path, name: str) -> Path | None:

@@ -29,8 +29,8 @@ class ImportConfig(Section):
     min_gain_db: float = 3.0
     #: the photos are compared at most this size on the longest side (px; 0: as the sfm folder holds them)
     eval_max_side: int = 640
-    #: what the splat is rendered onto for the comparison: "trainer" (INRIA's cfg_args white_background, else
-    #: black, as INRIA, OpenSplat, gsplat and nerfstudio's exports are trained) or an RGB in [0,1]
+    #: what the splat is rendered onto for the comparison: "trainer" (INRIA's cfg_args white_background,
+    #: OpenSplat's fixed colour, else black) or an RGB in [0,1]
     background: tuple[float, float, float] | str = "trainer"
 
     WHERE: ClassVar[str] = "static.imported config"

@@ -231,8 +231,8 @@ def background(cfg: ImportConfig, files: TrainerFiles) -> tuple[tuple[float, flo
         return tuple(float(x) for x in cfg.background), "static.imported.background"
     got = files.background()
     if got is not None:
-        return got, f"{files.cfg_args_path} white_background"
-    return (0.0, 0.0, 0.0), "black (the trainers' default)"
+        return got
+    return (0.0, 0.0, 0.0), "black (INRIA's, gsplat's default)"
 
 
 def _describe(cands: Sequence[Candidate]) -> str:
