@@ -211,18 +211,25 @@ def score(g: Gaussians, cand: Candidate, images: Sequence[torch.Tensor], cameras
 
 
 @torch.no_grad()
-def measure(g: Gaussians, images: Sequence[torch.Tensor], cameras: Sequence[Camera], bg: torch.Tensor) -> dict:
-    """Mean PSNR / SSIM of ``g`` and of flat images on the photos (NaN when there are none)."""
+def measure(g: Gaussians, images: Sequence[np.ndarray | torch.Tensor], cameras: Sequence[Camera], bg: torch.Tensor,
+            side: int = 0) -> dict:
+    """Mean PSNR / SSIM of ``g`` and of flat images on the photos, each taken to at most ``side`` px just
+    before its render (one photo in float at a time); NaN when there are none."""
     if not images:
-        return {"psnr": float("nan"), "ssim": float("nan"), "flat_psnr": float("nan"), "views": 0}
+        return {"psnr": float("nan"), "ssim": float("nan"), "flat_psnr": float("nan"), "views": 0,
+                "size": None}
     ps, ss, flat = [], [], []
     for im, cam in zip(images, cameras):
-        rgb = _render(g, cam, bg)
-        ps.append(psnr(rgb, im))
-        ss.append(float(fused_ssim(rgb, im)))
-        flat.append(_flat_psnr(im))
+        if torch.is_tensor(im) and im.is_floating_point() and side == 0:
+            small, c = im, cam
+        else:
+            (small,), (c,) = _small([im.numpy() if torch.is_tensor(im) else im], [cam], side)
+        rgb = _render(g, c, bg)
+        ps.append(psnr(rgb, small))
+        ss.append(float(fused_ssim(rgb, small)))
+        flat.append(_flat_psnr(small))
     return {"psnr": float(np.mean(ps)), "ssim": float(np.mean(ss)), "flat_psnr": float(np.mean(flat)),
-            "views": len(images)}
+            "views": len(images), "size": [c.width, c.height]}
 
 
 def background(cfg: ImportConfig, files: TrainerFiles) -> tuple[tuple[float, float, float], str]:
@@ -297,14 +304,14 @@ def import_splat(splat: str | Path, images: Sequence[np.ndarray], cameras: Seque
     log.info("imported %s (%s, %d Gaussians, SH %d) in the %s frame (%s, scale %.4g): %.2f dB on %d small "
              "photos; other frames: %s", splat, fmt, g.num, g.sh_degree, best.frame, best.source, s.scale, best.psnr,
              len(q_imgs), _describe([c for c in tried if c is not best]) or "none tried")
-    ev_imgs, ev_cams = _small(images, cameras, cfg.eval_max_side)
-    tr = measure(g, [ev_imgs[i] for i in train_idx], [ev_cams[i] for i in train_idx], bg)
-    te = measure(g, [ev_imgs[i] for i in test_idx], [ev_cams[i] for i in test_idx], bg)
+    side = cfg.eval_max_side
+    tr = measure(g, [images[i] for i in train_idx], [cameras[i] for i in train_idx], bg, side)
+    te = measure(g, [images[i] for i in test_idx], [cameras[i] for i in test_idx], bg, side)
     record = {
         "train_psnr": tr["psnr"], "train_ssim": tr["ssim"], "train_views": tr["views"],
         "test_psnr": te["psnr"], "test_ssim": te["ssim"], "test_views": te["views"],
         "num_gaussians": g.num, "sh_degree": g.sh_degree, "iterations": 0,
-        "image_size": [ev_cams[0].width, ev_cams[0].height],
+        "image_size": tr["size"] or te["size"],
         "holdout": [cameras[i].name for i in test_idx],
         "seconds": time.perf_counter() - t0,
         "imported": {

@@ -5,7 +5,6 @@ the files that trainer writes, it is found again; in a frame nothing explains, i
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
