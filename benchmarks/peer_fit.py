@@ -86,7 +86,7 @@ def opensplat_curve(out: Path, steps: int, every: int, cams, imgs, test_idx, sta
     s = cand.to_sfm
     bg = torch.tensor(OPENSPLAT_BACKGROUND)
     curve = []
-    for k in range(every, steps + 1, every):
+    for k in sorted(set(range(every, steps + 1, every)) | {steps}):
         f = out / ("splat.ply" if k == steps else f"splat_{k}.ply")
         if not f.exists():
             continue
@@ -127,7 +127,7 @@ def main() -> int:
     budget = None
     if args.opensplat:
         colmap = train_folder(args.sfm, held, args.out / "colmap_train")
-        fine = max(1, args.eval_every // 10)
+        fine = max(d for d in range(1, args.eval_every + 1) if args.eval_every % d == 0 and d <= max(1, args.eval_every // 10))
         run = run_opensplat(args.opensplat, colmap, args.steps, fine, args.threads, args.out / "opensplat")
         curve = opensplat_curve(args.out / "opensplat", args.steps, fine, cams, imgs, test_idx, run["stamps"])
         st = run["stamps"]
