@@ -5,4 +5,4 @@ import os as _os
 # Snakemake jobs oversubscribe small machines, and spinning made a render 12x slower there.
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-__version__ = "0.12.0"
+__version__ = "0.13.0"
