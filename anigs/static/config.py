@@ -49,6 +49,36 @@ class ImportConfig(Section):
 
 
 @dataclass
+class SparseConfig(Section):
+    """Weight-free help for captures that see each part from few photos (config ``static.sparse``): each
+    technique its own switch (their held-out figures per capture: README, "Sparse walks")."""
+
+    #: DropGaussian (Park et al., CVPR 2025): at each training step every Gaussian is left out with a rate
+    #: rising linearly from 0 to this at the last step, the kept ones' opacity divided by (1 - rate), so that
+    #: Gaussians behind the front ones get gradients too; the held-out evaluation and every later render use
+    #: all of them. 0: off
+    drop_rate: float = 0.0
+    #: start from the SfM points plus points triangulated from neighbouring pairs of training photos
+    #: (:mod:`anigs.static.pair_points`: guided SIFT matches under the known poses, relaxed two-view
+    #: triangulation); photos only (a synthetic scene, with a fixed background, starts from its SfM points)
+    pair_points: bool = False
+    pair_neighbours: int = 5  # each training photo is paired with this many nearest photos (by camera centre)
+    #: at most this share of the plan's Gaussian budget starts at pair points (an even subsample): the rest is
+    #: left to densification (the castle's 9 photos give 30,000 points, its whole auto budget)
+    pair_share: float = 0.5
+
+    WHERE: ClassVar[str] = "static.sparse config"
+
+    def validate(self) -> None:
+        if not 0 <= self.drop_rate < 1:
+            raise ValueError(f"static.sparse.drop_rate must be in [0, 1), got {self.drop_rate}")
+        if not 0 < self.pair_share <= 1:
+            raise ValueError(f"static.sparse.pair_share must be in (0, 1], got {self.pair_share}")
+        if self.pair_neighbours < 1:
+            raise ValueError(f"static.sparse.pair_neighbours must be >= 1, got {self.pair_neighbours}")
+
+
+@dataclass
 class FitConfig:
     """Static fit hyperparameters (the ``static`` config section)."""
 
@@ -100,6 +130,8 @@ class FitConfig:
     regularize: RegularizeConfig = field(default_factory=RegularizeConfig)  # needles / unresolved splats
     #: a splat trained elsewhere (the scene's ``splat:``): its frame and the check against the photos
     imported: ImportConfig = field(default_factory=ImportConfig)
+    #: weight-free help for sparse captures: DropGaussian, a denser start from photo pairs
+    sparse: SparseConfig = field(default_factory=SparseConfig)
 
     @staticmethod
     def from_dict(d: dict[str, Any] | None) -> "FitConfig":
@@ -111,6 +143,8 @@ class FitConfig:
             d["regularize"] = RegularizeConfig.from_dict(d["regularize"])
         if "imported" in d and not isinstance(d["imported"], ImportConfig):
             d["imported"] = ImportConfig.from_dict(d["imported"])
+        if "sparse" in d and not isinstance(d["sparse"], SparseConfig):
+            d["sparse"] = SparseConfig.from_dict(d["sparse"])
         if "background" in d and not isinstance(d["background"], str):
             d["background"] = tuple(float(x) for x in d["background"])
         cfg = FitConfig(**d)
@@ -154,3 +188,4 @@ class FitConfig:
         self.densify.validate()
         self.regularize.validate()
         self.imported.validate()
+        self.sparse.validate()

@@ -13,15 +13,19 @@ from anigs.ssim import psnr
 
 
 def _render(params: dict[str, torch.Tensor], cam: Camera, sh_degree: int, bg: torch.Tensor, backend: str,
-            mats: tuple[torch.Tensor, torch.Tensor] | None = None):
+            mats: tuple[torch.Tensor, torch.Tensor] | None = None, keep: torch.Tensor | None = None):
     """Render the parameter dict; only the SH bands up to ``sh_degree`` are passed on (the others
-    get zero gradients, as when the rasterizer ignores them). ``mats``: cached (viewmat, K)."""
+    get zero gradients, as when the rasterizer ignores them). ``mats``: cached (viewmat, K).
+    ``keep`` [N]: per-Gaussian opacity factors (0: left out; DropGaussian's compensation above 1), the
+    result clamped to 1."""
     dev = params["means"].device
     k = (sh_degree + 1) ** 2
     sh = torch.cat([params["sh_dc"], params["sh_rest"][:, :k - 1]], 1)
     viewmat, K = mats if mats is not None else (cam.torch_viewmat(dev), cam.torch_K(dev))
-    return rasterize(params["means"], params["quats"], params["log_scales"].exp(),
-                     torch.sigmoid(params["opacity_logits"]), sh, viewmat, K,
+    opacity = torch.sigmoid(params["opacity_logits"])
+    if keep is not None:
+        opacity = (opacity * keep).clamp(max=1.0)
+    return rasterize(params["means"], params["quats"], params["log_scales"].exp(), opacity, sh, viewmat, K,
                      cam.width, cam.height, sh_degree=sh_degree, background=bg, backend=backend)
 
 

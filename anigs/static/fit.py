@@ -34,6 +34,7 @@ from anigs.static.depth import DepthTarget, depth_loss, depth_record, depth_targ
 from anigs.static.exposure import Exposure
 from anigs.static.far import far_points
 from anigs.static.evaluate import _render, evaluate, loss_fn, pixels, stored_image
+from anigs.static.pair_points import pair_points
 from anigs.static.init import _to_params, init_gaussians, make_optimizer, params_to_gaussians, split_holdout
 from anigs.static.regularize import NeedleRegularizer, last_densify_step, prune_rows
 from anigs.sfm.tracks import Tracks, check_tracks
@@ -59,16 +60,17 @@ def train_step(params: dict[str, torch.nn.Parameter], optimizer: torch.optim.Opt
                target: torch.Tensor, sh_degree: int, bg: torch.Tensor, backend: str, ssim_weight: float,
                mats: tuple[torch.Tensor, torch.Tensor] | None = None, stats: DensifyState | None = None,
                guard: DivergenceGuard | None = None, step: int = 0, depth: DepthTarget | None = None,
-               depth_w: float = 0.0, depth_tol: float = 0.0, colour: tuple[Exposure, int] | None = None
-               ) -> tuple[torch.Tensor, torch.Tensor]:
+               depth_w: float = 0.0, depth_tol: float = 0.0, colour: tuple[Exposure, int] | None = None,
+               keep: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """One optimisation step on view ``cam`` with image ``target`` [H,W,3]: render, loss (plus
     ``depth_w`` times the depth loss at ``depth``'s SfM points, :mod:`anigs.static.depth`; with
     ``colour`` = (exposure, photo) the render is colour-mapped first, :mod:`anigs.static.exposure`), backward,
-    densification statistics into ``stats`` (None: skipped), divergence record, Adam step.
+    densification statistics into ``stats`` (None: skipped), divergence record, Adam step. ``keep`` [N]:
+    DropGaussian's per-Gaussian opacity factors for this step (None: every Gaussian as it is).
 
     Returns the detached loss (0-dim, on the device; not read here) and rendered rgb [H,W,3].
     """
-    rgb, alpha, meta = _render(params, cam, sh_degree, bg, backend, mats)
+    rgb, alpha, meta = _render(params, cam, sh_degree, bg, backend, mats, keep)
     if stats is not None:
         meta["means2d"].retain_grad()
     if colour is not None:
@@ -157,12 +159,18 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
           "opacity_logits": cfg.lr_opacity, "sh_dc": cfg.lr_sh_dc, "sh_rest": cfg.lr_sh_rest}
     fit_plan, cost = plan_fit(cfg, params, train_imgs, train_cams, bg, g0.num, size)
     cfg = resolved(cfg, fit_plan)
+    paired = None
+    if cfg.sparse.pair_points and random_bg:  # photos only, as the far points
+        paired = pair_points([im.cpu().numpy() for im in train_imgs], train_cams, cfg.sparse.pair_neighbours,
+                             within=pts, max_points=int(cfg.sparse.pair_share * cfg.densify.max_gaussians))
+        pts, cols = np.concatenate([pts, paired.xyz]), np.concatenate([cols, paired.rgb])
     # far points are for photos (random backgrounds); a fixed background is the far field itself (a
     # synthetic scene's sky: far points behind its sparsely triangulated tree crowns cost the demo 0.3-0.5 dB)
     fpts, fcols = far_points(pts, train_cams, [im.cpu().numpy() for im in train_imgs], None,
                              int(cfg.far_share * cfg.densify.max_gaussians) if random_bg else 0)
     if len(fpts):
         log.info("static fit: %d far points where the photos show what SfM did not triangulate", len(fpts))
+    if len(fpts) or paired is not None:
         g0 = init_gaussians(np.concatenate([pts, fpts]), np.concatenate([cols, fcols]), extent, cfg.sh_degree,
                             cfg.init_opacity)
         params = _to_params(g0, device)
@@ -205,7 +213,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     metrics = {
         "train_psnr": tr["psnr"], "train_ssim": tr["ssim"], "train_views": tr["views"],
         "test_psnr": te["test_psnr"], "test_ssim": te["test_ssim"], "test_views": len(test_idx),
-        "init_test_psnr": curve[0]["test_psnr"],
+        "init_test_psnr": curve[0]["test_psnr"], **({"pair_points": paired.as_dict()} if paired else {}),
         "num_gaussians": gaussians.num, "init_gaussians": g0.num, "far_points": len(fpts), "iterations": steps,
         "plan": {**fit_plan.as_dict(), "stopped_early": steps < cfg.iterations},
         "seconds": time.perf_counter() - t_start, "train_seconds": train_seconds, "eval_seconds": run.eval_seconds,
@@ -323,12 +331,13 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
         if run.params["means"].shape[0] == 0:
             raise RuntimeError(f"static fit: no Gaussians left at iteration {step}")
         stats = dstate if stats_needed(densify_cfg, step) else None
+        keep = dropout(run.params["means"].shape[0], cfg.sparse.drop_rate * step / cfg.iterations, gen, device)
         step_bg = torch.rand(3, generator=gen).to(device) if cfg.background == "random" else run.bg
         dw = depth_weight(step - 1, cfg.iterations, cfg.depth_weight, cfg.depth_weight_final) if depth else 0.0
         loss, rgb = train_step(run.params, optimizer, cam, target, deg, step_bg, cfg.backend, cfg.ssim_weight,
                                mats=train_mats[v], stats=stats, guard=guard, step=step,
                                depth=depth[v] if dw > 0 else None, depth_w=dw, depth_tol=cfg.depth_tolerance,
-                               colour=None if run.exposure is None else (run.exposure, v))
+                               colour=None if run.exposure is None else (run.exposure, v), keep=keep)
 
         ckpt_due = cfg.checkpoint_every > 0 and step % cfg.checkpoint_every == 0
         eval_due = cfg.eval_every > 0 and step % cfg.eval_every == 0 and step != cfg.iterations
@@ -364,6 +373,15 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
             if log_due:
                 bar.set_postfix(loss=f"{ema_loss:.4f}", psnr=f"{ema_psnr:.2f}", n=int(run.params["means"].shape[0]))
     return deg, reg, step_seconds, last_refine, cfg.iterations
+
+
+def dropout(n: int, rate: float, gen: torch.Generator, device: torch.device) -> torch.Tensor | None:
+    """DropGaussian's factors [N] for one step: 0 for a Gaussian left out (probability ``rate``), else
+    1 / (1 - rate), drawn from ``gen``; None when ``rate`` is 0 (nothing drawn: the fit is as without it)."""
+    if rate <= 0:
+        return None
+    kept = torch.rand(n, generator=gen) >= rate
+    return (kept.float() / (1.0 - rate)).to(device)
 
 
 def _step_summary(step_seconds: list[float], last_refine: int) -> dict[str, Any]:
