@@ -2,7 +2,7 @@
 
     python benchmarks/real_captures.py [--captures ../shared/captures] [--cache results/real_captures]
         [--capture NAME ...] [--kind user plain ...] [--cores 1] [--config KEY=VALUE ...]
-        [--static KEY=VALUE ...] [--effects KEY=VALUE ...] [--sheets DIR] [--json OUT] [--no-fit]
+        [--static KEY=VALUE ...] [--effects KEY=VALUE ...] [--seeds 0 1 2] [--sheets DIR] [--json OUT] [--no-fit]
 
 Per capture of ``benchmarks/real/scenes/`` (its photos in ``--captures/<capture>``, never in the
 project): SfM and the static fit through the workflow (``snakemake`` with ``results=--cache``,
@@ -296,22 +296,100 @@ def parse_kv(items: list[str]) -> dict:
     return out
 
 
-def scene_copies(folder: Path, static: dict) -> Path:
+def scene_copies(folder: Path, static: dict, sections: dict | None = None) -> Path:
     """The benchmark's scene files written to ``folder`` with ``static`` (dotted keys nest:
-    ``densify.max_gaussians``) merged into each one's ``static:`` section; returns ``folder``."""
+    ``densify.max_gaussians``) merged into each one's ``static:`` section, and ``sections`` (section ->
+    {key: value}, e.g. ``{"sfm": {"seed": 1}}``) into theirs; returns ``folder``."""
     import yaml
 
     folder.mkdir(parents=True, exist_ok=True)
     for src in sorted(SCENES.glob("*.yaml")):
         scene = yaml.safe_load(src.read_text())
-        for key, value in static.items():
-            node = scene.setdefault("static", {})
-            *path, last = key.split(".")
-            for part in path:
-                node = node.setdefault(part, {})
-            node[last] = value
+        for section, values in {"static": static, **(sections or {})}.items():
+            for key, value in values.items():
+                node = scene.setdefault(section, {})
+                *path, last = key.split(".")
+                for part in path:
+                    node = node.setdefault(part, {})
+                node[last] = value
         (folder / src.name).write_text(yaml.safe_dump(scene, sort_keys=False))
     return folder
+
+
+def run_capture(capture: str, a, cache: Path, config: list[str], overrides: dict, seed: int | None = None
+                ) -> list[dict]:
+    """SfM and the fit of ``capture`` in ``cache`` (unless ``--no-fit``), then every phrasing: prints a
+    table row each, writes the contact sheet; returns the records."""
+    labels = load_labels(capture)
+    fit_rec = None if a.no_fit else fit(capture, a.captures, cache, a.cores, config)
+    scene = cache / capture
+    sizes = photo_sizes(a.captures, capture, labels)
+    columns, records = [], []
+    tag = "" if seed is None else f" (seed {seed})"
+    for ph in phrasings(capture, a.phrasings):
+        if a.kind and ph["kind"] not in a.kind:
+            continue
+        folder, s, cpu, cached = run_effects(capture, cache, ph["prompt"], overrides)
+        rep = json.loads((folder / "effects.json").read_text())
+        moving = moving_maps(folder, scene, [p.name for p in labels.photos])
+        sc = score(labels, moving, sizes)
+        v = verdict(ph["expect"], sc, rep["chosen"], labels.absent)
+        worst = f"{_fmt(sc['still'], pct=True)} ({sc['worst_still']:.1%} {sc['worst_what']})" if sc["still"] is not None else "n/a"
+        print(f"| {capture}{tag} | {ph['kind']} | {ph['prompt']} | {', '.join(rep['chosen']) or 'nothing'} | "
+              f"{_fmt(sc['recall']) if ph['expect'] == 'move' else '(' + _fmt(sc['recall']) + ')'} | "
+              f"{_fmt(sc['blossoms'])} | {worst} | {s:.0f} ({cpu:.0f}){' cached' if cached else ''} | {v} |", flush=True)
+        columns.append((f"{ph['kind']}: {ph['prompt']}", {"chosen": rep["chosen"], "score": sc, "moving": moving}))
+        records.append({"capture": capture, "seed": seed, **ph, "chosen": rep["chosen"],
+                        "unknown": rep["prompt"].get("unknown", []), "words": rep["prompt"].get("words", {}),
+                        **{k: v2 for k, v2 in sc.items() if k != "photos"}, "photos": sc["photos"], "effects_s": s,
+                        "effects_cpu_s": cpu, "verdict": v, "fit": fit_rec,
+                        "test_psnr": json.loads((scene / "static" / "metrics.json").read_text()).get("test_psnr")})
+    if fit_rec:
+        print(f"<!-- {capture}{tag}: SfM {fit_rec['registered']}/{fit_rec['images']} {fit_rec['sfm_s']:.0f} s "
+              f"(cpu {fit_rec['sfm_cpu_s']:.0f}), static fit {fit_rec['static_s']:.0f} s (cpu "
+              f"{fit_rec['static_cpu_s']:.0f}), held-out {_db(fit_rec['test_psnr'])} -->", flush=True)
+    if a.sheets and columns:
+        write_sheet(a.sheets / f"{capture}{'' if seed is None else f'-seed{seed}'}.png", capture, a.captures, labels,
+                    columns)
+    return records
+
+
+def over_seeds(records: list[dict]) -> list[dict]:
+    """Per capture and phrasing, its fits over the seeds: recall and the worst still mark as the worst
+    seed and the median, each seed's held-out PSNR, and the verdict of the worst seed (the lowest recall
+    where motion is expected, the largest still mark)."""
+    out = []
+    keys = list(dict.fromkeys((r["capture"], r["kind"], r["prompt"]) for r in records))
+    for key in keys:
+        rows = [r for r in records if (r["capture"], r["kind"], r["prompt"]) == key]
+        rec = [r["recall"] for r in rows if r["recall"] is not None]
+        still = [r["worst_still"] for r in rows]
+        worst_still = max(rows, key=lambda r: r["worst_still"])
+        worst_recall = min(rows, key=lambda r: (r["recall"] if r["recall"] is not None else 1.0))
+        worst = worst_recall if rows[0]["expect"] == "move" and worst_recall["verdict"] != "ok" else worst_still
+        out.append({"capture": key[0], "kind": key[1], "prompt": key[2], "expect": rows[0]["expect"],
+                    "seeds": [r["seed"] for r in rows], "test_psnr": [r["test_psnr"] for r in rows],
+                    "recall_worst": min(rec) if rec else None, "recall_median": float(np.median(rec)) if rec else None,
+                    "still_worst": max(still), "still_median": float(np.median(still)),
+                    "still_worst_what": f"{worst_still['worst_what']} (seed {worst_still['seed']})",
+                    "verdicts": [r["verdict"] for r in rows],
+                    "verdict": "ok" if all(r["verdict"] == "ok" for r in rows) else
+                    next(r["verdict"] for r in (worst, *rows) if r["verdict"] != "ok") + f" (seed {worst['seed']})"})
+    return out
+
+
+def print_over_seeds(summary: list[dict]) -> None:
+    print("\n| capture | phrasing | held-out dB per seed | recall worst (median) | worst still mark: worst seed "
+          "(median) | verdicts ok | verdict on the worst seed |")
+    print("|---|---|---|---|---|---|---|")
+    for r in summary:
+        psnr = " / ".join("-" if p is None else f"{p:.1f}" for p in r["test_psnr"])
+        rec = f"{_fmt(r['recall_worst'])} ({_fmt(r['recall_median'])})"
+        if r["expect"] != "move":
+            rec = f"({rec})"
+        print(f"| {r['capture']} | {r['kind']} | {psnr} | {rec} | {r['still_worst']:.1%} {r['still_worst_what']} "
+              f"({r['still_median']:.1%}) | {sum(v == 'ok' for v in r['verdicts'])}/{len(r['verdicts'])} | "
+              f"{r['verdict']} |", flush=True)
 
 
 def main() -> None:
@@ -328,6 +406,10 @@ def main() -> None:
     ap.add_argument("--static", nargs="*", default=[], help="static section KEY=VALUE overrides of every scene's fit "
                     "(e.g. holdout_every=0 budget=quality densify.max_gaussians=100000): written into copies of the "
                     "scene files under CACHE/_scenes, passed as scene_dir")
+    ap.add_argument("--seeds", nargs="*", type=int, default=None,
+                    help="fit every capture once per seed, from SfM on (sfm.seed and the workflow seed, which the "
+                         "static fit takes), each in CACHE/seed-K; the table then ends with each phrasing over the "
+                         "seeds: the worst seed and the median")
     ap.add_argument("--sheets", type=Path, default=None)
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--no-fit", action="store_true", help="use the cached fit as it is (no snakemake)")
@@ -339,44 +421,27 @@ def main() -> None:
     torch.set_num_threads(max(a.cores, 1))
     names = a.capture or sorted(p.stem for p in SCENES.glob("*.yaml"))
     overrides = parse_kv(a.effects)
-    if a.static:
-        a.config = [*a.config, f"scene_dir={scene_copies(a.cache / '_scenes', parse_kv(a.static)).resolve()}"]
+    runs: list[tuple[int | None, Path, list[str]]] = []
+    for seed in (a.seeds if a.seeds else [None]):
+        cache = a.cache if seed is None else a.cache / f"seed-{seed}"
+        config = list(a.config) + ([] if seed is None else [f"seed={seed}"])
+        if a.static or seed is not None:
+            folder = scene_copies(cache / "_scenes", parse_kv(a.static), None if seed is None else {"sfm": {"seed": seed}})
+            config.append(f"scene_dir={folder.resolve()}")
+        runs.append((seed, cache, config))
     records = []
     print("| capture | phrasing | prompt | chosen | recall | blossoms | still moving (worst mark) | effects s (cpu) | verdict |")
     print("|---|---|---|---|---|---|---|---|---|")
     for capture in names:
-        labels = load_labels(capture)
-        fit_rec = None
-        if not a.no_fit:
-            fit_rec = fit(capture, a.captures, a.cache, a.cores, a.config)
-        scene = a.cache / capture
-        sizes = photo_sizes(a.captures, capture, labels)
-        columns = []
-        for ph in phrasings(capture, a.phrasings):
-            if a.kind and ph["kind"] not in a.kind:
-                continue
-            folder, s, cpu, cached = run_effects(capture, a.cache, ph["prompt"], overrides)
-            rep = json.loads((folder / "effects.json").read_text())
-            moving = moving_maps(folder, scene, [p.name for p in labels.photos])
-            sc = score(labels, moving, sizes)
-            v = verdict(ph["expect"], sc, rep["chosen"], labels.absent)
-            worst = f"{_fmt(sc['still'], pct=True)} ({sc['worst_still']:.1%} {sc['worst_what']})" if sc["still"] is not None else "n/a"
-            print(f"| {capture} | {ph['kind']} | {ph['prompt']} | {', '.join(rep['chosen']) or 'nothing'} | "
-                  f"{_fmt(sc['recall']) if ph['expect'] == 'move' else '(' + _fmt(sc['recall']) + ')'} | "
-                  f"{_fmt(sc['blossoms'])} | {worst} | {s:.0f} ({cpu:.0f}){' cached' if cached else ''} | {v} |", flush=True)
-            columns.append((f"{ph['kind']}: {ph['prompt']}", {"chosen": rep["chosen"], "score": sc, "moving": moving}))
-            records.append({"capture": capture, **ph, "chosen": rep["chosen"], "unknown": rep["prompt"].get("unknown", []),
-                            "words": rep["prompt"].get("words", {}), **{k: v2 for k, v2 in sc.items() if k != "photos"},
-                            "photos": sc["photos"], "effects_s": s, "effects_cpu_s": cpu, "verdict": v, "fit": fit_rec})
-        if fit_rec:
-            print(f"<!-- {capture}: SfM {fit_rec['registered']}/{fit_rec['images']} {fit_rec['sfm_s']:.0f} s "
-                  f"(cpu {fit_rec['sfm_cpu_s']:.0f}), static fit {fit_rec['static_s']:.0f} s (cpu "
-                  f"{fit_rec['static_cpu_s']:.0f}), held-out {_db(fit_rec['test_psnr'])} -->", flush=True)
-        if a.sheets and columns:
-            write_sheet(a.sheets / f"{capture}.png", capture, a.captures, labels, columns)
+        for seed, cache, config in runs:
+            records += run_capture(capture, a, cache, config, overrides, seed)
+    summary = over_seeds(records) if a.seeds else None
+    if summary:
+        print_over_seeds(summary)
     if a.json:
         a.json.parent.mkdir(parents=True, exist_ok=True)
-        a.json.write_text(json.dumps(records, indent=1, default=float))
+        a.json.write_text(json.dumps({"runs": records, "over_seeds": summary} if summary else records, indent=1,
+                                     default=float))
 
 
 if __name__ == "__main__":
