@@ -67,6 +67,11 @@ class SparseConfig(Section):
     #: left to densification (the castle's 9 photos give 30,000 points, its whole auto budget)
     pair_share: float = 0.5
 
+    #: weight of the warp loss (:mod:`anigs.static.warp`): the render's depth of a training photo must carry
+    #: its nearest training photos' colours onto it (mean L1, the per-pixel minimum over the neighbours); 0: off
+    warp_weight: float = 0.0
+    warp_neighbours: int = 2  # the photos each training photo is warped from
+
     WHERE: ClassVar[str] = "static.sparse config"
 
     def validate(self) -> None:
@@ -74,6 +79,9 @@ class SparseConfig(Section):
             raise ValueError(f"static.sparse.drop_rate must be in [0, 1), got {self.drop_rate}")
         if not 0 < self.pair_share <= 1:
             raise ValueError(f"static.sparse.pair_share must be in (0, 1], got {self.pair_share}")
+        if self.warp_weight < 0 or self.warp_neighbours < 1:
+            raise ValueError(f"static.sparse.warp_weight must be >= 0 and warp_neighbours >= 1, got "
+                             f"{self.warp_weight} and {self.warp_neighbours}")
         if self.pair_neighbours < 1:
             raise ValueError(f"static.sparse.pair_neighbours must be >= 1, got {self.pair_neighbours}")
 

@@ -35,6 +35,7 @@ from anigs.static.exposure import Exposure
 from anigs.static.far import far_points
 from anigs.static.evaluate import _render, evaluate, loss_fn, pixels, stored_image
 from anigs.static.pair_points import pair_points
+from anigs.static.warp import WarpLoss
 from anigs.static.init import _to_params, init_gaussians, make_optimizer, params_to_gaussians, split_holdout
 from anigs.static.regularize import NeedleRegularizer, last_densify_step, prune_rows
 from anigs.sfm.tracks import Tracks, check_tracks
@@ -61,12 +62,14 @@ def train_step(params: dict[str, torch.nn.Parameter], optimizer: torch.optim.Opt
                mats: tuple[torch.Tensor, torch.Tensor] | None = None, stats: DensifyState | None = None,
                guard: DivergenceGuard | None = None, step: int = 0, depth: DepthTarget | None = None,
                depth_w: float = 0.0, depth_tol: float = 0.0, colour: tuple[Exposure, int] | None = None,
-               keep: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+               keep: torch.Tensor | None = None, warp: tuple[WarpLoss, int, list, float] | None = None
+               ) -> tuple[torch.Tensor, torch.Tensor]:
     """One optimisation step on view ``cam`` with image ``target`` [H,W,3]: render, loss (plus
     ``depth_w`` times the depth loss at ``depth``'s SfM points, :mod:`anigs.static.depth`; with
     ``colour`` = (exposure, photo) the render is colour-mapped first, :mod:`anigs.static.exposure`), backward,
     densification statistics into ``stats`` (None: skipped), divergence record, Adam step. ``keep`` [N]:
-    DropGaussian's per-Gaussian opacity factors for this step (None: every Gaussian as it is).
+    DropGaussian's per-Gaussian opacity factors for this step (None: every Gaussian as it is). ``warp``:
+    (the warp loss, this photo's index among ``photos``, the training photos, its weight), :mod:`anigs.static.warp`.
 
     Returns the detached loss (0-dim, on the device; not read here) and rendered rgb [H,W,3].
     """
@@ -78,6 +81,8 @@ def train_step(params: dict[str, torch.nn.Parameter], optimizer: torch.optim.Opt
     loss = loss_fn(rgb, target, ssim_weight)
     if depth is not None and depth_w > 0:
         loss = loss + depth_w * depth_loss(meta["depth"], alpha, depth, depth_tol)
+    if warp is not None:
+        loss = loss + warp[3] * warp[0](warp[1], meta["depth"], alpha, target, warp[2])
     loss.backward()
     if guard is not None:
         guard.record(step, loss, params)
@@ -317,6 +322,7 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
     train_mats = [(c.torch_viewmat(device), c.torch_K(device)) for c in train_cams]
     reg = NeedleRegularizer(cfg.regularize, extent, train_cams, train_mats)
     run.exposure = Exposure(len(train_cams), cfg.exposure_lr, device) if cfg.exposure_lr > 0 else None
+    warp = WarpLoss(train_cams, cfg.sparse.warp_neighbours, device) if cfg.sparse.warp_weight > 0 else None
     last_densify = last_densify_step(densify_cfg.start, densify_cfg.stop, densify_cfg.every, cfg.iterations)
     step_seconds: list[float] = []  # per step, checkpoints and evaluations excluded
     last_refine = 0  # last step whose refinement changed the set
@@ -337,7 +343,8 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
         loss, rgb = train_step(run.params, optimizer, cam, target, deg, step_bg, cfg.backend, cfg.ssim_weight,
                                mats=train_mats[v], stats=stats, guard=guard, step=step,
                                depth=depth[v] if dw > 0 else None, depth_w=dw, depth_tol=cfg.depth_tolerance,
-                               colour=None if run.exposure is None else (run.exposure, v), keep=keep)
+                               colour=None if run.exposure is None else (run.exposure, v), keep=keep,
+                               warp=None if warp is None else (warp, v, train_imgs, cfg.sparse.warp_weight))
 
         ckpt_due = cfg.checkpoint_every > 0 and step % cfg.checkpoint_every == 0
         eval_due = cfg.eval_every > 0 and step % cfg.eval_every == 0 and step != cfg.iterations

@@ -122,3 +122,33 @@ def test_pair_points_read_only_the_training_photos(scene, monkeypatch):
     held = set(m["holdout"])
     assert seen and held and not held & set(seen[0]) and len(seen[0]) == len(cams) - len(held)
     assert m["pair_points"]["pairs"] > 0 and m["init_gaussians"] >= len(p) + m["pair_points"]["points"] - 1
+
+
+def _plane_depth(cam: Camera) -> torch.Tensor:
+    """The camera-space depth [H,W] of the ground plane z = 0 at each pixel centre."""
+    from anigs.static.warp import _rays
+
+    rays = _rays(cam, torch.device("cpu")).double().numpy()  # camera space, z = 1
+    R, C = cam.R, cam.center
+    d_world = rays @ R  # R^T r per row
+    t = -C[2] / d_world[:, 2]  # along the ray to z = 0: the camera-space z is t (rays have z = 1)
+    return torch.from_numpy(t.reshape(cam.height, cam.width)).float()
+
+
+def test_warp_loss_is_lowest_at_the_true_depth_and_reaches_the_depth():
+    from anigs.static.warp import WarpLoss, nearest_views
+
+    photos, cams = _ground_photos(n=5)
+    assert nearest_views(cams, 2)[0] == [1, 2] and nearest_views(cams, 2)[2] == [1, 3]
+    imgs = [torch.from_numpy(p) for p in photos]
+    warp = WarpLoss(cams, 2, torch.device("cpu"))
+    alpha = torch.ones(cams[2].height, cams[2].width)
+    target = imgs[2].float() / 255.0
+    true = _plane_depth(cams[2])
+    losses = {f: float(warp(2, true * f, alpha, target, imgs)) for f in (0.8, 0.95, 1.0, 1.05, 1.25)}
+    assert losses[1.0] < 0.02 and min(losses, key=losses.get) == 1.0, losses
+    assert losses[0.8] > 3 * losses[1.0] and losses[1.25] > 3 * losses[1.0], losses
+    depth = (true * 1.05).requires_grad_()
+    warp(2, depth, alpha, target, imgs).backward()
+    assert depth.grad is not None and float(depth.grad.abs().sum()) > 0
+    assert float(warp(2, true, torch.zeros_like(alpha), target, imgs)) == 0.0  # nothing opaque: no loss
