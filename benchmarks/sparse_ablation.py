@@ -2,7 +2,7 @@
 switch of ``static.sparse``, over several seeds.
 
     python benchmarks/sparse_ablation.py --cache results/real_captures [--capture NAME ...]
-        [--rows base drop pair both] [--seeds 0 1 2] [--out results/sparse_ablation] [--threads 2]
+        [--rows base drop pair both warp] [--seeds 0 1 2] [--out results/sparse_ablation] [--threads 2]
         [--static KEY=VALUE ...] [--json OUT]
 
 Reads each capture's sfm folder from ``--cache/<capture>/sfm`` (``benchmarks/real_captures.py`` makes
@@ -13,7 +13,8 @@ every-8th photo held out) plus the row's switches:
 - ``base``: every technique off;
 - ``drop``: DropGaussian (``sparse.drop_rate: 0.2``);
 - ``pair``: the denser start from photo pairs (``sparse.pair_points: true``);
-- ``both``: both.
+- ``both``: both;
+- ``warp``: the warp loss alone (``sparse.warp_weight: 1``).
 
 Prints one row per capture and row: held-out PSNR (the median over the seeds, and max - min), train
 PSNR, wall seconds of the fit (median) and the points the start had. The rows are the README's
@@ -38,6 +39,7 @@ ROWS = {
     "drop": {"drop_rate": 0.2, "pair_points": False},
     "pair": {"drop_rate": 0.0, "pair_points": True},
     "both": {"drop_rate": 0.2, "pair_points": True},
+    "warp": {"warp_weight": 1.0},
 }
 
 

@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
+from anigs.static.warp import nearest_views
 
 log = logging.getLogger("anigs.static.fit")
 
@@ -47,17 +48,10 @@ class PairPoints:
 
 
 def neighbour_pairs(cams: list[Camera], per_photo: int, max_angle_deg: float = 60.0) -> list[tuple[int, int]]:
-    """Each photo with its ``per_photo`` nearest photos by camera centre whose viewing directions
-    differ by at most ``max_angle_deg``; unordered pairs (i < j), sorted."""
-    centres = np.stack([c.center for c in cams])
-    fwd = np.stack([c.forward for c in cams])
-    cos_max = np.cos(np.radians(max_angle_deg))
-    pairs: set[tuple[int, int]] = set()
-    for i in range(len(cams)):
-        d = np.linalg.norm(centres - centres[i], axis=1)
-        order = [j for j in np.argsort(d, kind="stable") if j != i and fwd[i] @ fwd[j] >= cos_max]
-        pairs.update((min(i, j), max(i, j)) for j in order[:per_photo])
-    return sorted(pairs)
+    """Each photo with its ``per_photo`` nearest photos (:func:`anigs.static.warp.nearest_views`);
+    unordered pairs (i < j), sorted."""
+    near = nearest_views(cams, per_photo, max_angle_deg)
+    return sorted({(min(i, j), max(i, j)) for i, js in enumerate(near) for j in js})
 
 
 def _features(img: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
