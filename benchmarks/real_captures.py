@@ -28,7 +28,14 @@ share of the pixel's colour that comes from moving Gaussians); a pixel moves whe
 - ``s``: seconds of the effects stage (CPU seconds of this process in brackets); SfM and the fit
   once per capture from Snakemake's benchmark TSVs.
 
-``--sheets DIR`` writes ``DIR/<capture>.png``: one row per labelled photo, one column per
+``--seeds 0 1 2`` fits every capture once per seed, from SfM on: seed K runs in ``--cache/seed-K`` with
+``sfm.seed: K`` in the scene copies and the workflow's ``seed=K`` (which the static fit takes). The rows
+name their seed, and the table ends with each phrasing over the seeds: each seed's held-out PSNR,
+recall as the worst seed (the median in brackets), the worst still mark and its seed, and the verdict of
+the worst seed (a phrasing is ok only when every seed is). A verdict that holds on one fit and fails on
+another is a rule that follows the fit's noise.
+
+``--sheets DIR`` writes ``DIR/<capture>.png`` (``DIR/<capture>-seedK.png`` with ``--seeds``): one row per labelled photo, one column per
 phrasing, moving pixels tinted over the photo (foliage magenta, grass cyan, flowers orange, water
 blue) with the marks outlined (green must move, red must stay still). The README's table is this script's output.
 """
