@@ -81,3 +81,6 @@ def test_over_seeds_judges_the_worst_seed():
     assert ok["verdict"] == "ok"
     (low,) = over_seeds([_row(0, 0.9, 0.0), _row(1, 0.5, 0.0)])
     assert low["verdict"] == "FAIL: recall (seed 1)"
+    # the flower at 0.13: every seed fails on the stones; the worst seed is the largest mark, not the lowest recall
+    (flower,) = over_seeds([_row(0, 0.96, 0.038, "stones"), _row(1, 0.96, 0.067, "stones"), _row(2, 0.95, 0.021, "stones")])
+    assert flower["verdict"] == "FAIL: still stones 6.7% (seed 1)" and flower["recall_worst"] == 0.95
