@@ -32,9 +32,8 @@ from anigs.static.densify import (DensifyState, refine, refine_due, schedule_for
 from anigs.static.divergence import DivergenceGuard, FitDivergedError, raise_diverged
 from anigs.static.depth import DepthTarget, depth_loss, depth_record, depth_targets, depth_weight
 from anigs.static.exposure import Exposure
-from anigs.static.far import far_points
 from anigs.static.evaluate import _render, evaluate, loss_fn, pixels, stored_image
-from anigs.static.pair_points import pair_points
+from anigs.static.sparse import added_points, dropout
 from anigs.static.warp import WarpLoss
 from anigs.static.init import _to_params, init_gaussians, make_optimizer, params_to_gaussians, split_holdout
 from anigs.static.regularize import NeedleRegularizer, last_densify_step, prune_rows
@@ -164,20 +163,9 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
           "opacity_logits": cfg.lr_opacity, "sh_dc": cfg.lr_sh_dc, "sh_rest": cfg.lr_sh_rest}
     fit_plan, cost = plan_fit(cfg, params, train_imgs, train_cams, bg, g0.num, size)
     cfg = resolved(cfg, fit_plan)
-    paired = None
-    if cfg.sparse.pair_points and random_bg:  # photos only, as the far points
-        paired = pair_points([im.cpu().numpy() for im in train_imgs], train_cams, cfg.sparse.pair_neighbours,
-                             within=pts, max_points=int(cfg.sparse.pair_share * cfg.densify.max_gaussians))
-        pts, cols = np.concatenate([pts, paired.xyz]), np.concatenate([cols, paired.rgb])
-    # far points are for photos (random backgrounds); a fixed background is the far field itself (a
-    # synthetic scene's sky: far points behind its sparsely triangulated tree crowns cost the demo 0.3-0.5 dB)
-    fpts, fcols = far_points(pts, train_cams, [im.cpu().numpy() for im in train_imgs], None,
-                             int(cfg.far_share * cfg.densify.max_gaussians) if random_bg else 0)
-    if len(fpts):
-        log.info("static fit: %d far points where the photos show what SfM did not triangulate", len(fpts))
-    if len(fpts) or paired is not None:
-        g0 = init_gaussians(np.concatenate([pts, fpts]), np.concatenate([cols, fcols]), extent, cfg.sh_degree,
-                            cfg.init_opacity)
+    added, paired, n_far = added_points(cfg, pts, cols, train_imgs, train_cams, random_bg)
+    if added is not None:
+        g0 = init_gaussians(added[0], added[1], extent, cfg.sh_degree, cfg.init_opacity)
         params = _to_params(g0, device)
     optimizer = make_optimizer(params, lr)
     dstate = DensifyState.empty(g0.num, device)
@@ -219,7 +207,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         "train_psnr": tr["psnr"], "train_ssim": tr["ssim"], "train_views": tr["views"],
         "test_psnr": te["test_psnr"], "test_ssim": te["test_ssim"], "test_views": len(test_idx),
         "init_test_psnr": curve[0]["test_psnr"], **({"pair_points": paired.as_dict()} if paired else {}),
-        "num_gaussians": gaussians.num, "init_gaussians": g0.num, "far_points": len(fpts), "iterations": steps,
+        "num_gaussians": gaussians.num, "init_gaussians": g0.num, "far_points": n_far, "iterations": steps,
         "plan": {**fit_plan.as_dict(), "stopped_early": steps < cfg.iterations},
         "seconds": time.perf_counter() - t_start, "train_seconds": train_seconds, "eval_seconds": run.eval_seconds,
         "train_cpu_seconds": curve[-1]["train_cpu_seconds"], "torch_threads": torch.get_num_threads(),
@@ -380,15 +368,6 @@ def _train(run: _FitRun, optimizer: torch.optim.Optimizer, guard: DivergenceGuar
             if log_due:
                 bar.set_postfix(loss=f"{ema_loss:.4f}", psnr=f"{ema_psnr:.2f}", n=int(run.params["means"].shape[0]))
     return deg, reg, step_seconds, last_refine, cfg.iterations
-
-
-def dropout(n: int, rate: float, gen: torch.Generator, device: torch.device) -> torch.Tensor | None:
-    """DropGaussian's factors [N] for one step: 0 for a Gaussian left out (probability ``rate``), else
-    1 / (1 - rate), drawn from ``gen``; None when ``rate`` is 0 (nothing drawn: the fit is as without it)."""
-    if rate <= 0:
-        return None
-    kept = torch.rand(n, generator=gen) >= rate
-    return (kept.float() / (1.0 - rate)).to(device)
 
 
 def _step_summary(step_seconds: list[float], last_refine: int) -> dict[str, Any]:

@@ -8,7 +8,8 @@ import torch
 cv2 = pytest.importorskip("cv2")
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at  # noqa: E402
-from anigs.static.fit import FitConfig, dropout, fit_static  # noqa: E402
+from anigs.static.fit import FitConfig, fit_static  # noqa: E402
+from anigs.static.sparse import dropout  # noqa: E402
 from anigs.static.pair_points import _fundamental, guided_matches, _features, neighbour_pairs, pair_points  # noqa: E402
 
 from tests.static.test_fit import FAST, make_scene, sfm_points  # noqa: E402
@@ -104,19 +105,19 @@ def test_dropout_fit_is_deterministic_and_evaluates_every_gaussian(scene):
 
 
 def test_pair_points_read_only_the_training_photos(scene, monkeypatch):
-    import anigs.static.fit as fit
+    import anigs.static.sparse as sparse
 
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=4)
     seen = []
 
-    real = fit.pair_points
+    real = sparse.pair_points
 
     def spy(*args, **kwargs):
         seen.append([cam.name for cam in args[1]])
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(fit, "pair_points", spy)
+    monkeypatch.setattr(sparse, "pair_points", spy)
     cfg = FitConfig.from_dict({**FAST, "background": "random", "sparse": {"pair_points": True, "pair_neighbours": 2}})
     _, m = fit_static(imgs, cams, p, c, cfg, progress=False)
     held = set(m["holdout"])
