@@ -70,6 +70,10 @@ def check_sections(d: dict, schema: dict | None, where: str) -> None:
             continue
         for err in sorted(jsonschema.Draft202012Validator(props[name]).iter_errors(value), key=lambda e: list(e.path)):
             key = ".".join([name, *map(str, err.path)])
+            moved = [k for k in (value if isinstance(value, dict) else {}) if k in props[name].get("x-renamed", {})]
+            if moved:  # a key a section renamed (the schema's x-renamed: old key -> new key): name its new key
+                raise ValueError(f"{where}: " + "; ".join(f"{name}.{k} is now {name}.{props[name]['x-renamed'][k]}"
+                                                          for k in moved) + " (CHANGELOG.md)")
             raise ValueError(f"{where}: {key}: {err.message}")
 
 

@@ -1,6 +1,6 @@
 """Effects detection on a finished synthetic run, scored against its ground truth.
 
-    python benchmarks/effects_detection.py results/demo /tmp/effects_eval ['{"flower_max_behind": 0.2}']
+    python benchmarks/effects_detection.py results/demo /tmp/effects_eval ['{"regions": {"flower_max_behind": 0.2}}']
 
 Runs :func:`anigs.effects.detect_effects` on the run's undistorted photos, SfM cameras and fitted
 model with the run's effects config (the effects stage's report, overridden by the optional JSON),

@@ -115,7 +115,7 @@ def _db(psnr: float | None) -> str:
 
 def _code_hash() -> str:
     h = hashlib.sha256()
-    for f in sorted((ROOT / "anigs" / "effects").glob("*.py")) + [ROOT / "anigs" / "stages" / "effects.py"]:
+    for f in sorted((ROOT / "anigs" / "effects").rglob("*.py")) + [ROOT / "anigs" / "stages" / "effects.py"]:
         h.update(f.read_bytes())
     return h.hexdigest()[:12]
 
@@ -303,6 +303,18 @@ def parse_kv(items: list[str]) -> dict:
     return out
 
 
+def nested(flat: dict) -> dict:
+    """``{"rules.plane.max_share": 0.5}`` -> ``{"rules": {"plane": {"max_share": 0.5}}}`` (dotted keys nest)."""
+    out: dict = {}
+    for key, value in flat.items():
+        *path, last = key.split(".")
+        node = out
+        for part in path:
+            node = node.setdefault(part, {})
+        node[last] = value
+    return out
+
+
 def scene_copies(folder: Path, static: dict, sections: dict | None = None) -> Path:
     """The benchmark's scene files written to ``folder`` with ``static`` (dotted keys nest:
     ``densify.max_gaussians``) merged into each one's ``static:`` section, and ``sections`` (section ->
@@ -411,7 +423,8 @@ def main() -> None:
                     help="a phrasings file (default benchmarks/real/phrasings.yaml; phrasings_holdout.yaml: the held-back set)")
     ap.add_argument("--cores", type=int, default=1)
     ap.add_argument("--config", nargs="*", default=[], help="workflow config KEY=VALUE for SfM and the fit")
-    ap.add_argument("--effects", nargs="*", default=[], help="effects section KEY=VALUE overrides")
+    ap.add_argument("--effects", nargs="*", default=[], help="effects section KEY=VALUE overrides (dotted keys nest: "
+                    "rules.plane.max_share=0.5)")
     ap.add_argument("--static", nargs="*", default=[], help="static section KEY=VALUE overrides of every scene's fit "
                     "(e.g. holdout_every=0 budget=quality densify.max_gaussians=100000): written into copies of the "
                     "scene files under CACHE/_scenes, passed as scene_dir")
@@ -429,7 +442,7 @@ def main() -> None:
 
     torch.set_num_threads(max(a.cores, 1))
     names = a.capture or sorted(p.stem for p in SCENES.glob("*.yaml"))
-    overrides = parse_kv(a.effects)
+    overrides = nested(parse_kv(a.effects))  # dotted keys nest: rules.plane.max_share=0.5
     runs: list[tuple[int | None, Path, list[str]]] = []
     for seed in (a.seeds if a.seeds else [None]):
         cache = a.cache if seed is None else a.cache / f"seed-{seed}"

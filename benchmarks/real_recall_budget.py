@@ -65,19 +65,19 @@ def stage_steps(g, photos, cams, cfg, requested) -> tuple:
     from anigs.effects.config import REGIONS
 
     seen: dict = {}
-    lift = detect._lift
+    lift = detect.lift
 
-    def watched(g_, means, max_scale, maps, regions, ground, cfg_):
-        seen["masks"] = [(p.camera.name, {k: r.masks[k].copy() for k in REGIONS}) for p, r in zip(maps, regions)]
-        out = lift(g_, means, max_scale, maps, regions, ground, cfg_)
+    def watched(g_, cues, regions, cfg_):
+        seen["masks"] = [(p.camera.name, {k: r.masks[k].copy() for k in REGIONS}) for p, r in zip(cues.maps, regions)]
+        out = lift(g_, cues, regions, cfg_)
         seen["lifted"] = out[0].copy()
         return out
 
-    detect._lift = watched
+    detect.lift = watched  # the step "lift" of detect_effects, watched
     try:
         decision = decide_effects(photos, cams, g, cfg, requested)
     finally:
-        detect._lift = lift
+        detect.lift = lift
     return decision, seen.get("lifted", np.full(g.num, -1)), seen.get("masks", [])
 
 
@@ -140,12 +140,12 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, required=True, help="real_captures.py's cache (its fits)")
     ap.add_argument("--capture", nargs="*", default=None, help="captures (default: all labelled)")
     ap.add_argument("--kind", default="user", help="the phrasing kind to run (default: the user's)")
-    ap.add_argument("--effects", nargs="*", default=[], help="effects section KEY=VALUE overrides")
+    ap.add_argument("--effects", nargs="*", default=[], help="effects section KEY=VALUE overrides (dotted keys nest: rules.plane.max_share=0.5)")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--sheets", type=Path, default=None, help="write DIR/<capture>.png: a column per step, "
                     "moving (or masked) pixels tinted, the marks outlined")
     a = ap.parse_args()
-    overrides = rc.parse_kv(a.effects)
+    overrides = rc.nested(rc.parse_kv(a.effects))
     caps = a.capture or sorted(p.stem for p in (rc.REAL / "labels").glob("*.json"))
     rows = []
     print("| capture | step | Gaussians | recall | still moving (worst mark) |\n|---|---|---|---|---|")

@@ -4,7 +4,7 @@ median stay still (tried for anigs 0.10 and not kept; README, "What moves on rea
     K=3 MODE=region [V=1] python benchmarks/scale_rule_trial.py --captures ../shared/captures --cache DIR \\
         --no-fit --capture flower-llff lund-street --kind user
 
-Wraps :func:`anigs.effects.detect._apply_rules`: after the geometry rules, a foliage / grass / flower
+Wraps :func:`anigs.effects.detect.apply_rules`: after the geometry rules, a foliage / grass / flower
 Gaussian whose largest scale exceeds ``K`` x the median of its region's (``MODE=region``) or of all plant
 Gaussians (``MODE=all``), and whose own colour's brightest channel is under ``V`` (1: any), leaves its
 region; then runs ``benchmarks/real_captures.py`` with the remaining arguments. Use a ``--cache`` of its
@@ -29,11 +29,12 @@ K = float(os.environ.get("K", "3"))
 MODE = os.environ.get("MODE", "region")
 V = float(os.environ.get("V", "1"))
 PLANTS = [REGIONS.index(r) for r in ("foliage", "grass", "flowers")]
-_rules = detect._apply_rules
+_rules = detect.apply_rules
 
 
-def _with_scale_rule(g, means, region_of, *args, **kwargs):
-    new, cands, fragments = _rules(g, means, region_of, *args, **kwargs)
+def _with_scale_rule(g, cues, region_of, *args, **kwargs):
+    ruled = _rules(g, cues, region_of, *args, **kwargs)
+    new = ruled.region_of
     plant = np.isin(new, PLANTS)
     if plant.any():
         scale = g.scales.max(1).values.double().numpy()
@@ -49,12 +50,12 @@ def _with_scale_rule(g, means, region_of, *args, **kwargs):
             big &= colour.max(1) < V
         print(f"# scale rule K={K:g} {MODE} V={V:g}: {int(big.sum())} of {int(plant.sum())} plant Gaussians still",
               flush=True)
-        new = np.where(big, -1, new)
-    return new, cands, fragments
+        ruled.region_of = np.where(big, -1, new)
+    return ruled
 
 
 if __name__ == "__main__":
-    detect._apply_rules = _with_scale_rule
+    detect.apply_rules = _with_scale_rule
     import real_captures
 
     sys.argv = ["real_captures.py", *sys.argv[1:]]

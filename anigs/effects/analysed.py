@@ -7,17 +7,17 @@ import cv2
 import numpy as np
 
 from anigs.cameras import Camera, camera_for_size
-from anigs.effects.config import Config
+from anigs.effects.config import PhotosConfig
 from anigs.pixels import check_image
 
 
 def photo_indices(num_photos: int, max_photos: int) -> np.ndarray:
     """The evenly spaced photos the detection analyses (indices into the capture's cameras): a caller
-    need read only these (``effects.max_photos``, 24: not all of a 384-photo capture in memory at once)."""
+    need read only these (``effects.photos.max_photos``, 24: not all of a 384-photo capture in memory at once)."""
     return np.unique(np.round(np.linspace(0, num_photos - 1, min(num_photos, max_photos))).astype(int))
 
 
-def prepare_photos(images: Sequence[np.ndarray], cameras: Sequence[Camera], cfg: Config) -> tuple[list, list]:
+def prepare_photos(images: Sequence[np.ndarray], cameras: Sequence[Camera], cfg: PhotosConfig) -> tuple[list, list]:
     """Evenly spaced photos (float32 [H,W,3]) downscaled to ``max_side``, with their cameras."""
     if len(images) != len(cameras):
         raise ValueError(f"detect_effects: {len(images)} images but {len(cameras)} cameras")

@@ -18,6 +18,9 @@ from typing import Sequence
 import numpy as np
 
 from anigs.effects.config import EFFECTS, REGION_EFFECTS, Config
+from anigs.effects.corrections import appearance_key, apply_corrections
+from anigs.effects.detect import EffectsResult, detect_effects
+from anigs.effects.vocabulary import prompt_kinds
 
 log = logging.getLogger("anigs.effects")
 
@@ -91,7 +94,7 @@ class Decision:
     stage's JSON report (the detection plus requested, chosen, requested_not_found, prompt,
     corrections, num_dynamic, dynamic_fraction)."""
 
-    result: object
+    result: EffectsResult
     dynamic: np.ndarray
     report: dict
 
@@ -100,21 +103,16 @@ def decide_effects(photos: Sequence[np.ndarray], cams: Sequence, g, cfg: Config,
                    requested: Sequence[str] | str | None) -> Decision:
     """Detect the effects in ``photos`` [H,W,3] seen by ``cams`` with the canonical model ``g``, apply
     the user's corrections (``cfg.drop``, ``force``, ``boxes``, ``selections``) and choose."""
-    from anigs.effects import detect_effects
-    from anigs.effects.vocabulary import prompt_kinds
-
     kinds = prompt_kinds(cfg.prompt) if cfg.prompt is not None else None
     by_prompt = kinds is not None and is_auto(requested)
     res = detect_effects(photos, cams, g, cfg, kinds.regions if by_prompt else None)
     if cfg.drop or cfg.force or cfg.boxes or cfg.selections:
-        from anigs.effects.corrections import appearance_key, apply_corrections
-
         for note in apply_corrections(res, g.means.detach().double().numpy(), cfg.drop, cfg.force, cfg.boxes,
                                       cfg.selections, cfg.selection_tol, appearance_key(g)):
             log.info("effects: correction: %s", note)
     named = None
     if by_prompt:  # the prompt's kinds, and those the user's corrections make move
-        named = kinds.effects + [e for r in getattr(res, "user_regions", []) for e in REGION_EFFECTS[r]
+        named = kinds.effects + [e for r in res.user_regions for e in REGION_EFFECTS[r]
                                  if e not in kinds.effects]
     chosen, missing = choose(res.detected, requested, named)
     for e in missing:
@@ -126,7 +124,7 @@ def decide_effects(photos: Sequence[np.ndarray], cams: Sequence, g, cfg: Config,
                    "chosen": chosen, "requested_not_found": missing,
                    "prompt": {**(kinds.to_json() if kinds is not None else {"prompt": None, "regions": None, "words": {}}),
                               "used": by_prompt, "note": prompt_note(kinds, by_prompt, chosen)},
-                   "corrections": getattr(res, "notes", [])[1:],
+                   "corrections": res.notes[1:],
                    "num_dynamic": int(dynamic.sum()), "dynamic_fraction": float(dynamic.mean()) if len(dynamic) else 0.0})
     unknown = unknown_note(kinds)
     report["prompt"]["unknown_note"] = unknown

@@ -216,11 +216,11 @@ def _update(res, region: np.ndarray, wanted: set, notes: list[str]) -> None:
             was = eff.detected
             eff.indices, eff.gaussian_fraction = idx, len(idx) / n
             # a region the corrections leave too small is no longer found, unless the user wants it
-            eff.detected = bool(len(idx)) and (r in wanted or (was and len(idx) >= res.cfg.min_gaussians))
+            eff.detected = bool(len(idx)) and (r in wanted or (was and len(idx) >= res.cfg.decide.min_gaussians))
             if eff.detected and not was:
                 eff.reason = f"{r} moves because the scene file says so ({len(idx)} Gaussians). " + eff.reason
             elif was and not eff.detected:
                 eff.reason = (f"No {r}: the scene file's corrections left it {len(idx)} Gaussians "
-                              f"(at least {res.cfg.min_gaussians} needed). " + eff.reason)
+                              f"(at least {res.cfg.decide.min_gaussians} needed). " + eff.reason)
     res.user_regions = sorted(wanted, key=REGIONS.index)
     res.notes = ["Corrections of the scene file (the tinted masks show the detection before them):"] + notes

@@ -1,4 +1,5 @@
-"""Is a candidate on a plane a plant the fit smeared into a sheet? Its outline and its axis in the photos.
+"""Rule ``smeared_sheet`` (foliage; after the table): is a candidate on a plane a plant the fit smeared into a
+sheet? Its outline and its axis in the photos.
 
 A fit made from few photos of a walk cannot place a distant crown in depth: it smears the crown's
 Gaussians along the rays of the photos that see it, into a sheet that the 3D plane rule
@@ -15,20 +16,30 @@ photos that show the candidate, tell such a sheet from a made surface:
    paint, a picture or a climbing plant flush on a wall shows the wall at its own depth there.
 
 :func:`sheet_signs` returns both per candidate; :func:`release_smeared` keeps the foliage candidates the
-plane rule rejected that show both (``plane_smear_min_cos``, ``plane_free_outline``).
+plane rule rejected that show both (``effects.rules.smeared_sheet``: ``min_cos``, ``free_outline``).
+
+Motivation: on the street capture (a walk) the 15 dB fit spread a tree at the end of the street along the
+rays of the photos that see it: 756 Gaussians on one sheet, which the plane rule set aside as a wall or
+floor (recall 0.64 -> 0.49); its sheet runs along the rays (|cos| 0.96) and a quarter of its outline sees
+farther things; a picture flush on a wall does neither.
+
+Test: ``tests/effects/test_smeared_sheet.py``.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import cv2
 import numpy as np
 
-from anigs.effects.config import REGIONS, Config
 from anigs.effects.geometry import render_features
+from anigs.effects.kinds import REGIONS
 from anigs.effects.regions import PhotoMaps
 from anigs.gaussians import Gaussians
+
+if TYPE_CHECKING:
+    from anigs.effects.rules.base import Candidate
 
 #: a pixel outside the outline is behind the candidate when deeper than this x the candidate's depth beside it
 DEPTH_STEP = 1.15
@@ -36,6 +47,25 @@ DEPTH_STEP = 1.15
 RING_FRAC = 0.006
 #: a photo shows the candidate where it covers at least this many pixels
 MIN_PIXELS = 20
+
+
+@dataclass(frozen=True)
+class SmearedSheet:
+    """Rule ``smeared_sheet``: foliage the plane rule set aside moves after all when its sheet is a smeared crown."""
+
+    NAME = "smeared_sheet"
+
+    #: the plane rule's foliage verdict is undone when the sheet is a crown the fit smeared in depth: its longest
+    #: axis runs along the rays of the photos that show it (median |cos| at least min_cos; walls, pictures, rugs and
+    #: lawns spread across the view) and at least free_outline of its outline ring in those photos sees the sky or
+    #: something deeper (paint and pictures lie flush)
+    min_cos: float = 0.8
+    free_outline: float = 0.15       # ... and this share of its outline sees the sky or deeper (> 1: off)
+
+    def review(self, g: Gaussians, cands: list[Candidate], region_of: np.ndarray, maps: Sequence[PhotoMaps],
+               min_alpha: float) -> None:
+        """:func:`release_smeared` with these knobs."""
+        release_smeared(g, cands, region_of, maps, self, min_alpha)
 
 
 @dataclass
@@ -91,16 +121,17 @@ def sheet_signs(g: Gaussians, groups: Sequence[np.ndarray], maps: Sequence[Photo
             for k in range(len(groups))]
 
 
-def release_smeared(g: Gaussians, cands: list, region_of: np.ndarray, maps: Sequence[PhotoMaps], cfg: Config) -> None:
-    """Keep the foliage candidates (:class:`~anigs.effects.rules.Candidate`) the plane rule rejected whose sheet runs
-    along the photos' rays (``along_rays`` >= ``plane_smear_min_cos``) and stands free of what lies behind it
-    (``free_outline`` >= ``plane_free_outline``): a crown the fit smeared in depth. ``region_of`` [N] is updated."""
+def release_smeared(g: Gaussians, cands: list[Candidate], region_of: np.ndarray, maps: Sequence[PhotoMaps],
+                    rule: SmearedSheet, min_alpha: float) -> None:
+    """Keep the foliage candidates the plane rule rejected whose sheet runs along the photos' rays (``along_rays``
+    >= ``rule.min_cos``) and stands free of what lies behind it (``free_outline`` >= ``rule.free_outline``): a
+    crown the fit smeared in depth. ``region_of`` [N] is updated; ``min_alpha``: the photos' sky."""
     on_plane = [c for c in cands if c.rule == "plane" and c.region == "foliage"]
-    if not on_plane or cfg.plane_free_outline > 1:
+    if not on_plane or rule.free_outline > 1:
         return
-    for c, s in zip(on_plane, sheet_signs(g, [c.indices for c in on_plane], maps, cfg.min_alpha)):
+    for c, s in zip(on_plane, sheet_signs(g, [c.indices for c in on_plane], maps, min_alpha)):
         c.figures.update(free_outline=float(np.nan_to_num(s.free_outline)), along_rays=float(np.nan_to_num(s.along_rays)))
-        if s.along_rays >= cfg.plane_smear_min_cos and s.free_outline >= cfg.plane_free_outline:
+        if s.along_rays >= rule.min_cos and s.free_outline >= rule.free_outline:
             c.kept, c.rule = True, ""
             c.reason = (f"lies on a large flat sheet in the model, but the sheet runs along the rays of the {s.photos} "
                         f"photos that show it (|cos| {s.along_rays:.2f}) and {s.free_outline:.0%} of its outline there "

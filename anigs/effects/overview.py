@@ -20,6 +20,7 @@ import numpy as np
 
 from anigs.effects.config import REGION_EFFECTS, REGIONS
 from anigs.effects.detect import EffectsResult
+from anigs.effects.segmenter import note as segmenter_note
 from anigs.images import write_rgb_png
 from anigs.pixels import overlay
 from anigs.render.visibility import project_to_pixels
@@ -120,11 +121,9 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
     width = rows[-1].shape[1]
     found = res.detected
     lines = ["Effects found: " + (", ".join(found) if found else "none: the scene stays still")]
-    lines += getattr(res, "prompt_lines", [])  # how the prompt was read, and its words not understood
-    if getattr(res, "segmenter", None):  # the learned segmenter's part (none: weight-free, nothing to say)
-        from anigs.effects.segmenter import note
-
-        lines.append(note(res.segmenter))
+    lines += res.prompt_lines  # how the prompt was read, and its words not understood
+    if res.segmenter:  # the learned segmenter's part (none: weight-free, nothing to say)
+        lines.append(segmenter_note(res.segmenter))
     lines += [res.effects[REGION_EFFECTS[r][0]].reason for r in REGIONS]
     if res.ground.note:
         lines.append(res.ground.note)
@@ -137,7 +136,7 @@ def save_overview(path: str | Path, res: EffectsResult, photos: int = 3, panel_w
                      f"{'-> ' + c.moved_to if c.moved_to else 'kept' if c.kept else 'rejected'}: {c.reason}")
     if len(changed) > 12:
         lines.append(f"  ... and {len(changed) - 12} more (the effects record: rejected)")
-    for note in getattr(res, "notes", []):
+    for note in res.notes:
         lines.append(note)
     rows.append(_text_block(lines, width))
     rows = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=1.0) for r in rows]

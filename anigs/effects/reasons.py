@@ -1,7 +1,7 @@
 """The sentence that explains each region's decision to a user."""
 from __future__ import annotations
 
-from anigs.effects.config import REGION_EFFECTS, Config
+from anigs.effects.config import REGION_EFFECTS, DecideConfig
 from anigs.effects.geometry import Ground
 
 WHAT = {
@@ -19,7 +19,7 @@ MOTION = {
 
 
 def reason(region: str, detected: bool, pixel_fraction: float, gaussian_fraction: float, photos_with: int,
-           photos: int, cfg: Config, ground: Ground, rejected_green: float = 0.0) -> str:
+           photos: int, cfg: DecideConfig, ground: Ground, rejected_green: float = 0.0) -> str:
     """One or two sentences: what was found (or not), how much, where, and what moves because of it."""
     effects = " and ".join(REGION_EFFECTS[region])
     if detected:
@@ -49,4 +49,4 @@ def unlifted_note(region: str, share: float) -> str:
             "them, so they stay still: parts seen in too few photos to be placed in 3D, or placed where the other "
             "photos see something else such as sky (more photos of them, from nearby, would let them move), "
             f"colours the photos' votes did not take for {region}, or blurred splats reaching mostly past the "
-            "plant (effects.footprint_share: a sharper fit lets them move).")
+            "plant (effects.lift.footprint_share: a sharper fit lets them move).")

@@ -28,15 +28,18 @@ rendered per-Gaussian maps (surface variation, ``|normal . up|``, multi-view col
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
 from anigs.cameras import Camera
 from anigs.effects import cues
-from anigs.effects.config import Config
 from anigs.effects.geometry import Ground
 from anigs.geometry.ground import pixel_heights
+
+if TYPE_CHECKING:
+    from anigs.effects.config import CuesConfig, RegionsConfig
 
 
 @dataclass
@@ -68,15 +71,17 @@ def _px(frac: float, h: int, w: int) -> int:
     return max(int(round(frac * np.hypot(h, w))), 1)
 
 
-def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
-    """Foliage, grass, flowers and water masks of one photo (see module docstring)."""
+def classify_photo(p: PhotoMaps, ground: Ground, cfg: RegionsConfig, cues_cfg: CuesConfig,
+                   min_alpha: float) -> PhotoRegions:
+    """Foliage, grass, flowers and water masks of one photo (see module docstring): ``cfg`` the thresholds
+    of ``effects.regions``, ``cues_cfg`` the local shape's (``effects.cues``), ``min_alpha`` the photos' sky."""
     img = p.image
     h, w = img.shape[:2]
     min_px = max(int(round(cfg.min_component_frac * h * w)), 4)
-    valid = (p.alpha >= cfg.min_alpha) & (p.depth > 0)
-    flat = p.variation < cfg.wall_max_variation
-    wall = valid & flat & (p.upness < cfg.wall_max_upness)
-    floor = valid & flat & (p.upness > cfg.floor_min_upness)
+    valid = (p.alpha >= min_alpha) & (p.depth > 0)
+    flat = p.variation < cues_cfg.wall_max_variation
+    wall = valid & flat & (p.upness < cues_cfg.wall_max_upness)
+    floor = valid & flat & (p.upness > cues_cfg.floor_min_upness)
     plane = ground.plane
     if plane is not None:
         height = p.height if p.height is not None else pixel_heights(p.depth.astype(np.float64), p.camera, plane)
@@ -93,7 +98,7 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: Config) -> PhotoRegions:
     n, lab, areas = cues.mask_components(veg)
     rect = cues.rectangularity(lab, n, areas, int(0.01 * h * w))
     var_med = cues.component_quantile(lab, n, p.variation, 0.5)
-    picture = (rect >= cfg.max_rectangularity) & (np.nan_to_num(var_med, nan=1.0) < 2 * cfg.wall_max_variation)
+    picture = (rect >= cfg.max_rectangularity) & (np.nan_to_num(var_med, nan=1.0) < 2 * cues_cfg.wall_max_variation)
     picture[0] = False
     veg &= ~picture[lab]
     rejected = int((green_all & ~veg).sum())

@@ -18,7 +18,7 @@ Writes the files of :class:`Outputs`.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -83,18 +83,17 @@ class Inputs(CanonicalInputs):
 
 
 def analysed_photos(images: Path, cams: list, cfg: Config) -> tuple[list[np.ndarray], list]:
-    """(photos, cameras) the detection analyses: the evenly spaced ``effects.max_photos`` of the capture's
+    """(photos, cameras) the detection analyses: the evenly spaced ``effects.photos.max_photos`` of the capture's
     cameras, and only those photos read from the folder ``images``."""
-    cams = [cams[i] for i in photo_indices(len(cams), cfg.max_photos)]
+    cams = [cams[i] for i in photo_indices(len(cams), cfg.photos.max_photos)]
     return [load_image(find_image(images, c.name)) for c in cams], cams
 
 
 def run(inputs: Inputs, cfg: Config) -> Outputs:
     """Detect the scene's effects and write the stage's outputs (``inputs.requested`` and
     ``inputs.prompt``, when given, replace the section's)."""
-
-    if inputs.prompt is not None:
-        cfg.prompt = inputs.prompt
+    if inputs.prompt is not None:  # a new section: the caller's stays as it was
+        cfg = replace(cfg, prompt=inputs.prompt)
     requested = cfg.requested if inputs.requested is None else inputs.requested  # the section, unless given
     if requested in ([], ["auto"]):
         requested = "auto"

@@ -1,5 +1,5 @@
 """A flowering plant's blossoms sway with it when the prompt names the plant but no flowers (rule 5 of
-anigs.effects.rules, ``effects.blossoms_with_plants``).
+anigs.effects.rules.blossoms, ``effects.rules.blossoms.with_plants``).
 
 On the street capture the prompt "a street with potted plants, shrubs and climbing plants" named no
 flowers, so the yellow climbing rose's blossoms stayed still while its leaves swayed (its mark in
@@ -38,7 +38,7 @@ def test_a_shrubs_blossom_sways_with_it_when_the_prompt_names_only_plants():
     # the photos' foliage masks take the blossom's pixels
     assert not any(m.any() for m in res.effects["flower_bob"].masks)
     # switched off, the blossom stays still
-    off = detect_effects(imgs, cams, g, Config(blossoms_with_plants=False), kinds=["foliage"])
+    off = detect_effects(imgs, cams, g, Config.from_dict({"rules": {"blossoms": {"with_plants": False}}}), kinds=["foliage"])
     assert _chosen(off, "foliage_sway")[blossom].mean() <= 0.1
     assert not [c for c in off.candidates if c.region == "flowers"]
     assert "not looked for, the prompt does not name it" in off.effects["flower_bob"].reason

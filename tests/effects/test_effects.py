@@ -98,7 +98,7 @@ def test_bare_courtyard_has_no_effects(tmp_path):
     g, cams, imgs = _capture(SceneConfig(num_gaussians=12000, layout="courtyard"))
     res = detect_effects(imgs, cams, g, Config())
     assert res.detected == [] and not res.dynamic().any()
-    assert all(r.pixel_fraction < Config().min_pixel_fraction for r in res.effects.values())
+    assert all(r.pixel_fraction < Config().decide.min_pixel_fraction for r in res.effects.values())
     doc = json.loads(json.dumps(res.to_json()))  # the detection part of the stage's report
     assert set(doc["effects"]) == set(EFFECTS)
     for e in EFFECTS:
@@ -124,7 +124,7 @@ def test_ground_scatter_hidden_under_the_lawn_leaves_grass_and_flowers(garden):
     res = detect_effects(imgs, cams, fitted, Config())  # the photos are the scene's: the tail is hidden
     plane = res.ground.plane
     assert plane is not None and plane.cut_height() > 0.2 * plane.camera_height  # the centres' layer is thick
-    assert res.ground.cut_height() < 0.5 * Config().grass_max_height * plane.camera_height
+    assert res.ground.cut_height() < 0.5 * Config().regions.grass_max_height * plane.camera_height
     assert res.detected == ["foliage_sway", "leaf_flutter", "grass_wave", "flower_bob"]
     pr, pr0 = _precision_recall(res, fitted), _precision_recall(base, g0)
     print("with a buried ground tail:", {e: tuple(round(v, 3) for v in pr[e]) for e in EFFECTS})
@@ -222,7 +222,7 @@ def test_green_picture_on_a_wall_is_not_foliage():
     cfg = Config()
     # the picture is green by colour in every photo: only geometry can tell it from a plant
     pic_px = [render_label_map(g, labels, c) == 1 for c in cams]
-    assert all(cues.green(im, cfg.green_hue, cfg.green_min_saturation, cfg.min_value)[m].mean() > 0.5
+    assert all(cues.green(im, cfg.regions.green_hue, cfg.regions.green_min_saturation, cfg.regions.min_value)[m].mean() > 0.5
                for im, m in zip(imgs, pic_px))
     res = detect_effects(imgs, cams, g, cfg)
     foliage = np.isin(np.arange(g.num), res.effects["foliage_sway"].indices)

@@ -21,7 +21,10 @@ NESTED = {("masks", "vegetation"): "VegetationConfig", ("masks", "labels"): "Lab
           ("masks", "sam2"): "Sam2Config", ("masks", "lift"): "LiftConfig",
           ("animate", "lifting"): "LiftingConfig", ("animate", "physics"): "PhysicsConfig",
           ("refine", "procedural"): "ProceduralConfig", ("refine", "ltx"): "LTXConfig",
-          ("eval", "multiview_fit"): "MultiviewFitConfig"}
+          ("eval", "multiview_fit"): "MultiviewFitConfig",
+          ("effects", "photos"): "PhotosConfig", ("effects", "cues"): "CuesConfig",
+          ("effects", "regions"): "RegionsConfig", ("effects", "lift"): "LiftConfig",
+          ("effects", "rules"): "RulesConfig", ("effects", "decide"): "DecideConfig"}
 
 
 def _script(name: str):

@@ -78,6 +78,17 @@ generated from `anigs/effects/vocabulary.py`.
 """
 
 
+RULES = """## What moves: the effects stage's rules
+
+The `effects` stage proposes regions from the photos and lifts them onto the Gaussians; then each
+region's 3D candidates go through its row of rules in this order until one decides (still, or moved to
+another region). Each rule's knobs are its own section `effects.rules.<rule>`; its module in
+`anigs/effects/rules/` (the smeared sheet: `anigs/effects/outline.py`) says what it is for. The table is
+generated from `anigs/effects/rules/__init__.py` (`TABLE`, `BEFORE`, `AFTER`).
+
+"""
+
+
 def stage_folder(outputs) -> str:
     """The folder an ``Outputs`` type names, e.g. ``results/{scene}/masks/`` (its ``FOLDER``)."""
     return f"results/{outputs.FOLDER}/"
@@ -127,10 +138,12 @@ def section_home(key: str) -> str:
 
 
 def build() -> str:
+    from anigs.effects.rules import rules_markdown
     from anigs.effects.vocabulary import vocabulary_markdown
 
     schema = yaml.safe_load(SCHEMA.read_text())
-    lines = [INTRO, results_layout(), VOCABULARY + vocabulary_markdown() + "\n", "## Keys", ""]
+    lines = [INTRO, results_layout(), VOCABULARY + vocabulary_markdown() + "\n",
+             RULES + rules_markdown() + "\n", "## Keys", ""]
     top, sections = [], []
     for key, p in schema["properties"].items():
         (sections if p.get("type") == "object" and "properties" in p else top).append((key, p))

@@ -43,10 +43,12 @@ def field_docs(cls) -> dict[str, str]:
     """Field -> its doc, for dataclass ``cls`` and its dataclass bases (a subclass's own doc wins).
 
     A field's doc is the block of ``#:`` comment lines right above it, else its trailing comment,
-    continued by the comment-only lines below it that start in the same column."""
+    continued by the comment-only lines below it that start in the same column, else its metadata's ``doc``."""
     out: dict[str, str] = {}
     for base in reversed([c for c in cls.__mro__ if dataclasses.is_dataclass(c)]):
         out.update(_own_docs(base))
+    # a generated dataclass (no source: anigs.effects.rules.RulesConfig) carries its fields' docs as metadata
+    out.update({f.name: f.metadata["doc"] for f in dataclasses.fields(cls) if f.name not in out and "doc" in f.metadata})
     return out
 
 
@@ -208,6 +210,8 @@ def build() -> dict:
         s = dataclass_schema(cls, (name,))
         s["description"] = desc
         s["default"] = {}
+        if getattr(cls, "RENAMED", None):  # old key -> new key: the config check names the new key
+            s["x-renamed"] = dict(cls.RENAMED)
         schema["properties"][name] = s
     return schema
 
