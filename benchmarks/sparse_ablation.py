@@ -65,21 +65,6 @@ def fit(sfm: Path, out: Path, params: dict, threads: int) -> dict:
     return m
 
 
-def nest(items: list[str]) -> dict:
-    """``KEY=VALUE`` items as a nested mapping (dotted keys nest; values are YAML)."""
-    import yaml
-
-    out: dict = {}
-    for it in items:
-        k, _, v = it.partition("=")
-        node = out
-        *path, last = k.split(".")
-        for part in path:
-            node = node.setdefault(part, {})
-        node[last] = yaml.safe_load(v)
-    return out
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cache", type=Path, required=True, help="a real_captures.py cache: CACHE/<capture>/sfm")
@@ -92,7 +77,9 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None)
     a = ap.parse_args()
     names = a.capture or sorted(p.parent.name for p in a.cache.glob("*/sfm/cameras.json"))
-    extra = nest(a.static)
+    from real_captures import nested, parse_kv
+
+    extra = nested(parse_kv(a.static))
     records = []
     print("| capture | row | held-out dB, median (max - min) | train dB | fit s, median | start points "
           "(SfM + pairs) | seeds |")
