@@ -26,14 +26,15 @@ def added_points(cfg: "FitConfig", pts: np.ndarray, cols: np.ndarray, train_imgs
     training photos (``static.sparse.pair_points``) and far points where the photos show what no point
     explains. Returns ((points [P,3], colours [P,3]) with SfM's first, or None when nothing was added;
     the pair points' record or None; the number of far points)."""
+    photos = [im.cpu().numpy() for im in train_imgs]
     paired = None
     if cfg.sparse.pair_points and random_bg:  # photos only, as the far points
-        paired = pair_points([im.cpu().numpy() for im in train_imgs], train_cams, cfg.sparse.pair_neighbours,
+        paired = pair_points(photos, train_cams, cfg.sparse.pair_neighbours,
                              within=pts, max_points=int(cfg.sparse.pair_share * cfg.densify.max_gaussians))
         pts, cols = np.concatenate([pts, paired.xyz]), np.concatenate([cols, paired.rgb])
     # far points are for photos (random backgrounds); a fixed background is the far field itself (a
     # synthetic scene's sky: far points behind its sparsely triangulated tree crowns cost the demo 0.3-0.5 dB)
-    fpts, fcols = far_points(pts, train_cams, [im.cpu().numpy() for im in train_imgs], None,
+    fpts, fcols = far_points(pts, train_cams, photos, None,
                              int(cfg.far_share * cfg.densify.max_gaussians) if random_bg else 0)
     if len(fpts):
         log.info("static fit: %d far points where the photos show what SfM did not triangulate", len(fpts))

@@ -18,6 +18,7 @@ import torch
 import torch.nn.functional as F
 
 from anigs.cameras import Camera
+from anigs.static.evaluate import pixels
 
 MIN_ALPHA = 0.5  # render alpha above which a pixel's depth is trusted
 
@@ -75,8 +76,7 @@ class WarpLoss:
                 torch.stack([self.K[j][0, 2], self.K[j][1, 2]])
             inside = (z > 1e-6) & (uv[:, 0] >= 0) & (uv[:, 0] <= cam.width) & (uv[:, 1] >= 0) & (uv[:, 1] <= cam.height)
             grid = torch.stack([2 * uv[:, 0] / cam.width - 1, 2 * uv[:, 1] / cam.height - 1], -1).reshape(1, h, w, 2)
-            img = photos[j]
-            img = img.float() / 255.0 if img.dtype == torch.uint8 else img
+            img = pixels(photos[j])
             warped = F.grid_sample(img.permute(2, 0, 1)[None], grid, mode="bilinear", padding_mode="border",
                                    align_corners=False)[0].permute(1, 2, 0).reshape(-1, 3)
             err = (warped - target.reshape(-1, 3)).abs().mean(-1)
