@@ -262,12 +262,15 @@ class Inputs:
     ``| None``). Fields without a default are required flags."""
 
     @classmethod
-    def add_arguments(cls, p: argparse.ArgumentParser) -> None:
-        """One flag per field: ``--field-name`` (an ``Outputs`` field takes its folder)."""
+    def add_arguments(cls, p: argparse.ArgumentParser, optional: tuple[str, ...] = ()) -> None:
+        """One flag per field: ``--field-name`` (an ``Outputs`` field takes its folder). ``optional``: fields
+        without a default whose flags may still be left out (a mode of the command that does not read them)."""
         hints = typing.get_type_hints(cls)
         for f in dataclasses.fields(cls):
-            tp, optional = _unwrap_optional(hints[f.name])
-            required = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+            tp, _ = _unwrap_optional(hints[f.name])
+            required = (f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+                        and f.name not in optional)
+            default = None if f.default is dataclasses.MISSING else f.default
             help_ = f.metadata.get("help", "")
             if isinstance(tp, type) and issubclass(tp, Outputs):
                 help_ = help_ or f"the {tp.STAGE} stage's folder"
@@ -275,12 +278,10 @@ class Inputs:
             elif tp is bool:
                 p.add_argument(_flag(f.name), dest=f.name, action="store_true", help=help_)
             elif typing.get_origin(tp) is list:
-                p.add_argument(_flag(f.name), dest=f.name, nargs="*", required=required,
-                               default=None if required else f.default, help=help_)
+                p.add_argument(_flag(f.name), dest=f.name, nargs="*", required=required, default=default, help=help_)
             else:
                 conv = tp if tp in (int, float) else str
-                p.add_argument(_flag(f.name), dest=f.name, type=conv, required=required,
-                               default=None if required else f.default, help=help_)
+                p.add_argument(_flag(f.name), dest=f.name, type=conv, required=required, default=default, help=help_)
 
     @classmethod
     def from_args(cls, args: argparse.Namespace):

@@ -3,7 +3,8 @@
 ``find_image`` maps a camera name to its file; ``load_image`` (the one image reader) reads
 RGB float32 [H,W,3] in [0,1]; ``load_inputs`` pairs a cameras JSON with its image folder, rescaling intrinsics to
 the image size. ``write_rgb_png`` writes an RGB image; ``read_mask`` (the one mask reader),
-``read_mask_png`` and ``write_mask_png`` read and write masks. Writes are atomic.
+``read_mask_png`` and ``write_mask_png`` read and write masks. Writes are atomic. ``downscale`` brings an
+image and its camera to at most a given longest side (the static fit, the views' references, the effects' photos).
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from anigs.cameras import load_cameras
+from anigs.cameras import Camera, load_cameras
 from anigs.io import atomic_path
 
 log = logging.getLogger("anigs.images")
@@ -138,3 +139,18 @@ def write_rgb_png(path: str | Path, image: np.ndarray) -> None:
     with atomic_path(path) as tmp:
         if not cv2.imwrite(str(tmp), img[..., ::-1]):
             raise RuntimeError(f"could not write image {path}")
+
+
+def fit_scale(width: int, height: int, max_side: int) -> float:
+    """Downscale factor (<= 1) that brings the longest side to at most ``max_side`` (0: 1)."""
+    return 1.0 if max_side <= 0 or max(width, height) <= max_side else max_side / max(width, height)
+
+
+def downscale(image: np.ndarray, cam: Camera, max_side: int) -> tuple[np.ndarray, Camera]:
+    """``image`` [H,W,3] (uint8 or float) and ``cam`` at most ``max_side`` px on the longest side (area
+    interpolation; 0 or already smaller: the same objects back)."""
+    f = fit_scale(cam.width, cam.height, max_side)
+    if f >= 1.0:
+        return image, cam
+    w, h = max(1, round(cam.width * f)), max(1, round(cam.height * f))
+    return cv2.resize(np.ascontiguousarray(image), (w, h), interpolation=cv2.INTER_AREA), cam.scaled(w, h)

@@ -3,11 +3,11 @@ from __future__ import annotations
 
 from typing import Sequence
 
-import cv2
 import numpy as np
 
 from anigs.cameras import Camera, camera_for_size
 from anigs.effects.config import PhotosConfig
+from anigs.images import downscale
 from anigs.pixels import check_image
 
 
@@ -29,11 +29,7 @@ def prepare_photos(images: Sequence[np.ndarray], cameras: Sequence[Camera], cfg:
         img = check_image(images[i], cameras[i].name)
         h, w = img.shape[:2]
         cam = camera_for_size(cameras[i], h, w, f"photo {cameras[i].name!r}")
-        s = cfg.max_side / max(h, w)
-        if s < 1:
-            nw, nh = max(int(round(w * s)), 1), max(int(round(h * s)), 1)
-            img = cv2.resize(img, (nw, nh), interpolation=cv2.INTER_AREA)
-            cam = cam.scaled(nw, nh)
+        img, cam = downscale(img, cam, cfg.max_side)
         photos.append(np.ascontiguousarray(img, np.float32))
         cams.append(cam)
     return photos, cams

@@ -3,31 +3,33 @@
     anigs static --images DIR --cameras sfm/cameras.json --points sfm/points.npz \
                  [--tracks sfm/tracks.npz] --out results/demo/static [--params JSON]
     anigs static ... --splat PATH --report sfm/report.json   # a splat trained elsewhere: no fit
+    anigs static --images DIR --cameras sfm/cameras.json --points sfm/points.npz --plan-only [--params JSON]
 
 Writes ``OUT/canonical.ply`` (standard 3DGS layout) and ``OUT/metrics.json``. While it runs,
 ``OUT/checkpoint.ply`` holds the last good state; it is removed on success and kept when the
 fit diverges. With ``--splat`` the fit is skipped: the splat is read in its trainer's frame, brought
 into the sfm folder's and measured against the photos (:mod:`anigs.static.imported`); one that does
-not render them stops the stage with the frames it tried.
+not render them stops the stage with the frames it tried. With ``--plan-only`` it prints the fit's plan
+(:func:`anigs.static.fit.plan_static`: steps, Gaussians, photo size, estimated minutes) and stops.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from anigs import contract
-from anigs.stages.command import parse_params
+from anigs.stages.command import add_params, parse_params
 from anigs.contract import File
 from anigs.stages.sfm import Outputs as SfmOutputs
-from anigs.static.fit import FitConfig
 from anigs.gaussians import load_ply
 from anigs.images import load_inputs
 from anigs.io import write_json
 from anigs.sfm.model import load_points
 from anigs.sfm.tracks import load_tracks
-from anigs.static.fit import fit_static
+from anigs.static.fit import FitConfig, StaticPlan, fit_static, plan_static
 from anigs.static.report import draw_fit, held_out_text
 
 Config = FitConfig  # the `static` config section
@@ -80,20 +82,19 @@ class Inputs(contract.Inputs):
 
 
 def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
-    """Fit the canonical 3DGS to the sfm stage's posed images from its points; writes the
-    canonical PLY and the metrics (a checkpoint while it runs, kept when the fit diverges)."""
-
-
+    """Fit the canonical 3DGS to the sfm stage's posed images from its points (planned first, :func:`plan`);
+    writes the canonical PLY and the metrics (a checkpoint while it runs, kept when the fit diverges)."""
     out, images, cameras, points = inputs.out, inputs.images, inputs.cameras, inputs.points
     imgs, cams = load_inputs(images, cameras, compact=True)  # uint8: a quarter of the memory
     pts, cols = load_points(points)
     if inputs.splat is not None:
         return _import(inputs, cfg, imgs, cams, pts)
+    fit_plan = plan_static(imgs, cams, pts, cols, cfg)
     tracks = load_tracks(inputs.tracks) if inputs.tracks is not None else None
     out.root.mkdir(parents=True, exist_ok=True)
     ckpt = out.path("checkpoint")
     gaussians, metrics = fit_static(imgs, cams, pts, cols, cfg, progress=not inputs.no_progress,
-                                    checkpoint_path=ckpt, tracks=tracks)
+                                    checkpoint_path=ckpt, tracks=tracks, plan=fit_plan)
     ply = out.path("canonical")
     gaussians.save_ply(ply)
     back = load_ply(ply)  # the artifact must round-trip
@@ -110,6 +111,13 @@ def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
         ckpt.unlink()
     log.info("static fit: %d Gaussians -> %s", metrics["num_gaussians"], ply)
     return out
+
+
+def plan(inputs: Inputs, cfg: FitConfig) -> StaticPlan:
+    """The plan of the fit :func:`run` would make (nothing is fitted or written)."""
+    imgs, cams = load_inputs(inputs.images, inputs.cameras, compact=True)
+    pts, cols = load_points(inputs.points)
+    return plan_static(imgs, cams, pts, cols, cfg)
 
 
 def _import(inputs: Inputs, cfg: FitConfig, imgs, cams, pts) -> Outputs:
@@ -142,8 +150,25 @@ def _config_dict(cfg) -> dict:
 
 # ---- command line: anigs static ----
 
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    Inputs.add_arguments(p, optional=("out",))
+    add_params(p, "static")
+    p.add_argument("--plan-only", action="store_true", help="print the fit's plan (steps, Gaussians, photo size, "
+                   "estimated minutes on this machine) and stop: nothing is fitted or written (no --out needed)")
+
+
 def main(args: argparse.Namespace) -> int:
-    out = run(Inputs.from_args(args), FitConfig.from_dict(parse_params(args.params)))
+    inputs, cfg = Inputs.from_args(args), FitConfig.from_dict(parse_params(args.params))
+    if getattr(args, "plan_only", False):  # (a Namespace built by hand may not have it)
+        if inputs.splat is not None:
+            raise ValueError("anigs static: --plan-only plans a fit; with --splat nothing is fitted")
+        fit_plan = plan(inputs, cfg)
+        print(fit_plan.text())
+        print(json.dumps(fit_plan.as_dict(), indent=1))
+        return 0
+    if inputs.out is None:
+        raise ValueError("anigs static: --out is required (unless --plan-only)")
+    out = run(inputs, cfg)
     metrics = out.metrics()
     held = held_out_text(metrics.get("test_psnr"), metrics.get("test_ssim"))
     if "imported" in metrics:

@@ -25,6 +25,8 @@ import math
 from dataclasses import asdict, dataclass, replace
 from typing import Any, Sequence
 
+from anigs.images import fit_scale
+
 LEVELS_ORDER = ("fast", "auto", "quality")
 AUTO_SIDE = 640  # the auto level's largest photo side (px): the views and clips are 256x192 by default
 
@@ -89,11 +91,6 @@ class CaptureSize:
         ws = sorted(w for w, _ in sizes)
         hs = sorted(h for _, h in sizes)
         return CaptureSize(len(sizes), ws[len(ws) // 2], hs[len(hs) // 2])
-
-
-def fit_scale(width: int, height: int, max_side: int) -> float:
-    """Downscale factor (<= 1) that brings the longest side to at most ``max_side`` (0: 1)."""
-    return 1.0 if max_side <= 0 or max(width, height) <= max_side else max_side / max(width, height)
 
 
 @dataclass(frozen=True)

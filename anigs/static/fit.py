@@ -17,15 +17,15 @@ import logging
 import math
 import time
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.static.budget import CaptureSize
 from anigs.static.config import FitConfig
-from anigs.static.planning import downscaled, fit_side, flat_curve, plan_fit, resolved
+from anigs.static.planning import (EVAL_BACKGROUND, StaticPlan, check_inputs, downscaled, fit_side, flat_curve,
+                                   plan_static)
 from anigs.static.report import accuracy_record, held_out_text, log_accuracy
 from anigs.static.densify import (DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
@@ -45,14 +45,13 @@ from anigs.geometry.extent import scene_extent
 from anigs.gaussians import Gaussians
 from anigs.ssim import psnr
 
-__all__ = ["LOG_EVERY", "DivergenceGuard", "FitConfig", "FitDivergedError", "_render", "_to_params", "evaluate",
-           "fit_static", "init_gaussians", "loss_fn", "make_optimizer", "params_to_gaussians", "split_holdout",
-           "train_step"]
+__all__ = ["LOG_EVERY", "DivergenceGuard", "FitConfig", "FitDivergedError", "StaticPlan", "_render", "_to_params",
+           "evaluate", "fit_static", "init_gaussians", "loss_fn", "make_optimizer", "params_to_gaussians",
+           "plan_static", "split_holdout", "train_step"]
 
 log = logging.getLogger(__name__)
 
 LOG_EVERY = 10  # steps between host reads of the loss (progress) and of the divergence record
-EVAL_BACKGROUND = (0.5, 0.5, 0.5)  # behind the evaluation renders of a fit trained on random backgrounds
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -99,23 +98,10 @@ def _lr_means(step: int, total: int, lr0: float, lr1: float) -> float:
     return math.exp((1 - t) * math.log(lr0) + t * math.log(lr1))
 
 
-def _check_inputs(images: Sequence[torch.Tensor], cameras: Sequence[Camera]) -> None:
-    if len(images) != len(cameras):
-        raise ValueError(f"static fit: {len(images)} images but {len(cameras)} cameras")
-    if not images:
-        raise ValueError("static fit: no images")
-    for i, (img, cam) in enumerate(zip(images, cameras)):
-        if img.ndim != 3 or img.shape[2] != 3:
-            raise ValueError(f"static fit: image {i} ({cam.name!r}) must be [H,W,3], got {tuple(img.shape)}")
-        if (img.shape[0], img.shape[1]) != (cam.height, cam.width):
-            raise ValueError(f"static fit: image {i} ({cam.name!r}) is {img.shape[1]}x{img.shape[0]} but its "
-                             f"camera is {cam.width}x{cam.height}")
-
-
 # ---------------------------------------------------------------------------- the fit
 def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, init_colors, cfg: FitConfig,
                progress: bool = True, checkpoint_path: str | Path | None = None,
-               tracks: Tracks | None = None) -> tuple[Gaussians, dict[str, Any]]:
+               tracks: Tracks | None = None, plan: StaticPlan | None = None) -> tuple[Gaussians, dict[str, Any]]:
     """Fit 3D Gaussians to posed images.
 
     Args:
@@ -130,6 +116,8 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
             photo's pixels as given): the training photos' rows feed the depth loss
             (``cfg.depth_weight``), and the render's depth error at every photo's rows is reported;
             None: neither (a synthetic scene).
+        plan: the fit's plan, :func:`anigs.static.planning.plan_static` of these arguments (None: planned here
+            first); the fit runs with ``plan.config``.
     Returns:
         (Gaussians on CPU at SH degree ``cfg.sh_degree``, metrics dict).
     Raises:
@@ -137,12 +125,21 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         the last good checkpoint); anigs.static.densify.AllPrunedError when every Gaussian is pruned.
     """
     cfg.validate()
-    _check_inputs(images, cameras)
+    plan = plan if plan is not None else plan_static(images, cameras, init_points, init_colors, cfg)
+    if not plan.made_for(cfg):
+        raise ValueError("static fit: the plan was made for another config")
+    return _fit(images, cameras, init_points, init_colors, plan, progress, checkpoint_path, tracks)
+
+
+def _fit(images: list[torch.Tensor], cameras: list[Camera], init_points, init_colors, plan: StaticPlan,
+         progress: bool, checkpoint_path: str | Path | None, tracks: Tracks | None) -> tuple[Gaussians, dict[str, Any]]:
+    """:func:`fit_static` following ``plan`` (its config: the schedule's keys concrete)."""
+    cfg, fit_plan = plan.config, plan.schedule
+    check_inputs(images, cameras)
     device = get_device(cfg.device)
     gen = seed_everything(cfg.seed)
     t_start, c_start = time.perf_counter(), time.process_time()
     train_idx, test_idx = split_holdout(len(images), cfg.holdout_every)
-    size = CaptureSize.of([(cameras[i].width, cameras[i].height) for i in train_idx])  # as captured
     sizes = [(c.width, c.height) for c in cameras]
     images, cameras = downscaled(list(images), list(cameras), fit_side(cfg))
     tracks = None if tracks is None else check_tracks(tracks, "depth tracks")
@@ -161,8 +158,8 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     bg = torch.tensor(EVAL_BACKGROUND if random_bg else cfg.background, dtype=torch.float32, device=device)
     lr = {"means": cfg.lr_means * extent, "quats": cfg.lr_quats, "log_scales": cfg.lr_scales,
           "opacity_logits": cfg.lr_opacity, "sh_dc": cfg.lr_sh_dc, "sh_rest": cfg.lr_sh_rest}
-    fit_plan, cost = plan_fit(cfg, params, train_imgs, train_cams, bg, g0.num, size)
-    cfg = resolved(cfg, fit_plan)
+    if g0.num != plan.start_gaussians:
+        raise ValueError(f"static fit: the plan was made for {plan.start_gaussians} initial Gaussians, not {g0.num}")
     added, paired, n_far = added_points(cfg, pts, cols, train_imgs, train_cams, random_bg)
     if added is not None:
         g0 = init_gaussians(added[0], added[1], extent, cfg.sh_degree, cfg.init_opacity)
@@ -222,7 +219,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
     log.info("static fit done: %d Gaussians, %s, train PSNR %.2f dB, %.1f s",
              gaussians.num, held_out_text(te["test_psnr"], te["test_ssim"]), tr["psnr"], metrics["seconds"])
     metrics["plan"]["estimate_ratio"] = round(train_seconds / max(fit_plan.estimated_seconds, 1e-9), 3)
-    metrics["accuracy"] = log_accuracy(accuracy_record(metrics, fit_plan, size, cost, g0.num))
+    metrics["accuracy"] = log_accuracy(accuracy_record(metrics, fit_plan, plan.size, plan.cost, g0.num))
     return gaussians, metrics
 
 

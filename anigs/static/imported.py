@@ -47,7 +47,7 @@ from anigs.sfm.align import Similarity
 from anigs.ssim import fused_ssim, psnr
 from anigs.static.config import IMPORT_FRAMES, ImportConfig
 from anigs.static.init import split_holdout
-from anigs.static.planning import downscale
+from anigs.images import downscale
 
 log = logging.getLogger("anigs.static")
 

@@ -38,10 +38,9 @@ import numpy as np
 
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
-from anigs.images import find_image, load_image_compact
+from anigs.images import downscale, find_image, load_image_compact
 from anigs.render.labels import render_effect_weights
 from anigs.render.visibility import blend_weights
-from anigs.static.planning import downscale
 from anigs.views.content import pixel_footprint
 from anigs.views.coverage import DYNAMIC_ALPHA, DYNAMIC_SHARE
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from anigs.static.budget import LEVELS, CaptureSize, StepCost, next_level, parse_budget, plan
-from anigs.static.fit import FitConfig, fit_static
+from anigs.static.fit import FitConfig, fit_static, plan_static
 from anigs.static.planning import flat_curve
 from anigs.static.report import MIN_TEST_PSNR, MIN_TRAIN_PSNR, accuracy_record
 
@@ -114,6 +114,27 @@ def test_fit_reports_plan_and_stops_on_a_flat_curve():
                                    "iterations": 160})
     _, m_off = fit_static(imgs, cams, p, c, cfg_off, progress=False)
     assert m_off["iterations"] == 160 and not m_off["plan"]["stopped_early"]
+
+
+def test_the_plan_is_decided_before_the_fit_and_the_fit_follows_it():
+    imgs, cams, p, c = _scene(n_cams=10, width=64, height=48)
+    cfg = FitConfig.from_dict({"budget": "fast", "max_side": 32, "sh_degree": 0, "plateau_db": 0.0})
+    plan_ = plan_static(imgs, cams, p, c, cfg)
+    assert cfg.iterations is None and cfg.densify.max_gaussians is None  # the requested config is left as it was
+    assert plan_.config.iterations == plan_.schedule.iterations == LEVELS["fast"].max_steps
+    assert plan_.config.densify.max_gaussians == plan_.schedule.max_gaussians
+    assert plan_.config.eval_every == plan_.schedule.eval_every and plan_.config.densify.stop == plan_.schedule.densify_stop
+    assert plan_.as_dict()["fit_size"] == [32, 24] and plan_.size == CaptureSize(8, 64, 48)  # 2 of 10 held out
+    assert "at most 1500 steps" in plan_.text()
+    with pytest.raises(ValueError, match="the plan was made for another config"):
+        fit_static(imgs, cams, p, c, FitConfig.from_dict({"budget": "fast", "seed": 1}), plan=plan_)
+    short = FitConfig.from_dict({"iterations": 20, "eval_every": 0, "sh_degree": 0, "max_side": 32,
+                                 "densify": {"start": 10, "stop": 20, "every": 10}})
+    _, m = fit_static(imgs, cams, p, c, short, progress=False, plan=plan_static(imgs, cams, p, c, short))
+    _, m_here = fit_static(imgs, cams, p, c, short, progress=False)  # planned inside: the same fit
+    assert m["iterations"] == m_here["iterations"] == 20 and m["test_psnr"] == m_here["test_psnr"]
+    assert {k: v for k, v in m["plan"].items() if k not in ("estimated_seconds", "estimate_ratio")} == \
+        {k: v for k, v in m_here["plan"].items() if k not in ("estimated_seconds", "estimate_ratio")}
 
 
 def test_fit_downscales_to_its_side_and_measures_there():

@@ -230,7 +230,7 @@ def test_fit_is_deterministic(scene):
     assert m1["test_psnr"] == m2["test_psnr"]
 
 
-def test_cli_writes_ply_and_metrics(scene, tmp_path):
+def test_cli_writes_ply_and_metrics(scene, tmp_path, capsys):
     from anigs.cli import main
     from anigs.io import write_npz
     from anigs.video import save_png
@@ -243,6 +243,12 @@ def test_cli_writes_ply_and_metrics(scene, tmp_path):
     p, c = sfm_points(gt, every=4)
     write_npz(tmp_path / "points.npz", xyz=p.astype(np.float32), rgb=c.astype(np.float32))
     out = tmp_path / "static"
+    # --plan-only: the plan printed, nothing fitted or written (no --out needed)
+    rc = main(["static", "--images", str(img_dir), "--cameras", str(tmp_path / "cameras.json"),
+               "--points", str(tmp_path / "points.npz"), "--plan-only", "--params", json.dumps(FAST)])
+    printed = capsys.readouterr().out
+    assert rc == 0 and "static fit plan (budget auto; set: iterations, densify.stop)" in printed
+    assert json.loads(printed[printed.index("{"):])["iterations"] == 40 and not out.exists()
     rc = main(["static", "--images", str(img_dir), "--cameras", str(tmp_path / "cameras.json"),
                "--points", str(tmp_path / "points.npz"), "--out", str(out), "--no-progress",
                "--params", json.dumps({**FAST, "sh_degree": 2})])
