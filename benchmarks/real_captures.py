@@ -127,6 +127,7 @@ def run_effects(capture: str, cache: Path, prompt: str, overrides: dict) -> tupl
     """The effects stage on the cached fit with ``prompt``; (its folder, wall s, CPU s, from the cache)."""
     from anigs.effects.config import Config
     from anigs.stages import effects as stage
+    from anigs.stages.static import Outputs as StaticOutputs
 
     scene = cache / capture
     ply = scene / "static" / "canonical.ply"
@@ -140,7 +141,7 @@ def run_effects(capture: str, cache: Path, prompt: str, overrides: dict) -> tupl
         return folder, rec["s"], rec["cpu_s"], True
     t0, c0 = time.perf_counter(), time.process_time()
     stage.run(stage.Inputs(canonical=ply, cameras=scene / "sfm" / "cameras.json", images=scene / "sfm" / "images",
-                           out=out, prompt=prompt), cfg)
+                           out=out, prompt=prompt, static=StaticOutputs(scene / "static")), cfg)
     s, cpu = time.perf_counter() - t0, time.process_time() - c0
     (folder / "seconds.json").write_text(json.dumps({"s": s, "cpu_s": cpu, "prompt": prompt}))
     return folder, s, cpu, False

@@ -11,7 +11,8 @@ Which of the detected effects the scene simulates (its ``effects:`` list and its
 that the views stage places the views around.
 
     anigs effects --canonical static/canonical.ply --cameras sfm/cameras.json --images sfm/images \\
-        --out effects/ [--requested foliage_sway flower_bob] [--prompt "a garden"] --params '{...effects section...}'
+        --out effects/ [--static static/] [--requested foliage_sway flower_bob] [--prompt "a garden"] \\
+        --params '{...effects section...}'
 
 Writes the files of :class:`Outputs`.
 """
@@ -80,6 +81,9 @@ class Inputs(CanonicalInputs):
     requested: list[str] | None = field(default=None, metadata={
         "help": "effects to simulate, instead of the section's `requested` ('auto': the detected kinds the prompt names)"})
     prompt: str | None = field(default=None, metadata={"help": "the scene's prompt, instead of the section's `prompt`"})
+    static: StaticOutputs | None = field(default=None, metadata={
+        "help": "the static stage's folder: its fit's too-blurry warning goes into effects.json and the overview "
+                "(omitted: no warning)"})
 
 
 def analysed_photos(images: Path, cams: list, cfg: Config) -> tuple[list[np.ndarray], list]:
@@ -107,8 +111,7 @@ def run(inputs: Inputs, cfg: Config) -> Outputs:
     out.root.mkdir(parents=True, exist_ok=True)
     out.save_array("regions", decision.result.region_of.astype(np.int8))
     out.save_array("dynamic", decision.dynamic)
-    static = StaticOutputs(Path(inputs.canonical).parent)  # the static fit's own verdict on its sharpness
-    warning = static.metrics().get("accuracy", {}).get("warning") if static.exists("metrics") else None
+    warning = inputs.static.fit_warning() if inputs.static is not None else None  # the fit's verdict on its sharpness
     if warning:
         decision.report["static_fit_warning"] = warning
     save_overview(out.path("overview"), decision.result, warnings=[warning] if warning else ())

@@ -130,9 +130,8 @@ def run(inputs: Inputs, cfg: FinalConfig) -> Outputs:
                      "background": list(cfg.background)}  # behind the splats: what no photo covered shows it
     if still:
         summary["nothing_moves"] = still
-    fit = inputs.static.metrics().get("accuracy", {}) if inputs.static.exists("metrics") else {}
     advice = (inputs.views.report().get("motion") or {}).get("advice")  # no view shows the motion sharply
-    warnings = [w for w in (fit.get("warning"), advice) if w]  # the static fit too blurry to animate; the views
+    warnings = [w for w in (inputs.static.fit_warning(), advice) if w]  # the static fit too blurry to animate; the views
     if warnings:
         summary["warnings"] = warnings
         for w in warnings:

@@ -63,6 +63,13 @@ class Outputs(contract.Outputs):
         """``metrics.json``."""
         return self.json("metrics")
 
+    def fit_warning(self) -> str | None:
+        """The fit's own verdict on its sharpness: the too-blurry warning with the cheapest change that helps
+        (``accuracy.warning`` of ``metrics.json``); None when it gave none or there are no metrics."""
+        if not self.exists("metrics"):
+            return None
+        return self.metrics().get("accuracy", {}).get("warning")
+
 @dataclass
 class Inputs(contract.Inputs):
     """What the static stage reads: the sfm stage's posed images and points."""

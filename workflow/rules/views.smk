@@ -5,6 +5,7 @@
 checkpoint effects:
     input:
         ply=stage_file("static", "canonical"),
+        fit=stage_file("static", "metrics"),  # the fit's too-blurry warning (--static)
         cameras=stage_file("sfm", "cameras"),
         images=stage_file("sfm", "images"),  # undistorted: the images the sfm cameras describe
         selections=lambda wc: [s["ply"] for s in sec(wc.scene, "effects")["selections"] if "ply" in s],  # SuperSplat exports
@@ -32,6 +33,7 @@ checkpoint effects:
             cameras=input.cameras,
             images=input.images,
             out=job_out("effects", wc),
+            static=stage_dir(wc.scene, "static"),
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
         p=jparams("effects", _effects_prompt),
