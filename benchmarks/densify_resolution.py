@@ -36,7 +36,7 @@ def main() -> None:
 
     from anigs.sfm.model import load_points
     from anigs.static.densify import DensifyConfig
-    from anigs.static.fit import FitConfig, fit_static
+    from anigs.static.fit import StaticConfig, fit_static
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sfm", required=True, help="an sfm stage folder")
@@ -59,7 +59,7 @@ def main() -> None:
             s_imgs.append(x.clamp(0, 1))
             s_cams.append(cs)
         grab.rows.clear()
-        cfg = FitConfig(iterations=args.steps, eval_every=0, plateau_db=0.0,
+        cfg = StaticConfig(iterations=args.steps, eval_every=0, plateau_db=0.0,
                         densify=DensifyConfig(start=300, every=100, stop=args.steps, stop_fraction=1.0,
                                               grad_threshold=args.threshold, max_gaussians=10_000_000))
         _, m = fit_static(s_imgs, s_cams, pts, cols, cfg, progress=False)

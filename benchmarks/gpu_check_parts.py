@@ -107,11 +107,11 @@ def _load_capture(d: Path):
 
 def part_static(args) -> dict:
     """The static fit on ``--device`` (the demo's settings: 1000 iterations) with held-out PSNR every 100."""
-    from anigs.static.fit import FitConfig, fit_static
+    from anigs.static.fit import StaticConfig, fit_static
 
     imgs, cams, pts, cols, bg = _load_capture(Path(args.dir))
     backend = args.backend
-    cfg = FitConfig(iterations=args.iterations, background=tuple(bg), device=args.device, backend=backend,
+    cfg = StaticConfig(iterations=args.iterations, background=tuple(bg), device=args.device, backend=backend,
                     eval_every=args.eval_every)
     g, m = fit_static(imgs, cams, pts, cols, cfg, progress=False)
     if args.ply:

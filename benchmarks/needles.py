@@ -75,7 +75,7 @@ def main() -> int:
     ap.add_argument("--png", type=Path, default=None)
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    from anigs.static.fit import FitConfig, _render, _to_params, fit_static, split_holdout
+    from anigs.static.fit import StaticConfig, _render, _to_params, fit_static, split_holdout
 
     imgs, cams, pts, cols, bg = _sparse_inputs() if args.sparse else _sfm_inputs(args.sfm)
     bg = tuple(args.background) if args.background else (bg or (0.0, 0.0, 0.0))
@@ -83,7 +83,7 @@ def main() -> int:
     _, test = split_holdout(len(imgs), 8)
     out, renders = {}, []
     for name, reg in (("off", {"enabled": False}), ("on", over))[int(args.skip_off):]:
-        cfg = FitConfig.from_dict({"iterations": args.iterations, "background": list(bg), "regularize": reg})
+        cfg = StaticConfig.from_dict({"iterations": args.iterations, "background": list(bg), "regularize": reg})
         t = time.perf_counter()
         g, m = fit_static(imgs, cams, pts, cols, cfg, progress=False)
         row = {"test_psnr": round(m["test_psnr"], 3), "test_ssim": round(m["test_ssim"], 4),

@@ -40,7 +40,7 @@ from anigs.gaussians import load_ply  # noqa: E402
 from anigs.geometry.transform import transform_gaussians  # noqa: E402
 from anigs.images import load_inputs  # noqa: E402
 from anigs.sfm.model import load_points  # noqa: E402
-from anigs.static.fit import FitConfig, fit_static  # noqa: E402
+from anigs.static.fit import StaticConfig, fit_static  # noqa: E402
 from anigs.static.imported import cameras_candidate, measure  # noqa: E402
 from anigs.static.init import split_holdout  # noqa: E402
 
@@ -139,7 +139,7 @@ def main() -> int:
                      "test_psnr": curve[-1]["test_psnr"]})
         print(run["command"])
     bg = args.background
-    cfg = FitConfig.from_dict({"iterations": args.steps, "eval_every": args.eval_every, "max_side": 0,
+    cfg = StaticConfig.from_dict({"iterations": args.steps, "eval_every": args.eval_every, "max_side": 0,
                                "holdout_every": args.holdout_every, "plateau_db": 0, "seed": 0,
                                "background": list(bg) if bg else "random",
                                "densify": {"max_gaussians": budget} if budget else {}})

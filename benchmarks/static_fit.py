@@ -45,7 +45,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from anigs.cameras import Camera  # noqa: E402
-from anigs.static.fit import FitConfig, fit_static  # noqa: E402
+from anigs.static.fit import StaticConfig, fit_static  # noqa: E402
 
 
 def load_scene(scene: Path | None):
@@ -144,7 +144,7 @@ def _median_ms(xs: list[float]) -> float:
     return float(np.median(xs)) * 1e3
 
 
-def step_vs_raster(g, imgs: list[torch.Tensor], cams: list[Camera], cfg: FitConfig, curve: list[dict],
+def step_vs_raster(g, imgs: list[torch.Tensor], cams: list[Camera], cfg: StaticConfig, curve: list[dict],
                    repeat: int) -> list[dict]:
     """Rows (what, wall ms, CPU ms, ratio to the rasterizer) comparing the fit's step with the
     rasterizer's forward+backward at the fitted Gaussians (see the module docstring)."""
@@ -271,7 +271,7 @@ def main() -> int:
     budgets = [int(b) for b in args.budgets.split(",") if b]
     if args.quick:
         scales, budgets = [0.5, 1.0], [15000, 30000]
-    default_budget = FitConfig.from_dict(base).densify.max_gaussians
+    default_budget = StaticConfig.from_dict(base).densify.max_gaussians
     runs = [("default", 1.0, default_budget)]
     if not args.no_sweep:
         runs += [(f"res x{s:g}", s, default_budget) for s in scales if s != 1.0]
@@ -283,7 +283,7 @@ def main() -> int:
     rows, series, summary, step_rows = [], {}, [], []
     for name, s, budget in runs:
         cfg_d = {**base, "densify": {**base.get("densify", {}), "max_gaussians": budget}}
-        cfg = FitConfig.from_dict(cfg_d)
+        cfg = StaticConfig.from_dict(cfg_d)
         im, cm = rescale(imgs, cams, s)
         t0 = time.perf_counter()
         g, m = fit_static(im, cm, pts, cols, cfg, progress=False)

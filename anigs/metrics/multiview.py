@@ -27,7 +27,7 @@ from anigs.cameras import Camera
 from anigs.typed_config import from_dict
 from anigs.metrics.image import mean_finite, psnr, ssim
 from anigs.render import render_gaussians
-from anigs.static.fit import FitConfig, fit_static
+from anigs.static.fit import StaticConfig, fit_static
 from anigs.static.densify import DensifyConfig
 from anigs.static.regularize import RegularizeConfig
 
@@ -35,7 +35,7 @@ FitFn = Callable[[list, list, np.ndarray, np.ndarray], Any]
 
 
 @dataclass
-class MultiviewFitConfig(FitConfig):
+class MultiviewFitConfig(StaticConfig):
     """The protocol's fresh static fit (config section ``eval.multiview_fit``): the ``static``
     section's keys, with the defaults of an instrument where they differ from the static stage's."""
 

@@ -29,10 +29,10 @@ from anigs.images import load_inputs
 from anigs.io import write_json
 from anigs.sfm.model import load_points
 from anigs.sfm.tracks import load_tracks
-from anigs.static.fit import FitConfig, StaticPlan, fit_static, plan_static
+from anigs.static.fit import StaticConfig, StaticPlan, fit_static, plan_static
 from anigs.static.report import draw_fit, held_out_text
 
-Config = FitConfig  # the `static` config section
+Config = StaticConfig  # the `static` config section
 
 log = logging.getLogger("anigs.static")
 
@@ -88,7 +88,7 @@ class Inputs(contract.Inputs):
                                             "project's normalisation) for an imported splat", default=None)
 
 
-def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
+def run(inputs: Inputs, cfg: StaticConfig) -> Outputs:
     """Fit the canonical 3DGS to the sfm stage's posed images from its points (planned first, :func:`plan`);
     writes the canonical PLY and the metrics (a checkpoint while it runs, kept when the fit diverges)."""
     out, images, cameras, points = inputs.out, inputs.images, inputs.cameras, inputs.points
@@ -120,14 +120,14 @@ def run(inputs: Inputs, cfg: FitConfig) -> Outputs:
     return out
 
 
-def plan(inputs: Inputs, cfg: FitConfig) -> StaticPlan:
+def plan(inputs: Inputs, cfg: StaticConfig) -> StaticPlan:
     """The plan of the fit :func:`run` would make (nothing is fitted or written)."""
     imgs, cams = load_inputs(inputs.images, inputs.cameras, compact=True)
     pts, cols = load_points(inputs.points)
     return plan_static(imgs, cams, pts, cols, cfg)
 
 
-def _import(inputs: Inputs, cfg: FitConfig, imgs, cams, pts) -> Outputs:
+def _import(inputs: Inputs, cfg: StaticConfig, imgs, cams, pts) -> Outputs:
     """The static folder of a splat trained elsewhere (no fit): canonical.ply in the sfm folder's frame,
     metrics.json with its PSNR against the photos and where its frame came from, fit.png photo | render."""
     from anigs.static.imported import draw_import, import_splat, sfm_frame
@@ -165,7 +165,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    inputs, cfg = Inputs.from_args(args), FitConfig.from_dict(parse_params(args.params))
+    inputs, cfg = Inputs.from_args(args), StaticConfig.from_dict(parse_params(args.params))
     if getattr(args, "plan_only", False):  # (a Namespace built by hand may not have it)
         if inputs.splat is not None:
             raise ValueError("anigs static: --plan-only plans a fit; with --splat nothing is fitted")

@@ -1,4 +1,4 @@
-"""The ``static`` config section: :class:`FitConfig` (the static fit's hyperparameters and its budget)."""
+"""The ``static`` config section: :class:`StaticConfig` (the static fit's hyperparameters and its budget)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -87,7 +87,7 @@ class SparseConfig(Section):
 
 
 @dataclass
-class FitConfig:
+class StaticConfig:
     """Static fit hyperparameters (the ``static`` config section)."""
 
     #: the one dial: a level (fast, auto, quality: steps and Gaussians follow the capture's photos and pixels)
@@ -142,9 +142,9 @@ class FitConfig:
     sparse: SparseConfig = field(default_factory=SparseConfig)
 
     @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "FitConfig":
+    def from_dict(d: dict[str, Any] | None) -> "StaticConfig":
         d = dict(d or {})
-        reject_unknown_keys(FitConfig, d, "static config", ValueError)
+        reject_unknown_keys(StaticConfig, d, "static config", ValueError)
         if "densify" in d and not isinstance(d["densify"], DensifyConfig):
             d["densify"] = DensifyConfig.from_dict(d["densify"])
         if "regularize" in d and not isinstance(d["regularize"], RegularizeConfig):
@@ -155,7 +155,7 @@ class FitConfig:
             d["sparse"] = SparseConfig.from_dict(d["sparse"])
         if "background" in d and not isinstance(d["background"], str):
             d["background"] = tuple(float(x) for x in d["background"])
-        cfg = FitConfig(**d)
+        cfg = StaticConfig(**d)
         cfg.validate()
         return cfg
 

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.static.config import FitConfig
+from anigs.static.config import StaticConfig
 from anigs.static.planning import (EVAL_BACKGROUND, StaticPlan, check_inputs, downscaled, fit_side, flat_curve,
                                    plan_static)
 from anigs.static.report import accuracy_record, held_out_text, log_accuracy
@@ -45,7 +45,7 @@ from anigs.geometry.extent import scene_extent
 from anigs.gaussians import Gaussians
 from anigs.ssim import psnr
 
-__all__ = ["LOG_EVERY", "DivergenceGuard", "FitConfig", "FitDivergedError", "StaticPlan", "_render", "_to_params",
+__all__ = ["LOG_EVERY", "DivergenceGuard", "StaticConfig", "FitDivergedError", "StaticPlan", "_render", "_to_params",
            "evaluate", "fit_static", "init_gaussians", "loss_fn", "make_optimizer", "params_to_gaussians",
            "plan_static", "split_holdout", "train_step"]
 
@@ -99,7 +99,7 @@ def _lr_means(step: int, total: int, lr0: float, lr1: float) -> float:
 
 
 # ---------------------------------------------------------------------------- the fit
-def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, init_colors, cfg: FitConfig,
+def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, init_colors, cfg: StaticConfig,
                progress: bool = True, checkpoint_path: str | Path | None = None,
                tracks: Tracks | None = None, plan: StaticPlan | None = None) -> tuple[Gaussians, dict[str, Any]]:
     """Fit 3D Gaussians to posed images.
@@ -108,7 +108,7 @@ def fit_static(images: list[torch.Tensor], cameras: list[Camera], init_points, i
         images: float images [H,W,3] in [0,1] (or uint8 [H,W,3], 0..255: kept as uint8), one per camera.
         cameras: the matching :class:`Camera` list (image ``i`` seen by ``cameras[i]``).
         init_points [P,3], init_colors [P,3] in [0,1]: the SfM point cloud.
-        cfg: :class:`FitConfig`.
+        cfg: :class:`StaticConfig`.
         progress: show a tqdm bar with loss and PSNR.
         checkpoint_path: where to keep the last good PLY (written atomically every
             ``cfg.checkpoint_every`` steps and kept when the fit diverges).
@@ -223,7 +223,7 @@ def _fit(images: list[torch.Tensor], cameras: list[Camera], init_points, init_co
     return gaussians, metrics
 
 
-def _log_start(cfg: FitConfig, fit_plan, optimizer, device, views: tuple[int, int], num: int, extent: float,
+def _log_start(cfg: StaticConfig, fit_plan, optimizer, device, views: tuple[int, int], num: int, extent: float,
                cam: Camera) -> None:
     """The fit's set-up and plan, in the log before the first step."""
     log.info("static fit: %d train / %d held-out views, %d initial Gaussians, scene extent %.3f, %s Adam, "
@@ -241,7 +241,7 @@ class _FitRun:
     (replaced by each refinement), the evaluation time to leave out of the training time, the
     last good checkpoint and the progress bar."""
 
-    def __init__(self, cfg: FitConfig, params: dict[str, torch.nn.Parameter], bg: torch.Tensor,
+    def __init__(self, cfg: StaticConfig, params: dict[str, torch.nn.Parameter], bg: torch.Tensor,
                  test_imgs: list[torch.Tensor], test_cams: list[Camera], checkpoint_path: str | Path | None,
                  t_start: float, c_start: float) -> None:
         self.cfg, self.params, self.bg = cfg, params, bg

@@ -16,7 +16,7 @@ from anigs.device import get_device
 from anigs.geometry.extent import scene_extent
 from anigs.images import downscale, fit_scale
 from anigs.static.budget import LEVELS, CaptureSize, FitPlan, StepCost, parse_budget, plan
-from anigs.static.config import FitConfig
+from anigs.static.config import StaticConfig
 from anigs.static.evaluate import _render, loss_fn, pixels, stored_image
 from anigs.static.init import _to_params, init_gaussians, split_holdout
 
@@ -33,9 +33,9 @@ class StaticPlan:
     start_gaussians: int  # the initial Gaussians (the SfM points, duplicates merged)
     #: the config the fit runs with: the requested one with ``iterations``, ``eval_every``,
     #: ``densify.max_gaussians`` and ``densify.stop`` from the schedule
-    config: FitConfig
+    config: StaticConfig
 
-    def made_for(self, cfg: FitConfig) -> bool:
+    def made_for(self, cfg: StaticConfig) -> bool:
         """Whether this is a plan of ``cfg`` (its keys other than the scheduled ones the same)."""
         return resolved(cfg, self.schedule) == self.config
 
@@ -71,7 +71,7 @@ def check_inputs(images: Sequence[torch.Tensor], cameras: Sequence[Camera]) -> N
 
 
 def plan_static(images: Sequence[torch.Tensor], cameras: Sequence[Camera], init_points, init_colors,
-                cfg: FitConfig) -> StaticPlan:
+                cfg: StaticConfig) -> StaticPlan:
     """The plan of a fit of ``cfg`` on ``images``/``cameras`` (as :func:`anigs.static.fit.fit_static` takes
     them) from ``init_points``/``init_colors``: the schedule from ``cfg.budget`` and the training photos as
     captured, its time estimate calibrated by timing a few forward+backward passes of the initial Gaussians on
@@ -95,7 +95,7 @@ def plan_static(images: Sequence[torch.Tensor], cameras: Sequence[Camera], init_
     return StaticPlan(schedule, cost, size, g0.num, resolved(cfg, schedule))
 
 
-def _calibrated(cfg: FitConfig, params: dict[str, torch.nn.Parameter], img: torch.Tensor, cam: Camera,
+def _calibrated(cfg: StaticConfig, params: dict[str, torch.nn.Parameter], img: torch.Tensor, cam: Camera,
                 bg: torch.Tensor, start: int) -> StepCost:
     """The step cost model scaled to this machine: forward+backward passes of ``params`` on ``img``
     (the photo at the fit's size) timed (parameters unchanged)."""
@@ -114,13 +114,13 @@ def _calibrated(cfg: FitConfig, params: dict[str, torch.nn.Parameter], img: torc
     return StepCost().calibrated(1.25 * min(times[1:]), cam.width * cam.height, start)
 
 
-def resolved(cfg: FitConfig, schedule: FitPlan) -> FitConfig:
+def resolved(cfg: StaticConfig, schedule: FitPlan) -> StaticConfig:
     """``cfg`` with the schedule's concrete steps, Gaussian budget, densification stop and evaluation interval."""
     densify = replace(cfg.densify, max_gaussians=schedule.max_gaussians, stop=schedule.densify_stop)
     return replace(cfg, iterations=schedule.iterations, eval_every=schedule.eval_every, densify=densify)
 
 
-def fit_side(cfg: FitConfig) -> int:
+def fit_side(cfg: StaticConfig) -> int:
     """The fit's largest photo side: ``static.max_side``, else its budget level's (a minutes budget: auto's)."""
     if cfg.max_side is not None:
         return cfg.max_side

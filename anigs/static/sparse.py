@@ -14,12 +14,12 @@ from anigs.static.far import far_points
 from anigs.static.pair_points import PairPoints, pair_points
 
 if TYPE_CHECKING:
-    from anigs.static.config import FitConfig
+    from anigs.static.config import StaticConfig
 
 log = logging.getLogger("anigs.static.fit")
 
 
-def added_points(cfg: "FitConfig", pts: np.ndarray, cols: np.ndarray, train_imgs: list[torch.Tensor],
+def added_points(cfg: "StaticConfig", pts: np.ndarray, cols: np.ndarray, train_imgs: list[torch.Tensor],
                   train_cams: list[Camera], random_bg: bool
                   ) -> tuple[tuple[np.ndarray, np.ndarray] | None, PairPoints | None, int]:
     """The start's points beyond SfM's, for a fit on photos (random backgrounds): points from pairs of

@@ -8,9 +8,9 @@ from anigs.registry import STAGES
 
 SECTIONS = [s for s in STAGES if s.section]
 
-# Names kept for now: the static and effects packages are being reworked on other branches; the
-# capture section is the photo import's (anigs.synth.capture.CaptureConfig is the synthetic camera path).
-OTHER_NAMES = {"static": "FitConfig", "effects": "Config", "capture": "PhotosConfig"}
+# Names kept for now: the effects package is being reworked on another branch; the capture section is
+# the photo import's (anigs.synth.capture.CaptureConfig is the synthetic camera path).
+OTHER_NAMES = {"effects": "Config", "capture": "PhotosConfig"}
 
 
 def _camel(name: str) -> str:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from anigs.static.budget import LEVELS, CaptureSize, StepCost, next_level, parse_budget, plan
-from anigs.static.fit import FitConfig, fit_static, plan_static
+from anigs.static.fit import StaticConfig, fit_static, plan_static
 from anigs.static.planning import flat_curve
 from anigs.static.report import MIN_TEST_PSNR, MIN_TRAIN_PSNR, accuracy_record
 
@@ -55,7 +55,7 @@ def test_bad_budget_names_the_key(bad):
     with pytest.raises(ValueError, match="static.budget"):
         parse_budget(bad)
     with pytest.raises(ValueError, match="static.budget"):
-        FitConfig.from_dict({"budget": bad})
+        StaticConfig.from_dict({"budget": bad})
 
 
 def test_next_level():
@@ -100,7 +100,7 @@ def _scene(n_cams: int, width: int, height: int) -> tuple:
 
 def test_fit_reports_plan_and_stops_on_a_flat_curve():
     imgs, cams, p, c = _scene(n_cams=16, width=48, height=36)
-    cfg = FitConfig.from_dict({"iterations": 400, "eval_every": 40, "sh_degree": 0, "plateau_db": 5.0,
+    cfg = StaticConfig.from_dict({"iterations": 400, "eval_every": 40, "sh_degree": 0, "plateau_db": 5.0,
                                "densify": {"start": 20, "stop": 60, "every": 20}})
     _, m = fit_static(imgs, cams, p, c, cfg, progress=False)
     # densification ends at step 40; the evaluations at 80 and 120 are both after it: +5 dB is not
@@ -110,7 +110,7 @@ def test_fit_reports_plan_and_stops_on_a_flat_curve():
     assert its[-1] == 120 and 80 in its and max(its) == 120  # (120 twice when the final prune removed splats)
     assert m["plan"]["pinned"] == ["iterations", "densify.stop"] and m["plan"]["estimated_seconds"] > 0
     assert set(m["accuracy"]) >= {"now", "next", "warning", "thresholds"}
-    cfg_off = FitConfig.from_dict({**cfg.__dict__, "densify": cfg.densify.__dict__, "plateau_db": 0.0,
+    cfg_off = StaticConfig.from_dict({**cfg.__dict__, "densify": cfg.densify.__dict__, "plateau_db": 0.0,
                                    "iterations": 160})
     _, m_off = fit_static(imgs, cams, p, c, cfg_off, progress=False)
     assert m_off["iterations"] == 160 and not m_off["plan"]["stopped_early"]
@@ -118,7 +118,7 @@ def test_fit_reports_plan_and_stops_on_a_flat_curve():
 
 def test_the_plan_is_decided_before_the_fit_and_the_fit_follows_it():
     imgs, cams, p, c = _scene(n_cams=10, width=64, height=48)
-    cfg = FitConfig.from_dict({"budget": "fast", "max_side": 32, "sh_degree": 0, "plateau_db": 0.0})
+    cfg = StaticConfig.from_dict({"budget": "fast", "max_side": 32, "sh_degree": 0, "plateau_db": 0.0})
     plan_ = plan_static(imgs, cams, p, c, cfg)
     assert cfg.iterations is None and cfg.densify.max_gaussians is None  # the requested config is left as it was
     assert plan_.config.iterations == plan_.schedule.iterations == LEVELS["fast"].max_steps
@@ -127,8 +127,8 @@ def test_the_plan_is_decided_before_the_fit_and_the_fit_follows_it():
     assert plan_.as_dict()["fit_size"] == [32, 24] and plan_.size == CaptureSize(8, 64, 48)  # 2 of 10 held out
     assert "at most 1500 steps" in plan_.text()
     with pytest.raises(ValueError, match="the plan was made for another config"):
-        fit_static(imgs, cams, p, c, FitConfig.from_dict({"budget": "fast", "seed": 1}), plan=plan_)
-    short = FitConfig.from_dict({"iterations": 20, "eval_every": 0, "sh_degree": 0, "max_side": 32,
+        fit_static(imgs, cams, p, c, StaticConfig.from_dict({"budget": "fast", "seed": 1}), plan=plan_)
+    short = StaticConfig.from_dict({"iterations": 20, "eval_every": 0, "sh_degree": 0, "max_side": 32,
                                  "densify": {"start": 10, "stop": 20, "every": 10}})
     _, m = fit_static(imgs, cams, p, c, short, progress=False, plan=plan_static(imgs, cams, p, c, short))
     _, m_here = fit_static(imgs, cams, p, c, short, progress=False)  # planned inside: the same fit
@@ -139,12 +139,12 @@ def test_the_plan_is_decided_before_the_fit_and_the_fit_follows_it():
 
 def test_fit_downscales_to_its_side_and_measures_there():
     imgs, cams, p, c = _scene(n_cams=10, width=64, height=48)
-    cfg = FitConfig.from_dict({"iterations": 20, "eval_every": 0, "sh_degree": 0, "max_side": 32,
+    cfg = StaticConfig.from_dict({"iterations": 20, "eval_every": 0, "sh_degree": 0, "max_side": 32,
                                "densify": {"start": 10, "stop": 20, "every": 10}})
     g, m = fit_static(imgs, cams, p, c, cfg, progress=False)
     assert m["image_size"] == [32, 24] and m["plan"]["max_side"] == 32
     with pytest.raises(ValueError, match="static.max_side"):
-        FitConfig.from_dict({"max_side": -1})
+        StaticConfig.from_dict({"max_side": -1})
 
 
 def test_fit_picture_and_warning_do_not_depend_on_this_machines_speed(tmp_path):

@@ -7,7 +7,7 @@ import torch
 
 from anigs.cameras import save_cameras
 from anigs.images import load_image, load_image_compact, load_inputs
-from anigs.static.fit import FitConfig, fit_static
+from anigs.static.fit import StaticConfig, fit_static
 from tests.static.test_fit import FAST, make_scene, sfm_points
 from anigs.video import save_png
 
@@ -34,7 +34,7 @@ def test_compact_inputs_fit_the_same_model(tmp_path):
     assert sum(s.numel() * s.element_size() for s in small) * 4 == sum(f.numel() * f.element_size() for f in full)
     p, c = sfm_points(gt, every=6)
     cfg = {**FAST, "iterations": 20}
-    g_full, m_full = fit_static(full, cams_f, p, c, FitConfig.from_dict(cfg), progress=False)
-    g_small, m_small = fit_static(small, cams_c, p, c, FitConfig.from_dict(cfg), progress=False)
+    g_full, m_full = fit_static(full, cams_f, p, c, StaticConfig.from_dict(cfg), progress=False)
+    g_small, m_small = fit_static(small, cams_c, p, c, StaticConfig.from_dict(cfg), progress=False)
     assert torch.equal(g_full.means, g_small.means) and torch.equal(g_full.sh, g_small.sh)
     assert m_full["test_psnr"] == m_small["test_psnr"] and m_full["train_psnr"] == m_small["train_psnr"]

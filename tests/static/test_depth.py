@@ -10,7 +10,7 @@ import torch
 from anigs.cameras import Camera, intrinsics_from_fov
 from anigs.render import rasterize
 from anigs.static.depth import DepthTarget, depth_loss, depth_targets, depth_weight
-from anigs.static.fit import FitConfig, fit_static, split_holdout
+from anigs.static.fit import StaticConfig, fit_static, split_holdout
 
 from test_fit import FAST, make_scene, sfm_points
 
@@ -123,9 +123,9 @@ def test_bad_tracks_are_clear_errors(scene):
     bad = _tracks(p, cams)
     bad["img_002.png"][0, 2] = np.nan
     with pytest.raises(ValueError, match="img_002.png.*non-finite"):
-        fit_static(imgs, cams, p, c, FitConfig.from_dict({**FAST, "depth_weight": 0.5}), progress=False, tracks=bad)
+        fit_static(imgs, cams, p, c, StaticConfig.from_dict({**FAST, "depth_weight": 0.5}), progress=False, tracks=bad)
     with pytest.raises(ValueError, match="depth_weight"):
-        FitConfig.from_dict({"depth_weight": -1})
+        StaticConfig.from_dict({"depth_weight": -1})
 
 
 def test_depth_weight_decays_from_first_to_final():
@@ -140,7 +140,7 @@ def test_fit_without_tracks_or_weight_is_the_fit_without_depth(scene):
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=4)
     tracks = _tracks(p, cams)
-    cfg = FitConfig.from_dict(FAST)
+    cfg = StaticConfig.from_dict(FAST)
     g0, m0 = fit_static(imgs, cams, p, c, cfg, progress=False)
     g1, m1 = fit_static(imgs, cams, p, c, cfg, progress=False, tracks=tracks)  # weight 0: only reported
     for k, v in g0.params().items():
@@ -160,8 +160,8 @@ def test_depth_loss_moves_the_fit_toward_the_sfm_depths_and_is_deterministic(sce
     tracks = _tracks(gt.means.numpy()[::4], cams)  # the true depths
     # Adam moves a mean by about its learning rate per step, whatever the loss: steps enough to cover some of it
     base = {**FAST, "iterations": 120, "lr_means": 1e-3, "background": [0.0, 0.0, 0.0]}
-    cfg0 = FitConfig.from_dict(base)
-    cfg1 = FitConfig.from_dict({**base, "depth_weight": 1.0, "depth_weight_final": 0.1})
+    cfg0 = StaticConfig.from_dict(base)
+    cfg1 = StaticConfig.from_dict({**base, "depth_weight": 1.0, "depth_weight_final": 0.1})
     _, m0 = fit_static(imgs, cams, far, c, cfg0, progress=False, tracks=tracks)
     g1, m1 = fit_static(imgs, cams, far, c, cfg1, progress=False, tracks=tracks)
     g2, m2 = fit_static(imgs, cams, far, c, cfg1, progress=False, tracks=tracks)

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from anigs.static.exposure import Exposure
-from anigs.static.fit import FitConfig, fit_static, split_holdout
+from anigs.static.fit import StaticConfig, fit_static, split_holdout
 
 from test_fit import FAST, make_scene, sfm_points
 
@@ -29,12 +29,12 @@ def test_a_darker_photo_gets_a_lower_gain_than_the_others():
     imgs = [im * 0.6 if i == dark else im for i, im in enumerate(imgs)]
     p, c = sfm_points(gt, every=4)
     cfg = {**FAST, "iterations": 120, "background": [0.0, 0.0, 0.0]}
-    _, m0 = fit_static(imgs, cams, p, c, FitConfig.from_dict(cfg), progress=False)
-    _, m1 = fit_static(imgs, cams, p, c, FitConfig.from_dict({**cfg, "exposure_lr": 0.02}), progress=False)
+    _, m0 = fit_static(imgs, cams, p, c, StaticConfig.from_dict(cfg), progress=False)
+    _, m1 = fit_static(imgs, cams, p, c, StaticConfig.from_dict({**cfg, "exposure_lr": 0.02}), progress=False)
     assert "exposure" not in m0
     gains = m1["exposure"]["gains"]
     others = sorted(g for i, g in enumerate(gains) if i != 3)
     assert len(gains) == len(train_idx)
     assert gains[3] < 0.85 * others[len(others) // 2], gains  # the dark photo's, against the median
     with pytest.raises(ValueError, match="exposure_lr"):
-        FitConfig.from_dict({"exposure_lr": -0.1})
+        StaticConfig.from_dict({"exposure_lr": -0.1})

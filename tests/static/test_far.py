@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from anigs.static.far import far_points, far_radius
-from anigs.static.fit import FitConfig, fit_static
+from anigs.static.fit import StaticConfig, fit_static
 
 from tests.static.test_fit import make_scene, sfm_points
 
@@ -51,8 +51,8 @@ def _sky_scene(sky: tuple[float, float, float]):
 def test_fit_with_far_points_over_a_sky():
     skied, cams, p, c = _sky_scene((0.3, 0.5, 0.9))
     fast = {"iterations": 60, "eval_every": 0, "sh_degree": 0, "densify": {"start": 20, "stop": 40, "every": 20}}
-    _, with_far = fit_static(skied, cams, p, c, FitConfig.from_dict(fast), progress=False)
-    _, without = fit_static(skied, cams, p, c, FitConfig.from_dict({**fast, "far_share": 0.0}), progress=False)
+    _, with_far = fit_static(skied, cams, p, c, StaticConfig.from_dict(fast), progress=False)
+    _, without = fit_static(skied, cams, p, c, StaticConfig.from_dict({**fast, "far_share": 0.0}), progress=False)
     assert with_far["far_points"] > 0 and without["far_points"] == 0
     assert with_far["train_psnr"] > without["train_psnr"] + 1.0  # the sky is there from the start
 
@@ -64,10 +64,10 @@ def test_random_background_makes_what_the_photos_show_opaque():
     fast = {"iterations": 150, "eval_every": 0, "sh_degree": 0, "densify": {"start": 20, "stop": 100, "every": 20}}
     alpha = {}
     for bg in ("random", [0.3, 0.5, 0.9]):
-        g, _ = fit_static(skied, cams, p, c, FitConfig.from_dict({**fast, "background": bg}), progress=False)
+        g, _ = fit_static(skied, cams, p, c, StaticConfig.from_dict({**fast, "background": bg}), progress=False)
         with torch.no_grad():
             alpha[str(bg)] = float(torch.stack([render_gaussians(g, cam)[1].mean() for cam in cams]).mean())
     # trained over a fixed sky colour the sky may stay transparent; over random colours it cannot
     assert alpha["random"] > 0.85 and alpha["random"] > alpha[str([0.3, 0.5, 0.9])] + 0.2, alpha
     with pytest.raises(ValueError, match="static.background"):
-        FitConfig.from_dict({"background": "sky"})
+        StaticConfig.from_dict({"background": "sky"})

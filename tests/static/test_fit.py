@@ -11,7 +11,7 @@ import torch
 from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
 from anigs.static.densify import AllPrunedError
 from anigs.geometry.extent import scene_extent
-from anigs.static.fit import FitConfig, FitDivergedError, fit_static, init_gaussians, split_holdout
+from anigs.static.fit import StaticConfig, FitDivergedError, fit_static, init_gaussians, split_holdout
 from anigs.gaussians import Gaussians, load_ply
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -69,12 +69,12 @@ def scene():
 # ---------------------------------------------------------------------------- config and helpers
 def test_config_rejects_unknown_keys_and_bad_values():
     with pytest.raises(ValueError, match="iteratons"):
-        FitConfig.from_dict({"iteratons": 3})
+        StaticConfig.from_dict({"iteratons": 3})
     with pytest.raises(ValueError, match="max_gausians"):
-        FitConfig.from_dict({"densify": {"max_gausians": 3}})
+        StaticConfig.from_dict({"densify": {"max_gausians": 3}})
     with pytest.raises(ValueError, match="sh_degree"):
-        FitConfig.from_dict({"sh_degree": 4})
-    cfg = FitConfig.from_dict({"background": [1, 1, 1], "densify": {"max_gaussians": 10}})
+        StaticConfig.from_dict({"sh_degree": 4})
+    cfg = StaticConfig.from_dict({"background": [1, 1, 1], "densify": {"max_gaussians": 10}})
     assert cfg.background == (1.0, 1.0, 1.0) and cfg.densify.max_gaussians == 10
 
 
@@ -124,7 +124,7 @@ def test_scene_extent_from_cameras(scene):
 def test_fit_from_a_single_point(scene):
     _, cams, imgs = scene
     g, m = fit_static(imgs, cams, np.array([[0.0, 0.0, 0.3]]), np.array([[0.5, 0.5, 0.5]]),
-                      FitConfig.from_dict({**FAST, "far_share": 0.0}), progress=False)  # no far points: one start
+                      StaticConfig.from_dict({**FAST, "far_share": 0.0}), progress=False)  # no far points: one start
     assert m["init_gaussians"] == 1
     assert g.num >= 1 and torch.isfinite(g.means).all()
     assert math.isfinite(m["test_psnr"])
@@ -135,7 +135,7 @@ def test_fit_from_duplicate_points(scene):
     p, c = sfm_points(gt, every=6)
     p = np.concatenate([p, p, p[:10]])
     c = np.concatenate([c, c, c[:10]])
-    g, m = fit_static(imgs, cams, p, c, FitConfig.from_dict(FAST), progress=True)  # the tqdm path too
+    g, m = fit_static(imgs, cams, p, c, StaticConfig.from_dict(FAST), progress=True)  # the tqdm path too
     assert m["init_gaussians"] - m["far_points"] == len(p) // 2 - 5  # duplicates merged
     g.check_finite()
 
@@ -143,7 +143,7 @@ def test_fit_from_duplicate_points(scene):
 def test_all_pruned_stops_with_clear_error(scene):
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=6)
-    cfg = FitConfig.from_dict({**FAST, "init_opacity": 0.01, "lr_opacity": 0.0,
+    cfg = StaticConfig.from_dict({**FAST, "init_opacity": 0.01, "lr_opacity": 0.0,
                                "densify": {"start": 5, "every": 5, "prune_opacity": 0.5, "reset_every": 0}})
     with pytest.raises(AllPrunedError, match=r"all \d+ Gaussians would be pruned at step 5"):
         fit_static(imgs, cams, p, c, cfg, progress=False)
@@ -171,7 +171,7 @@ def test_nan_loss_is_detected_and_last_checkpoint_kept(scene, tmp_path, monkeypa
     _nan_loss_from(monkeypatch, lambda n: n >= 25)
     ckpt = tmp_path / "ckpt" / "last.ply"
     with pytest.raises(FitDivergedError, match=r"iteration 25: loss is nan.*iteration 20\).*last\.ply"):
-        fit_static(imgs, cams, p, c, FitConfig.from_dict(FAST), progress=False, checkpoint_path=ckpt)
+        fit_static(imgs, cams, p, c, StaticConfig.from_dict(FAST), progress=False, checkpoint_path=ckpt)
     kept = load_ply(ckpt)
     kept.check_finite()
     assert kept.num > 0
@@ -196,7 +196,7 @@ def test_nan_gradient_is_detected(scene, monkeypatch):
 
     monkeypatch.setattr(fit_mod, "loss_fn", lambda a, b, w: real_loss(_NanGrad.apply(a), b, w))
     with pytest.raises(FitDivergedError, match=r"iteration 1: non-finite gradient"):
-        fit_static(imgs, cams, p, c, FitConfig.from_dict(FAST), progress=False)
+        fit_static(imgs, cams, p, c, StaticConfig.from_dict(FAST), progress=False)
 
 
 # ---------------------------------------------------------------------------- end to end
@@ -204,7 +204,7 @@ def test_fit_end_to_end_improves_held_out_psnr(scene):
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=3, noise=0.03)
     # the scene is rendered onto black: a synthetic scene's background is known (as the demo's sky)
-    cfg = FitConfig.from_dict({"iterations": 300, "eval_every": 100, "sh_degree": 1, "sh_increase_every": 150,
+    cfg = StaticConfig.from_dict({"iterations": 300, "eval_every": 100, "sh_degree": 1, "sh_increase_every": 150,
                                "background": [0.0, 0.0, 0.0],
                                "densify": {"start": 50, "stop": 250, "every": 50, "reset_every": 0,
                                            "max_gaussians": 3000}})
@@ -220,7 +220,7 @@ def test_fit_end_to_end_improves_held_out_psnr(scene):
 def test_fit_is_deterministic(scene):
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=4)
-    cfg = FitConfig.from_dict({**FAST, "densify": {"start": 5, "stop": 30, "every": 5, "grad_threshold": 0.00005,
+    cfg = StaticConfig.from_dict({**FAST, "densify": {"start": 5, "stop": 30, "every": 5, "grad_threshold": 0.00005,
                                                    "reset_every": 20}})
     g1, m1 = fit_static(imgs, cams, p, c, cfg, progress=False)
     g2, m2 = fit_static(imgs, cams, p, c, cfg, progress=False)
@@ -297,7 +297,7 @@ def test_fit_ends_densification_before_its_last_steps(scene, monkeypatch):
         return real(params, optimizer, state, step, cfg, *a, **k)
 
     monkeypatch.setattr(anigs.static.fit, "refine", spy)
-    cfg = FitConfig.from_dict({**FAST, "densify": {"start": 10, "stop": 1000, "every": 10, "reset_every": 0}})
+    cfg = StaticConfig.from_dict({**FAST, "densify": {"start": 10, "stop": 1000, "every": 10, "reset_every": 0}})
     fit_static(imgs, cams, p, c, cfg, progress=False)
     assert seen and set(seen) == {32}  # 0.8 x 40 iterations
 
@@ -317,7 +317,7 @@ def test_nan_loss_is_detected_with_a_non_fused_optimizer(scene, monkeypatch):
 
     monkeypatch.setattr(fit_mod, "make_optimizer", foreach_adam)
     with pytest.raises(FitDivergedError, match=r"iteration 7: loss is nan"):
-        fit_static(imgs, cams, p, c, FitConfig.from_dict(FAST), progress=False)
+        fit_static(imgs, cams, p, c, StaticConfig.from_dict(FAST), progress=False)
     assert calls["n"] == 7  # stopped at once
 
 
@@ -383,6 +383,6 @@ def test_fit_reports_step_times_and_skips_statistics_after_the_last_densificatio
         return real(state, meta, w, h)
 
     monkeypatch.setattr(fit_mod, "update_state", spy)
-    _, m = fit_static(imgs, cams, p, c, FitConfig.from_dict(FAST), progress=False)
+    _, m = fit_static(imgs, cams, p, c, StaticConfig.from_dict(FAST), progress=False)
     assert len(seen) == 20  # steps 1..20: the last densification is at step 20 (stop 30, every 10)
     assert m["final_steps_from"] == 21 and m["step_ms_median_final"] > 0 and m["step_ms_median"] > 0

@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
-from anigs.static.fit import FitConfig, _to_params, fit_static, make_optimizer
+from anigs.static.fit import StaticConfig, _to_params, fit_static, make_optimizer
 from anigs.static.regularize import (NeedleRegularizer, RegularizeConfig, last_densify_step, limit_needles,
                                      prune_rows)
 from anigs.gaussians import Gaussians
@@ -109,8 +109,8 @@ def test_config_validation():
     with pytest.raises(ValueError, match="decay"):
         RegularizeConfig.from_dict({"decay": 0.0})
     with pytest.raises(ValueError):
-        FitConfig.from_dict({"regularize": {"no_such_key": 1}})
-    assert FitConfig.from_dict({"regularize": {"enabled": False}}).regularize.enabled is False
+        StaticConfig.from_dict({"regularize": {"no_such_key": 1}})
+    assert StaticConfig.from_dict({"regularize": {"enabled": False}}).regularize.enabled is False
 
 
 def test_fit_keeps_every_gaussian_within_the_needle_limit():
@@ -120,12 +120,12 @@ def test_fit_keeps_every_gaussian_within_the_needle_limit():
 
     gt, cams, imgs = make_scene()
     pts, cols = sfm_points(gt)
-    cfg = FitConfig.from_dict({**FAST, "iterations": 60, "densify": {"start": 20, "stop": 50, "every": 10}})
+    cfg = StaticConfig.from_dict({**FAST, "iterations": 60, "densify": {"start": 20, "stop": 50, "every": 10}})
     g, m = fit_static(imgs, cams, pts, cols, cfg, progress=False)
     s = g.scales.sort(1).values
     assert float((s[:, 2] / s[:, 1]).max()) <= 10.0 + 1e-3
     assert m["regularize"]["max_needle_ratio_after"] <= 10.0 + 1e-3
-    off = FitConfig.from_dict({**FAST, "iterations": 60, "densify": {"start": 20, "stop": 50, "every": 10},
+    off = StaticConfig.from_dict({**FAST, "iterations": 60, "densify": {"start": 20, "stop": 50, "every": 10},
                                "regularize": {"enabled": False}})
     g0, m0 = fit_static(imgs, cams, pts, cols, off, progress=False)
     assert m0["regularize"]["enabled"] is False

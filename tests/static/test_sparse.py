@@ -8,7 +8,7 @@ import torch
 cv2 = pytest.importorskip("cv2")
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at  # noqa: E402
-from anigs.static.fit import FitConfig, fit_static  # noqa: E402
+from anigs.static.fit import StaticConfig, fit_static  # noqa: E402
 from anigs.static.sparse import dropout  # noqa: E402
 from anigs.static.pair_points import _fundamental, guided_matches, _features, neighbour_pairs, pair_points  # noqa: E402
 
@@ -82,9 +82,9 @@ def test_dropout_leaves_out_a_share_and_compensates_the_rest():
 
 def test_config_rejects_bad_sparse_values():
     with pytest.raises(ValueError, match="static.sparse.drop_rate"):
-        FitConfig.from_dict({"sparse": {"drop_rate": 1.0}})
+        StaticConfig.from_dict({"sparse": {"drop_rate": 1.0}})
     with pytest.raises(ValueError, match="static.sparse config: unknown keys"):
-        FitConfig.from_dict({"sparse": {"dropgaussian": 0.2}})
+        StaticConfig.from_dict({"sparse": {"dropgaussian": 0.2}})
 
 
 @pytest.fixture(scope="module")
@@ -95,8 +95,8 @@ def scene():
 def test_dropout_fit_is_deterministic_and_evaluates_every_gaussian(scene):
     gt, cams, imgs = scene
     p, c = sfm_points(gt, every=4)
-    plain = fit_static(imgs, cams, p, c, FitConfig.from_dict(FAST), progress=False)[1]
-    cfg = FitConfig.from_dict({**FAST, "sparse": {"drop_rate": 0.5}})
+    plain = fit_static(imgs, cams, p, c, StaticConfig.from_dict(FAST), progress=False)[1]
+    cfg = StaticConfig.from_dict({**FAST, "sparse": {"drop_rate": 0.5}})
     (g1, m1), (g2, m2) = (fit_static(imgs, cams, p, c, cfg, progress=False) for _ in range(2))
     for k, v in g1.params().items():
         assert torch.equal(v, g2.params()[k]), k
@@ -118,7 +118,7 @@ def test_pair_points_read_only_the_training_photos(scene, monkeypatch):
         return real(*args, **kwargs)
 
     monkeypatch.setattr(sparse, "pair_points", spy)
-    cfg = FitConfig.from_dict({**FAST, "background": "random", "sparse": {"pair_points": True, "pair_neighbours": 2}})
+    cfg = StaticConfig.from_dict({**FAST, "background": "random", "sparse": {"pair_points": True, "pair_neighbours": 2}})
     _, m = fit_static(imgs, cams, p, c, cfg, progress=False)
     held = set(m["holdout"])
     assert seen and held and not held & set(seen[0]) and len(seen[0]) == len(cams) - len(held)

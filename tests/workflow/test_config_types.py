@@ -99,14 +99,14 @@ def test_typed_defaults_are_those_the_code_used_before():
     """The labels backend's keywords and the protocol's fit keep their defaults."""
     from anigs.masks.labels_backend import LabelsBackend, LabelsConfig
     from anigs.metrics.multiview import MultiviewFitConfig
-    from anigs.static.fit import FitConfig
+    from anigs.static.fit import StaticConfig
 
     sig = inspect.signature(LabelsBackend)
     assert dataclasses.asdict(LabelsConfig()) == {k: sig.parameters[k].default for k in ("threshold", "min_alpha")}
-    # the protocol used to fill these into FitConfig's keys (device: the eval section's when unset)
+    # the protocol used to fill these into StaticConfig's keys (device: the eval section's when unset)
     # (and, since the static budget, the 0.7 static defaults the protocol was measured with: 1500 steps and
     # 30,000 Gaussians, a black background, threshold growth, no far points)
-    before = FitConfig.from_dict({"holdout_every": 0, "eval_every": 0, "checkpoint_every": 0,
+    before = StaticConfig.from_dict({"holdout_every": 0, "eval_every": 0, "checkpoint_every": 0,
                                   "regularize": {"enabled": False}, "budget": "fast", "background": [0.0, 0.0, 0.0],
                                   "far_share": 0.0, "densify": {"growth": "threshold"}})
     now = MultiviewFitConfig.from_dict({})
