@@ -15,6 +15,9 @@ Scenes (z up, metres, ground z = 0):
   red rug on the floor, ceiling lamps and a potted plant. Real effect: the plant's foliage.
 - ``lawn``: a mown lawn (flat, then a bank) beside a flower bed and a bush. Real effects: the bed's
   flowers and the bush's foliage.
+
+``MADE_DECOYS`` (``yard``, ``hall``: green made things under prompts that name plants, issue 47) are
+built by :mod:`anigs.synth.made_decoys`; their parts continue the numbering of ``DECOY_PARTS``.
 """
 from __future__ import annotations
 
@@ -31,17 +34,26 @@ from anigs.synth.garden import FLOWER_COLORS
 from anigs.synth.scene import LABEL_IDS, SUN, _Builder, _Part, _assemble, frame_from_normal
 
 DECOY_PARTS: dict[int, str] = {1: "ornaments", 2: "window_surrounds", 3: "picture", 4: "rug", 5: "lamps",
-                               6: "mown_lawn", 7: "sunlit_leaves"}
+                               6: "mown_lawn", 7: "sunlit_leaves",
+                               # the made decoys' parts (anigs.synth.made_decoys)
+                               8: "machine", 9: "bins", 10: "bare_tree", 11: "paving", 12: "pillars",
+                               13: "leaf_carton", 14: "table", 15: "hall_floor", 16: "pot"}
 DECOY_IDS = {v: k for k, v in DECOY_PARTS.items()}
 # effects that may take each decoy part (nothing for what must stay still)
 ALLOWED: dict[str, tuple[str, ...]] = {"ornaments": (), "window_surrounds": (), "picture": (), "rug": (), "lamps": (),
-                                       "mown_lawn": ("grass_wave",), "sunlit_leaves": ("foliage_sway", "leaf_flutter")}
+                                       "mown_lawn": ("grass_wave",), "sunlit_leaves": ("foliage_sway", "leaf_flutter"),
+                                       **dict.fromkeys(("machine", "bins", "bare_tree", "paving", "pillars",
+                                                        "leaf_carton", "table", "hall_floor", "pot"), ())}
 DECOYS = ("facade", "room", "lawn")
+MADE_DECOYS = ("yard", "hall")  # green made things under prompts that name plants (issue 47)
 PROMPTS = {"facade": "a building with trees and lawns in the wind",
            "room": "a potted plant in a room, its leaves moving",
-           "lawn": "a garden with a lawn, a bush and a flower bed in the wind"}
+           "lawn": "a garden with a lawn, a bush and a flower bed in the wind",
+           "yard": "a castle courtyard with trees in the wind",
+           "hall": "an office with potted plants"}
 TRUE_EFFECTS = {"facade": ("foliage_sway", "leaf_flutter"), "room": ("foliage_sway", "leaf_flutter"),
-                "lawn": ("foliage_sway", "leaf_flutter", "flower_bob")}
+                "lawn": ("foliage_sway", "leaf_flutter", "flower_bob"), "yard": (),
+                "hall": ("foliage_sway", "leaf_flutter")}
 
 
 @dataclass
@@ -276,12 +288,17 @@ def _arc_cameras(target, radius: float, height: float, count: int, centre_deg: f
 
 
 def build_decoy(name: str, num_gaussians: int = 12000, seed: int = 0, images: int = 10, width: int = 160) -> Decoy:
-    """The decoy scene ``name`` (one of ``DECOYS``) with ``images`` capture cameras ``width`` px wide."""
-    if name not in DECOYS:
-        raise ValueError(f"unknown decoy scene {name!r}; known: {list(DECOYS)}")
+    """The decoy scene ``name`` (one of ``DECOYS`` or ``MADE_DECOYS``) with ``images`` capture cameras ``width`` px
+    wide."""
+    if name not in DECOYS + MADE_DECOYS:
+        raise ValueError(f"unknown decoy scene {name!r}; known: {list(DECOYS + MADE_DECOYS)}")
     T = _Tagged(seed)
     size = (width, width * 3 // 4)
-    if name == "facade":
+    if name in MADE_DECOYS:
+        from anigs.synth.made_decoys import build_made  # it builds on this module's parts
+
+        cams = build_made(name, T, num_gaussians, images, size)
+    elif name == "facade":
         _facade(T, num_gaussians)
         cams = _arc_cameras((0.0, 2.0, 1.8), 7.0, 1.6, images, -90.0, 60.0, size)
     elif name == "room":
