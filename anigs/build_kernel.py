@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from anigs.render import _build
+from anigs.render import kernel as render_kernel
 from anigs.ssim import kernel as ssim_kernel
 
 
@@ -13,8 +13,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    path = _build.build(verbose=not args.quiet)
-    _build.load()
+    path = render_kernel.build(verbose=not args.quiet)
+    render_kernel.load()
     ssim = ssim_kernel.build(verbose=not args.quiet)
     ssim_kernel.load()
     if not args.quiet:

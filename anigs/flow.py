@@ -10,7 +10,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-_PRESETS = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
+PRESETS = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
             "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
             "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}
 
@@ -27,12 +27,12 @@ def backward_flow(frame_t: np.ndarray, frame_0: np.ndarray, preset: str = "mediu
 
     Frames are float [H,W,3] (or [H,W]) in [0,1]. ``preset``: ultrafast | fast | medium.
     """
-    if preset not in _PRESETS:
-        raise ValueError(f"unknown DIS preset {preset!r}; choose one of {sorted(_PRESETS)}")
+    if preset not in PRESETS:
+        raise ValueError(f"unknown DIS preset {preset!r}; choose one of {sorted(PRESETS)}")
     a, b = _gray_u8(frame_t), _gray_u8(frame_0)
     if a.shape != b.shape:
         raise ValueError(f"frame sizes differ: {a.shape} vs {b.shape}")
-    dis = cv2.DISOpticalFlow_create(_PRESETS[preset])
+    dis = cv2.DISOpticalFlow_create(PRESETS[preset])
     flow = dis.calc(a, b, None)
     return flow.astype(np.float32)
 

@@ -35,8 +35,8 @@ def main() -> None:
 
     from anigs.gaussians import load_ply
     from anigs.static.densify import DensifyState, update_state
-    from anigs.static.evaluate import _render, loss_fn
-    from anigs.static.init import _to_params, make_optimizer
+    from anigs.static.evaluate import render_params, loss_fn
+    from anigs.static.init import to_params, make_optimizer
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sfm", required=True)
@@ -57,7 +57,7 @@ def main() -> None:
             jitter = torch.randn(n_want, 3, generator=gen) * g.log_scales.exp()[idx].mean(1, keepdim=True) * 0.3
             g = type(g)(g.means[idx] + jitter, g.quats[idx], g.log_scales[idx], g.opacity_logits[idx], g.sh[idx])
         for scale in [float(s) for s in args.scales.split(",")]:
-            params = _to_params(g, torch.device("cpu"))
+            params = to_params(g, torch.device("cpu"))
             opt = make_optimizer(params, {k: 1e-4 for k in params})
             views = []
             for im, c in list(zip(imgs, cams))[: args.reps]:
@@ -68,7 +68,7 @@ def main() -> None:
             for rep in range(len(views) + 2):  # two warm-up steps
                 target, cam, mats = views[rep % len(views)]
                 t0, c0 = time.perf_counter(), time.process_time()
-                (rgb, _, meta), tr, _ = _timed(lambda: _render(params, cam, 3, torch.zeros(3), "auto", mats))
+                (rgb, _, meta), tr, _ = _timed(lambda: render_params(params, cam, 3, torch.zeros(3), "auto", mats))
                 meta["means2d"].retain_grad()
                 loss, tl1, _ = _timed(lambda: loss_fn(rgb, target, 0.2))
                 _, tb, _ = _timed(lambda: loss.backward())

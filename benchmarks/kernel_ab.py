@@ -4,7 +4,7 @@
         old=/path/to/old/checkout/anigs/render/csrc new=anigs/render/csrc [--reps 3]
 
 Each NAME=DIR is a kernel source folder (``raster.cpp`` and what it includes), compiled with the
-flags of ``anigs.render._build`` into a temporary library; ABI 4 (box binning, before issue 34) and
+flags of ``anigs.render.kernel`` into a temporary library; ABI 4 (box binning, before issue 34) and
 ABI 5 (tile culling) are both understood. On four of the capture's views at ``--size``, with the model
 grown to ``--gaussians`` (as ``benchmarks/step_profile.py``), the same projected splats go through
 each build's depth sort + tile count, compositing forward and backward (an upstream rgb gradient),
@@ -33,14 +33,14 @@ LL = ctypes.POINTER(ctypes.c_longlong)
 
 def build(name_dir: str, out_dir: Path):
     """(name, library, ABI) of one NAME=DIR build."""
-    from anigs.render import _build
+    from anigs.render import kernel as render_kernel
 
     name, folder = name_dir.split("=", 1)
     srcs = sorted(Path(folder).glob("*.cpp"))
     key = hashlib.sha256(b"".join(p.read_bytes() for p in srcs)).hexdigest()[:12]
     out = out_dir / f"raster_{key}.so"
     if not out.exists():
-        flags = _build._FLAGS + _build.arch_flags() + _build._thread_flags()
+        flags = render_kernel.FLAGS + render_kernel.arch_flags() + render_kernel.thread_flags()
         subprocess.run(["c++", *flags, str(Path(folder) / "raster.cpp"), "-o", str(out)], check=True)
     lib = ctypes.CDLL(str(out))
     abi = lib.anigs_abi_version()

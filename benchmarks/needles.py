@@ -75,7 +75,7 @@ def main() -> int:
     ap.add_argument("--png", type=Path, default=None)
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    from anigs.static.fit import StaticConfig, _render, _to_params, fit_static, split_holdout
+    from anigs.static.fit import StaticConfig, render_params, to_params, fit_static, split_holdout
 
     imgs, cams, pts, cols, bg = _sparse_inputs() if args.sparse else _sfm_inputs(args.sfm)
     bg = tuple(args.background) if args.background else (bg or (0.0, 0.0, 0.0))
@@ -94,7 +94,7 @@ def main() -> int:
               f"{row['unresolved_8pct']} unresolved, {row['seconds']:.0f} s", flush=True)
         if args.png is not None and test:
             with torch.no_grad():
-                rgb, _, _ = _render(_to_params(g, torch.device("cpu")), cams[test[0]], g.sh_degree,
+                rgb, _, _ = render_params(to_params(g, torch.device("cpu")), cams[test[0]], g.sh_degree,
                                     torch.tensor(bg, dtype=torch.float32), "auto")
             renders.append(rgb.clamp(0, 1).numpy())
     if "off" in out:

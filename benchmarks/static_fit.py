@@ -172,7 +172,7 @@ def step_vs_raster(g, imgs: list[torch.Tensor], cams: list[Camera], cfg: StaticC
     fns = {"rasterizer forward+backward": raster}
     has_step = hasattr(F, "train_step")
     if has_step:
-        params = F._to_params(g.detach(), dev)
+        params = F.to_params(g.detach(), dev)
         params = {k: torch.nn.Parameter(v.detach().clone()) for k, v in params.items()}  # trained in place
         lr = {"means": cfg.lr_means_final, "quats": cfg.lr_quats, "log_scales": cfg.lr_scales,
               "opacity_logits": cfg.lr_opacity, "sh_dc": cfg.lr_sh_dc, "sh_rest": cfg.lr_sh_rest}
@@ -290,11 +290,11 @@ def main() -> int:
         wall = time.perf_counter() - t0
         full = m["test_psnr"]
         if s != 1.0:  # a lower training resolution is judged on the full-resolution held-out views
-            from anigs.static.fit import _to_params, evaluate, split_holdout
+            from anigs.static.fit import to_params, evaluate, split_holdout
 
             _, test = split_holdout(len(imgs), cfg.holdout_every)
             bgt = torch.tensor(cfg.background, dtype=torch.float32)
-            full = evaluate(_to_params(g, "cpu"), [imgs[i] for i in test], [cams[i] for i in test],
+            full = evaluate(to_params(g, "cpu"), [imgs[i] for i in test], [cams[i] for i in test],
                             g.sh_degree, bgt, cfg.backend)["psnr"]
         summary.append({"run": name, "size": f"{cm[0].width}x{cm[0].height}", "max_gaussians": budget,
                         "num_gaussians": m["num_gaussians"], "train_seconds": round(m["train_seconds"], 1),

@@ -89,12 +89,12 @@ def main() -> None:
 
     from anigs.gaussians import load_ply
     from anigs.images import load_inputs
-    from anigs.render import _build
+    from anigs.render import kernel as render_kernel
     from anigs.ssim import kernel as ssim_kernel
     from anigs.stages.sfm import Outputs as SfmOutputs
     from anigs.static.densify import DensifyConfig, DensifyState, refine, update_state
-    from anigs.static.evaluate import _render, loss_fn
-    from anigs.static.init import _to_params, make_optimizer
+    from anigs.static.evaluate import render_params, loss_fn
+    from anigs.static.init import to_params, make_optimizer
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sfm", required=True)
@@ -110,7 +110,7 @@ def main() -> None:
     base = load_ply(args.ply)
     timers = Timers()
     for fname, name in KERNEL_PARTS.items():
-        lib = ssim_kernel.load() if "ssim" in fname else _build.load()
+        lib = ssim_kernel.load() if "ssim" in fname else render_kernel.load()
         timers.wrap(lib, fname, name)
     order = ["projection", "sort", "raster fwd", "render glue", "loss fwd (torch)", "SSIM fwd", "raster bwd",
              "projection bwd", "SSIM bwd", "backward glue", "densify stats", "Adam"]
@@ -118,7 +118,7 @@ def main() -> None:
         g = grow(base, n_want, torch.Generator().manual_seed(0))
         for size in args.sizes.split(","):
             w, h = (int(v) for v in size.lower().split("x"))
-            params = _to_params(g, torch.device("cpu"))
+            params = to_params(g, torch.device("cpu"))
             opt = make_optimizer(params, {k: 1e-4 for k in params})
             views = []
             for im, c in list(zip(imgs, cams))[: args.reps]:
@@ -135,7 +135,7 @@ def main() -> None:
                 target, cam, mats = views[rep % len(views)]
                 timers.acc = {}
                 c0 = time.process_time()
-                rgb, _, meta = _cpu(lambda: _render(params, cam, 3, bgs[rep], "cpu", mats), timers, "render")
+                rgb, _, meta = _cpu(lambda: render_params(params, cam, 3, bgs[rep], "cpu", mats), timers, "render")
                 meta["means2d"].retain_grad()
                 loss = _cpu(lambda: loss_fn(rgb, target, 0.2), timers, "loss")
                 _cpu(loss.backward, timers, "backward")

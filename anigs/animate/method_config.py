@@ -9,7 +9,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any, Mapping
 
 from anigs.typed_config import from_dict
-from anigs.flow import _PRESETS
+from anigs.flow import PRESETS
 
 INTEGRATORS = ("midpoint", "euler")  # the mass-spring integrators (anigs.baselines.springs)
 
@@ -41,8 +41,8 @@ class CommonConfig:
     def validate(self) -> None:
         if self.num_bases < 0:
             raise ValueError(f"{type(self).__name__}: num_bases must be >= 0, got {self.num_bases}")
-        if self.flow_preset not in _PRESETS:
-            raise ValueError(f"{type(self).__name__}: flow_preset {self.flow_preset!r} not in {sorted(_PRESETS)}")
+        if self.flow_preset not in PRESETS:
+            raise ValueError(f"{type(self).__name__}: flow_preset {self.flow_preset!r} not in {sorted(PRESETS)}")
         if not self.fb_threshold_px > 0 or not self.depth_tol >= 0 or not 0 <= self.min_alpha < 1:
             raise ValueError(f"{type(self).__name__}: fb_threshold_px > 0, depth_tol >= 0, 0 <= min_alpha < 1 required")
         if len(self.background) != 3:

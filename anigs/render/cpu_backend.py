@@ -17,7 +17,7 @@ import math
 import numpy as np
 import torch
 
-from anigs.render import _build
+from anigs.render import kernel as render_kernel
 from anigs.render.checks import validate, check_inputs
 from anigs.render.projection import EPS_2D
 
@@ -73,7 +73,7 @@ class _Preprocess(torch.autograd.Function):
     @staticmethod
     def forward(ctx, means, quats, scales, opacities, colors, cam, sh_degree: int, width: int, height: int,
                 on_invalid):
-        lib = _build.load()
+        lib = render_kernel.load()
         ctx.set_materialize_grads(False)  # unused outputs: None, not zero-filled tensors
         n = means.shape[0]
         ctx.dtypes = (means.dtype, quats.dtype, scales.dtype, colors.dtype)
@@ -96,7 +96,7 @@ class _Preprocess(torch.autograd.Function):
 
     @staticmethod
     def backward(ctx, g_m2d, g_con, g_feat, _r, _rad, _v):
-        lib = _build.load()
+        lib = render_kernel.load()
         m, q, s, c, valid, cam = ctx.saved_tensors
         sh_degree, k, width, height = ctx.args
         n = m.shape[0]
@@ -114,7 +114,7 @@ class _Composite(torch.autograd.Function):
     @staticmethod
     def forward(ctx, means2d, conics, feats, opacities, background, valid, rects, width: int, height: int,
                 info: dict):
-        lib = _build.load()
+        lib = render_kernel.load()
         # an unused output (often depth) then has no gradient tensor: the kernel skips that
         # channel instead of reading materialized zeros
         ctx.set_materialize_grads(False)
@@ -125,9 +125,9 @@ class _Composite(torch.autograd.Function):
         bg = _f32(background)
         order = torch.empty(max(n, 1), dtype=torch.int32)
         gstart = torch.empty(n + 1, dtype=torch.int32)
-        npairs = _build.ctypes.c_longlong(0)
+        npairs = render_kernel.ctypes.c_longlong(0)
         M = lib.anigs_sort_count(n, _ptr(feats), _ptr(valid), _ptr(rects), _ptr(means2d), _ptr(conics), _ptr(o),
-                                 width, height, _ptr(order), _ptr(gstart), _build.ctypes.byref(npairs), nt)
+                                 width, height, _ptr(order), _ptr(gstart), render_kernel.ctypes.byref(npairs), nt)
         npairs = npairs.value
         if npairs >= 2**31:
             raise ValueError(f"rasterize: {npairs} (tile, Gaussian) pairs exceed the cpu backend's int32 limit")
@@ -154,12 +154,12 @@ class _Composite(torch.autograd.Function):
 
     @staticmethod
     def backward(ctx, g_rgb, g_alpha, g_depth):
-        lib = _build.load()
+        lib = render_kernel.load()
         (n, M, width, height, order, gstart, valid, recs, tile_offsets, tile_splats, tile_rects, pair_slots, bg,
          T, accd, last) = ctx.state
         g_m2d, g_con, g_feat, g_o = torch.empty(n, 2), torch.empty(n, 3), torch.empty(n, 4), torch.empty(n)
         g_rgb, g_alpha, g_depth = _image_grad(g_rgb), _image_grad(g_alpha), _image_grad(g_depth)
-        gstrides = (_build.ctypes.c_longlong * 7)(*_strides(g_rgb, 3), *_strides(g_alpha, 2), *_strides(g_depth, 2))
+        gstrides = (render_kernel.ctypes.c_longlong * 7)(*_strides(g_rgb, 3), *_strides(g_alpha, 2), *_strides(g_depth, 2))
         lib.anigs_composite_backward(n, M, width, height, _ptr(order), _ptr(gstart), _ptr(valid), _ptr(recs),
                                      _ptr(tile_offsets), _ptr(tile_splats), _ptr(tile_rects), _ptr(pair_slots),
                                      _ptr(bg), _ptr(T), _ptr(accd), _ptr(last),
@@ -216,10 +216,10 @@ def project_cpu(means, quats, scales, opacities, viewmat, K, width: int, height:
 
 def _weights_fn():
     """``anigs_composite_weights`` of the loaded kernel, with its ctypes signature."""
-    lib = _build.load()
+    lib = render_kernel.load()
     fn = lib.anigs_composite_weights
     if fn.argtypes is None:
-        P, I = _build.ctypes.c_void_p, _build.ctypes.c_int
+        P, I = render_kernel.ctypes.c_void_p, render_kernel.ctypes.c_int
         fn.argtypes = [I, I, I, I] + [P] * 8 + [I, P, I]
         fn.restype = I
     return lib, fn
@@ -268,9 +268,9 @@ def composite_weights_cpu(means, quats, scales, opacities, viewmat, K, width: in
     if flags:
         on_invalid(flags)
     order, gstart = torch.empty(nb, dtype=torch.int32), torch.empty(nb + 1, dtype=torch.int32)
-    npairs = _build.ctypes.c_longlong(0)
+    npairs = render_kernel.ctypes.c_longlong(0)
     M = lib.anigs_sort_count(n, _ptr(feats), _ptr(valid), _ptr(rects), _ptr(means2d), _ptr(conics), _ptr(o), width,
-                             height, _ptr(order), _ptr(gstart), _build.ctypes.byref(npairs), nt)
+                             height, _ptr(order), _ptr(gstart), render_kernel.ctypes.byref(npairs), nt)
     if npairs.value >= 2**31:
         raise ValueError(f"composite_weights_cpu: {npairs.value} (tile, Gaussian) pairs exceed the int32 limit")
     out = torch.empty(nb, C, dtype=torch.float64)
@@ -291,10 +291,10 @@ def tile_pairs(means, quats, scales, opacities, viewmat, K, width: int, height: 
         int(width), int(height), None)
     n = means.shape[0]
     order, gstart = torch.empty(max(n, 1), dtype=torch.int32), torch.empty(n + 1, dtype=torch.int32)
-    npairs = _build.ctypes.c_longlong(0)
-    _build.load().anigs_sort_count(n, _ptr(feats), _ptr(valid), _ptr(rects), _ptr(m2d.detach()), _ptr(con.detach()),
+    npairs = render_kernel.ctypes.c_longlong(0)
+    render_kernel.load().anigs_sort_count(n, _ptr(feats), _ptr(valid), _ptr(rects), _ptr(m2d.detach()), _ptr(con.detach()),
                                    _ptr(_f32(opacities)), int(width), int(height), _ptr(order), _ptr(gstart),
-                                   _build.ctypes.byref(npairs), _threads())
+                                   render_kernel.ctypes.byref(npairs), _threads())
     r = rects[valid.bool()].long()
     box = ((r[:, 2] - 1) // 16 - r[:, 0] // 16 + 1) * ((r[:, 3] - 1) // 16 - r[:, 1] // 16 + 1)
     return int(npairs.value), int(box.sum())

@@ -17,7 +17,7 @@ from typing import Any
 
 import torch
 
-from anigs.render import _build, gsplat_backend
+from anigs.render import gsplat_backend, kernel as render_kernel
 from anigs.render.checks import validate, check_inputs
 from anigs.render.cpu_backend import render_cpu
 from anigs.render.projection import project_gaussians
@@ -40,7 +40,7 @@ def select_backend(backend: str, device: torch.device) -> str:
                       "(install the 'gsplat' extra for speed)", stacklevel=3)
         return "torch"
     if device.type == "cpu":
-        if _build.available():
+        if render_kernel.available():
             return "cpu"
         warnings.warn("cpu rasterizer kernel could not be built; falling back to the slow torch backend", stacklevel=3)
     return "torch"

@@ -78,7 +78,7 @@ from anigs.sfm.fingerprint import database_fingerprints, model_fingerprint
 from anigs.sfm import steps
 from anigs.sfm.tracks import model_tracks, save_tracks
 from anigs.sfm.plan import resolve_threads
-from anigs.sfm.steps import _device, camera_mode, cpu_seconds, larger_originals, refine_model, select_model
+from anigs.sfm.steps import camera_mode, colmap_device, cpu_seconds, larger_originals, refine_model, select_model
 
 # COLMAP's extraction, matching and mapping are called through their module (steps.extract_and_match,
 # steps.run_mapper: here and in anigs.sfm.escalate), so a test replaces them there, once, for both
@@ -289,7 +289,7 @@ def _map(work: Path, image_dir: Path, names: list[str], cfg: SfmConfig, mode: st
     report["fingerprints"] = database_fingerprints(database) if database.exists() else {}
     t0, c0 = time.perf_counter(), cpu_seconds()
     first = Source(database, image_dir, "capture", report["auto"]["matcher"])
-    outcome = map_escalating(first, work, cfg, names, _device(cfg) if first.database.exists() else None,
+    outcome = map_escalating(first, work, cfg, names, colmap_device(cfg) if first.database.exists() else None,
                              originals=larger_originals(originals, headers), mode=mode)
     rec, report["mapping"], report["status"] = outcome.rec, outcome.report, outcome.status
     report["timings_s"]["mapping"], report["cpu_s"]["mapping"] = time.perf_counter() - t0, cpu_seconds() - c0

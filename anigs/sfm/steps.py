@@ -28,7 +28,7 @@ def cpu_seconds() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def _device(cfg: SfmConfig):
+def colmap_device(cfg: SfmConfig):
     import pycolmap
 
     has_cuda = bool(pycolmap.has_cuda)
@@ -64,7 +64,7 @@ def extract_and_match(database: Path, image_dir: Path, names: list[str], cfg: Sf
 
     if cfg.num_threads < 1 or cfg.matching_num_threads < 1:
         raise ValueError("extract_and_match needs thread counts (sfm.colmap.resolve_config)")
-    device = _device(cfg)
+    device = colmap_device(cfg)
     pycolmap.set_random_seed(cfg.seed)
     reader = pycolmap.ImageReaderOptions(camera_model=cfg.camera_model)
     if cfg.camera_params is not None:
@@ -148,7 +148,7 @@ def run_mapper(database: Path, image_dir: Path, out_dir: Path, cfg: SfmConfig, n
         opts.num_threads = cfg.mapper_num_threads
         opts.min_model_size = 3
         opts.image_names = names
-        cuda = _device(cfg) == pycolmap.Device.cuda
+        cuda = colmap_device(cfg) == pycolmap.Device.cuda
         opts.mapper.global_positioning.use_gpu = cuda
         opts.mapper.bundle_adjustment.ceres.use_gpu = cuda
         return dict(pycolmap.global_mapping(database, image_dir, out_dir, options=opts))

@@ -1,6 +1,6 @@
 """The compiled CPU kernel of the fused SSIM loss (``csrc/ssim.cpp``) and its autograd Function.
 
-Built like the rasterizer kernel (:mod:`anigs.render._build`: same compiler, flags, instruction-set
+Built like the rasterizer kernel (:mod:`anigs.render.kernel`: same compiler, flags, instruction-set
 level and cache folder; its own library ``anigs_ssim_<hash>.so``, keyed by the source and
 flags, written atomically) on first use. When it cannot be built, :func:`available` is False
 and :func:`anigs.ssim.fused.fused_ssim` takes its torch path; when it builds but does not load,
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import torch
 
-from anigs.render import _build
+from anigs.render import kernel as render_kernel
 from anigs.ssim.reference import C1, C2, SIGMA, WINDOW
 
 SRC = Path(__file__).with_name("csrc") / "ssim.cpp"
@@ -28,14 +28,14 @@ _LOCK = threading.Lock()
 
 
 def library_path() -> Path:
-    flags = " ".join(_build._FLAGS + _build.arch_flags() + _build._thread_flags())
+    flags = " ".join(render_kernel.FLAGS + render_kernel.arch_flags() + render_kernel.thread_flags())
     key = hashlib.sha256(SRC.read_bytes() + flags.encode() + platform.machine().encode()).hexdigest()[:16]
-    return _build.cache_dir() / f"anigs_ssim_{key}.so"
+    return render_kernel.cache_dir() / f"anigs_ssim_{key}.so"
 
 
 def build(verbose: bool = False) -> Path:
     """Compile the kernel if it is not cached; return the library path."""
-    return _build.compile_cached(SRC, library_path(), "the fused SSIM kernel", verbose)
+    return render_kernel.compile_cached(SRC, library_path(), "the fused SSIM kernel", verbose)
 
 
 def load() -> ctypes.CDLL:
@@ -45,11 +45,11 @@ def load() -> ctypes.CDLL:
         return _LIB
     with _LOCK:
         if _LIB is None:
-            if _build._thread_flags():
-                os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # as anigs.render._build.load
+            if render_kernel.thread_flags():
+                os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # as anigs.render.kernel.load
             path = build()
-            lib = _build.open_library(path, "the fused SSIM kernel")
-            _build.check_abi(lib, "anigs_ssim_abi_version", ABI_VERSION, path)
+            lib = render_kernel.open_library(path, "the fused SSIM kernel")
+            render_kernel.check_abi(lib, "anigs_ssim_abi_version", ABI_VERSION, path)
             P, I, Fl = ctypes.c_void_p, ctypes.c_int, ctypes.c_float
             lib.anigs_ssim_forward.argtypes = [I, I, I, I, P, P, P, Fl, Fl, P, P, P, I]
             lib.anigs_ssim_forward.restype = ctypes.c_double
@@ -61,12 +61,12 @@ def load() -> ctypes.CDLL:
 
 def available() -> bool:
     """Whether the kernel builds and loads here. False only when it cannot be built on this machine
-    (remembered, not retried); a library that does not load raises (see :func:`_build.unavailable_reason`)."""
+    (remembered, not retried); a library that does not load raises (see :func:`anigs.render.kernel.unavailable_reason`)."""
     global _FAILED
     if _LIB is not None:
         return True
     if _FAILED is None:
-        _FAILED = _build.unavailable_reason(load)
+        _FAILED = render_kernel.unavailable_reason(load)
     return _FAILED is None
 
 

@@ -174,7 +174,7 @@ def refine_due(cfg: DensifyConfig, step: int) -> bool:
     return _densify_due(cfg, step) or _reset_due(cfg, step)
 
 
-def _replace_rows(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimizer,
+def replace_rows(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimizer,
                   new_values: dict[str, torch.Tensor], src: torch.Tensor,
                   is_new: torch.Tensor) -> dict[str, torch.Tensor]:
     """Swap every parameter for its new rows and carry Adam moments: row i of the result takes
@@ -201,7 +201,7 @@ def _replace_rows(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimi
     return out
 
 
-def _gather(params: dict[str, torch.Tensor], src: torch.Tensor) -> dict[str, torch.Tensor]:
+def gather(params: dict[str, torch.Tensor], src: torch.Tensor) -> dict[str, torch.Tensor]:
     return {k: v.detach()[src] for k, v in params.items()}
 
 
@@ -311,7 +311,7 @@ def _densify_and_prune(params, optimizer, state: DensifyState, step: int, cfg: D
             "continue. Check the images/cameras, or lower densify.prune_opacity")
 
     src = torch.cat([keep_idx, clone_idx, split_idx, split_idx])
-    new_vals = _gather(params, src)
+    new_vals = gather(params, src)
     n_keep, n_clone, n_split = keep_idx.numel(), clone_idx.numel(), split_idx.numel()
     if n_split:
         # two children per split parent, sampled from the parent Gaussian, with shrunk scales
@@ -324,7 +324,7 @@ def _densify_and_prune(params, optimizer, state: DensifyState, step: int, cfg: D
         new_vals["log_scales"][a:] = torch.log(s / cfg.split_factor)
     is_new = torch.zeros(src.shape[0], dtype=torch.bool, device=dev)
     is_new[n_keep:] = True
-    new_params = _replace_rows(params, optimizer, new_vals, src, is_new)
+    new_params = replace_rows(params, optimizer, new_vals, src, is_new)
     state.reset(src.shape[0])
     state.last = {"step": step, "cloned": n_clone, "split": n_split, "pruned": int(prune.sum()),
                   "num": int(src.shape[0])}

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.static.evaluate import _render
+from anigs.static.evaluate import render_params
 
 log = logging.getLogger("anigs.static.fit")
 
@@ -108,7 +108,7 @@ def depth_error(params: dict[str, torch.Tensor], cams: list[Camera], targets: li
     for cam, t in zip(cams, targets):
         if t is None:
             continue
-        _, alpha, meta = _render(params, cam, deg, bg, backend)
+        _, alpha, meta = render_params(params, cam, deg, bg, backend)
         d, a = meta["depth"].reshape(-1)[t.pixel], alpha.reshape(-1)[t.pixel]
         ok = a > 0.5
         if ok.any():

@@ -12,7 +12,7 @@ from anigs.render import rasterize
 from anigs.ssim import psnr
 
 
-def _render(params: dict[str, torch.Tensor], cam: Camera, sh_degree: int, bg: torch.Tensor, backend: str,
+def render_params(params: dict[str, torch.Tensor], cam: Camera, sh_degree: int, bg: torch.Tensor, backend: str,
             mats: tuple[torch.Tensor, torch.Tensor] | None = None, keep: torch.Tensor | None = None):
     """Render the parameter dict; only the SH bands up to ``sh_degree`` are passed on (the others
     get zero gradients, as when the rasterizer ignores them). ``mats``: cached (viewmat, K).
@@ -59,7 +59,7 @@ def evaluate(params: dict[str, torch.Tensor], images: Sequence[torch.Tensor], ca
     ps, ss = [], []
     for img, cam in zip(images, cameras):
         img = pixels(img)
-        rgb, _, _ = _render(params, cam, sh_degree, bg, backend)
+        rgb, _, _ = render_params(params, cam, sh_degree, bg, backend)
         rgb = rgb.clamp(0, 1)
         ps.append(psnr(rgb, img))
         ss.append(float(fused_ssim(rgb, img)))

@@ -32,10 +32,10 @@ from anigs.static.densify import (DensifyState, refine, refine_due, schedule_for
 from anigs.static.divergence import DivergenceGuard, FitDivergedError, raise_diverged
 from anigs.static.depth import DepthTarget, depth_loss, depth_record, depth_targets, depth_weight
 from anigs.static.exposure import Exposure
-from anigs.static.evaluate import _render, evaluate, loss_fn, pixels, stored_image
+from anigs.static.evaluate import evaluate, loss_fn, pixels, render_params, stored_image
 from anigs.static.sparse import added_points, dropout
 from anigs.static.warp import WarpLoss
-from anigs.static.init import _to_params, init_gaussians, make_optimizer, params_to_gaussians, split_holdout
+from anigs.static.init import init_gaussians, make_optimizer, params_to_gaussians, split_holdout, to_params
 from anigs.static.regularize import NeedleRegularizer, last_densify_step, prune_rows
 from anigs.sfm.tracks import Tracks, check_tracks
 from anigs.device import get_device, seed_everything
@@ -45,9 +45,9 @@ from anigs.geometry.extent import scene_extent
 from anigs.gaussians import Gaussians
 from anigs.ssim import psnr
 
-__all__ = ["LOG_EVERY", "DivergenceGuard", "StaticConfig", "FitDivergedError", "StaticPlan", "_render", "_to_params",
-           "evaluate", "fit_static", "init_gaussians", "loss_fn", "make_optimizer", "params_to_gaussians",
-           "plan_static", "split_holdout", "train_step"]
+__all__ = ["LOG_EVERY", "DivergenceGuard", "FitDivergedError", "StaticConfig", "StaticPlan", "evaluate", "fit_static",
+           "init_gaussians", "loss_fn", "make_optimizer", "params_to_gaussians", "plan_static", "render_params",
+           "split_holdout", "to_params", "train_step"]
 
 log = logging.getLogger(__name__)
 
@@ -71,7 +71,7 @@ def train_step(params: dict[str, torch.nn.Parameter], optimizer: torch.optim.Opt
 
     Returns the detached loss (0-dim, on the device; not read here) and rendered rgb [H,W,3].
     """
-    rgb, alpha, meta = _render(params, cam, sh_degree, bg, backend, mats, keep)
+    rgb, alpha, meta = render_params(params, cam, sh_degree, bg, backend, mats, keep)
     if stats is not None:
         meta["means2d"].retain_grad()
     if colour is not None:
@@ -153,7 +153,7 @@ def _fit(images: list[torch.Tensor], cameras: list[Camera], init_points, init_co
     cols = init_colors.detach().cpu().numpy() if torch.is_tensor(init_colors) else np.asarray(init_colors)
     extent = scene_extent(cameras, np.asarray(pts, dtype=np.float64).reshape(-1, 3))
     g0 = init_gaussians(pts, cols, extent, cfg.sh_degree, cfg.init_opacity)
-    params = _to_params(g0, device)
+    params = to_params(g0, device)
     random_bg = cfg.background == "random"
     bg = torch.tensor(EVAL_BACKGROUND if random_bg else cfg.background, dtype=torch.float32, device=device)
     lr = {"means": cfg.lr_means * extent, "quats": cfg.lr_quats, "log_scales": cfg.lr_scales,
@@ -163,7 +163,7 @@ def _fit(images: list[torch.Tensor], cameras: list[Camera], init_points, init_co
     added, paired, n_far = added_points(cfg, pts, cols, train_imgs, train_cams, random_bg)
     if added is not None:
         g0 = init_gaussians(added[0], added[1], extent, cfg.sh_degree, cfg.init_opacity)
-        params = _to_params(g0, device)
+        params = to_params(g0, device)
     optimizer = make_optimizer(params, lr)
     dstate = DensifyState.empty(g0.num, device)
     _log_start(cfg, fit_plan, optimizer, device, (len(train_idx), len(test_idx)), g0.num, extent, train_cams[0])

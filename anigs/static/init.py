@@ -63,7 +63,7 @@ def init_gaussians(points: np.ndarray, colors: np.ndarray, extent: float, sh_deg
                                  torch.from_numpy(dist).float(), opacity=opacity, sh_degree=sh_degree)
 
 
-def _to_params(g: Gaussians, device: torch.device) -> dict[str, torch.nn.Parameter]:
+def to_params(g: Gaussians, device: torch.device) -> dict[str, torch.nn.Parameter]:
     P = lambda t: torch.nn.Parameter(t.detach().to(device).contiguous())
     return {"means": P(g.means), "quats": P(g.quats), "log_scales": P(g.log_scales),
             "opacity_logits": P(g.opacity_logits), "sh_dc": P(g.sh[:, :1]), "sh_rest": P(g.sh[:, 1:])}

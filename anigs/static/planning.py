@@ -17,8 +17,8 @@ from anigs.geometry.extent import scene_extent
 from anigs.images import downscale, fit_scale
 from anigs.static.budget import LEVELS, CaptureSize, FitPlan, StepCost, parse_budget, plan
 from anigs.static.config import StaticConfig
-from anigs.static.evaluate import _render, loss_fn, pixels, stored_image
-from anigs.static.init import _to_params, init_gaussians, split_holdout
+from anigs.static.evaluate import loss_fn, pixels, render_params, stored_image
+from anigs.static.init import init_gaussians, split_holdout, to_params
 
 EVAL_BACKGROUND = (0.5, 0.5, 0.5)  # behind the evaluation renders of a fit trained on random backgrounds
 
@@ -88,7 +88,7 @@ def plan_static(images: Sequence[torch.Tensor], cameras: Sequence[Camera], init_
     g0 = init_gaussians(pts, cols, extent, cfg.sh_degree, cfg.init_opacity)
     bg = torch.tensor(EVAL_BACKGROUND if cfg.background == "random" else cfg.background, dtype=torch.float32,
                       device=device)
-    cost = _calibrated(cfg, _to_params(g0, device), stored_image(img, device), cam, bg, g0.num)
+    cost = _calibrated(cfg, to_params(g0, device), stored_image(img, device), cam, bg, g0.num)
     schedule = plan(cfg.budget, size, cost, g0.num, iterations=cfg.iterations,
                     max_gaussians=cfg.densify.max_gaussians, densify_stop=cfg.densify.stop,
                     stop_fraction=cfg.densify.stop_fraction, eval_every=cfg.eval_every, max_side=cfg.max_side)
@@ -102,7 +102,7 @@ def _calibrated(cfg: StaticConfig, params: dict[str, torch.nn.Parameter], img: t
     times = []
     for _ in range(3):
         t0 = time.perf_counter()
-        rgb, _, _ = _render(params, cam, 0, bg, cfg.backend)
+        rgb, _, _ = render_params(params, cam, 0, bg, cfg.backend)
         loss_fn(rgb, pixels(img), cfg.ssim_weight).backward()
         if rgb.is_cuda:
             torch.cuda.synchronize()

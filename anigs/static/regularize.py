@@ -88,10 +88,10 @@ def limit_needles(log_scales: torch.Tensor, ratio: float) -> None:
 def prune_rows(params: dict[str, torch.Tensor], optimizer: torch.optim.Optimizer,
                keep: torch.Tensor) -> dict[str, torch.Tensor]:
     """The parameters restricted to the rows ``keep`` (bool [N]), Adam moments carried along."""
-    from anigs.static.densify import _gather, _replace_rows
+    from anigs.static.densify import gather, replace_rows
 
     src = torch.nonzero(keep, as_tuple=False).squeeze(1)
-    return _replace_rows(params, optimizer, _gather(params, src), src, torch.zeros_like(src, dtype=torch.bool))
+    return replace_rows(params, optimizer, gather(params, src), src, torch.zeros_like(src, dtype=torch.bool))
 
 
 def last_densify_step(start: int, stop: int, every: int, iterations: int) -> int | None:

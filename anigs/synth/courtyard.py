@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from anigs.synth.garden import _bench, _brick_color, _facade_color, _stone
-from anigs.synth.scene import BENCH, FACADE_H, PLANTER, X0, X1, Y0, Y1, Noise, _Builder
+from anigs.synth.garden import add_bench, brick_color, facade_color, stone_color
+from anigs.synth.scene import BENCH, FACADE_H, PLANTER, X0, X1, Y0, Y1, Noise, Builder
 
 COURT_WALL_H = 2.4  # height of the west, east and south walls (m)
 SHARES = {"ground": 0.45, "building": 0.42, "clutter": 0.13}
@@ -37,7 +37,7 @@ def _paving(rng: np.random.Generator):
     return f
 
 
-def build_courtyard(B: "_Builder", num_gaussians: int) -> None:
+def build_courtyard(B: "Builder", num_gaussians: int) -> None:
     """Add the courtyard's parts to builder ``B`` (about ``num_gaussians`` Gaussians in all)."""
     rng = B.rng
     n = {k: int(round(v * num_gaussians)) for k, v in SHARES.items()}
@@ -49,15 +49,15 @@ def build_courtyard(B: "_Builder", num_gaussians: int) -> None:
     # facade (north) and three brick walls with a coping
     area = (X1 - X0) * FACADE_H + (2 * (Y1 - Y0) + (X1 - X0)) * COURT_WALL_H
     s = math.sqrt(area / n["building"])
-    B.surface((X0, Y1, 0), (1, 0, 0), (0, 0, 1), (X1 - X0, FACADE_H), (s, s), _facade_color(rng), "building")
-    brick = _brick_color(rng, (0.56, 0.36, 0.27))
+    B.surface((X0, Y1, 0), (1, 0, 0), (0, 0, 1), (X1 - X0, FACADE_H), (s, s), facade_color(rng), "building")
+    brick = brick_color(rng, (0.56, 0.36, 0.27))
     wall = lambda ab: brick(ab[:, 0], ab[:, 1])
     B.surface((X0, Y0, 0), (0, 1, 0), (0, 0, 1), (Y1 - Y0, COURT_WALL_H), (s, s), wall, "building")
     B.surface((X1, Y1, 0), (0, -1, 0), (0, 0, 1), (Y1 - Y0, COURT_WALL_H), (s, s), wall, "building")
     B.surface((X1, Y0, 0), (-1, 0, 0), (0, 0, 1), (X1 - X0, COURT_WALL_H), (s, s), wall, "building")
     # benches and an empty planter
     step = math.sqrt(2.6 / (0.35 * n["clutter"]))
-    _bench(B, BENCH, step)
-    _bench(B, BENCH_2, step)
+    add_bench(B, BENCH, step)
+    add_bench(B, BENCH_2, step)
     B.box((PLANTER[0], PLANTER[1], 0.0), (0.8, 0.8, 0.55), 0.35, math.sqrt(2.4 / (0.3 * n["clutter"])),
-          _stone(rng, (PLANTER[0], PLANTER[1], 0.3), 0.7, cell=0.12), "clutter")
+          stone_color(rng, (PLANTER[0], PLANTER[1], 0.3), 0.7, cell=0.12), "clutter")

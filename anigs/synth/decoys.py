@@ -31,7 +31,7 @@ from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.gaussians import Gaussians
 from anigs.geometry.quaternion import quat_from_matrix
 from anigs.synth.garden import FLOWER_COLORS
-from anigs.synth.scene import LABEL_IDS, SUN, _Builder, _Part, _assemble, frame_from_normal
+from anigs.synth.scene import LABEL_IDS, SUN, Builder, Part, assemble, frame_from_normal
 
 DECOY_PARTS: dict[int, str] = {1: "ornaments", 2: "window_surrounds", 3: "picture", 4: "rug", 5: "lamps",
                                6: "mown_lawn", 7: "sunlit_leaves",
@@ -81,11 +81,11 @@ def _label(name: str) -> int:
     return LABEL_IDS[name]
 
 
-class _Tagged:
-    """A :class:`anigs.synth.scene._Builder` that remembers the decoy part of every part it adds."""
+class Tagged:
+    """A :class:`anigs.synth.scene.Builder` that remembers the decoy part of every part it adds."""
 
     def __init__(self, seed: int):
-        self.B = _Builder(np.random.default_rng(seed), 1.0)
+        self.B = Builder(np.random.default_rng(seed), 1.0)
         self.tags: list[int] = []
 
     def tag(self, part: str | None, fn, *args, **kw) -> None:
@@ -94,23 +94,23 @@ class _Tagged:
         self.tags += [DECOY_IDS[part] if part else 0] * (len(self.B.parts) - n0)
 
     def build(self) -> Gaussians:
-        g = _assemble(self.B.parts)
+        g = assemble(self.B.parts)
         g.extras["decoy"] = torch.from_numpy(np.concatenate(
             [np.full(len(p.means), t, np.int64) for p, t in zip(self.B.parts, self.tags)]))
         return g
 
 
-def _noise_colour(rng, base, amount: float):
+def noise_colour(rng, base, amount: float):
     base = np.asarray(base, float)
     return lambda ab: base * (1 + amount * np.sin(ab[:, :1] * 9.1 + 2 * np.cos(ab[:, 1:2] * 7.3))
                               + rng.normal(0, 0.5 * amount, (len(ab), 1)))
 
 
-def _lawn_bank(T: _Tagged, x: tuple, y: tuple, bank_from: float, slope_deg: float, step: float, part: str | None) -> None:
+def _lawn_bank(T: Tagged, x: tuple, y: tuple, bank_from: float, slope_deg: float, step: float, part: str | None) -> None:
     """A mown lawn over x [x0,x1] x y [y0,y1]: flat up to ``bank_from``, then rising at ``slope_deg``."""
     rng = T.B.rng
     base = np.array([0.30, 0.46, 0.16])
-    col = _noise_colour(rng, base, 0.12)
+    col = noise_colour(rng, base, 0.12)
     flat = (x[1] - x[0], bank_from - y[0])
     T.tag(part, T.B.surface, (x[0], y[0], 0.0), (1, 0, 0), (0, 1, 0), flat, (step, step), col, "ground")
     if y[1] > bank_from:
@@ -120,7 +120,7 @@ def _lawn_bank(T: _Tagged, x: tuple, y: tuple, bank_from: float, slope_deg: floa
               (x[1] - x[0], length), (step, step), col, "ground")
 
 
-def _tree(T: _Tagged, at, height: float, crown: float, leaves: int, sunlit_share: float) -> None:
+def _tree(T: Tagged, at, height: float, crown: float, leaves: int, sunlit_share: float) -> None:
     """Trunk and crown; the crown's sun-facing leaves (``sunlit_share``) are yellow (decoy sunlit_leaves)."""
     B = T.B
     x, y = at
@@ -141,16 +141,16 @@ def _tree(T: _Tagged, at, height: float, crown: float, leaves: int, sunlit_share
     yellow = np.array([0.88, 0.76, 0.22]) * B.rng.uniform(0.85, 1.1, (sun.sum(), 1))
     leaves_part.colors[sun] = np.clip(yellow, 0.02, 0.97)
     # split the leaves into two parts so the yellow ones carry their decoy tag
-    keep = _Part(leaves_part.means[~sun], leaves_part.scales[~sun], leaves_part.quats[~sun], leaves_part.colors[~sun],
+    keep = Part(leaves_part.means[~sun], leaves_part.scales[~sun], leaves_part.quats[~sun], leaves_part.colors[~sun],
                  leaves_part.opacity[~sun], leaves_part.label, leaves_part.anchors[~sun])
-    lit_part = _Part(leaves_part.means[sun], leaves_part.scales[sun], leaves_part.quats[sun], leaves_part.colors[sun],
+    lit_part = Part(leaves_part.means[sun], leaves_part.scales[sun], leaves_part.quats[sun], leaves_part.colors[sun],
                      leaves_part.opacity[sun], leaves_part.label, leaves_part.anchors[sun])
     B.parts[-2] = keep
     B.parts.append(lit_part)
     T.tags.append(DECOY_IDS["sunlit_leaves"])
 
 
-def _facade(T: _Tagged, n: int) -> None:
+def _facade(T: Tagged, n: int) -> None:
     rng, B = T.B.rng, T.B
     X, Y, H = 5.0, 4.0, 5.0
     step = math.sqrt(2 * X * H / (0.45 * n))
@@ -191,18 +191,18 @@ def _facade(T: _Tagged, n: int) -> None:
     _tree(T, (0.3, -0.2), 2.4, 1.2, int(0.22 * n), 0.3)
 
 
-def _room(T: _Tagged, n: int) -> None:
+def _room(T: Tagged, n: int) -> None:
     rng, B = T.B.rng, T.B
     X, Y0, Y1, H = 3.0, -3.0, 3.0, 2.8
     step = math.sqrt((2 * X * (Y1 - Y0) * 2 + (2 * X + 2 * (Y1 - Y0)) * H) / (0.6 * n))
     wood = lambda ab: np.array([0.55, 0.4, 0.27]) * (1 + 0.15 * np.sin(np.floor(ab[:, :1] / 0.18) * 2.7))
     T.tag(None, B.surface, (-X, Y0, 0.0), (1, 0, 0), (0, 1, 0), (2 * X, Y1 - Y0), (step, step), wood, "ground")
-    plaster = _noise_colour(rng, (0.85, 0.83, 0.78), 0.03)
+    plaster = noise_colour(rng, (0.85, 0.83, 0.78), 0.03)
     T.tag(None, B.surface, (-X, Y1, 0.0), (1, 0, 0), (0, 0, 1), (2 * X, H), (step, step), plaster, "building")
     T.tag(None, B.surface, (-X, Y0, 0.0), (0, 1, 0), (0, 0, 1), (Y1 - Y0, H), (step, step), plaster, "building")
     T.tag(None, B.surface, (X, Y1, 0.0), (0, -1, 0), (0, 0, 1), (Y1 - Y0, H), (step, step), plaster, "building")
     T.tag(None, B.surface, (-X, Y0, H), (1, 0, 0), (0, 1, 0), (2 * X, Y1 - Y0), (step, step),
-          _noise_colour(rng, (0.9, 0.9, 0.88), 0.02), "building")
+          noise_colour(rng, (0.9, 0.9, 0.88), 0.02), "building")
     # a green landscape picture (meadow, hills, a little sky) in a dark frame on the back wall
     w, h, cx, cz = 1.6, 1.0, -0.9, 1.55
     fine = 0.5 * step
@@ -246,13 +246,13 @@ def _room(T: _Tagged, n: int) -> None:
     T.tag(None, B.blob, crown, leaves, (0.2, 0.42, 0.12), "foliage", (0.9, 0.6, 0.4), 0.7 * math.sqrt(4 * math.pi * 0.2 / leaves))
 
 
-def _lawn(T: _Tagged, n: int) -> None:
+def _lawn(T: Tagged, n: int) -> None:
     rng, B = T.B.rng, T.B
     X, Y0, Y1 = 5.0, -5.0, 5.0
     _lawn_bank(T, (-X, X), (Y0, Y1), 1.5, 12.0, math.sqrt(10 * 10 / (0.45 * n)), "mown_lawn")
     # a flower bed (soil) beside the lawn, with flowers of several colours on stems
     x0, x1, y0, y1 = -3.5, -0.8, -1.0, 1.0
-    soil = _noise_colour(rng, (0.33, 0.23, 0.15), 0.1)
+    soil = noise_colour(rng, (0.33, 0.23, 0.15), 0.1)
     T.tag(None, B.surface, (x0, y0, 0.006), (1, 0, 0), (0, 1, 0), (x1 - x0, y1 - y0), (0.06, 0.06), soil, "ground")
     m = int(0.2 * n) // 8
     pts = np.column_stack([rng.uniform(x0 + 0.1, x1 - 0.1, m), rng.uniform(y0 + 0.1, y1 - 0.1, m)])
@@ -276,7 +276,7 @@ def _lawn(T: _Tagged, n: int) -> None:
     T.tag(None, B.blob, crown, leaves, (0.2, 0.38, 0.13), "foliage", (2.0, 0.2, 0.0), 0.7 * math.sqrt(4 * math.pi * 0.6 / leaves))
 
 
-def _arc_cameras(target, radius: float, height: float, count: int, centre_deg: float, arc_deg: float,
+def arc_cameras(target, radius: float, height: float, count: int, centre_deg: float, arc_deg: float,
                  size=(160, 120), fov: float = 60.0) -> list[Camera]:
     K = intrinsics_from_fov(fov, *size)
     cams = []
@@ -292,7 +292,7 @@ def build_decoy(name: str, num_gaussians: int = 12000, seed: int = 0, images: in
     wide."""
     if name not in DECOYS + MADE_DECOYS:
         raise ValueError(f"unknown decoy scene {name!r}; known: {list(DECOYS + MADE_DECOYS)}")
-    T = _Tagged(seed)
+    T = Tagged(seed)
     size = (width, width * 3 // 4)
     if name in MADE_DECOYS:
         from anigs.synth.made_decoys import build_made  # it builds on this module's parts
@@ -300,11 +300,11 @@ def build_decoy(name: str, num_gaussians: int = 12000, seed: int = 0, images: in
         cams = build_made(name, T, num_gaussians, images, size)
     elif name == "facade":
         _facade(T, num_gaussians)
-        cams = _arc_cameras((0.0, 2.0, 1.8), 7.0, 1.6, images, -90.0, 60.0, size)
+        cams = arc_cameras((0.0, 2.0, 1.8), 7.0, 1.6, images, -90.0, 60.0, size)
     elif name == "room":
         _room(T, num_gaussians)
-        cams = _arc_cameras((0.0, 1.5, 1.3), 3.6, 1.5, images, -90.0, 50.0, size, fov=70.0)
+        cams = arc_cameras((0.0, 1.5, 1.3), 3.6, 1.5, images, -90.0, 50.0, size, fov=70.0)
     else:
         _lawn(T, num_gaussians)
-        cams = _arc_cameras((-0.5, 1.0, 0.3), 5.5, 1.6, images, -90.0, 80.0, size)
+        cams = arc_cameras((-0.5, 1.0, 0.3), 5.5, 1.6, images, -90.0, 80.0, size)
     return Decoy(name, T.build(), cams, PROMPTS[name], TRUE_EFFECTS[name])

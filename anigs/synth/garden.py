@@ -1,5 +1,5 @@
 """The demo garden's parts (ground, building, clutter, trees, bushes, grass, flower beds), each
-drawn into a :class:`anigs.synth.scene._Builder` in a fixed order of random draws (the default
+drawn into a :class:`anigs.synth.scene.Builder` in a fixed order of random draws (the default
 garden is deterministic for its seed)."""
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ from scipy.spatial import cKDTree
 
 from anigs.geometry.quaternion import quat_from_matrix
 from anigs.synth.scene import (BEDS, BENCH, BUSH_SITES, FACADE_H, FENCE_H, FINE_GROUND, PATH_W, PLANTER,
-                               SURFACE_OPACITY, TREE_SITES, WALL_H, X0, X1, Y0, Y1, Noise, _Builder, _jittered_grid,
-                               _shade, frame_from_normal, path_x)
+                               SURFACE_OPACITY, TREE_SITES, WALL_H, X0, X1, Y0, Y1, Noise, Builder, jittered_grid,
+                               shade, frame_from_normal, path_x)
 
 
-def _brick_color(rng: np.random.Generator, palette_base, mortar=(0.72, 0.70, 0.66)):
+def brick_color(rng: np.random.Generator, palette_base, mortar=(0.72, 0.70, 0.66)):
     """Running-bond bricks 0.42 x 0.19 m with 2.5 cm mortar; returns f(a[M], b[M]) -> [M,3]."""
     palette = np.asarray(palette_base) * rng.uniform(0.72, 1.18, (997, 1)) + rng.normal(0, 0.025, (997, 3))
     noise = Noise(rng, 2, 0.5, 12.0)
@@ -33,7 +33,7 @@ def _brick_color(rng: np.random.Generator, palette_base, mortar=(0.72, 0.70, 0.6
     return f
 
 
-def _ground(B: _Builder, n: int, trees: list) -> None:
+def add_ground(B: Builder, n: int, trees: list) -> None:
     rng = B.rng
     length = Y1 - Y0
     cx, cy, rx, ry = FINE_GROUND
@@ -43,15 +43,15 @@ def _ground(B: _Builder, n: int, trees: list) -> None:
     n_speck = int(0.3 * n)  # small high-contrast details (daisies, pebbles, leaves) on top of the lawn
     s = math.sqrt((a_lawn + a_fine / 0.36 + a_path / 0.36) / (n - n_speck))
     # lawn: coarse outside, finer inside the walkable ellipse (seen from close by); then the path
-    coarse = _jittered_grid(rng, (X0, Y0), (X1, Y1), (s, s))
-    fine = _jittered_grid(rng, (cx - rx, cy - ry), (cx + rx, cy + ry), (0.6 * s, 0.6 * s))
+    coarse = jittered_grid(rng, (X0, Y0), (X1, Y1), (s, s))
+    fine = jittered_grid(rng, (cx - rx, cy - ry), (cx + rx, cy + ry), (0.6 * s, 0.6 * s))
     in_fine = lambda q: ((q[:, 0] - cx) / rx) ** 2 + ((q[:, 1] - cy) / ry) ** 2 < 1
     lawn = np.concatenate([coarse[~in_fine(coarse)], fine[in_fine(fine)]])
     lawn_s = np.concatenate([np.full((~in_fine(coarse)).sum(), s), np.full(in_fine(fine).sum(), 0.6 * s)])
     off_path = np.abs(lawn[:, 0] - path_x(lawn[:, 1])) > PATH_W / 2 - 0.15 * s
     lawn, lawn_s = lawn[off_path], lawn_s[off_path]
     sp = 0.6 * s
-    loc = _jittered_grid(rng, (-PATH_W / 2, Y0), (PATH_W / 2, Y1), (sp, sp))
+    loc = jittered_grid(rng, (-PATH_W / 2, Y0), (PATH_W / 2, Y1), (sp, sp))
     path = np.column_stack([path_x(loc[:, 1]) + loc[:, 0], loc[:, 1]])
     big, small = Noise(rng, 2, 0.12, 1.0), Noise(rng, 2, 1.0, 7.0)
     # lawn colour: patchy green, tree shade, clover/daisy specks, bare soil spots
@@ -74,7 +74,7 @@ def _ground(B: _Builder, n: int, trees: list) -> None:
         c[edge] = np.array([0.62, 0.6, 0.56]) * rng.uniform(0.8, 1.1, (edge.sum(), 1))
     lawn_c = c
     # cobbles: Voronoi cells with dark joints, a dark curb along the edges
-    seeds = _jittered_grid(rng, (-PATH_W / 2, Y0), (PATH_W / 2, Y1), (0.2, 0.2))
+    seeds = jittered_grid(rng, (-PATH_W / 2, Y0), (PATH_W / 2, Y1), (0.2, 0.2))
     stone = np.array([0.66, 0.62, 0.55]) * rng.uniform(0.72, 1.15, (len(seeds), 1)) + rng.normal(0, 0.03, (len(seeds), 3))
     d, idx = cKDTree(seeds).query(loc, k=2)
     c = stone[idx[:, 0]] * (1 + 0.06 * small(path))[:, None]
@@ -87,12 +87,12 @@ def _ground(B: _Builder, n: int, trees: list) -> None:
     means = np.column_stack([pts, rng.uniform(0, 0.002, m)])
     scales = np.column_stack([0.8 * steps, 0.68 * steps, np.full(m, 0.003)])
     R = frame_from_normal(np.tile([0.0, 0, 1], (m, 1)), rng.uniform(0, math.pi, m))
-    B.add(means, scales, quat_from_matrix(R), B.jitter(cols, 0.1) * _shade(np.tile([0.0, 0, 1], (m, 1)))[:, None],
+    B.add(means, scales, quat_from_matrix(R), B.jitter(cols, 0.1) * shade(np.tile([0.0, 0, 1], (m, 1)))[:, None],
           SURFACE_OPACITY, "ground")
     _specks(B, n_speck, in_fine)
 
 
-def _specks(B: _Builder, n: int, inside: Callable) -> None:
+def _specks(B: Builder, n: int, inside: Callable) -> None:
     """Daisies, dandelions, soil spots, dead leaves and light blades on the lawn: 70% near the walk."""
     rng = B.rng
     cand = np.column_stack([rng.uniform(X0 + 0.1, X1 - 0.1, 8 * n), rng.uniform(Y0 + 0.1, Y1 - 0.1, 8 * n)])
@@ -110,8 +110,8 @@ def _specks(B: _Builder, n: int, inside: Callable) -> None:
     B.add(np.column_stack([p, np.full(m, 0.005)]), scales, quat_from_matrix(R), B.jitter(cols, 0.1), 0.95, "ground")
 
 
-def _facade_color(rng: np.random.Generator):
-    brick = _brick_color(rng, (0.62, 0.30, 0.21))
+def facade_color(rng: np.random.Generator):
+    brick = brick_color(rng, (0.62, 0.30, 0.21))
     door_x = float(path_x(Y1))
     win_x = [door_x + k * 2.3 for k in (-2, -1, 1, 2)]
     glass_noise = Noise(rng, 2, 0.5, 4.0)
@@ -148,12 +148,12 @@ def _facade_color(rng: np.random.Generator):
     return f
 
 
-def _building(B: _Builder, n: int) -> None:
+def add_building(B: Builder, n: int) -> None:
     rng = B.rng
     area = (X1 - X0) * FACADE_H + (Y1 - Y0) * (WALL_H + 0.25)
     s = math.sqrt(area / n)
-    B.surface((X0, Y1, 0), (1, 0, 0), (0, 0, 1), (X1 - X0, FACADE_H), (s, s), _facade_color(rng), "building")
-    wall = _brick_color(rng, (0.55, 0.33, 0.25))
+    B.surface((X0, Y1, 0), (1, 0, 0), (0, 0, 1), (X1 - X0, FACADE_H), (s, s), facade_color(rng), "building")
+    wall = brick_color(rng, (0.55, 0.33, 0.25))
     coping = Noise(rng, 2, 1.0, 8.0)
     B.surface((X0, Y0, 0), (0, 1, 0), (0, 0, 1), (Y1 - Y0, WALL_H), (s, s),
               lambda ab: wall(ab[:, 0], ab[:, 1]), "building")
@@ -161,7 +161,7 @@ def _building(B: _Builder, n: int) -> None:
               lambda ab: np.array([0.6, 0.58, 0.55]) * (1 + 0.12 * coping(ab))[:, None], "building")
 
 
-def _stone(rng: np.random.Generator, center, extent: float, base=(0.6, 0.58, 0.54), cell: float = 0.12):
+def stone_color(rng: np.random.Generator, center, extent: float, base=(0.6, 0.58, 0.54), cell: float = 0.12):
     """3D Voronoi stones around ``center`` (cube of half-size ``extent``): f(points[M,3]) -> colours [M,3]."""
     count = int(min(4000, max(50, (2 * extent / cell) ** 3)))
     seeds = np.asarray(center, float) + rng.uniform(-extent, extent, (count, 3))
@@ -176,7 +176,7 @@ def _stone(rng: np.random.Generator, center, extent: float, base=(0.6, 0.58, 0.5
     return f
 
 
-def _bench(B: _Builder, at: tuple[float, float], step: float) -> None:
+def add_bench(B: Builder, at: tuple[float, float], step: float) -> None:
     """A bench at ``at`` (x, y), long axis along y, facing +x: seat slats, backrest, dark metal legs."""
     bx, by = at
     wood = Noise(B.rng, 3, 2.0, 30.0)
@@ -190,7 +190,7 @@ def _bench(B: _Builder, at: tuple[float, float], step: float) -> None:
         B.box((bx + dx, by + dy, 0.0), (0.05, 0.05, h), 0.0, step, metal, "clutter")
 
 
-def _clutter(B: _Builder, n: int, keep_out: list) -> None:
+def add_clutter(B: Builder, n: int, keep_out: list) -> None:
     rng = B.rng
     # wooden fences on the south and east sides (planks with dark gaps, grain)
     grain = Noise(rng, 2, 1.0, 25.0)
@@ -207,10 +207,10 @@ def _clutter(B: _Builder, n: int, keep_out: list) -> None:
     s = math.sqrt(fence_area / (0.6 * n))  # shares of n: fences 0.6, bench 0.17, planter 0.1, rocks 0.12
     B.surface((X1, Y0, 0), (-1, 0, 0), (0, 0, 1), (X1 - X0, FENCE_H), (0.8 * s, 1.25 * s), fence, "clutter")
     B.surface((X1, Y1, 0), (0, -1, 0), (0, 0, 1), (Y1 - Y0, FENCE_H), (0.8 * s, 1.25 * s), fence, "clutter")
-    _bench(B, BENCH, math.sqrt(2.6 / (0.17 * n)))
+    add_bench(B, BENCH, math.sqrt(2.6 / (0.17 * n)))
     # stone planter
     B.box((PLANTER[0], PLANTER[1], 0.0), (0.8, 0.8, 0.55), 0.35, math.sqrt(2.4 / (0.1 * n)),
-          _stone(rng, (PLANTER[0], PLANTER[1], 0.3), 0.7, cell=0.12), "clutter")
+          stone_color(rng, (PLANTER[0], PLANTER[1], 0.3), 0.7, cell=0.12), "clutter")
     # rocks: half-buried ellipsoid shells
     for _ in range(6):
         for _try in range(100):
@@ -229,8 +229,8 @@ def _clutter(B: _Builder, n: int, keep_out: list) -> None:
         nrm = d / radii
         nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
         R = frame_from_normal(nrm, rng.uniform(0, math.pi, len(d)))
-        rock = _stone(rng, (c[0], c[1], 0.1), 0.4, (0.5, 0.49, 0.47), cell=0.09)
-        B.add(means, sc, quat_from_matrix(R), B.jitter(rock(means)) * _shade(nrm)[:, None], SURFACE_OPACITY, "clutter")
+        rock = stone_color(rng, (c[0], c[1], 0.1), 0.4, (0.5, 0.49, 0.47), cell=0.09)
+        B.add(means, sc, quat_from_matrix(R), B.jitter(rock(means)) * shade(nrm)[:, None], SURFACE_OPACITY, "clutter")
 
 
 def _free(p: np.ndarray, r: float, keep_out: list) -> bool:
@@ -243,7 +243,7 @@ def _free(p: np.ndarray, r: float, keep_out: list) -> bool:
     return all(math.hypot(p[0] - x, p[1] - y) > r + rr for x, y, rr in keep_out)
 
 
-def _trees(B: _Builder, n_trunk: int, n_leaves: int, num_trees: int, keep_out: list) -> list:
+def add_trees(B: Builder, n_trunk: int, n_leaves: int, num_trees: int, keep_out: list) -> list:
     """Trunks (+3 branches) and crowns; returns [(x, y, crown radius)] for ground shading."""
     rng = B.rng
     bark_noise = Noise(rng, 2, 0.5, 10.0)
@@ -277,7 +277,7 @@ def _trees(B: _Builder, n_trunk: int, n_leaves: int, num_trees: int, keep_out: l
     return out
 
 
-def _bushes(B: _Builder, n: int, keep_out: list) -> None:
+def add_bushes(B: Builder, n: int, keep_out: list) -> None:
     rng = B.rng
     sites = [(x, y, r, 0.0) for x, y, r in BUSH_SITES] + [(PLANTER[0], PLANTER[1], 0.38, 0.55)]
     area = np.array([r * r for _, _, r, _ in sites])
@@ -294,7 +294,7 @@ def _bushes(B: _Builder, n: int, keep_out: list) -> None:
             keep_out.append((x, y, r))
 
 
-def _grass(B: _Builder, n: int, keep_out: list) -> None:
+def add_grass(B: Builder, n: int, keep_out: list) -> None:
     """Tufts of 6 curved blades, 3 elongated Gaussians per blade; anchor = tuft root on the ground."""
     rng = B.rng
     nt, nb = max(n // 18, 1), 6
@@ -332,13 +332,13 @@ FLOWER_COLORS = np.array([[0.88, 0.15, 0.15], [0.95, 0.82, 0.15], [0.94, 0.93, 0
                           [0.95, 0.5, 0.12], [0.95, 0.55, 0.72], [0.3, 0.42, 0.88]])
 
 
-def _flowers(B: _Builder, n: int) -> None:
+def add_flowers(B: Builder, n: int) -> None:
     """Flowers in the beds: 3 stem + 2 leaf + 1 centre + 5 petal Gaussians; anchor = stem base."""
     rng = B.rng
     beds = [(x0 + 0.16, x1 - 0.16, y0 + 0.16, y1 - 0.16) for x0, x1, y0, y1 in BEDS]
     area = sum((x1 - x0) * (y1 - y0) for x0, x1, y0, y1 in beds)
     s = math.sqrt(area / max(n // 11, 1))
-    pts = np.concatenate([_jittered_grid(rng, (x0, y0), (x1, y1), (s, s)) for x0, x1, y0, y1 in beds])
+    pts = np.concatenate([jittered_grid(rng, (x0, y0), (x1, y1), (s, s)) for x0, x1, y0, y1 in beds])
     m = len(pts)
     anchor = np.column_stack([pts, np.zeros(m)])
     h = rng.uniform(0.25, 0.5, m)

@@ -29,8 +29,8 @@ import numpy as np
 
 from anigs.cameras import Camera
 from anigs.geometry.quaternion import quat_from_matrix
-from anigs.synth.decoys import MADE_DECOYS, _arc_cameras, _noise_colour, _Tagged
-from anigs.synth.scene import SURFACE_OPACITY, Noise, _jittered_grid, _shade, frame_from_normal
+from anigs.synth.decoys import MADE_DECOYS, arc_cameras, noise_colour, Tagged
+from anigs.synth.scene import SURFACE_OPACITY, Noise, jittered_grid, shade, frame_from_normal
 
 GREEN_PAINT = np.array([0.10, 0.46, 0.12])   # the tractor's and the bins' saturated green
 PILLAR_GREEN = np.array([0.11, 0.50, 0.26])  # the hall's painted pillars
@@ -50,18 +50,18 @@ def _local(p: np.ndarray, origin, yaw: float) -> np.ndarray:
     return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]])
 
 
-def _disc(T: _Tagged, part: str | None, centre, normal, radius: float, step: float,
+def _disc(T: Tagged, part: str | None, centre, normal, radius: float, step: float,
           colour_fn: Callable[[np.ndarray], np.ndarray], label: str) -> None:
     """Flat Gaussians on a disc facing ``normal``; ``colour_fn(rho [M])`` (distance from the centre / radius)."""
     B = T.B
-    ab = _jittered_grid(B.rng, (-radius, -radius), (radius, radius), (step, step))
+    ab = jittered_grid(B.rng, (-radius, -radius), (radius, radius), (step, step))
     rho = np.hypot(ab[:, 0], ab[:, 1]) / radius
     ab, rho = ab[rho <= 1], rho[rho <= 1]
     nrm = np.tile(np.asarray(normal, float), (len(ab), 1))
     R = frame_from_normal(nrm)
     means = np.asarray(centre, float) + ab[:, :1] * R[:, :, 0] + ab[:, 1:] * R[:, :, 1]
     scales = np.tile([0.72 * step, 0.72 * step, 0.002], (len(ab), 1))
-    cols = B.jitter(colour_fn(rho)) * _shade(nrm)[:, None]
+    cols = B.jitter(colour_fn(rho)) * shade(nrm)[:, None]
     T.tag(part, B.add, means, scales, quat_from_matrix(R), cols, SURFACE_OPACITY, label)
 
 
@@ -99,7 +99,7 @@ def _castle_wall(rng: np.random.Generator, height: float, door_at: float | None)
     return f
 
 
-def _machine(T: _Tagged, at, yaw: float, step: float) -> None:
+def _machine(T: Tagged, at, yaw: float, step: float) -> None:
     """A green tractor at ``at`` (x, y) heading ``yaw``: hood, chassis, cab with dark glass, fenders, exhaust,
     wheels (black tyres, yellow rims)."""
     B = T.B
@@ -137,7 +137,7 @@ def _machine(T: _Tagged, at, yaw: float, step: float) -> None:
             _disc(T, "machine", P(u, side * (off + w / 2 + 0.004), r), side * ey, r, 0.6 * step, rim, "clutter")
 
 
-def _bins(T: _Tagged, sites: list, step: float) -> None:
+def _bins(T: Tagged, sites: list, step: float) -> None:
     """Green wheelie bins at ``sites`` [(x, y, yaw, height)], fronts towards -y turned by yaw: body, lid, handle,
     wheels, a sticker."""
     B = T.B
@@ -162,7 +162,7 @@ def _bins(T: _Tagged, sites: list, step: float) -> None:
                   step / 2, _flat(DARK), "clutter")
 
 
-def _bare_tree(T: _Tagged, at, step: float) -> None:
+def _bare_tree(T: Tagged, at, step: float) -> None:
     """A leafless tree trained on a wall (the x-z plane at ``at``): trunk, six bare branches, twigs."""
     B, rng = T.B, T.B.rng
     bark = lambda tv: np.array([0.36, 0.33, 0.3]) * (1 + 0.15 * np.sin(tv[:, 1:2] * 13 + tv[:, :1] * 3))
@@ -183,18 +183,18 @@ def _bare_tree(T: _Tagged, at, step: float) -> None:
             T.tag("bare_tree", B.cylinder, p, p + twig * rng.uniform(0.5, 0.9), 0.022, 0.01, step, bark, "trunk")
 
 
-def _yard(T: _Tagged, n: int) -> None:
+def _yard(T: Tagged, n: int) -> None:
     rng, B = T.B.rng, T.B
     X0, X1, Y0, Y1, H = -7.0, 7.0, -7.0, 6.5, 6.5
     s = math.sqrt((X1 - X0) * (Y1 - Y0) / (0.014 * n))  # a uniform pavement: a few large flat Gaussians
     T.tag("paving", B.surface, (X0, Y0, 0.0), (1, 0, 0), (0, 1, 0), (X1 - X0, Y1 - Y0), (s, s),
-          _noise_colour(rng, (0.42, 0.42, 0.44), 0.1), "ground", thin=0.003, scale_frac=0.8)
+          noise_colour(rng, (0.42, 0.42, 0.44), 0.1), "ground", thin=0.003, scale_frac=0.8)
     s = math.sqrt(((X1 - X0) + (Y1 - Y0)) * H / (0.6 * n))
     T.tag(None, B.surface, (X0, Y1, 0.0), (1, 0, 0), (0, 0, 1), (X1 - X0, H), (s, s), _castle_wall(rng, H, None),
           "building")
     T.tag(None, B.surface, (X1, Y1, 0.0), (0, -1, 0), (0, 0, 1), (Y1 - Y0, H), (s, s), _castle_wall(rng, H, 9.0),
           "building")
-    a, slate = math.radians(40), _noise_colour(rng, (0.3, 0.31, 0.35), 0.08)
+    a, slate = math.radians(40), noise_colour(rng, (0.3, 0.31, 0.35), 0.08)
     T.tag(None, B.surface, (X0, Y1, H), (1, 0, 0), (0, math.cos(a), math.sin(a)), (X1 - X0, 2.5), (1.4 * s, 1.4 * s),
           slate, "building")
     T.tag(None, B.surface, (X1, Y1, H), (0, -1, 0), (math.cos(a), 0, math.sin(a)), (Y1 - Y0, 2.5), (1.4 * s, 1.4 * s),
@@ -239,11 +239,11 @@ def _leaf_print(rng: np.random.Generator, centre, size) -> Callable[[np.ndarray]
     return f
 
 
-def _hall(T: _Tagged, n: int) -> None:
+def _hall(T: Tagged, n: int) -> None:
     rng, B = T.B.rng, T.B
     X, Y0, Y1, H = 6.0, -6.0, 6.0, 4.5
     s = math.sqrt((2 * X * H + 2 * (Y1 - Y0) * H + 2 * X * (Y1 - Y0)) / (0.42 * n))
-    plaster = _noise_colour(rng, (0.86, 0.84, 0.79), 0.03)
+    plaster = noise_colour(rng, (0.86, 0.84, 0.79), 0.03)
 
     def back(ab: np.ndarray) -> np.ndarray:
         c = plaster(ab)
@@ -264,7 +264,7 @@ def _hall(T: _Tagged, n: int) -> None:
     T.tag(None, B.surface, (-X, Y0, H), (1, 0, 0), (0, 1, 0), (2 * X, Y1 - Y0), (s, s), ceiling, "building")
     sf = math.sqrt(2 * X * (Y1 - Y0) / (0.03 * n))  # a dark linoleum floor, mostly out of view
     T.tag("hall_floor", B.surface, (-X, Y0, 0.0), (1, 0, 0), (0, 1, 0), (2 * X, Y1 - Y0), (sf, sf),
-          _noise_colour(rng, (0.2, 0.25, 0.21), 0.08), "ground", thin=0.003, scale_frac=0.8)
+          noise_colour(rng, (0.2, 0.25, 0.21), 0.08), "ground", thin=0.003, scale_frac=0.8)
     k = math.sqrt(12000 / n)  # the made things' steps at the default budget
     smooth = lambda tv: PILLAR_GREEN * (1 + 0.05 * np.sin(tv[:, 1:2] * 0.7))
     for px, py in ((-2.6, -0.2), (2.6, -0.2), (-2.6, 3.2), (2.6, 3.2)):
@@ -288,13 +288,13 @@ def _hall(T: _Tagged, n: int) -> None:
           0.7 * math.sqrt(4 * math.pi * 0.2 / leaves))
 
 
-def build_made(name: str, T: _Tagged, n: int, images: int, size: tuple[int, int]) -> list[Camera]:
+def build_made(name: str, T: Tagged, n: int, images: int, size: tuple[int, int]) -> list[Camera]:
     """Add the made decoy ``name`` (one of ``MADE_DECOYS``) to ``T`` (about ``n`` Gaussians); its cameras."""
     if name not in MADE_DECOYS:
         raise ValueError(f"unknown made decoy {name!r}; known: {list(MADE_DECOYS)}")
     if name == "yard":  # a walk along an arc at standing height, looking at the tractor and the facades
         _yard(T, n)
-        return _arc_cameras((1.0, 3.0, 2.2), 8.5, 1.6, images, -100.0, 60.0, size)
+        return arc_cameras((1.0, 3.0, 2.2), 8.5, 1.6, images, -100.0, 60.0, size)
     _hall(T, n)  # level to slightly up: the floor is mostly out of view
-    return _arc_cameras((0.0, 2.5, 3.3), 6.5, 1.6, images, -90.0, 60.0, size, fov=65.0)
+    return arc_cameras((0.0, 2.5, 3.3), 6.5, 1.6, images, -90.0, 60.0, size, fov=65.0)
 

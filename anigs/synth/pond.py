@@ -12,8 +12,8 @@ import math
 import numpy as np
 
 from anigs.geometry.quaternion import quat_from_matrix
-from anigs.synth.garden import _stone
-from anigs.synth.scene import LABEL_IDS, SURFACE_OPACITY, Noise, _Builder, _jittered_grid, _shade, frame_from_normal
+from anigs.synth.garden import stone_color
+from anigs.synth.scene import LABEL_IDS, SURFACE_OPACITY, Noise, Builder, jittered_grid, shade, frame_from_normal
 
 POND = (1.6, -1.3, 0.9, 0.65)  # ellipse (cx, cy, rx, ry) of the water, metres
 RIM = 0.14  # width of the stone ring around the water (m)
@@ -29,7 +29,7 @@ def in_pond(xy: np.ndarray, grow: float = 0.0) -> np.ndarray:
     return ((xy[:, 0] - cx) / (rx + grow)) ** 2 + ((xy[:, 1] - cy) / (ry + grow)) ** 2 < 1.0
 
 
-def add_pond(B: "_Builder", n: int) -> None:
+def add_pond(B: "Builder", n: int) -> None:
     """Carve the lawn and add the water (75% of ``n``) and its stone rim (25%) to builder ``B``."""
     rng = B.rng
     cx, cy, rx, ry = POND
@@ -44,7 +44,7 @@ def add_pond(B: "_Builder", n: int) -> None:
     # water: a flat sheet on a jittered grid inside the ellipse, smooth low-contrast colour
     n_water = max(int(0.75 * n), 16)
     s = math.sqrt(math.pi * rx * ry / n_water)
-    grid = _jittered_grid(rng, (cx - rx, cy - ry), (cx + rx, cy + ry), (s, s))
+    grid = jittered_grid(rng, (cx - rx, cy - ry), (cx + rx, cy + ry), (s, s))
     grid = grid[in_pond(grid)]
     m = len(grid)
     swell = Noise(rng, 2, 0.3, 2.0)
@@ -55,7 +55,7 @@ def add_pond(B: "_Builder", n: int) -> None:
     R = frame_from_normal(np.tile(up, (m, 1)), rng.uniform(0, math.pi, m))
     means = np.column_stack([grid, np.full(m, WATER_Z)])
     B.add(means, np.column_stack([np.full(m, 0.8 * s), np.full(m, 0.7 * s), np.full(m, 0.002)]),
-          quat_from_matrix(R), cols * _shade(np.tile(up, (m, 1)))[:, None], SURFACE_OPACITY, "water", means.copy())
+          quat_from_matrix(R), cols * shade(np.tile(up, (m, 1)))[:, None], SURFACE_OPACITY, "water", means.copy())
     # rim: flat stones on a ring between the water's edge and RIM outside it
     n_rim = max(n - n_water, 16)
     th = np.sort(rng.uniform(0, 2 * math.pi, n_rim))
@@ -63,9 +63,9 @@ def add_pond(B: "_Builder", n: int) -> None:
     xy = np.column_stack([cx + (rx + rad) * np.cos(th), cy + (ry + rad) * np.sin(th)])
     perim = math.pi * (3 * (rx + ry) - math.sqrt((3 * rx + ry) * (rx + 3 * ry)))
     step = math.sqrt((perim + 4 * RIM) * RIM / n_rim)
-    stone = _stone(rng, (cx, cy, 0.0), max(rx, ry) + RIM + 0.1, (0.6, 0.58, 0.55), cell=0.1)
+    stone = stone_color(rng, (cx, cy, 0.0), max(rx, ry) + RIM + 0.1, (0.6, 0.58, 0.55), cell=0.1)
     pts = np.column_stack([xy, rng.uniform(0.006, 0.02, n_rim)])
     R = frame_from_normal(np.tile(up, (n_rim, 1)), rng.uniform(0, math.pi, n_rim))
     B.add(pts, np.column_stack([np.full(n_rim, 0.9 * step), np.full(n_rim, 0.75 * step), np.full(n_rim, 0.003)]),
-          quat_from_matrix(R), B.jitter(stone(pts)) * _shade(np.tile(up, (n_rim, 1)))[:, None], SURFACE_OPACITY,
+          quat_from_matrix(R), B.jitter(stone(pts)) * shade(np.tile(up, (n_rim, 1)))[:, None], SURFACE_OPACITY,
           "clutter")

@@ -114,7 +114,7 @@ class Noise:
         return np.sin(x @ self.k.T + self.phase) @ self.amp
 
 
-def _jittered_grid(rng, lo: tuple[float, float], hi: tuple[float, float], step: tuple[float, float]) -> np.ndarray:
+def jittered_grid(rng, lo: tuple[float, float], hi: tuple[float, float], step: tuple[float, float]) -> np.ndarray:
     """Points [M,2] on a grid over [lo, hi] with +-0.3 step jitter (no holes, no clumps)."""
     us = np.arange(lo[0] + step[0] / 2, hi[0], step[0])
     vs = np.arange(lo[1] + step[1] / 2, hi[1], step[1])
@@ -122,13 +122,13 @@ def _jittered_grid(rng, lo: tuple[float, float], hi: tuple[float, float], step: 
     return g + rng.uniform(-0.3, 0.3, g.shape) * np.asarray(step)
 
 
-def _shade(normals: np.ndarray) -> np.ndarray:
+def shade(normals: np.ndarray) -> np.ndarray:
     """Soft sun + sky shading factor [N] for unit normals [N,3]."""
     return 0.62 + 0.38 * np.clip(normals @ SUN, 0, None) + 0.06 * normals[:, 2]
 
 
 @dataclass
-class _Part:
+class Part:
     means: np.ndarray
     scales: np.ndarray
     quats: np.ndarray
@@ -138,7 +138,7 @@ class _Part:
     anchors: np.ndarray | None = None
 
 
-class _Builder:
+class Builder:
     """Collects parts; ``texture`` scales the per-Gaussian colour jitter."""
 
     def __init__(self, rng: np.random.Generator, texture: float):
@@ -153,19 +153,19 @@ class _Builder:
     def add(self, means, scales, quats, colors, opacity, label: str, anchors=None) -> None:
         n = means.shape[0]
         op = np.broadcast_to(np.asarray(opacity, np.float64), (n,)).copy()
-        self.parts.append(_Part(means, scales, quats, np.clip(colors, 0.02, 0.97), op, LABEL_IDS[label], anchors))
+        self.parts.append(Part(means, scales, quats, np.clip(colors, 0.02, 0.97), op, LABEL_IDS[label], anchors))
 
     def surface(self, origin, u, v, size, step, color_fn: Callable, label: str, thin: float = 0.004,
                 opacity: float | None = None, scale_frac: float = 0.75) -> None:
         """Flat Gaussians on the rectangle origin + a*u + b*v, (a,b) in [0,size]; colour_fn(ab[M,2]) -> [M,3]."""
         u, v = np.asarray(u, float), np.asarray(v, float)
-        ab = _jittered_grid(self.rng, (0, 0), size, step)
+        ab = jittered_grid(self.rng, (0, 0), size, step)
         n = np.cross(u, v)
         R = np.broadcast_to(np.stack([u, v, n], 1), (len(ab), 3, 3))
         means = np.asarray(origin, float) + ab[:, :1] * u + ab[:, 1:] * v
         scales = np.column_stack([np.full(len(ab), scale_frac * step[0]), np.full(len(ab), scale_frac * step[1]),
                                   np.full(len(ab), thin)])
-        colors = self.jitter(color_fn(ab)) * _shade(np.broadcast_to(n, means.shape))[:, None]
+        colors = self.jitter(color_fn(ab)) * shade(np.broadcast_to(n, means.shape))[:, None]
         self.add(means, scales, quat_from_matrix(R), colors, SURFACE_OPACITY if opacity is None else opacity, label)
 
     def box(self, center, size, yaw: float, step: float, color_fn: Callable, label: str) -> None:
@@ -235,7 +235,7 @@ class _Builder:
         e2 = np.cross(axis, e1)
         circ = 2 * math.pi * max(r0, r1)
         ts = min(step, circ / 6)
-        tv = _jittered_grid(self.rng, (0, 0), (circ, length), (ts, step))
+        tv = jittered_grid(self.rng, (0, 0), (circ, length), (ts, step))
         s = tv[:, 1] / length
         r = r0 + (r1 - r0) * s
         th = tv[:, 0] / max(r0, r1)
@@ -245,11 +245,11 @@ class _Builder:
         R = np.stack([tang, np.broadcast_to(axis, tang.shape), radial], axis=2)
         scales = np.column_stack([0.62 * ts * np.maximum(r / max(r0, r1), 0.3), np.full(len(s), 0.6 * step),
                                   np.full(len(s), 0.003)])
-        cols = self.jitter(color_fn(np.column_stack([th * max(r0, r1), tv[:, 1]])), 0.08) * _shade(radial)[:, None]
+        cols = self.jitter(color_fn(np.column_stack([th * max(r0, r1), tv[:, 1]])), 0.08) * shade(radial)[:, None]
         self.add(means, scales, quat_from_matrix(R), cols, SURFACE_OPACITY, label)
 
 
-def _assemble(parts: list[_Part]) -> Gaussians:
+def assemble(parts: list[Part]) -> Gaussians:
     means = np.concatenate([p.means for p in parts])
     colors = np.concatenate([p.colors for p in parts])
     anchors = np.concatenate([p.means if p.anchors is None else p.anchors for p in parts])

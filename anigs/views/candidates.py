@@ -85,14 +85,14 @@ def make_candidates(cameras: Sequence[Camera], up: np.ndarray, cfg: ViewsConfig)
     return np.concatenate([centres, extra.reshape(-1, 3)]), np.concatenate([fwd, extra_fwd.reshape(-1, 3)])
 
 
-def _wrap_deg(a: np.ndarray) -> np.ndarray:
+def wrap_deg(a: np.ndarray) -> np.ndarray:
     return (np.asarray(a, float) + 180.0) % 360.0 - 180.0
 
 
 def in_wedges(rel_az_deg: np.ndarray, directions: Sequence[float], fov_deg: float) -> np.ndarray:
     """bool [K]: relative azimuths (deg) inside any of the horizontal wedges ``yaw +- fov/2``."""
     rel = np.asarray(rel_az_deg, float)[:, None]
-    return (np.abs(_wrap_deg(rel - np.asarray(directions, float)[None])) <= fov_deg / 2).any(1)
+    return (np.abs(wrap_deg(rel - np.asarray(directions, float)[None])) <= fov_deg / 2).any(1)
 
 
 def azimuth_deg(vec: np.ndarray, up: np.ndarray) -> np.ndarray:

@@ -11,7 +11,7 @@ import numpy as np
 from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
 from anigs.render.labels import dynamic_masks
-from anigs.views.candidates import _wrap_deg
+from anigs.views.candidates import wrap_deg
 from anigs.views.config import ViewsConfig
 from anigs.render.visibility import VisibilityConfig, render_depth, visibility
 
@@ -57,8 +57,8 @@ def capture_pitch_deg(cameras: Sequence[Camera], up: np.ndarray) -> float:
     return float(np.median(np.degrees(np.arcsin(np.clip(f @ up, -1, 1)))))
 
 
-def _rel_deg(a: float) -> float:
-    return float(_wrap_deg(np.array([a]))[0])
+def rel_deg(a: float) -> float:
+    return float(wrap_deg(np.array([a]))[0])
 
 
 def replacement_directions(yaw: float, pitch: float, roi_rel: float | None, cfg: ViewsConfig) -> list[tuple[float, float]]:
@@ -69,12 +69,12 @@ def replacement_directions(yaw: float, pitch: float, roi_rel: float | None, cfg:
     pitches = [p for p in pitches if p >= -89.0]
     yaws = [yaw]
     if roi_rel is not None:
-        d = _rel_deg(roi_rel - yaw)
+        d = rel_deg(roi_rel - yaw)
         yaws += [yaw + t * d for t in cfg.yaw_steps]
     out: list[tuple[float, float]] = []
     for y in yaws:
         for p in pitches:
-            key = (round(_rel_deg(y), 6), round(p, 6))
-            if key not in [(round(_rel_deg(a), 6), round(b, 6)) for a, b in out]:
+            key = (round(rel_deg(y), 6), round(p, 6))
+            if key not in [(round(rel_deg(a), 6), round(b, 6)) for a, b in out]:
                 out.append((float(y), float(p)))
     return out

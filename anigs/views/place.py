@@ -16,14 +16,14 @@ from anigs.geometry import horizontal_basis
 from anigs.views.candidates import roi_azimuth, view_camera
 from anigs.views.config import ViewsConfig
 from anigs.views.content import ContentCheck
-from anigs.views.coverage import _rel_deg, replacement_directions, scene_coverage
+from anigs.views.coverage import rel_deg, replacement_directions, scene_coverage
 from anigs.views.policy import LayoutPolicy
 
 log = logging.getLogger("anigs.views")
 
 def _angle_deg(yaw0: float, pitch0: float, yaw1: float, pitch1: float) -> float:
     """Angle (deg) between two view directions given as yaw and pitch (deg) about the same heading."""
-    p0, p1, dy = math.radians(pitch0), math.radians(pitch1), math.radians(_rel_deg(yaw0 - yaw1))
+    p0, p1, dy = math.radians(pitch0), math.radians(pitch1), math.radians(rel_deg(yaw0 - yaw1))
     c = math.sin(p0) * math.sin(p1) + math.cos(p0) * math.cos(p1) * math.cos(dy)
     return math.degrees(math.acos(min(max(c, -1.0), 1.0)))
 
@@ -82,7 +82,7 @@ class Placer:
         cfg = self.cfg
         cam = view_camera(self.cand[ci], self.heading_vec(self.heading[ci]), self.up, yaw, pitch,
                           self.policy.fov_deg, cfg.width, cfg.height)
-        key = (ci, round(_rel_deg(yaw), 6), round(pitch, 6))
+        key = (ci, round(rel_deg(yaw), 6), round(pitch, 6))
         if key not in self.cov_cache:
             cov = scene_coverage(self.g_obs, cam, cfg.coverage_alpha)
             self.cov_cache[key] = cov, (self.check.measure(cam) if cov >= cfg.min_coverage else None)
@@ -91,10 +91,10 @@ class Placer:
     def place(self, ci: int, loc: int, yaw: float) -> Placed | None:
         """First direction at candidate ``ci`` for requested ``yaw`` that passes the coverage test."""
         roi_az = roi_azimuth(self.cand[ci], self.centroid, self.up)
-        roi_rel = None if roi_az is None else _rel_deg(roi_az - self.heading[ci])
+        roi_rel = None if roi_az is None else rel_deg(roi_az - self.heading[ci])
         blurred: list[tuple[Camera, dict[str, Any]]] = []
         for y, p in replacement_directions(yaw, self.policy.pitch_deg, roi_rel, self.cfg):
-            if any(abs(_rel_deg(y - uy)) < 1e-6 and abs(p - up_) < 1e-6 for uy, up_ in self.used.get(ci, [])):
+            if any(abs(rel_deg(y - uy)) < 1e-6 and abs(p - up_) < 1e-6 for uy, up_ in self.used.get(ci, [])):
                 continue
             if any(_angle_deg(y, p, uy, up_) < self.cfg.min_separation_deg for uy, up_ in self.used.get(ci, [])):
                 continue  # a near-copy of a view queued here (not tested, not drawn)

@@ -300,10 +300,10 @@ def test_other_kernel_builds(tmp_path, env):
     windows): the same agreement with the backward, and identical bits for 1 and 2 threads."""
     code = """
 import torch
-from anigs.render import rasterize, _build
+from anigs.render import kernel as render_kernel, rasterize
 from tests.render.test_composite_weights import _camera, _factors, _one_then_two_threads, _reference, EYES
 from tests._scenes import random_scene
-print(_build.arch_flags(), _build._thread_flags())
+print(render_kernel.arch_flags(), render_kernel.thread_flags())
 for W, H in ((64, 48), (70, 45)):
     scene = random_scene(3000, W, H, 0, seed=101)
     f = _factors(H, W, 2, seed=102)

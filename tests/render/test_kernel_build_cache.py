@@ -8,7 +8,7 @@ import subprocess
 
 import pytest
 
-from anigs.render import _build
+from anigs.render import kernel as render_kernel
 from anigs.ssim import kernel as ssim_kernel
 
 
@@ -16,7 +16,7 @@ from anigs.ssim import kernel as ssim_kernel
 def fresh(monkeypatch, tmp_path):
     """An empty kernel cache and no loaded libraries (both restored afterwards)."""
     monkeypatch.setenv("ANIGS_CACHE", str(tmp_path / "cache"))
-    monkeypatch.setattr(_build, "_LIB", None)
+    monkeypatch.setattr(render_kernel, "_LIB", None)
     monkeypatch.setattr(ssim_kernel, "_LIB", None)
     monkeypatch.setattr(ssim_kernel, "_FAILED", None)
     return tmp_path
@@ -30,34 +30,34 @@ def _garbage(path):
 
 def test_ssim_library_that_does_not_load_raises_not_falls_back(fresh):
     path = _garbage(ssim_kernel.library_path())
-    with pytest.raises(_build.KernelLoadError, match=rf"(?s){path.name}.*delete .* and rerun"):
+    with pytest.raises(render_kernel.KernelLoadError, match=rf"(?s){path.name}.*delete .* and rerun"):
         ssim_kernel.available()
     assert ssim_kernel.failure() is None
 
 
 def test_raster_library_that_does_not_load_raises_not_falls_back(fresh):
-    path = _garbage(_build.library_path())
-    with pytest.raises(_build.KernelLoadError, match=rf"(?s){path.name}.*delete .* and rerun"):
-        _build.available()
+    path = _garbage(render_kernel.library_path())
+    with pytest.raises(render_kernel.KernelLoadError, match=rf"(?s){path.name}.*delete .* and rerun"):
+        render_kernel.available()
 
 
 def test_os_error_launching_the_compiler_raises_not_falls_back(fresh, monkeypatch):
     def no_memory(cmd, **kw):
         raise OSError(errno.ENOMEM, "Cannot allocate memory")
 
-    monkeypatch.setattr(_build.subprocess, "run", no_memory)
-    with pytest.raises(_build.KernelLoadError, match="Cannot allocate memory.*rerun"):
+    monkeypatch.setattr(render_kernel.subprocess, "run", no_memory)
+    with pytest.raises(render_kernel.KernelLoadError, match="Cannot allocate memory.*rerun"):
         ssim_kernel.available()
-    with pytest.raises(_build.KernelLoadError, match="Cannot allocate memory.*rerun"):
-        _build.available()
+    with pytest.raises(render_kernel.KernelLoadError, match="Cannot allocate memory.*rerun"):
+        render_kernel.available()
     assert ssim_kernel.failure() is None
 
 
 def test_no_compiler_still_falls_back(fresh, monkeypatch):
-    monkeypatch.setattr(_build.shutil, "which", lambda name: None)
+    monkeypatch.setattr(render_kernel.shutil, "which", lambda name: None)
     assert not ssim_kernel.available()
     assert "no C++ compiler found" in ssim_kernel.failure()
-    assert not _build.available()
+    assert not render_kernel.available()
 
 
 @pytest.fixture
@@ -71,7 +71,7 @@ def tiny_src(tmp_path, monkeypatch):
 
 
 def test_fallback_build_is_not_cached_under_the_full_flag_key(tiny_src, tmp_path, monkeypatch, caplog):
-    _build._compiler()  # skips nothing: no compiler here fails this test, as the kernels need one
+    render_kernel._compiler()  # skips nothing: no compiler here fails this test, as the kernels need one
     out = tmp_path / "cache" / "tiny_full.so"
     real_run = subprocess.run
     ran: list[list[str]] = []
@@ -82,23 +82,23 @@ def test_fallback_build_is_not_cached_under_the_full_flag_key(tiny_src, tmp_path
             return subprocess.CompletedProcess(cmd, 1, "", "c++: fatal error: Killed signal terminated program cc1plus")
         return real_run(cmd, **kw)
 
-    monkeypatch.setattr(_build.subprocess, "run", march_killed)
-    got = _build.compile_cached(tiny_src, out, "the tiny kernel")
+    monkeypatch.setattr(render_kernel.subprocess, "run", march_killed)
+    got = render_kernel.compile_cached(tiny_src, out, "the tiny kernel")
     assert not out.exists()
     assert got != out and got.exists() and "no-march" in got.name
     assert "-march=native" in ran[0] and not any(c.startswith("-march") for c in ran[-1])
     assert "-fopenmp" in ran[-1] and "no-openmp" not in got.name
-    assert _build.open_library(got, "the tiny kernel").tiny_answer() == 42
+    assert render_kernel.open_library(got, "the tiny kernel").tiny_answer() == 42
     assert "full-flag build failed" in caplog.text and got.name in caplog.text
 
     # the full flags fail again: the cached fallback is reused (its flags logged), not rebuilt
     ran.clear()
-    assert _build.compile_cached(tiny_src, out, "the tiny kernel") == got
+    assert render_kernel.compile_cached(tiny_src, out, "the tiny kernel") == got
     assert ran and all("-march=native" in cmd for cmd in ran)  # only the -march variants are tried again
 
     # a later run with a working compiler builds the full-flag library under the full-flag key
     ran.clear()
-    monkeypatch.setattr(_build.subprocess, "run", lambda cmd, **kw: (ran.append(cmd), real_run(cmd, **kw))[1])
-    assert _build.compile_cached(tiny_src, out, "the tiny kernel") == out
+    monkeypatch.setattr(render_kernel.subprocess, "run", lambda cmd, **kw: (ran.append(cmd), real_run(cmd, **kw))[1])
+    assert render_kernel.compile_cached(tiny_src, out, "the tiny kernel") == out
     assert out.exists() and len(ran) == 1 and "-march=native" in ran[0] and "-fopenmp" in ran[0]
-    assert _build.compile_cached(tiny_src, out, "the tiny kernel") == out and len(ran) == 1
+    assert render_kernel.compile_cached(tiny_src, out, "the tiny kernel") == out and len(ran) == 1

@@ -151,9 +151,9 @@ def test_render_in_forked_child():
         rasterize(*scene, W, H, backend="cpu")
         ctx = mp.get_context("fork")
         q = ctx.Queue()
-        from anigs.render import _build
+        from anigs.render import kernel as render_kernel
 
-        kernel_threads = 1 if _build._thread_flags() else 2  # OpenMP build: 1, own pool: 2
+        kernel_threads = 1 if render_kernel.thread_flags() else 2  # OpenMP build: 1, own pool: 2
         p = ctx.Process(target=_child_render, args=(q, kernel_threads))
         p.start()
         p.join(timeout=60)
@@ -167,9 +167,9 @@ def test_baseline_instruction_set_build_agrees(tmp_path):
     """The kernel built for the baseline ISA (4-lane windows) against the torch reference."""
     code = """
 import torch
-from anigs.render import rasterize, _build
+from anigs.render import kernel as render_kernel, rasterize
 from tests._scenes import random_scene
-assert _build.arch_flags() == []
+assert render_kernel.arch_flags() == []
 W, H = 64, 48
 scene = random_scene(3000, W, H, 2, seed=71)
 out = {}

@@ -324,12 +324,12 @@ def test_nan_loss_is_detected_with_a_non_fused_optimizer(scene, monkeypatch):
 def test_a_non_finite_step_is_skipped_until_reported(scene, monkeypatch):
     """With the fused Adam a non-finite step leaves the parameters as they were."""
     import anigs.static.fit as fit_mod
-    from anigs.static.fit import DivergenceGuard, _to_params, make_optimizer, train_step
+    from anigs.static.fit import DivergenceGuard, to_params, make_optimizer, train_step
 
     gt, cams, imgs = scene
     g = gt.with_sh_degree(1)
     g = Gaussians(g.means.clone(), g.quats.clone(), g.log_scales.clone(), g.opacity_logits.clone(), g.sh)
-    params = _to_params(g, torch.device("cpu"))  # (trained in place: not the fixture's tensors)
+    params = to_params(g, torch.device("cpu"))  # (trained in place: not the fixture's tensors)
     opt = make_optimizer(params, {k: 1e-3 for k in params})
     assert opt.defaults["fused"]
     guard = DivergenceGuard(opt, list(params), torch.device("cpu"))
@@ -352,19 +352,19 @@ def test_a_non_finite_step_is_skipped_until_reported(scene, monkeypatch):
 
 def test_render_passes_only_the_active_sh_bands(scene):
     from anigs.render import rasterize
-    from anigs.static.fit import _render, _to_params
+    from anigs.static.fit import render_params, to_params
 
     gt, cams, _ = scene
     g = gt.with_sh_degree(3)
     g.sh[:, 1:] = 0.1 * torch.randn(g.sh[:, 1:].shape, generator=torch.Generator().manual_seed(0))
-    params = _to_params(g, torch.device("cpu"))
+    params = to_params(g, torch.device("cpu"))
     cam = cams[0]
     for deg in (0, 1, 3):
-        rgb, _, _ = _render(params, cam, deg, torch.zeros(3), "auto")
+        rgb, _, _ = render_params(params, cam, deg, torch.zeros(3), "auto")
         full, _, _ = rasterize(g.means, g.quats, g.scales, g.opacities, g.sh, cam.torch_viewmat(), cam.torch_K(),
                                cam.width, cam.height, sh_degree=deg, background=torch.zeros(3))
         assert torch.equal(rgb, full), deg
-    rgb, _, _ = _render(params, cam, 1, torch.zeros(3), "auto")
+    rgb, _, _ = render_params(params, cam, 1, torch.zeros(3), "auto")
     rgb.sum().backward()
     assert params["sh_rest"].grad.shape == params["sh_rest"].shape
     assert torch.count_nonzero(params["sh_rest"].grad[:, 3:]) == 0 and torch.count_nonzero(params["sh_rest"].grad[:, :3])

@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
-from anigs.static.fit import StaticConfig, _to_params, fit_static, make_optimizer
+from anigs.static.fit import StaticConfig, to_params, fit_static, make_optimizer
 from anigs.static.regularize import (NeedleRegularizer, RegularizeConfig, last_densify_step, limit_needles,
                                      prune_rows)
 from anigs.gaussians import Gaussians
@@ -50,7 +50,7 @@ def test_needle_limit_shrinks_needles_and_leaves_disks_and_blobs():
 def test_unresolved_flags_the_needle_and_the_huge_blob_only():
     g = _scene_with_needle()
     cams = _ring()
-    params = _to_params(g, torch.device("cpu"))
+    params = to_params(g, torch.device("cpu"))
     reg = NeedleRegularizer(RegularizeConfig(max_world_fraction=0.1, max_share=1.0), extent=4.4, cameras=cams,
                             mats=[(c.torch_viewmat(), c.torch_K()) for c in cams])
     bad = reg.unresolved(params)
@@ -70,7 +70,7 @@ def test_unresolved_flags_the_needle_and_the_huge_blob_only():
 def test_the_last_densification_step_prunes_what_is_unresolved():
     g = _scene_with_needle()
     cams = _ring()
-    params = _to_params(g, torch.device("cpu"))
+    params = to_params(g, torch.device("cpu"))
     reg = NeedleRegularizer(RegularizeConfig(max_share=1.0), extent=4.4, cameras=cams,
                             mats=[(c.torch_viewmat(), c.torch_K()) for c in cams])
     assert reg.decay(params, 700, last=True) == 2
@@ -96,7 +96,7 @@ def test_a_coarse_model_loses_at_most_max_share_its_least_resolved_first():
     g.log_scales[7] = math.log(2.0)          # the two worst
     g.log_scales[9] = math.log(1.5)
     cams = _ring()
-    params = _to_params(g, torch.device("cpu"))
+    params = to_params(g, torch.device("cpu"))
     mats = [(c.torch_viewmat(), c.torch_K()) for c in cams]
     cap = NeedleRegularizer(RegularizeConfig(max_share=2 / g.num), 4.4, cams, mats).unresolved(params)
     assert cap.sum() == 2 and cap[7] and cap[9]
@@ -139,5 +139,5 @@ def test_unseen_gaussians_are_the_hidden_and_the_outside():
     means = torch.cat([g.means, torch.tensor([[0.0, 0.0, 50.0], [0.0, 0.0, 0.0]])])  # far above every camera; the centre
     g2 = type(g)(means, torch.cat([g.quats, g.quats[:2]]), torch.cat([g.log_scales, g.log_scales[:2]]),
                  torch.cat([g.opacity_logits, g.opacity_logits[:2]]), torch.cat([g.sh, g.sh[:2]]))
-    hidden = unseen(_to_params(g2, torch.device("cpu")), cams, 0.01)
+    hidden = unseen(to_params(g2, torch.device("cpu")), cams, 0.01)
     assert hidden[-2] and not hidden[:-2].any()

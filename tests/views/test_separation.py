@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from anigs.views.config import ViewsConfig
-from anigs.views.coverage import _rel_deg
+from anigs.views.coverage import rel_deg
 from anigs.views.place import Placer, _angle_deg
 from anigs.views.policy import LayoutPolicy
 
@@ -32,7 +32,7 @@ def _placer(cfg: ViewsConfig, passes) -> Placer:
                 policy=LayoutPolicy("best", 0.0, 95.0), cfg=cfg)
 
     def coverage_of(ci, yaw, pitch):
-        ok = passes(_rel_deg(yaw), pitch)
+        ok = passes(rel_deg(yaw), pitch)
         return _Cam(), (1.0 if ok else 0.0), ({"content": 1.0} if ok else None)
 
     pl.coverage_of = coverage_of

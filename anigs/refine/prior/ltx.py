@@ -143,7 +143,7 @@ def check_model_folder(path: str | Path, need_text_encoder: bool = True) -> Path
     return p
 
 
-def _import_diffusers():
+def import_diffusers():
     try:
         from diffusers import LTXConditionPipeline  # noqa: F401
         from diffusers.pipelines.ltx import pipeline_ltx_condition  # noqa: F401
@@ -180,7 +180,7 @@ class LTXPrior(VideoPrior):
         if use_embeds and not Path(self.cfg.prompt_embeds).is_file():
             raise FileNotFoundError(f"ltx.prompt_embeds file not found: {self.cfg.prompt_embeds} "
                                     "(a torch .pt with {'embeds': [L,D], 'mask': [L]})")
-        Pipe, _ = _import_diffusers()
+        Pipe, _ = import_diffusers()
         extra = {"text_encoder": None, "tokenizer": None} if use_embeds else {}
         with warnings.catch_warnings():  # newer diffusers renamed torch_dtype to dtype; keep the old spelling working
             warnings.simplefilter("ignore", FutureWarning)
@@ -219,7 +219,7 @@ class LTXPrior(VideoPrior):
     def _encode(self, video: torch.Tensor, grad: bool = False) -> torch.Tensor:
         """[1,3,T,H,W] in [0,1] (padded) -> normalised latents [1,C,F,h,w] float32."""
         pipe = self.load()
-        _, mod = _import_diffusers()
+        _, mod = import_diffusers()
         with torch.set_grad_enabled(grad):
             out = pipe.vae.encode((video * 2.0 - 1.0).to(self.device, pipe.vae.dtype))
             z = mod.retrieve_latents(out, sample_mode="argmax").float()

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import torch
 
-from anigs.refine.prior.ltx import _import_diffusers
+from anigs.refine.prior.ltx import import_diffusers
 
 
 def save_tiny_random_stack(path: str | Path, seed: int = 0) -> Path:
@@ -19,7 +19,7 @@ def save_tiny_random_stack(path: str | Path, seed: int = 0) -> Path:
     import sentencepiece as spm
     import transformers
 
-    Pipe, _ = _import_diffusers()
+    Pipe, _ = import_diffusers()
     import diffusers
 
     path = Path(path)

@@ -34,7 +34,7 @@ from pathlib import Path
 
 SRC = Path(__file__).with_name("csrc") / "raster.cpp"
 ABI_VERSION = 5
-_FLAGS = ["-O3", "-std=c++17", "-shared", "-fPIC", "-pthread", "-ffp-contract=off", "-fno-math-errno"]
+FLAGS = ["-O3", "-std=c++17", "-shared", "-fPIC", "-pthread", "-ffp-contract=off", "-fno-math-errno"]
 _LIB: ctypes.CDLL | None = None
 log = logging.getLogger("anigs.kernel")
 
@@ -86,7 +86,7 @@ def arch_flags() -> list[str]:
     return []
 
 
-def _thread_flags() -> list[str]:
+def thread_flags() -> list[str]:
     """OpenMP by default; ``ANIGS_KERNEL_THREADS=pool`` builds the kernel's own thread pool.
 
     With OpenMP the kernel's loops run on torch's own OpenMP threads (pip torch ships
@@ -101,7 +101,7 @@ def _thread_flags() -> list[str]:
 
 def library_path() -> Path:
     srcs = b"".join(p.read_bytes() for p in sorted(SRC.parent.glob("*.cpp")))
-    flags = " ".join(_FLAGS + arch_flags() + _thread_flags())
+    flags = " ".join(FLAGS + arch_flags() + thread_flags())
     key = hashlib.sha256(srcs + flags.encode() + platform.machine().encode()).hexdigest()[:16]
     return cache_dir() / f"anigs_raster_{key}.so"
 
@@ -122,7 +122,7 @@ def compile_cached(src: Path, out: Path, what: str, verbose: bool = False) -> Pa
     if out.exists():
         return out
     cxx = _compiler()
-    arch, omp = arch_flags(), _thread_flags()
+    arch, omp = arch_flags(), thread_flags()
     # fall back to the kernel's own thread pool if OpenMP is missing, and to the baseline
     # instruction set if the compiler does not know the -march level
     variants = [(m, o) for m in ([arch, []] if arch else [[]]) for o in ([omp, []] if omp else [[]])]
@@ -130,7 +130,7 @@ def compile_cached(src: Path, out: Path, what: str, verbose: bool = False) -> Pa
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         for march, o in variants:
-            flags = [*_FLAGS, *march, *o]
+            flags = [*FLAGS, *march, *o]
             target = _variant_path(out, [*(arch if not march else []), *(omp if not o else [])])
             if target != out and target.exists():
                 return _warn_fallback(target, what, flags, errors)
@@ -207,7 +207,7 @@ def load() -> ctypes.CDLL:
     global _LIB
     if _LIB is not None:
         return _LIB
-    if _thread_flags():
+    if thread_flags():
         # pip torch ships its own libgomp.so.1 and the loader shares it with the kernel (same
         # soname): the kernel's loops then run on torch's threads with torch's wait policy.
         # With a separate OpenMP runtime (another torch build), make ours passive so that the
