@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import importlib
 import json
 import string
 import types
@@ -170,26 +169,6 @@ class _Unfilled(dict):
 
     def __missing__(self, key: str) -> str:
         return f"{{{key}}}"
-
-
-def stage_outputs(stage: str, kind: str = "Outputs") -> type[Outputs]:
-    """The ``Outputs`` type ``kind`` of stage module ``anigs.stages.<stage>`` (a dotted name: that
-    module's, e.g. ``anigs.study.layout``), imported by name (the contract imports no stage)."""
-    return getattr(importlib.import_module(stage if "." in stage else f"anigs.stages.{stage}"), kind)
-
-
-# the files `snakemake` (the default target) asks for of each variant, by stage and key (None: the folder)
-FINAL_FILES = (("final", "summary"), ("export", "sidecar"), ("eval", "metrics"), ("view", None))
-
-
-def final_targets(results: str, scenes: list[str], variants: list[str]) -> list[str]:
-    """What the default target builds under ``results``: each scene's variants' :data:`FINAL_FILES`,
-    then the scene's effects report (the effects stage's choice, which a still scene shows too)."""
-    out = []
-    for s in scenes:
-        out += [stage_outputs(st).under(results, k, scene=s, variant=v) for v in variants for st, k in FINAL_FILES]
-        out.append(stage_outputs("effects").under(results, "effects", scene=s))
-    return out
 
 
 def scope_folder(stage: str) -> str:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from anigs.animate.plan import RoundPlan
-from anigs.contract import stage_outputs
+from anigs.stages.targets import stage_outputs
 
 
 def round_folder(results: str, scene: str, variant: str, r: int | str) -> str:

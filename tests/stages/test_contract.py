@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from anigs.contract import File, Inputs, Outputs, check_array, outputs_of, stage_outputs
+from anigs.contract import File, Inputs, Outputs, check_array, outputs_of
+from anigs.stages.targets import stage_outputs
 
 
 class _Out(Outputs):

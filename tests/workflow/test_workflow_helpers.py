@@ -6,7 +6,7 @@ import json
 import re
 
 from anigs.config import scene_pattern, with_globals
-from anigs.contract import FINAL_FILES, final_targets, stage_outputs
+from anigs.stages.targets import FINAL_FILES, final_targets, stage_outputs
 from anigs.reports.tradeoff import points_json, workflow_sweep
 from anigs.stages.eval import Outputs as EvalOutputs, merge_halves
 from anigs.stages.shared_inputs import GroundTruthInputs, ground_truth

@@ -6,7 +6,7 @@ import anigs
 import yaml
 
 from anigs.config import scene_pattern, section, with_globals, workflow_scenes
-from anigs.contract import final_targets, stage_outputs
+from anigs.stages.targets import final_targets, stage_outputs
 from anigs.stages.command import stage_command
 from anigs.stages.eval import merge_halves, table_row
 from anigs.stages.fvd_gt import wanted as fvd_gt_runs
