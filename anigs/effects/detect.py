@@ -55,6 +55,7 @@ from anigs.effects.rules import AFTER, Candidate, check_candidates
 from anigs.effects.scene_cues import Cues, scene_cues
 from anigs.effects.segmenter import apply_segmenter, region_note
 from anigs.gaussians import Gaussians
+from anigs.geometry.quaternion import quat_to_rotmat
 
 log = logging.getLogger("anigs.effects")
 SH_C0 = 0.28209479  # the degree-0 spherical harmonic: a Gaussian's own colour is 0.5 + SH_C0 x its DC coefficients
@@ -165,12 +166,14 @@ def apply_rules(g: Gaussians, cues: Cues, region_of: np.ndarray, regions: Sequen
     means, ground, cams = cues.means, cues.ground, [p.camera for p in cues.maps]
     colours = (0.5 + SH_C0 * g.sh[:, 0, :]).clamp(0, 1).double().numpy()
     height = cam_h = None
-    if ground.plane is not None:
-        height = means @ ground.plane.normal - ground.plane.offset
-        cam_h = ground.plane.camera_height if ground.plane.camera_height > 0 else 1.0
+    ref = ground.reference  # the ground, else the lowest dense layer: every rule runs on every capture
+    if ref is not None:
+        height = means @ ref.normal - ref.offset
+        cam_h = ref.camera_height if ref.camera_height > 0 else 1.0
     cam_top = max(float(np.asarray(c.center) @ cues.up) for c in cams)
     new, cands, fragments = check_candidates(means, colours, region_of, height, cam_h or 1.0, cues.radius, cfg,
-                                             cues.flat, above_cameras=means @ cues.up > cam_top, blossoms_of=blossoms_of)
+                                             cues.flat, above_cameras=means @ cues.up > cam_top, blossoms_of=blossoms_of,
+                                             flattest=flattest_axes(g))
     for name, count in fragments.items():
         log.info("effects: %d %s Gaussians in parts under %d Gaussians or on no plant (islands) set aside by the rules",
                  count, name, cfg.rules.min_candidate)
@@ -206,6 +209,12 @@ def apply_rules(g: Gaussians, cues: Cues, region_of: np.ndarray, regions: Sequen
             if to.any():
                 reg.masks[name] = reg.masks[name] | to
     return Ruled(new, cands, fragments, rejected)
+
+
+def flattest_axes(g: Gaussians) -> np.ndarray:
+    """[N,3] each Gaussian's unit flattest axis (the rotation's column of its smallest scale): its splat's normal."""
+    rot = quat_to_rotmat(g.quats).double().numpy()
+    return rot[np.arange(g.num), :, g.scales.argmin(1).numpy()]
 
 
 def unlifted_share(g: Gaussians, region_of: np.ndarray, cams: Sequence[Camera], masks: dict[str, list[np.ndarray]],

@@ -29,13 +29,21 @@ log = logging.getLogger("anigs.effects")
 
 @dataclass
 class Ground:
-    """The ground plane when it could be found, and why not otherwise."""
+    """The ground plane when it could be found, and why not otherwise (with the untrusted ``estimate``)."""
 
     plane: GroundPlane | None
     up: np.ndarray
     support: float = 0.0  # share of the Gaussians lying on the plane
     note: str = ""
     cut: float = 0.0      # seen surfaces lower than this above the plane are ground (:func:`seen_ground_cut`; 0: unset)
+    #: the lowest dense layer when it is not trusted as the ground (``plane`` None): the rules measure heights (how
+    #: high a crown is) from it all the same, so every rule runs on every capture; grass and water need ``plane``
+    estimate: GroundPlane | None = None
+
+    @property
+    def reference(self) -> GroundPlane | None:
+        """The plane the rules measure heights from: the ground, else the untrusted lowest dense layer."""
+        return self.plane if self.plane is not None else self.estimate
 
     def cut_height(self) -> float:
         """Height above the plane below which a seen surface is ground (``cut``, else the plane's own)."""
@@ -46,7 +54,8 @@ class Ground:
     def to_dict(self) -> dict:
         return {"found": self.plane is not None, "up": self.up.tolist(), "support": round(self.support, 4),
                 "note": self.note, **({"plane": self.plane.to_dict(), "cut": round(self.cut_height(), 4)}
-                                      if self.plane is not None else {})}
+                                      if self.plane is not None else {}),
+                **({"estimate": self.estimate.to_dict()} if self.plane is None and self.estimate is not None else {})}
 
 
 def world_up(cameras: Sequence[Camera], mode: str = "z", points: np.ndarray | None = None) -> np.ndarray:
@@ -65,17 +74,20 @@ def scene_ground(means: np.ndarray, cameras: Sequence[Camera], up: np.ndarray, m
     try:
         plane = ground_plane(means, up, cameras, margin=margin)
     except ValueError as err:
-        return Ground(None, up, 0.0, f"no ground plane ({err})")
+        return Ground(None, up, 0.0, f"no ground plane ({err}): no grass or water is looked for, and the rules that "
+                                     "measure heights (sunlit leaves high in a crown) find none")
     h = means @ plane.normal - plane.offset
     band = max(plane.cut_height(), 1e-9)
     support = float((np.abs(h) <= band).mean())
     if support < min_support:
-        return Ground(None, up, support, f"no ground plane: only {100 * support:.1f}% of the Gaussians lie on "
-                                         f"the lowest dense layer (needs {100 * min_support:.1f}%)")
+        return Ground(None, up, support, f"ground uncertain: only {100 * support:.1f}% of the Gaussians lie on "
+                                         f"the lowest dense layer (needs {100 * min_support:.1f}%), so no grass or "
+                                         "water is looked for; the rules measure heights from that layer", estimate=plane)
     below = float((h < -max(band, 0.1 * plane.camera_height)).mean())
     if below > max_below:  # nothing real lies under the ground: this layer is not it
-        return Ground(None, up, support, f"no ground plane: {100 * below:.0f}% of the Gaussians lie under the "
-                                         f"lowest dense layer (at most {100 * max_below:.0f}% allowed)")
+        return Ground(None, up, support, f"ground uncertain: {100 * below:.0f}% of the Gaussians lie under the "
+                                         f"lowest dense layer (at most {100 * max_below:.0f}% allowed), so no grass or "
+                                         "water is looked for; the rules measure heights from that layer", estimate=plane)
     return Ground(plane, up, support, "")
 
 

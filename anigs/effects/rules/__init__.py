@@ -32,6 +32,7 @@ from anigs.effects.rules.base import Bands, Candidate, Context, Rule, Verdict
 from anigs.effects.rules.blossoms import Blossoms
 from anigs.effects.rules.held import Held
 from anigs.effects.rules.islands import Islands, drop_islands
+from anigs.effects.rules.made_surface import MadeSurface
 from anigs.effects.rules.own_colour import OwnColour
 from anigs.effects.rules.plane import Plane, fit_plane
 from anigs.effects.rules.sunlit_leaves import SunlitLeaves
@@ -39,8 +40,9 @@ from anigs.typed_config import Section
 
 #: per region, the rules each of its candidates goes through, in this order (the table is the order)
 TABLE: dict[str, tuple[type, ...]] = {
-    "flowers": (SunlitLeaves, OwnColour, Plane, Held, Blossoms),
-    "foliage": (Plane,),
+    "foliage": (Plane, MadeSurface),
+    "grass": (MadeSurface,),
+    "flowers": (SunlitLeaves, OwnColour, Plane, MadeSurface, Held, Blossoms),
 }
 BEFORE: tuple[type, ...] = (Islands,)       # on the lifted regions, before the candidates are formed
 AFTER: tuple[type, ...] = (SmearedSheet,)   # on the verdicts, once every candidate is checked
@@ -179,6 +181,8 @@ def run_table(ctx: Context, rules: "RulesConfig", flat: np.ndarray | None = None
                     out[sel] = -1
                 if not cand.kept:
                     fragments[name] = fragments.get(name, 0) + len(sel)
+        if name == ctx.blossoms_of:  # blossoms attach only to the plants every rule kept
+            ctx.bear(out)
     for i, cand in enumerate(cands):
         cand.number = i + 1
     return Outcome(out, cands, fragments)
@@ -186,7 +190,8 @@ def run_table(ctx: Context, rules: "RulesConfig", flat: np.ndarray | None = None
 
 def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarray, height: np.ndarray | None,
                      cam_height: float, radius: float, cfg, flat: np.ndarray | None = None,
-                     seed: int = 0, above_cameras: np.ndarray | None = None, blossoms_of: str | None = None) -> Outcome:
+                     seed: int = 0, above_cameras: np.ndarray | None = None, blossoms_of: str | None = None,
+                     flattest: np.ndarray | None = None) -> Outcome:
     """The rules on the lifted regions: :data:`BEFORE`, then :func:`run_table` (module docstring).
 
     Args:
@@ -200,6 +205,7 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
         above_cameras: bool [N], Gaussians higher (along up) than every camera (None: not checked).
         blossoms_of: the region whose plants' blossoms the flowers are (rule ``blossoms``; None: flowers are
             their own region, and then the flowers are ``unasked``).
+        flattest: [N,3] each Gaussian's unit flattest axis (rule ``made_surface``; None: that rule passes).
     Returns an :class:`Outcome` (it unpacks as ``region_of, candidates, fragments``).
     """
     rules = cfg.rules
@@ -208,5 +214,5 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
         region_of = rules.islands.apply(means, region_of, fragments)
     ctx = Context(means, colours, region_of, height, cam_height, radius, rules.link_frac * radius,
                   cfg.regions.bands(), above_cameras, blossoms_of,
-                  tuple(r for r, row in TABLE.items() if Blossoms in row) if blossoms_of else (), seed)
+                  tuple(r for r, row in TABLE.items() if Blossoms in row) if blossoms_of else (), seed, flattest)
     return run_table(ctx, rules, flat, fragments)

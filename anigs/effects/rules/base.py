@@ -101,7 +101,8 @@ class Context:
     their lifted ``region_of`` [N], ``height`` above the ground plane [N] (None: no plane) and the cameras'
     ``cam_height``, the neighbourhood ``radius`` and candidate ``link`` (world units), ``above_cameras``
     bool [N] (None: not checked), ``blossoms_of`` (rule ``blossoms``: the region whose plants' blossoms
-    the flowers are; None: flowers are their own region), the ``unasked`` regions, the colour ``bands`` and the RANSAC ``seed``.
+    the flowers are; None: flowers are their own region), the ``unasked`` regions, the colour ``bands``, the RANSAC ``seed`` and
+    each Gaussian's unit ``flattest`` axis [N,3] (its splat's normal; None: not known).
     The neighbour trees are built once, when a rule first asks."""
 
     means: np.ndarray
@@ -118,6 +119,7 @@ class Context:
     #: blossoms): what stays in them is still and not numbered
     unasked: tuple[str, ...] = ()
     seed: int = 0
+    flattest: np.ndarray | None = None  # [N,3] each Gaussian's unit flattest axis (None: not known)
 
     def __post_init__(self) -> None:
         self.is_plant = np.isin(self.region_of, [REGIONS.index(r) for r in PLANTS])
@@ -125,7 +127,12 @@ class Context:
         self.holders = np.flatnonzero(np.isin(self.region_of, [REGIONS.index("foliage"), REGIONS.index("grass")])
                                       | green(self.colours, self.bands))
         self.holder_tree = cKDTree(self.means[self.holders]) if len(self.holders) else None
-        self.bearers = (np.flatnonzero(self.region_of == REGIONS.index(self.blossoms_of)) if self.blossoms_of
+        self.bear(self.region_of)
+
+    def bear(self, region_of: np.ndarray) -> None:
+        """The blossoms' bearers: the Gaussians of ``blossoms_of`` in ``region_of`` [N]. :func:`run_table` calls it
+        again once that region's candidates are decided, so blossoms attach only to plants that survived every rule."""
+        self.bearers = (np.flatnonzero(region_of == REGIONS.index(self.blossoms_of)) if self.blossoms_of
                         else np.zeros(0, np.int64))
         self.bearer_tree = cKDTree(self.means[self.bearers]) if len(self.bearers) else None
 
