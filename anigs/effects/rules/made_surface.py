@@ -60,10 +60,10 @@ class MadeSurface:
         cand.figures.update(smooth=smooth, turning=turning)
         if smooth < self.min_smooth or turning < self.min_turning:
             return None
-        return Verdict(self.NAME, f"a smooth closed surface, not leaves: {smooth:.0%} of its Gaussians face the same "
-                                  f"way as their neighbours, on surfaces that turn around a volume (turning "
-                                  f"{turning:.2f}); leaves face every way. A machine, bin, pillar or box does not "
-                                  "move, whatever its colour")
+        return Verdict(self.NAME, f"a smooth closed surface, not leaves: {smooth:.0%} of its Gaussians continue their "
+                                  f"neighbours' surface, which turns around a volume (turning {turning:.2f}), where "
+                                  "leaves face every way: a machine, bin, pillar or box does not move, whatever its "
+                                  "colour")
 
 
 def surface_figures(points: np.ndarray, flattest: np.ndarray, k: int, max_bend_deg: float, tol_deg: float,
