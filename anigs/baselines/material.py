@@ -10,17 +10,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from anigs.animate.method_config import PhysicsConfig
 from anigs.baselines.springs import ImplicitIntegrator, SpringGraph, stiffness_matrix
 from anigs.baselines.tracks import ViewObservation
-
-if TYPE_CHECKING:
-    from anigs.baselines.physics import PhysicsConfig
 
 
 def kmeans(points: np.ndarray, k: int, iters: int = 25) -> np.ndarray:
