@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any, Protocol, Sequence
 
 import cv2
 import numpy as np
@@ -48,9 +48,6 @@ from anigs.gaussians import Gaussians
 from anigs.render import rasterize
 from anigs.render.labels import label_masks
 from anigs.render.visibility import blend_weights, frustum_subset, render_inputs
-
-if TYPE_CHECKING:
-    from anigs.views.motion import MotionSharpness
 
 log = logging.getLogger("anigs.views")
 
@@ -248,6 +245,15 @@ def edge_share(image: np.ndarray, threshold: float = EDGE_THRESHOLD, radius: int
     return float(edges.mean())
 
 
+class MotionFigure(Protocol):
+    """What :class:`ContentCheck` asks of its ``motion`` figure (:class:`anigs.views.motion.MotionSharpness`,
+    which builds on this module: declared here so that this module does not import it)."""
+
+    def measure(self, cam: Camera, rgb: np.ndarray) -> dict[str, Any]: ...
+
+    def to_json(self) -> dict[str, Any]: ...
+
+
 class ContentCheck:
     """The content test of candidate directions: :func:`content_fraction` (gated at
     ``rule.min_content``), :func:`edge_share` (gated at ``min_edge_share``; 0 records it only) and,
@@ -256,7 +262,7 @@ class ContentCheck:
     ``rule.max_unobserved``)."""
 
     def __init__(self, g: Gaussians, sharp: SharpSet, rule: ContentRule, background: Sequence[float],
-                 min_edge_share: float = 0.0, motion: MotionSharpness | None = None):
+                 min_edge_share: float = 0.0, motion: MotionFigure | None = None):
         self.g, self.sharp, self.rule = g, sharp, rule
         self.background, self.min_edge_share = list(background), float(min_edge_share)
         self.motion = motion
