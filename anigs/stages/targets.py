@@ -1,10 +1,13 @@
 """The stages' folders by name, for the workflow and the stage helpers: :func:`stage_outputs` (a stage's
 ``Outputs`` type from its name, the stage module imported by name) and what the default target builds
-(:data:`FINAL_FILES`, :func:`final_targets`). They live here, in the stage layer, so that the base
-(:mod:`anigs.contract`) imports no stage."""
+(:data:`FINAL_FILES`, :func:`final_targets`) and how many views the views stage queued
+(:func:`queued_view_count`, which sets the per-view targets). They live here, in the stage layer, so
+that the base (:mod:`anigs.contract`) imports no stage; this module imports no torch."""
 from __future__ import annotations
 
 import importlib
+import json
+from pathlib import Path
 
 from anigs.contract import Outputs
 
@@ -27,3 +30,18 @@ def final_targets(results: str, scenes: list[str], variants: list[str]) -> list[
         out += [stage_outputs(st).under(results, k, scene=s, variant=v) for v in variants for st, k in FINAL_FILES]
         out.append(stage_outputs("effects").under(results, "effects", scene=s))
     return out
+
+
+def queued_view_count(views_json: str | Path) -> int:
+    """Number of queued views in a ``views.json`` (the views stage's queue): its ``views`` list, ids
+    v00..v{n-1}. json only, no torch: the workflow reads it when the views checkpoint has run.
+
+    Views the stage dropped (``dynamic_fraction.dropped``) are not counted. Raises ValueError
+    when the queue is empty or its ids are not consecutive from v00.
+    """
+    with open(views_json) as fh:
+        views = json.load(fh)["views"]
+    ids = [v["id"] for v in views]
+    if not ids or ids != [f"v{i:02d}" for i in range(len(ids))]:
+        raise ValueError(f"{views_json}: the queued view ids must be v00, v01, ... (at least one), got {ids}")
+    return len(ids)

@@ -11,7 +11,7 @@ The region of interest (the dynamic canonical Gaussians) comes from exactly one 
 Writes ``OUT/views.json`` and ``OUT/topdown.png`` (:class:`Outputs`).
 Views whose dynamic region is negligible (``min_dynamic_fraction``, see :mod:`anigs.views`)
 are not queued: ``views.json`` lists them under ``dynamic_fraction.dropped`` and numbers the
-queued ones v00, v01, ... (:func:`anigs.views.queued_view_count` counts them). Under the
+queued ones v00, v01, ... (:func:`anigs.stages.targets.queued_view_count` counts them). Under the
 whole-scene fallback (no ROI) nothing is dropped.
 """
 from __future__ import annotations
@@ -30,7 +30,9 @@ from anigs.contract import File
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.sfm import Outputs as SfmOutputs
 from anigs.stages.shared_inputs import GroundTruthInputs
-from anigs.views import ViewsConfig
+from anigs.stages.targets import queued_view_count
+from anigs.views import ViewsConfig, cameras_from_views, plan_views
+from anigs.views.topdown import save_topdown
 
 Config = ViewsConfig  # the `views` config section
 
@@ -53,14 +55,10 @@ class Outputs(contract.Outputs):
 
     def views(self) -> list[Camera]:
         """The queued views' cameras, in queue order, named by view id."""
-        from anigs.views import cameras_from_views
-
         return cameras_from_views(self.report())
 
     def count(self) -> int:
-        """The number of queued views (ids v00..v{n-1}; json only, no torch)."""
-        from anigs.views.queue import queued_view_count
-
+        """The number of queued views (ids v00..v{n-1}; json only)."""
         return queued_view_count(self.path("views"))
 
     def view_ids(self) -> list[str]:
@@ -99,9 +97,6 @@ def region_of_interest(inputs: Inputs, g: Gaussians, cameras: list[Camera]) -> t
 
 def run(inputs: Inputs, cfg: ViewsConfig) -> Outputs:
     """Place the view queue around the region of interest; writes ``views.json`` and ``topdown.png``."""
-    from anigs.views.topdown import save_topdown
-    from anigs.views import plan_views
-
     g = load_ply(inputs.canonical)
     cameras = load_cameras(inputs.cameras)
     roi, source = region_of_interest(inputs, g, cameras)

@@ -39,8 +39,8 @@ placed view below ``min_dynamic_fraction`` is not queued; it is listed in ``view
 v00, v01, ... consecutively. If every view is negligible, the one with the largest fraction is
 kept (``dynamic_fraction.kept_below_min``). Nothing is dropped under the whole-scene ROI
 fallback (nothing moves), and with ``min_dynamic_fraction: 0`` nothing is computed (the
-``views.json`` has no ``dynamic_fraction`` section). :func:`queued_view_count` reads the
-queue's size back (json only).
+``views.json`` has no ``dynamic_fraction`` section). :func:`anigs.stages.targets.queued_view_count`
+reads the queue's size back (json only, no torch: the workflow imports it).
 
 ROI coverage counts a Gaussian as seen by a view when it is visible there
 (:mod:`anigs.masks.lift`: ``weight`` = it contributes at least ``min_weight`` pixels of
@@ -48,34 +48,14 @@ blending weight to the rendered image; ``depth`` = its centre passes a depth tes
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from anigs.views.candidates import (azimuth_deg, ccw_order, farthest_point_order, in_wedges, location_cameras,
+                                    make_candidates, score_candidate, view_camera)
+from anigs.views.config import ViewsConfig
+from anigs.views.coverage import (capture_pitch_deg, dynamic_fraction, observation_counts, replacement_directions,
+                                  scene_coverage)
+from anigs.views.plan import ViewPlan, cameras_from_views, drop_negligible, plan_views
 
-from anigs.views.queue import queued_view_count
-
-# the rest loads on first use (PEP 562), so that ``queued_view_count`` does not import torch
-_LAZY = {
-    "ViewsConfig": "config", "ViewPlan": "plan", "plan_views": "plan", "cameras_from_views": "plan",
-    "drop_negligible": "plan", "view_camera": "candidates", "farthest_point_order": "candidates",
-    "ccw_order": "candidates", "make_candidates": "candidates", "location_cameras": "candidates",
-    "score_candidate": "candidates", "in_wedges": "candidates", "azimuth_deg": "candidates",
-    "observation_counts": "coverage", "scene_coverage": "coverage",
-    "capture_pitch_deg": "coverage", "replacement_directions": "coverage", "dynamic_fraction": "coverage",
-}
-
-__all__ = ["queued_view_count", "ViewsConfig", "ViewPlan", "plan_views", "cameras_from_views", "drop_negligible",
+__all__ = ["ViewsConfig", "ViewPlan", "plan_views", "cameras_from_views", "drop_negligible",
            "view_camera", "farthest_point_order", "ccw_order", "make_candidates", "location_cameras",
            "score_candidate", "in_wedges", "azimuth_deg", "observation_counts", "scene_coverage",
            "capture_pitch_deg", "replacement_directions", "dynamic_fraction"]
-
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        value = getattr(importlib.import_module(f"anigs.views.{_LAZY[name]}"), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'anigs.views' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))

@@ -12,7 +12,8 @@ from anigs.cameras import save_cameras
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.stages.views import Outputs as ViewsOutputs
 from anigs.render.labels import dynamic_masks
-from anigs.views import ViewsConfig, plan_views, queued_view_count
+from anigs.stages.targets import queued_view_count
+from anigs.views import ViewsConfig, plan_views
 
 # cameras on a ring facing the centre: yaw 0 faces the ROI (centroid heading), and with a 60 deg
 # FOV the +-90 views look along the ring, away from the blobs in the middle
@@ -151,7 +152,7 @@ def test_queued_view_count(tmp_path):
         with pytest.raises(ValueError, match="v00"):
             queued_view_count(p)
     # the workflow imports it without torch
-    code = "import sys; from anigs.views import queued_view_count; assert 'torch' not in sys.modules"
+    code = "import sys; from anigs.stages.targets import queued_view_count; assert 'torch' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True)
 
 

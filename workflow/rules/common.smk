@@ -6,7 +6,7 @@ import anigs
 import yaml
 
 from anigs.config import scene_pattern, section, with_globals, workflow_scenes
-from anigs.stages.targets import final_targets, stage_outputs
+from anigs.stages.targets import final_targets, queued_view_count, stage_outputs
 from anigs.stages.command import stage_command
 from anigs.stages.eval import merge_halves, table_row
 from anigs.stages.fvd_gt import wanted as fvd_gt_runs
@@ -17,7 +17,6 @@ from anigs.stages.shared_inputs import ground_truth
 from anigs.animate.round_policy import baseline_fields, round_seed, still_reason
 from anigs.reports.tradeoff import DERIVED_SEP, points_json, stage_owner, workflow_sweep
 from anigs.animate.config import METHODS, AnimateConfig
-from anigs.views.queue import queued_view_count
 from anigs.weight_inputs import effects_weights, eval_weights, masks_weights, refine_weights
 
 ANIGS_VERSION = anigs.__version__
