@@ -17,7 +17,8 @@ Scenes (z up, metres, ground z = 0):
   flowers and the bush's foliage.
 
 ``MADE_DECOYS`` (``yard``, ``hall``: green made things under prompts that name plants, issue 47) are
-built by :mod:`anigs.synth.made_decoys`; their parts continue the numbering of ``DECOY_PARTS``.
+built by :mod:`anigs.synth.made_decoys`; their parts continue the numbering of ``DECOY_PARTS``. The parts
+and the builder that tags them (``Tagged``), which both modules use, live in :mod:`anigs.synth.decoy_parts`.
 """
 from __future__ import annotations
 
@@ -25,27 +26,21 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import torch
 
-from anigs.cameras import Camera, intrinsics_from_fov, look_at
+from anigs.cameras import Camera
 from anigs.gaussians import Gaussians
 from anigs.geometry.quaternion import quat_from_matrix
+from anigs.synth.decoy_parts import DECOY_IDS, DECOY_PARTS, Tagged, arc_cameras, noise_colour
 from anigs.synth.garden import FLOWER_COLORS
-from anigs.synth.scene import LABEL_IDS, SUN, Builder, Part, assemble, frame_from_normal
+from anigs.synth.made_decoys import MADE_DECOYS, build_made
+from anigs.synth.scene import LABEL_IDS, SUN, Part, frame_from_normal
 
-DECOY_PARTS: dict[int, str] = {1: "ornaments", 2: "window_surrounds", 3: "picture", 4: "rug", 5: "lamps",
-                               6: "mown_lawn", 7: "sunlit_leaves",
-                               # the made decoys' parts (anigs.synth.made_decoys)
-                               8: "machine", 9: "bins", 10: "bare_tree", 11: "paving", 12: "pillars",
-                               13: "leaf_carton", 14: "table", 15: "hall_floor", 16: "pot"}
-DECOY_IDS = {v: k for k, v in DECOY_PARTS.items()}
 # effects that may take each decoy part (nothing for what must stay still)
 ALLOWED: dict[str, tuple[str, ...]] = {"ornaments": (), "window_surrounds": (), "picture": (), "rug": (), "lamps": (),
                                        "mown_lawn": ("grass_wave",), "sunlit_leaves": ("foliage_sway", "leaf_flutter"),
                                        **dict.fromkeys(("machine", "bins", "bare_tree", "paving", "pillars",
                                                         "leaf_carton", "table", "hall_floor", "pot"), ())}
 DECOYS = ("facade", "room", "lawn")
-MADE_DECOYS = ("yard", "hall")  # green made things under prompts that name plants (issue 47)
 PROMPTS = {"facade": "a building with trees and lawns in the wind",
            "room": "a potted plant in a room, its leaves moving",
            "lawn": "a garden with a lawn, a bush and a flower bed in the wind",
@@ -79,31 +74,6 @@ class Decoy:
 
 def _label(name: str) -> int:
     return LABEL_IDS[name]
-
-
-class Tagged:
-    """A :class:`anigs.synth.scene.Builder` that remembers the decoy part of every part it adds."""
-
-    def __init__(self, seed: int):
-        self.B = Builder(np.random.default_rng(seed), 1.0)
-        self.tags: list[int] = []
-
-    def tag(self, part: str | None, fn, *args, **kw) -> None:
-        n0 = len(self.B.parts)
-        fn(*args, **kw)
-        self.tags += [DECOY_IDS[part] if part else 0] * (len(self.B.parts) - n0)
-
-    def build(self) -> Gaussians:
-        g = assemble(self.B.parts)
-        g.extras["decoy"] = torch.from_numpy(np.concatenate(
-            [np.full(len(p.means), t, np.int64) for p, t in zip(self.B.parts, self.tags)]))
-        return g
-
-
-def noise_colour(rng, base, amount: float):
-    base = np.asarray(base, float)
-    return lambda ab: base * (1 + amount * np.sin(ab[:, :1] * 9.1 + 2 * np.cos(ab[:, 1:2] * 7.3))
-                              + rng.normal(0, 0.5 * amount, (len(ab), 1)))
 
 
 def _lawn_bank(T: Tagged, x: tuple, y: tuple, bank_from: float, slope_deg: float, step: float, part: str | None) -> None:
@@ -276,17 +246,6 @@ def _lawn(T: Tagged, n: int) -> None:
     T.tag(None, B.blob, crown, leaves, (0.2, 0.38, 0.13), "foliage", (2.0, 0.2, 0.0), 0.7 * math.sqrt(4 * math.pi * 0.6 / leaves))
 
 
-def arc_cameras(target, radius: float, height: float, count: int, centre_deg: float, arc_deg: float,
-                 size=(160, 120), fov: float = 60.0) -> list[Camera]:
-    K = intrinsics_from_fov(fov, *size)
-    cams = []
-    for i in range(count):
-        a = math.radians(centre_deg - arc_deg / 2 + arc_deg * i / max(count - 1, 1))
-        eye = np.array([target[0] + radius * math.cos(a), target[1] + radius * math.sin(a), height])
-        cams.append(Camera(K, look_at(eye, target), size[0], size[1], f"d{i:02d}.png"))
-    return cams
-
-
 def build_decoy(name: str, num_gaussians: int = 12000, seed: int = 0, images: int = 10, width: int = 160) -> Decoy:
     """The decoy scene ``name`` (one of ``DECOYS`` or ``MADE_DECOYS``) with ``images`` capture cameras ``width`` px
     wide."""
@@ -295,8 +254,6 @@ def build_decoy(name: str, num_gaussians: int = 12000, seed: int = 0, images: in
     T = Tagged(seed)
     size = (width, width * 3 // 4)
     if name in MADE_DECOYS:
-        from anigs.synth.made_decoys import build_made  # it builds on this module's parts
-
         cams = build_made(name, T, num_gaussians, images, size)
     elif name == "facade":
         _facade(T, num_gaussians)

@@ -1,7 +1,7 @@
 """Made-thing decoys (issue 47): green made things under prompts that name plants, with labels.
 
 Built through :func:`anigs.synth.decoys.build_decoy` (names ``MADE_DECOYS``); the parts (``extras["decoy"]``)
-continue the numbering of :data:`anigs.synth.decoys.DECOY_PARTS`, and none of them may move. Scenes (z up,
+continue the numbering of :data:`anigs.synth.decoy_parts.DECOY_PARTS`, and none of them may move. Scenes (z up,
 metres, ground z = 0):
 
 - ``yard``: a paved castle courtyard (grey paving, two pale plastered facades with sandstone window surrounds
@@ -29,12 +29,13 @@ import numpy as np
 
 from anigs.cameras import Camera
 from anigs.geometry.quaternion import quat_from_matrix
-from anigs.synth.decoys import MADE_DECOYS, arc_cameras, noise_colour, Tagged
+from anigs.synth.decoy_parts import Tagged, arc_cameras, noise_colour
 from anigs.synth.scene import SURFACE_OPACITY, Noise, jittered_grid, shade, frame_from_normal
 
 GREEN_PAINT = np.array([0.10, 0.46, 0.12])   # the tractor's and the bins' saturated green
 PILLAR_GREEN = np.array([0.11, 0.50, 0.26])  # the hall's painted pillars
 DARK = np.array([0.07, 0.07, 0.075])
+MADE_DECOYS = ("yard", "hall")  # green made things under prompts that name plants (issue 47)
 
 
 def _flat(colour) -> Callable[[np.ndarray], np.ndarray]:
