@@ -10,11 +10,14 @@ Prints
 * import cycles between modules, once counting only imports at module level (what runs when a
   module is imported) and once counting every runtime import (module level plus imports inside
   functions): a cycle of the second kind only is *hidden* by an import inside a function;
-* the share of internal import statements that sit inside functions.
+* the share of internal import statements that sit inside functions;
+* import cycles counting every import statement, those under ``if TYPE_CHECKING:`` too (type-only
+  circles: nothing runs them, but a reader still has to understand one module before the other;
+  ``tests/core/test_import_cycles.py`` keeps this list empty, :func:`all_cycles`).
 
 An import statement counts once, at the first module it names: ``from anigs.x import y`` is an
 edge to ``anigs.x.y`` when that is a module, else to ``anigs.x``. Imports under
-``if TYPE_CHECKING:`` do not run and are left out. Any other package directory works as well
+``if TYPE_CHECKING:`` do not run and are left out, except in the last list. Any other package directory works as well
 (for example gsplat's, to compare the share of imports inside functions); the layering applies
 to anigs only.
 """
@@ -60,11 +63,12 @@ def _is_type_checking(node: ast.If) -> bool:
         isinstance(t, ast.Attribute) and t.attr == "TYPE_CHECKING")
 
 
-def _imports(tree: ast.Module):
-    """Yield (node, inside_function) for every import statement that runs (not TYPE_CHECKING)."""
+def _imports(tree: ast.Module, type_checking: bool = False):
+    """Yield (node, inside_function) for every import statement that runs (and with ``type_checking``
+    those under ``if TYPE_CHECKING:`` as well)."""
     def walk(node, in_func: bool):
         for child in ast.iter_child_nodes(node):
-            if isinstance(child, ast.If) and _is_type_checking(child):
+            if isinstance(child, ast.If) and _is_type_checking(child) and not type_checking:
                 for c in child.orelse:
                     yield from walk(ast.Module(body=[c], type_ignores=[]), in_func)
                 continue
@@ -102,15 +106,16 @@ def package_of(mod: str, top: str) -> str:
     return parts[1] if len(parts) > 1 else "__init__"
 
 
-def scan(root: Path):
-    """Return (modules, edges) with edges[(a, b)] = [inside_function flags, one per statement]."""
+def scan(root: Path, type_checking: bool = False):
+    """Return (modules, edges) with edges[(a, b)] = [inside_function flags, one per statement]; with
+    ``type_checking`` the imports under ``if TYPE_CHECKING:`` count as well."""
     top = root.name
     files = {module_name(p, root): p for p in sorted(root.rglob("*.py"))}
     modules = set(files)
     edges: dict[tuple[str, str], list[bool]] = defaultdict(list)
     for mod, path in files.items():
         tree = ast.parse(path.read_text(), str(path))
-        for node, in_func in _imports(tree):
+        for node, in_func in _imports(tree, type_checking):
             for t in _targets(node, mod, path.name == "__init__.py", modules, top):
                 if t != mod:
                     edges[(mod, t)].append(in_func)
@@ -155,6 +160,16 @@ def cycles(nodes: set[str], adj: dict[str, set[str]]) -> list[list[str]]:
                     if len(comp) > 1:
                         out.append(sorted(comp))
     return sorted(out)
+
+
+def all_cycles(root: Path) -> list[list[str]]:
+    """The import cycles between the modules of the package at ``root`` counting every import statement:
+    module level, inside functions and under ``if TYPE_CHECKING:`` (sorted module names per cycle)."""
+    modules, edges = scan(root, type_checking=True)
+    adj: dict[str, set[str]] = defaultdict(set)
+    for a, b in edges:
+        adj[a].add(b)
+    return cycles(modules, adj)
 
 
 def layer_of(pkg: str) -> int | None:
@@ -227,6 +242,10 @@ def report(root: Path) -> None:
           f"hidden by imports inside functions: {len(hidden)}")
     for c in at_runtime:
         print("  " + " <-> ".join(c) + ("   (hidden)" if is_hidden(c) else ""))
+    every = all_cycles(root)
+    print(f"## Import cycles counting every import (those under if TYPE_CHECKING: too): {len(every)}")
+    for c in every:
+        print("  " + " <-> ".join(c) + ("" if c in at_runtime else "   (type-only)"))
 
 
 def main(argv: list[str] | None = None) -> int:
