@@ -7,7 +7,8 @@ import cv2
 import numpy as np
 
 from anigs.effects.config import REGIONS, LiftConfig
-from anigs.effects.regions import PhotoMaps, PhotoRegions
+from anigs.effects.photo_maps import PhotoMaps
+from anigs.effects.regions import PhotoRegions
 from anigs.effects.scene_cues import Cues
 from anigs.gaussians import Gaussians
 from anigs.geometry.propagate import propagate_labels

@@ -35,7 +35,7 @@ import numpy as np
 
 from anigs.effects.geometry import render_features
 from anigs.effects.kinds import REGIONS
-from anigs.effects.regions import PhotoMaps
+from anigs.effects.photo_maps import PhotoMaps
 from anigs.gaussians import Gaussians
 
 if TYPE_CHECKING:

@@ -33,28 +33,13 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from anigs.cameras import Camera
 from anigs.effects import cues
 from anigs.effects.geometry import Ground
+from anigs.effects.photo_maps import PhotoMaps
 from anigs.geometry.ground import pixel_heights
 
 if TYPE_CHECKING:
     from anigs.effects.config import CuesConfig, RegionsConfig
-
-
-@dataclass
-class PhotoMaps:
-    """One photo with the model's renders at its camera (all [H,W] unless noted)."""
-
-    image: np.ndarray        # RGB [H,W,3] float32 in [0,1]
-    camera: Camera
-    depth: np.ndarray
-    alpha: np.ndarray
-    variation: np.ndarray    # surface variation of the Gaussians seen
-    upness: np.ndarray       # |normal . up|
-    reflect: np.ndarray      # multi-view colour spread
-    height: np.ndarray | None = None  # height above the ground plane of the Gaussians seen (None: no plane)
-    name: str = ""
 
 
 @dataclass

@@ -12,7 +12,7 @@ from anigs.cameras import Camera
 from anigs.effects.config import CuesConfig
 from anigs.effects.geometry import (Ground, colour_spread, local_shape, render_features, scene_ground, seen_ground_cut,
                                    world_up)
-from anigs.effects.regions import PhotoMaps
+from anigs.effects.photo_maps import PhotoMaps
 from anigs.gaussians import Gaussians
 from anigs.render.visibility import project_to_pixels
 

@@ -18,14 +18,7 @@ ROOT = Path(anigs.__file__).parent
 
 # Circles that are known and not yet broken, each with its reason. An entry must match a circle exactly
 # (its sorted module names), and one that no longer exists fails too: delete it when its circle is gone.
-ALLOWED: list[list[str]] = [
-    # type-only: effects.regions imports CuesConfig and RegionsConfig from effects.config under
-    # TYPE_CHECKING, while config imports rules (RulesConfig), whose package imports outline (SmearedSheet),
-    # which imports regions (PhotoMaps). Left to the effects work (anigs/effects/ was being changed for
-    # issue 47 when issue 50's circles were broken): move the two config records to a module that does not
-    # import rules, or have config import the rules' records from rules.base.
-    ["anigs.effects.config", "anigs.effects.outline", "anigs.effects.regions", "anigs.effects.rules"],
-]
+ALLOWED: list[list[str]] = []  # none left (the effects circle went with PhotoMaps' own module)
 
 
 def test_no_import_cycles_between_anigs_modules():

@@ -13,7 +13,7 @@ from anigs.cameras import Camera, intrinsics_from_fov, look_at
 from anigs.effects.config import REGIONS, Config
 from anigs.effects.geometry import render_features
 from anigs.effects.outline import SmearedSheet, longest_axis, release_smeared, sheet_signs
-from anigs.effects.regions import PhotoMaps
+from anigs.effects.photo_maps import PhotoMaps
 from anigs.effects.rules import Candidate
 from tests.effects.test_effects import _gaussians
 
