@@ -23,7 +23,7 @@ from anigs.stages.command import parse_params, stage_arguments, stage_main  # no
 # tools that are not pipeline stages: command -> (module, one-line help)
 TOOLS: dict[str, tuple[str, str]] = {
     "build-kernel": ("anigs.build_kernel", "compile the CPU rasterizer kernel ahead of time"),
-    "study": ("anigs.study.cli", "2AFC user study (paper Table 4): build the page, serve it, tally the answers"),
+    "study": ("anigs.stages.study", "2AFC user study (paper Table 4): build the page, serve it, tally the answers"),
 }
 
 

@@ -5,5 +5,5 @@
 - :mod:`anigs.study.serve`: local server that collects posted answers in a JSONL file;
 - :mod:`anigs.study.stats`: binomial intervals and the exact test;
 - :mod:`anigs.study.tally`: answer files -> Table 4 (CSV, Markdown, LaTeX) with exclusions;
-- :mod:`anigs.study.cli`: ``anigs study {build,serve,tally}``.
+- the command ``anigs study {build,serve,tally}``: :mod:`anigs.stages.study` (it finds the final stage's folders).
 """

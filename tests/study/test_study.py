@@ -277,7 +277,7 @@ def test_tally_options_change_the_result(study, tmp_path):
 
 
 def test_cli_build_then_tally(tmp_path):
-    from anigs.study.cli import add_arguments, main
+    from anigs.stages.study import add_arguments, main
 
     make_videos(tmp_path / "results", scenes=("garden", "trail"), variants=["full", "g2l"], views=("v0",))
     parser = argparse.ArgumentParser()
@@ -336,7 +336,7 @@ def test_serve_command_runs_on_a_free_port_and_stops_on_sigterm(study, tmp_path)
     import sys
 
     out, m = study
-    code = ("import argparse, sys; from anigs.study import cli; p = argparse.ArgumentParser(); "
+    code = ("import argparse, sys; from anigs.stages import study as cli; p = argparse.ArgumentParser(); "
             "cli.add_arguments(p); sys.exit(cli.main(p.parse_args(sys.argv[1:])))")
     proc = subprocess.Popen([sys.executable, "-c", code, "serve", "--dir", str(out), "--port", "0", "--answers",
                              str(tmp_path / "a.jsonl"), "--seconds", "120"], stdout=subprocess.PIPE, text=True,

@@ -1,4 +1,6 @@
-"""``anigs study {build,serve,tally}``: the 2AFC user study (the paper's Table 4)."""
+"""``anigs study {build,serve,tally}``: the 2AFC user study (the paper's Table 4). The command lives in the stage
+layer because ``build`` finds the final stage's folders (:func:`anigs.stages.final.find_final_videos`); the study
+itself (:mod:`anigs.study`) knows no stage."""
 from __future__ import annotations
 
 import argparse
