@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from anigs.effects.config import Config
+from anigs.effects.detect import flattest_axes
 from anigs.effects.geometry import scene_ground
 from anigs.effects.kinds import REGIONS
 from anigs.effects.rules import Candidate, Context, check_candidates
 from anigs.effects.rules.made_surface import MadeSurface, surface_figures
-from anigs.geometry.quaternion import quat_to_rotmat
 from anigs.synth.scene import Builder, assemble
 
 FOLIAGE, FLOWERS = REGIONS.index("foliage"), REGIONS.index("flowers")
@@ -22,8 +22,7 @@ def _parts(build) -> tuple[np.ndarray, np.ndarray]:
     B = Builder(np.random.default_rng(0), 1.0)
     build(B)
     g = assemble(B.parts)
-    rot = quat_to_rotmat(g.quats).double().numpy()
-    return g.means.double().numpy(), rot[np.arange(g.num), :, g.scales.argmin(1).numpy()]
+    return g.means.double().numpy(), flattest_axes(g)
 
 
 def _paint(p: np.ndarray) -> np.ndarray:

@@ -103,7 +103,7 @@ class Context:
     bool [N] (None: not checked), ``blossoms_of`` (rule ``blossoms``: the region whose plants' blossoms
     the flowers are; None: flowers are their own region), the ``unasked`` regions, the colour ``bands``, the RANSAC ``seed`` and
     each Gaussian's unit ``flattest`` axis [N,3] (its splat's normal; None: not known).
-    The neighbour trees are built once, when a rule first asks."""
+    The neighbour trees are built once, with the context (the bearers' again by :meth:`bear`)."""
 
     means: np.ndarray
     colours: np.ndarray
