@@ -8,12 +8,12 @@ metres, ground z = 0):
   and slate roofs), a green tractor (hood, cab with dark glass, fenders, black tyres with yellow rims), three
   green wheelie bins against a facade and a leafless tree (trunk, bare branches and twigs) trained on the wall.
   Like the real capture (``courtyard-p30``), the facades hold most Gaussians: the paving covers a quarter of
-  each view but holds 1.3% of the Gaussians (large flat ones), so no ground plane is found ("only 2.6% of the
-  Gaussians lie on the lowest dense layer"). No real effect.
+  each view but holds 1.3% of the Gaussians (large flat ones), so the ground is not trusted ("ground uncertain:
+  only 2.6% of the Gaussians lie on the lowest dense layer"). No real effect.
 - ``hall``: an indoor hall seen from standing height looking up (the dark green-grey floor is about 2% of each
   view): four smooth green painted pillars, an orange wooden table with a carton printed with leaves (leaf
   shapes in greens with dark gaps, a few printed red and yellow fruits), and a real potted plant (terracotta
-  pot, mostly out of view, and a leafy crown: label ``foliage``, which must move). No ground plane is found
+  pot, mostly out of view, and a leafy crown: label ``foliage``, which must move). The ground is not trusted
   (the lowest dense layer is the carton's top or the table's, 12-40% of the Gaussians lie under it). Real
   effects: the plant's foliage.
 
