@@ -24,8 +24,8 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.static.config import StaticConfig
-from anigs.static.planning import (EVAL_BACKGROUND, StaticPlan, check_inputs, downscaled, fit_side, flat_curve,
-                                   plan_static)
+from anigs.static.planning import (StaticPlan, check_inputs, downscaled, eval_background, fit_side, flat_curve,
+                                   plan_static, start)
 from anigs.static.report import accuracy_record, held_out_text, log_accuracy
 from anigs.static.densify import (DensifyState, refine, refine_due, schedule_for, stats_needed,
                                   update_state)
@@ -41,7 +41,6 @@ from anigs.sfm.tracks import Tracks, check_tracks
 from anigs.device import get_device, seed_everything
 from anigs.render.rasterize import select_backend
 from anigs.ssim import kernel as ssim_kernel
-from anigs.geometry.extent import scene_extent
 from anigs.gaussians import Gaussians
 from anigs.ssim import psnr
 
@@ -149,13 +148,10 @@ def _fit(images: list[torch.Tensor], cameras: list[Camera], init_points, init_co
     train_imgs, train_cams = [imgs[i] for i in train_idx], [cameras[i] for i in train_idx]
     test_imgs, test_cams = [imgs[i] for i in test_idx], [cameras[i] for i in test_idx]
 
-    pts = init_points.detach().cpu().numpy() if torch.is_tensor(init_points) else np.asarray(init_points)
-    cols = init_colors.detach().cpu().numpy() if torch.is_tensor(init_colors) else np.asarray(init_colors)
-    extent = scene_extent(cameras, np.asarray(pts, dtype=np.float64).reshape(-1, 3))
-    g0 = init_gaussians(pts, cols, extent, cfg.sh_degree, cfg.init_opacity)
+    pts, cols, extent, g0 = start(cameras, init_points, init_colors, cfg)
     params = to_params(g0, device)
     random_bg = cfg.background == "random"
-    bg = torch.tensor(EVAL_BACKGROUND if random_bg else cfg.background, dtype=torch.float32, device=device)
+    bg = eval_background(cfg, device)
     lr = {"means": cfg.lr_means * extent, "quats": cfg.lr_quats, "log_scales": cfg.lr_scales,
           "opacity_logits": cfg.lr_opacity, "sh_dc": cfg.lr_sh_dc, "sh_rest": cfg.lr_sh_rest}
     if g0.num != plan.start_gaussians:

@@ -13,6 +13,7 @@ import torch
 
 from anigs.cameras import Camera
 from anigs.device import get_device
+from anigs.gaussians import Gaussians
 from anigs.geometry.extent import scene_extent
 from anigs.images import downscale, fit_scale
 from anigs.static.budget import LEVELS, CaptureSize, FitPlan, StepCost, parse_budget, plan
@@ -82,17 +83,28 @@ def plan_static(images: Sequence[torch.Tensor], cameras: Sequence[Camera], init_
     train_idx, _ = split_holdout(len(images), cfg.holdout_every)
     size = CaptureSize.of([(cameras[i].width, cameras[i].height) for i in train_idx])  # as captured
     (img,), (cam,) = downscaled([images[train_idx[0]]], [cameras[train_idx[0]]], fit_side(cfg))
-    pts = init_points.detach().cpu().numpy() if torch.is_tensor(init_points) else np.asarray(init_points)
-    cols = init_colors.detach().cpu().numpy() if torch.is_tensor(init_colors) else np.asarray(init_colors)
-    extent = scene_extent(cameras, np.asarray(pts, dtype=np.float64).reshape(-1, 3))
-    g0 = init_gaussians(pts, cols, extent, cfg.sh_degree, cfg.init_opacity)
-    bg = torch.tensor(EVAL_BACKGROUND if cfg.background == "random" else cfg.background, dtype=torch.float32,
-                      device=device)
-    cost = _calibrated(cfg, to_params(g0, device), stored_image(img, device), cam, bg, g0.num)
+    _, _, _, g0 = start(cameras, init_points, init_colors, cfg)
+    cost = _calibrated(cfg, to_params(g0, device), stored_image(img, device), cam, eval_background(cfg, device), g0.num)
     schedule = plan(cfg.budget, size, cost, g0.num, iterations=cfg.iterations,
                     max_gaussians=cfg.densify.max_gaussians, densify_stop=cfg.densify.stop,
                     stop_fraction=cfg.densify.stop_fraction, eval_every=cfg.eval_every, max_side=cfg.max_side)
     return StaticPlan(schedule, cost, size, g0.num, resolved(cfg, schedule))
+
+
+def start(cameras: Sequence[Camera], init_points, init_colors, cfg: StaticConfig
+          ) -> tuple[np.ndarray, np.ndarray, float, Gaussians]:
+    """The fit's start, shared by the plan and the fit: the SfM points [P,3] and colours [P,3] as numpy, the
+    scene extent of ``cameras`` and the points, and the initial Gaussians."""
+    pts = init_points.detach().cpu().numpy() if torch.is_tensor(init_points) else np.asarray(init_points)
+    cols = init_colors.detach().cpu().numpy() if torch.is_tensor(init_colors) else np.asarray(init_colors)
+    extent = scene_extent(cameras, np.asarray(pts, dtype=np.float64).reshape(-1, 3))
+    return pts, cols, extent, init_gaussians(pts, cols, extent, cfg.sh_degree, cfg.init_opacity)
+
+
+def eval_background(cfg: StaticConfig, device: torch.device) -> torch.Tensor:
+    """[3] the background of the evaluation renders (grey behind a fit trained on random backgrounds)."""
+    return torch.tensor(EVAL_BACKGROUND if cfg.background == "random" else cfg.background, dtype=torch.float32,
+                        device=device)
 
 
 def _calibrated(cfg: StaticConfig, params: dict[str, torch.nn.Parameter], img: torch.Tensor, cam: Camera,
