@@ -23,6 +23,10 @@ stage's scope (:func:`scope_folder`: ``{scene}/<name>``, ``{scene}/{variant}/<na
 several folders lists its ``Outputs`` types in the module's ``OUTPUTS`` (:func:`outputs_of`); a
 folder may hold several stages' files (``round{r}/``: render_clip, refine, update), but a file
 belongs to exactly one ``Outputs``.
+
+The library below the stages (metrics) reads two stages' folders without naming their modules: it
+types them by the :class:`CaptureFiles` and :class:`MaskFiles` protocols here, which the capture and
+masks stages' ``Outputs`` satisfy (``tests/core/test_layers.py`` checks both).
 """
 from __future__ import annotations
 
@@ -34,13 +38,17 @@ import types
 import typing
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar, Union
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, Union
 
 import numpy as np
 
 from anigs.io import atomic_path
 from anigs.registry import BY_NAME
 from anigs.video import load_clip
+
+if TYPE_CHECKING:
+    from anigs.cameras import Camera
+    from anigs.gaussians import Gaussians
 
 
 @dataclass(frozen=True)
@@ -182,6 +190,50 @@ class RoundOutputs(Outputs):
     refine (``target/``), update (the model) and round (both of the first)."""
 
     FOLDER = "{scene}/{variant}/round{round}"
+
+
+class CaptureFiles(Protocol):
+    """The capture stage's folder as the metrics read it: the synthetic scene's ground truth (``gt/``).
+    ``n``: the expected number of ground-truth Gaussians (None: any); a wrong dtype or shape raises."""
+
+    def gt_cameras(self) -> list[Camera]:
+        """The ground-truth cameras (``gt/cameras.json``)."""
+        ...
+
+    def gt_gaussians(self) -> Gaussians:
+        """The ground-truth Gaussians, N of them (``gt/gaussians.ply``)."""
+        ...
+
+    def gt_labels(self, n: int | None = None) -> np.ndarray:
+        """int [N]: the semantic label of each ground-truth Gaussian."""
+        ...
+
+    def gt_anchors(self, n: int | None = None) -> np.ndarray:
+        """float32 [N,3]: the sway anchor of each ground-truth Gaussian."""
+        ...
+
+    def gt_motion(self) -> dict:
+        """``gt/motion.json``: ``params`` (the motion parameters) and the label/effect tables (``labels``:
+        label id as a string -> label name)."""
+        ...
+
+
+class MaskFiles(Protocol):
+    """The masks stage's folder as the metrics read it: a dynamic mask per view, maybe split by effect."""
+
+    root: Path  # the folder (named in messages)
+
+    def has_view_mask(self, view: str) -> bool:
+        """Whether ``view`` has a dynamic mask."""
+        ...
+
+    def view_mask(self, view: str) -> np.ndarray:
+        """float32 [H,W] in [0, 1]: the dynamic mask of ``view``."""
+        ...
+
+    def effect_masks(self, view: str) -> dict[str, np.ndarray]:
+        """effect -> float32 [H,W] in [0, 1]: the part of ``view``'s mask each effect moves (empty: one effect)."""
+        ...
 
 
 def outputs_of(module: types.ModuleType) -> tuple[type[Outputs], ...]:
