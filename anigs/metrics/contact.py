@@ -9,7 +9,7 @@ above it) to red (``vmax`` and more) on a log scale, so a leak of 2/255 outside 
 visible as the motion inside it. A caption under each row gives the numbers.
 
     from anigs.metrics.contact import load_rows, save_contact_sheet
-    rows = load_rows("results/S/full/final/clips", MasksOutputs("results/S/masks"))  # anigs.stages.masks
+    rows = load_rows("results/S/full/final/clips", masks)  # masks: the masks stage's Outputs (MaskFiles)
     save_contact_sheet("contact.png", rows)
 """
 from __future__ import annotations
@@ -18,18 +18,16 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import cv2
 import numpy as np
 
+from anigs.contract import MaskFiles
 from anigs.io import atomic_path
 from anigs.metrics.motion import outside_mask_still, resize_mask
 from anigs.pixels import dilate
 from anigs.video import load_clip
-
-if TYPE_CHECKING:
-    from anigs.stages.masks import Outputs as MasksOutputs
 
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 MASK_COLOURS = [(1.0, 0.15, 0.6), (0.1, 0.95, 0.2), (1.0, 0.85, 0.1), (0.1, 0.8, 1.0), (1.0, 0.5, 0.1)]
@@ -208,7 +206,7 @@ def _view_key(name: str) -> tuple:
     return tuple(int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name))
 
 
-def load_rows(clips_dir: str | Path, masks: MasksOutputs | None, threshold: float = 0.5,
+def load_rows(clips_dir: str | Path, masks: MaskFiles | None, threshold: float = 0.5,
               views: Sequence[str] | None = None) -> list[ContactRow]:
     """Rows from the workflow's folders: ``clips_dir/{view}.npz`` (:func:`anigs.video.load_clip`) and
     the masks stage's folder ``masks``: each view's mask and per-effect masks, resized to each

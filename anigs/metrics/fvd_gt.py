@@ -4,8 +4,8 @@
 renders the ground-truth animated scene there and writes the I3D features of its windows, with the
 no-motion control (the fitted static scene) and VBench's proxies of the ground truth;
 :func:`run_method` renders a method's model at the same views and frames and gives its ``fvd/gt``
-record with the bootstrap spread (:mod:`anigs.metrics.bootstrap`). The fvd_gt stage
-(:mod:`anigs.stages.fvd_gt`) calls them with its ``Outputs``.
+record with the bootstrap spread (:mod:`anigs.metrics.bootstrap`). The fvd_gt stage calls them with
+the capture stage's folder (:class:`~anigs.contract.CaptureFiles`) and its own reference ``Outputs``.
 """
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from anigs.animate.deform import load_model
 from anigs.cameras import load_cameras, save_cameras
+from anigs.contract import CaptureFiles, Outputs
 from anigs.device import get_device
 from anigs.gaussians import Gaussians
 from anigs.io import write_json, write_npz
@@ -72,9 +73,9 @@ def _cut(clip: np.ndarray, starts: list[int], frames: int) -> list[np.ndarray]:
     return [clip[s:s + frames] for s in starts]
 
 
-def _load_gt(capture):
+def _load_gt(capture: CaptureFiles):
     """(Gaussians, labels int [N], anchors float [N,3], motion, cameras) of the synthetic ground truth in
-    ``capture`` (the capture stage's ``Outputs``)."""
+    ``capture`` (the capture stage's folder)."""
     return capture.gt_gaussians(), capture.gt_labels(), capture.gt_anchors(), capture.gt_motion(), capture.gt_cameras()
 
 
@@ -118,9 +119,9 @@ def _spread_record(f_test: np.ndarray, f_ref: np.ndarray, rows: list[str], cfg, 
                          bootstrap=spread.to_dict(), **extra)
 
 
-def run_reference(capture, cameras: str | Path, canonical: str | Path, num_frames: int, out,
+def run_reference(capture: CaptureFiles, cameras: str | Path, canonical: str | Path, num_frames: int, out: Outputs,
                   cfg, ecfg) -> dict[str, Any]:
-    """Place the views, render the ground truth of ``capture`` (the capture stage's ``Outputs``), write
+    """Place the views, render the ground truth of ``capture`` (the capture stage's folder), write
     its features into ``out`` (the fvd_gt stage's
     reference ``Outputs``: ``reference``, ``features``, ``still_features``, ``views``, ``sheet``);
     returns the ``reference`` content. ``cfg``/``ecfg``: the fvd_gt and eval configs."""
@@ -178,8 +179,8 @@ def run_reference(capture, cameras: str | Path, canonical: str | Path, num_frame
     return ref
 
 
-def run_method(ref_out, model: str | Path, canonical: str | Path, cameras: str | Path,
-               capture, cfg, ecfg) -> tuple[dict[str, Any], list[np.ndarray]]:
+def run_method(ref_out: Outputs, model: str | Path, canonical: str | Path, cameras: str | Path,
+               capture: CaptureFiles, cfg, ecfg) -> tuple[dict[str, Any], list[np.ndarray]]:
     """The method's ``fvd/gt`` record against the reference in ``ref_out`` (the fvd_gt stage's
     reference ``Outputs``) and the first frames of its views."""
 

@@ -13,6 +13,7 @@ import numpy as np
 from anigs.animate.deform import load_model
 from anigs.animate.frames import render_frame
 from anigs.cameras import load_cameras
+from anigs.contract import CaptureFiles
 from anigs.geometry.extent import scene_extent
 from anigs.images import find_image, load_image
 from anigs.metrics import metric_record, not_available
@@ -22,12 +23,11 @@ from anigs.synth.motion import MotionParams, gt_clip_offsets
 
 if TYPE_CHECKING:
     from anigs.metrics.config import EvalConfig
-    from anigs.stages.capture import Outputs as CaptureOutputs
 
 log = logging.getLogger("anigs.eval")
 
 
-def gt_metrics(model: Path | None, canonical: Path | None, truth: CaptureOutputs | None,
+def gt_metrics(model: Path | None, canonical: Path | None, truth: CaptureFiles | None,
                cameras: Path | None) -> dict[str, Any]:
     """Learned vs ground-truth motion statistics (synthetic scene: ``truth``, the capture stage's
     folder with its ground truth; None on photo scenes)."""

@@ -13,7 +13,7 @@ def merge_records(clips_record: str | Path, model_record: str | Path, out: str |
     clips' metrics) and a ``--part model`` record (the model's), checked to be of the same scene,
     variant and method; the metrics in the order of one ``--part all`` run. ``extra``: further
     records of the same evaluation to join (``anigs fvd_gt``'s, ``part: fvd_gt``). No torch: the
-    workflow runs it inside Snakemake (:func:`anigs.stages.eval.merge_parts`)."""
+    workflow runs it inside Snakemake (the eval stage's merge of the parts)."""
     clips, model = read_json(clips_record), read_json(model_record)
     more = [(p, read_json(p)) for p in (extra or [])]
     for path, rec, part in ((clips_record, clips, "clips"), (model_record, model, "model")):

@@ -10,19 +10,17 @@ label, left out). A Gaussian moves when its largest displacement over the loop e
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from anigs.animate.deform import load_model
 from anigs.cameras import load_cameras
+from anigs.contract import CaptureFiles
 from anigs.geometry.extent import scene_extent
 from anigs.metrics import metric_record, not_available
 from anigs.sfm.align import align_cameras
 from anigs.synth.motion import LABEL_EFFECTS, WATER_LABEL_EFFECTS
-
-if TYPE_CHECKING:
-    from anigs.stages.capture import Outputs as CaptureOutputs
 
 KEY = "gt/moving_labelled_still"
 PROTOCOL = {"moving": "largest displacement over the loop > 1e-4 x scene extent",
@@ -30,7 +28,7 @@ PROTOCOL = {"moving": "largest displacement over the loop > 1e-4 x scene extent"
             "still": "labels without an effect (ground, building, clutter, trunk)"}
 
 
-def moving_labelled_still(model: Path | None, canonical: Path | None, truth: CaptureOutputs | None,
+def moving_labelled_still(model: Path | None, canonical: Path | None, truth: CaptureFiles | None,
                           cameras: Path | None, min_motion: float = 1e-4, max_dist: float = 0.05) -> dict[str, Any]:
     """``{KEY: record}`` on a synthetic scene (``truth``: the capture stage's folder with its ground
     truth), ``{}`` otherwise."""

@@ -21,10 +21,11 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from anigs.contract import CaptureFiles, MaskFiles
 from anigs.device import get_device, seed_everything
 from anigs.metrics import metric_record, not_available
 from anigs.metrics.config import EvalConfig
@@ -36,10 +37,6 @@ from anigs.metrics.motion import clip_motion_metrics, outside_mask_still, resize
 from anigs.metrics.still_labels import moving_labelled_still
 from anigs.metrics.vbench import vbench_metrics
 from anigs.video import check_clip, load_clip, read_mp4
-
-if TYPE_CHECKING:
-    from anigs.stages.capture import Outputs as CaptureOutputs
-    from anigs.stages.masks import Outputs as MasksOutputs
 
 log = logging.getLogger("anigs.eval")
 
@@ -97,7 +94,7 @@ def clip_fps(path: Path, default: float = 8.0) -> float:
     return float(default)
 
 
-def load_mask_for(view: str, masks: MasksOutputs | None, height: int, width: int,
+def load_mask_for(view: str, masks: MaskFiles | None, height: int, width: int,
                   threshold: float) -> np.ndarray | None:
     """``view``'s dynamic mask from the masks stage's folder, resized to ``height`` x ``width``
     (bool [H,W]); None without masks or without a mask for that view."""
@@ -108,7 +105,7 @@ def load_mask_for(view: str, masks: MasksOutputs | None, height: int, width: int
 
 # ----------------------------------------------------------------------------- metric groups
 
-def weightfree_metrics(clips: dict[str, np.ndarray], masks: MasksOutputs | None, cfg: EvalConfig) -> dict[str, Any]:
+def weightfree_metrics(clips: dict[str, np.ndarray], masks: MaskFiles | None, cfg: EvalConfig) -> dict[str, Any]:
     """Per-view weight-free metrics, averaged over views with a mask."""
     names = {"static_abs_diff": (False, "intensity/frame"), "static_drift": (False, "intensity"),
              "static_flow": (False, "px/frame"), "dynamic_abs_diff": (True, "intensity/frame"),
@@ -224,7 +221,7 @@ class ClipInputs:
     that prior, e.g. frames pooled over all scenes as in the paper)."""
 
     clips: list[str | Path] = field(default_factory=list)
-    masks: MasksOutputs | None = None
+    masks: MaskFiles | None = None
     references: dict[str, list[str | Path]] = field(default_factory=dict)
     fid_references: dict[str, list[str | Path]] = field(default_factory=dict)
 
@@ -241,7 +238,7 @@ class ModelInputs:
     cameras: Path | None = None
     images: Path | None = None
     points: Path | None = None
-    truth: CaptureOutputs | None = None
+    truth: CaptureFiles | None = None
 
 
 def evaluate_variant(cfg: EvalConfig, clips: ClipInputs | None = None, model: ModelInputs | None = None,
@@ -250,8 +247,8 @@ def evaluate_variant(cfg: EvalConfig, clips: ClipInputs | None = None, model: Mo
 
     ``part``: ``all``; ``clips`` (the metrics of the final clips: weight-free, FVD, FID) or
     ``model`` (those of the model: ground-truth motion, the multiview protocol), so that the two
-    halves can run as separate jobs (the model's beside the final renders; see
-    :func:`anigs.stages.eval.merge_parts`).
+    halves can run as separate jobs (the model's beside the final renders; the eval stage merges
+    the two parts).
     """
     if part not in EVAL_PARTS:
         raise ValueError(f"eval: part must be one of {EVAL_PARTS}, got {part!r}")
