@@ -34,6 +34,9 @@ from anigs.formats.orientation import FRAMES, box_to_anigs
 
 STILL = "still"
 MIN_MATCHED = 0.9
+#: a selected splat lies within this x the model's diagonal of its Gaussian (the default of effects.selection_tol)
+SELECTION_TOL = 1e-4
+MATCH_NEAREST = 8  # a selected splat is matched among this many nearest Gaussians (count)
 BOX_KEYS = ("min", "max", "effect", "frame")
 SELECTION_KEYS = ("ply", "effect")
 log = logging.getLogger("anigs.effects")
@@ -84,7 +87,7 @@ def match_selection(path: str | Path, means: np.ndarray, tol: float,
     pts = sel.means.detach().double().numpy()
     diag = float(np.linalg.norm(means.max(0) - means.min(0))) or 1.0
     radius = tol * diag + np.linalg.norm(step, axis=1)  # compressed: a full quantisation step (the writer rounds)
-    k = min(8, len(means))
+    k = min(MATCH_NEAREST, len(means))
     dist, idx = cKDTree(means).query(pts, k=k)
     dist, idx = dist.reshape(len(pts), k), idx.reshape(len(pts), k)
     near = dist <= radius[:, None]
@@ -130,7 +133,7 @@ def match_selection(path: str | Path, means: np.ndarray, tol: float,
 
 
 def apply_corrections(res, means: np.ndarray, drop: Sequence[int] = (), force: Sequence[int] = (),
-                      boxes: Sequence[dict] = (), selections: Sequence[dict] = (), tol: float = 1e-4,
+                      boxes: Sequence[dict] = (), selections: Sequence[dict] = (), tol: float = SELECTION_TOL,
                       appearance: np.ndarray | None = None) -> list[str]:
     """Apply the corrections to ``res`` (an :class:`~anigs.effects.detect.EffectsResult`) in place: its
     ``region_of`` and each effect's Gaussians and decision; returns one sentence per correction.

@@ -10,7 +10,13 @@ import numpy as np
 
 from anigs.pixels import fill_small_holes, remove_small, saturation
 
-LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+LUMA_WEIGHTS = (0.299, 0.587, 0.114)  # the luminance of an RGB colour: these weights of R, G and B (Rec. 601)
+LUMA = np.array(LUMA_WEIGHTS, np.float32)
+WHITE_MIN_VALUE = 0.8  # a white blossom: every channel at least this bright (fraction of full intensity) ...
+WHITE_MAX_SATURATION = 0.15  # ... and less saturated than this ((max - min) / max)
+MIN_WINDOW = 3  # the texture's box is at least this wide (px)
+CONNECTIVITY = 8  # components are 8-connected: pixels touching at a corner join (cv2's connectivity)
+MIN_RECT_PIXELS = 16  # no rectangularity is measured for a component under this many pixels (px)
 
 
 def disk(r: int) -> np.ndarray:
@@ -48,14 +54,14 @@ def colourful(img: np.ndarray, green_band: tuple[float, float], min_sat: float, 
     h, s, v = hsv(img)
     out = (s >= min_sat) & (v >= min_value) & ~in_band(h, green_band)
     if white:
-        out |= (img.min(-1) >= 0.8) & (s < 0.15)
+        out |= (img.min(-1) >= WHITE_MIN_VALUE) & (s < WHITE_MAX_SATURATION)
     return out
 
 
 def texture(img: np.ndarray, window: int) -> np.ndarray:
     """Local standard deviation [H,W] of the luminance in a ``window`` x ``window`` box."""
     lum = img @ LUMA
-    k = (max(int(window), 3),) * 2
+    k = (max(int(window), MIN_WINDOW),) * 2
     mean = cv2.blur(lum, k)
     return np.sqrt(np.maximum(cv2.blur(lum * lum, k) - mean * mean, 0.0))
 
@@ -67,7 +73,7 @@ def clean(mask: np.ndarray, min_pixels: int, hole_pixels: int) -> np.ndarray:
 
 def mask_components(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
     """8-connected components: (count incl. background, labels [H,W] int32, areas [count])."""
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(np.asarray(mask, np.uint8), connectivity=8)
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(np.asarray(mask, np.uint8), connectivity=CONNECTIVITY)
     return n, lab, stats[:, cv2.CC_STAT_AREA].astype(np.int64)
 
 
@@ -111,7 +117,7 @@ def rectangularity(labels: np.ndarray, n: int, areas: np.ndarray, min_pixels: in
     """Per component [n]: area / area of its minimum-area rotated rectangle (1 = a rectangle; an
     ellipse is ~0.79, ragged foliage lower); 0 for components under ``min_pixels``."""
     out = np.zeros(n)
-    for i in np.flatnonzero(areas >= max(min_pixels, 16)):
+    for i in np.flatnonzero(areas >= max(min_pixels, MIN_RECT_PIXELS)):
         if i == 0:
             continue
         ys, xs = np.nonzero(labels == i)

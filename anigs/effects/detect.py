@@ -47,7 +47,7 @@ import numpy as np
 from anigs.cameras import Camera
 from anigs.effects.analysed import prepare_photos
 from anigs.effects.config import EFFECTS, REGION_EFFECTS, REGIONS, Config
-from anigs.effects.geometry import Ground, render_features
+from anigs.effects.geometry import SHOWN, Ground, render_features
 from anigs.effects.lift import lift
 from anigs.effects.reasons import UNLIFTED_NOTE, reason, unlifted_note
 from anigs.effects.regions import PhotoRegions, classify_photo
@@ -59,6 +59,11 @@ from anigs.geometry.quaternion import quat_to_rotmat
 
 log = logging.getLogger("anigs.effects")
 SH_C0 = 0.28209479  # the degree-0 spherical harmonic: a Gaussian's own colour is 0.5 + SH_C0 x its DC coefficients
+SH_OFFSET = 0.5  # ... the 0.5 there: the colour of zero DC coefficients (mid grey, 0..1)
+ID_TOL = 0.5  # a rendered region id (1 + region, 0 none) is an id within this: half the step between two (id units)
+MIN_PHOTOS = 2  # a region is found in at least this many photos (when there are several; count)
+STRONG = 3  # a region's pixel or Gaussian strength is full at this x the least fraction that counts (a factor)
+MIN_CONFIDENCE = 0.5  # the least confidence of a decision, found or not (0..1)
 
 
 @dataclass
@@ -164,7 +169,7 @@ def apply_rules(g: Gaussians, cues: Cues, region_of: np.ndarray, regions: Sequen
     """Step ``rules``: the geometry rules (:mod:`anigs.effects.rules`) on the lifted regions; the photos' masks
     lose the pixels of rejected candidates and small parts (and sunlit leaves move from flowers to foliage)."""
     means, ground, cams = cues.means, cues.ground, [p.camera for p in cues.maps]
-    colours = (0.5 + SH_C0 * g.sh[:, 0, :]).clamp(0, 1).double().numpy()
+    colours = (SH_OFFSET + SH_C0 * g.sh[:, 0, :]).clamp(0, 1).double().numpy()
     height = cam_h = None
     ref = ground.reference  # the ground, else the lowest dense layer: every rule runs on every capture
     if ref is not None:
@@ -199,13 +204,13 @@ def apply_rules(g: Gaussians, cues: Cues, region_of: np.ndarray, regions: Sequen
             flags[c.indices, 2] = REGIONS.index(c.moved_to) + 1
     for i, (p, reg) in enumerate(zip(cues.maps, regions)):
         f = render_features(g, flags, p.camera)[0]
-        hit = f[..., 0] >= 0.5
-        rejected[i] = np.where(hit & (f[..., 2] < 0.5), np.round(f[..., 1]), 0).astype(np.int8)
+        hit = f[..., 0] >= SHOWN
+        rejected[i] = np.where(hit & (f[..., 2] < ID_TOL), np.round(f[..., 1]), 0).astype(np.int8)
         for k, name in enumerate(REGIONS):
-            was = hit & (np.abs(f[..., 1] - (k + 1)) < 0.5)
+            was = hit & (np.abs(f[..., 1] - (k + 1)) < ID_TOL)
             reg.masks[name] = reg.masks[name] & ~was
         for k, name in enumerate(REGIONS):
-            to = hit & (np.abs(f[..., 2] - (k + 1)) < 0.5)
+            to = hit & (np.abs(f[..., 2] - (k + 1)) < ID_TOL)
             if to.any():
                 reg.masks[name] = reg.masks[name] | to
     return Ruled(new, cands, fragments, rejected)
@@ -218,7 +223,7 @@ def flattest_axes(g: Gaussians) -> np.ndarray:
 
 
 def unlifted_share(g: Gaussians, region_of: np.ndarray, cams: Sequence[Camera], masks: dict[str, list[np.ndarray]],
-                   min_share: float = 0.5, out_masks: dict[str, list[np.ndarray]] | None = None) -> dict[str, float]:
+                   min_share: float = SHOWN, out_masks: dict[str, list[np.ndarray]] | None = None) -> dict[str, float]:
     """Per region with mask pixels: the share of its photos' mask pixels (``masks[region]``, one bool [H,W]
     per camera of ``cams``) where the region's Gaussians (``region_of`` [N]) carry less than
     ``min_share`` of the render: the photo shows the region there, the 3D model has none of it (a crown
@@ -255,7 +260,7 @@ def decide(g: Gaussians, cues: Cues, regions: Sequence[PhotoRegions], ruled: Rul
                               out_masks=unlifted_px)
     effects: dict[str, EffectResult] = {}
     n_photos = len(cues.maps)
-    min_photos = max(2, int(np.ceil(dc.min_photo_fraction * n_photos))) if n_photos > 1 else 1
+    min_photos = max(MIN_PHOTOS, int(np.ceil(dc.min_photo_fraction * n_photos))) if n_photos > 1 else 1
     for k, name in enumerate(REGIONS):
         masks = [reg.masks[name] for reg in regions]
         fracs = np.array([m.mean() for m in masks])
@@ -268,11 +273,12 @@ def decide(g: Gaussians, cues: Cues, regions: Sequence[PhotoRegions], ruled: Rul
         ok = (pf >= dc.min_pixel_fraction and gf >= dc.min_gaussian_fraction and len(idx) >= dc.min_gaussians
               and with_region >= min_photos)
         if ok:
-            score = np.mean([min(1.0, pf / (3 * dc.min_pixel_fraction)), min(1.0, gf / (3 * dc.min_gaussian_fraction)),
-                             photo_frac, agreement])
-            conf = 0.5 + 0.5 * float(score)
+            score = np.mean([min(1.0, pf / (STRONG * dc.min_pixel_fraction)),
+                             min(1.0, gf / (STRONG * dc.min_gaussian_fraction)), photo_frac, agreement])
+            conf = MIN_CONFIDENCE + (1.0 - MIN_CONFIDENCE) * float(score)
         else:
-            conf = 1.0 - 0.5 * min(1.0, max(pf / dc.min_pixel_fraction, gf / dc.min_gaussian_fraction))
+            weak = min(1.0, max(pf / dc.min_pixel_fraction, gf / dc.min_gaussian_fraction))
+            conf = 1.0 - (1.0 - MIN_CONFIDENCE) * weak
         rejected = sum(r.rejected_wall_green for r in regions) / max(sum(m.size for m in masks), 1)
         text = reason(name, ok, pf, gf, with_region, n_photos, dc, cues.ground, rejected)
         if ok and name == "foliage" and unlifted[name] >= UNLIFTED_NOTE:  # the others' masks grow past them

@@ -18,6 +18,7 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
+from anigs.effects.cues import LUMA_WEIGHTS
 from anigs.gaussians import Gaussians
 from anigs.geometry import estimate_up
 from anigs.render.visibility import VisibilityConfig, frustum_subset, project_to_pixels, render_inputs, visible_depth
@@ -25,6 +26,16 @@ from anigs.geometry.ground import GroundPlane, ground_plane
 from anigs.render import rasterize
 
 log = logging.getLogger("anigs.effects")
+
+#: a render shows what makes at least this share of a pixel: its alpha, or its alpha-normalised feature (fraction)
+SHOWN = 0.5
+MAX_BELOW = 0.1  # by default a ground has at most this share of the Gaussians clearly under it (fraction)
+#: a Gaussian lies clearly under the ground deeper than this x the cameras' height (or the layer, when deeper)
+CLEARLY_BELOW = 0.1
+SEEN_MIN_PIXELS = 100  # the seen ground sets the cut from this many pixels under the plane, all photos together (px)
+MIN_NEIGHBOURS = 4  # a local shape needs this many neighbours; with fewer: isotropic, half up (count)
+FEW_UPNESS = 0.5  # the |normal . up| given to a centre with too few neighbours (neither floor nor wall)
+SPREAD_FLOOR = 0.05  # the colour spread is std / (mean + this): dark pixels' noise is no spread (luminance, 0..1)
 
 
 @dataclass
@@ -67,7 +78,7 @@ def world_up(cameras: Sequence[Camera], mode: str = "z", points: np.ndarray | No
 
 
 def scene_ground(means: np.ndarray, cameras: Sequence[Camera], up: np.ndarray, margin: float,
-                 min_support: float, max_below: float = 0.1) -> Ground:
+                 min_support: float, max_below: float = MAX_BELOW) -> Ground:
     """Ground plane of ``means`` [N,3] along ``up``; ``plane`` is None (with a note) when the cameras
     are not above it, fewer than ``min_support`` of the Gaussians lie within its layer, or more than
     ``max_below`` lie clearly under it (a close-up without visible ground)."""
@@ -83,7 +94,7 @@ def scene_ground(means: np.ndarray, cameras: Sequence[Camera], up: np.ndarray, m
         return Ground(None, up, support, f"ground uncertain: only {100 * support:.1f}% of the Gaussians lie on "
                                          f"the lowest dense layer (needs {100 * min_support:.1f}%), so no grass or "
                                          "water is looked for; the rules measure heights from that layer", estimate=plane)
-    below = float((h < -max(band, 0.1 * plane.camera_height)).mean())
+    below = float((h < -max(band, CLEARLY_BELOW * plane.camera_height)).mean())
     if below > max_below:  # nothing real lies under the ground: this layer is not it
         return Ground(None, up, support, f"ground uncertain: {100 * below:.0f}% of the Gaussians lie under the "
                                          f"lowest dense layer (at most {100 * max_below:.0f}% allowed), so no grass or "
@@ -92,7 +103,7 @@ def scene_ground(means: np.ndarray, cameras: Sequence[Camera], up: np.ndarray, m
 
 
 def seen_ground_cut(plane: GroundPlane, heights: Sequence[np.ndarray], quantile: float,
-                    min_pixels: int = 100) -> float:
+                    min_pixels: int = SEEN_MIN_PIXELS) -> float:
     """Height below which a seen surface is ground: the ``quantile`` of how deep the photos see
     surfaces under the plane (``heights`` [H,W] per photo, nan where nothing is seen), mirrored
     upwards; between ``plane.min_height`` and ``plane.cut_height()``.
@@ -111,9 +122,9 @@ def seen_ground_cut(plane: GroundPlane, heights: Sequence[np.ndarray], quantile:
     return float(np.clip(np.quantile(below, quantile), plane.min_height, hi))
 
 
-def local_shape(means: np.ndarray, up: np.ndarray, radius: float, k: int = 32) -> tuple[np.ndarray, np.ndarray]:
+def local_shape(means: np.ndarray, up: np.ndarray, radius: float, k: int) -> tuple[np.ndarray, np.ndarray]:
     """Surface variation [N] and ``|normal . up|`` [N] of each centre's neighbourhood (<= ``k``
-    neighbours within ``radius``; fewer than 4 neighbours: variation 1/3, upness 0.5)."""
+    neighbours within ``radius``; fewer than ``MIN_NEIGHBOURS``: variation 1/3, upness ``FEW_UPNESS``)."""
     from scipy.spatial import cKDTree
 
     n = len(means)
@@ -131,14 +142,14 @@ def local_shape(means: np.ndarray, up: np.ndarray, radius: float, k: int = 32) -
     evals, evecs = np.linalg.eigh(cov)                                 # ascending
     variation = evals[:, 0] / np.maximum(evals.sum(1), 1e-18)
     upness = np.abs(evecs[:, :, 0] @ up)
-    few = cnt < 4
-    variation[few], upness[few] = 1.0 / 3.0, 0.5
+    few = cnt < MIN_NEIGHBOURS
+    variation[few], upness[few] = 1.0 / 3.0, FEW_UPNESS
     return variation, upness
 
 
 def colour_spread(g: Gaussians, photos: Sequence[np.ndarray], cameras: Sequence[Camera],
                   depths: Sequence[np.ndarray]) -> np.ndarray:
-    """Relative spread [N] of the photos' luminance at each visible centre: std / (mean + 0.05);
+    """Relative spread [N] of the photos' luminance at each visible centre: std / (mean + ``SPREAD_FLOOR``);
     0 for Gaussians seen by fewer than 2 photos."""
     means = g.means.detach().double().numpy()
     max_scale = g.scales.detach().max(1).values.double().numpy()
@@ -149,13 +160,13 @@ def colour_spread(g: Gaussians, photos: Sequence[np.ndarray], cameras: Sequence[
     for img, cam, depth in zip(photos, cameras, depths):
         seen = visible_depth(means, cam, depth, None, max_scale, vis)
         _, px, py, _ = project_to_pixels(means, cam, vis.near)
-        lum = img[py, px] @ np.array([0.299, 0.587, 0.114])
+        lum = img[py, px] @ np.array(LUMA_WEIGHTS)
         s1 += np.where(seen, lum, 0.0)
         s2 += np.where(seen, lum * lum, 0.0)
         cnt += seen
     mean = s1 / np.maximum(cnt, 1)
     std = np.sqrt(np.maximum(s2 / np.maximum(cnt, 1) - mean * mean, 0.0))
-    return np.where(cnt >= 2, std / (mean + 0.05), 0.0)
+    return np.where(cnt >= 2, std / (mean + SPREAD_FLOOR), 0.0)
 
 
 def render_features(g: Gaussians, features: np.ndarray, cam: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Sequence
 import cv2
 import numpy as np
 
-from anigs.effects.geometry import render_features
+from anigs.effects.geometry import SHOWN, render_features
 from anigs.effects.kinds import REGIONS
 from anigs.effects.photo_maps import PhotoMaps
 from anigs.gaussians import Gaussians
@@ -107,7 +107,7 @@ def sheet_signs(g: Gaussians, groups: Sequence[np.ndarray], maps: Sequence[Photo
             sky = p.alpha < min_alpha
             for j in range(len(part)):
                 k = start + j
-                own = (f[..., j] >= 0.5) & (a >= 0.5)
+                own = (f[..., j] >= SHOWN) & (a >= SHOWN)
                 if own.sum() < MIN_PIXELS:
                     continue
                 ring = (cv2.dilate(own.astype(np.uint8), kernel) > 0) & ~own

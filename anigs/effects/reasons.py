@@ -16,6 +16,7 @@ MOTION = {
     "flowers": "so the flowers bob (flower_bob)",
     "water": "so the water ripples (water_ripple)",
 }
+REJECTED_NOTE = 0.001  # share of the pixels green but on walls or pictures, from which the foliage reason says so
 
 
 def reason(region: str, detected: bool, pixel_fraction: float, gaussian_fraction: float, photos_with: int,
@@ -34,7 +35,7 @@ def reason(region: str, detected: bool, pixel_fraction: float, gaussian_fraction
         text = (f"No {region} ({effects} skipped): {WHAT[region]} covers only {pixel_fraction:.2%} of the "
                 f"photos' pixels (in {photos_with} of {photos} photos) and {gaussian_fraction:.2%} of the "
                 f"Gaussians; at least {cfg.min_pixel_fraction:.1%} and {cfg.min_gaussian_fraction:.1%} are needed.")
-    if region == "foliage" and rejected_green >= 0.001:
+    if region == "foliage" and rejected_green >= REJECTED_NOTE:
         text += (f" {rejected_green:.1%} of the pixels are green but lie on flat vertical surfaces or fill a "
                  "rectangle (a wall, a picture, a screen), so they were left still.")
     return text

@@ -41,6 +41,15 @@ from anigs.geometry.ground import pixel_heights
 if TYPE_CHECKING:
     from anigs.effects.config import CuesConfig, RegionsConfig
 
+MIN_COMPONENT_PX = 4  # the smallest component kept is at least this many pixels, however small the photo (px)
+PICTURE_MIN_AREA = 0.01  # a green component is tested for a picture from this share of the photo's pixels (fraction)
+PICTURE_QUANTILE = 0.5  # a picture's flatness: this quantile of its pixels' surface variation (the median) ...
+PICTURE_MAX_VARIATION = 2  # ... is below this x effects.cues.wall_max_variation (a factor)
+MIN_FLOWER_PX = 2  # no blossom, and no flower component, is smaller than this (px)
+FLOWER_SIZE_DIVISOR = 2  # a flower component may be this many times smaller than the smallest other one (a factor)
+RIM_SATURATION = 0.5  # a blossom's rim: saturated at least this x effects.regions.flower_min_saturation (a factor)
+WATER_HOLE_SIZE = 4  # holes in water up to this x the smallest component are filled (a factor)
+
 
 @dataclass
 class PhotoRegions:
@@ -62,7 +71,7 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: RegionsConfig, cues_cfg: C
     of ``effects.regions``, ``cues_cfg`` the local shape's (``effects.cues``), ``min_alpha`` the photos' sky."""
     img = p.image
     h, w = img.shape[:2]
-    min_px = max(int(round(cfg.min_component_frac * h * w)), 4)
+    min_px = max(int(round(cfg.min_component_frac * h * w)), MIN_COMPONENT_PX)
     valid = (p.alpha >= min_alpha) & (p.depth > 0)
     flat = p.variation < cues_cfg.wall_max_variation
     wall = valid & flat & (p.upness < cues_cfg.wall_max_upness)
@@ -81,9 +90,10 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: RegionsConfig, cues_cfg: C
     veg = green_all & ~wall
     # flat green rectangles are pictures, not plants
     n, lab, areas = cues.mask_components(veg)
-    rect = cues.rectangularity(lab, n, areas, int(0.01 * h * w))
-    var_med = cues.component_quantile(lab, n, p.variation, 0.5)
-    picture = (rect >= cfg.max_rectangularity) & (np.nan_to_num(var_med, nan=1.0) < 2 * cues_cfg.wall_max_variation)
+    rect = cues.rectangularity(lab, n, areas, int(PICTURE_MIN_AREA * h * w))
+    var_med = cues.component_quantile(lab, n, p.variation, PICTURE_QUANTILE)
+    picture = ((rect >= cfg.max_rectangularity)
+               & (np.nan_to_num(var_med, nan=1.0) < PICTURE_MAX_VARIATION * cues_cfg.wall_max_variation))
     picture[0] = False
     veg &= ~picture[lab]
     rejected = int((green_all & ~veg).sum())
@@ -115,7 +125,7 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: RegionsConfig, cues_cfg: C
     ring = cues.ring_share(lab, n, r_f, plant)
     # a blossom sits on its plant or in front of it; a wall or a bench seen past a bush lies behind it
     behind = cues.ring_depth_gap(lab, n, r_f, p.depth, plant)
-    keep = touches & (ring >= cfg.flower_min_ring) & (areas >= 2) & ~(behind > cfg.flower_max_behind)
+    keep = touches & (ring >= cfg.flower_min_ring) & (areas >= MIN_FLOWER_PX) & ~(behind > cfg.flower_max_behind)
     keep[0] = False
     blossom = keep[lab]
     flowers = blossom.copy()
@@ -138,8 +148,8 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: RegionsConfig, cues_cfg: C
         # blossom edges blend with their surroundings: grow over the less saturated rim
         _, sat, _ = cues.hsv(img)
         rim = cv2.dilate(blossom.astype(np.uint8), cues.disk(_px(cfg.flower_rim_frac, h, w))) > 0
-        flowers |= rim & valid & ~wall & ~green_all & (sat >= 0.5 * cfg.flower_min_saturation)
-        flowers = cues.clean(flowers, max(min_px // 2, 2), min_px)
+        flowers |= rim & valid & ~wall & ~green_all & (sat >= RIM_SATURATION * cfg.flower_min_saturation)
+        flowers = cues.clean(flowers, max(min_px // FLOWER_SIZE_DIVISOR, MIN_FLOWER_PX), min_px)
     # foliage and grass: the rest of the plant components by how high they reach
     rest = cues.clean(plant & ~flowers, min_px, min_px) & plant & ~flowers
     foliage = rest & tall_px
@@ -157,7 +167,7 @@ def classify_photo(p: PhotoMaps, ground: Ground, cfg: RegionsConfig, cues_cfg: C
         core = cues.clean(base & (tex < cfg.water_max_texture), min_px, min_px)
         if core.any():
             grow = cv2.dilate(core.astype(np.uint8), cues.disk(_px(cfg.texture_frac, h, w))) > 0
-            water = cues.clean(core | (grow & base), min_px, 4 * min_px)
+            water = cues.clean(core | (grow & base), min_px, WATER_HOLE_SIZE * min_px)
             water &= ~green_all & ~flowers & valid
     masks = {"foliage": foliage, "grass": grass, "flowers": flowers, "water": water}
     return PhotoRegions(masks, rejected, int(valid.sum()))

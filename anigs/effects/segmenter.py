@@ -41,6 +41,8 @@ from anigs.effects.config import REGIONS, SegmenterConfig
 log = logging.getLogger("anigs.effects")
 
 PLANTS = ("foliage", "grass", "flowers")
+SHOWN_LABELS = 40  # an error message lists at most this many of the model's labels (count)
+LOGITS_NDIM = 4  # the model's logits are [batch, classes, height, width] (axes)
 #: label name (a part of an id2label entry, lower case) -> kind; ADE20K's, COCO-Stuff's and Cityscapes' plant and
 #: water names. Every label not listed is still.
 DEFAULT_CLASSES: dict[str, str] = {
@@ -148,8 +150,9 @@ class Segmenter:
         id2label = dict(self.model.config.id2label or {})
         self.class_region = class_regions(id2label, cfg.classes)
         if not self.class_region:
-            shown = ", ".join(str(v) for v in list(id2label.values())[:40])
-            raise ValueError(f"segmenter {self.path}: none of its labels ({shown}{' ...' if len(id2label) > 40 else ''}) "
+            shown = ", ".join(str(v) for v in list(id2label.values())[:SHOWN_LABELS])
+            more = " ..." if len(id2label) > SHOWN_LABELS else ""
+            raise ValueError(f"segmenter {self.path}: none of its labels ({shown}{more}) "
                              "names a plant or water; map them with effects.segmenter.classes {name: foliage | grass "
                              "| flowers | water}")
         self.num_classes = int(self.model.config.num_labels)
@@ -168,7 +171,7 @@ class Segmenter:
         rgb = np.clip(np.round(np.asarray(image, np.float32) * 255.0), 0, 255).astype(np.uint8)
         inputs = self.processor(images=rgb, return_tensors="pt")
         logits = self.model(pixel_values=inputs["pixel_values"].to(self.device)).logits  # [1,C,h',w']
-        if logits.ndim != 4 or logits.shape[1] != self.num_classes:
+        if logits.ndim != LOGITS_NDIM or logits.shape[1] != self.num_classes:
             raise ValueError(f"segmenter {self.path}: expected logits [1,{self.num_classes},h,w], got {tuple(logits.shape)}")
         if not torch.isfinite(logits).all():
             raise ValueError(f"segmenter {self.path} (effects.segmenter.weights) gave NaN or inf logits")

@@ -52,6 +52,14 @@ TERMS = table()
 #: derived adjectives: suffix -> what replaces it ("leafy" -> "leaf", "wooded" -> "wood", "flowery" -> "flower")
 _DERIVED = (("iest", "y"), ("ier", "y"), ("y", ""), ("ed", ""), ("s", ""))
 _MIN_PART = 3  # the shortest part of a compound
+LOOKUP_CACHE = 4096  # the words whose lookup is remembered (count)
+#: a stillness word's reach back: "not" before a motion verb ("do not move"), a verb of staying before a stillness
+#: word ("stay still") counts within this many words before it (words)
+STILL_REACH = 3
+ALL_STILL_REACH = 3  # "nothing" or "none" reaches a motion verb within this many words after it (words) ...
+MOVER_REACH = 2  # ... a negation a mover ("no wind", "without any breeze") within this many (words)
+NEGATION_REACH = 4  # a negation ("no trees or flowers") covers this many words after it (words)
+MADE_REACH = 3  # a made-thing adjective ("plastic trees") covers this many words after it (words)
 #: the words a depiction's list ("a painting of trees and a lake") goes on through
 _DEPICTED_LIST = frozenset(("a", "an", "the", "and", "or", "of", "with", "some", "many", "few", "two", "three", "its",
                             "their"))
@@ -98,7 +106,7 @@ def _known_english(word: str) -> bool:
     return bool(getAllLemmas(word))
 
 
-@lru_cache(maxsize=4096)
+@lru_cache(maxsize=LOOKUP_CACHE)
 def lookup(word: str) -> tuple[tuple[str, ...], bool]:
     """(regions ``word`` names, whether it is understood) for one lower-case word."""
     forms = [word, *_lemmas(word)]
@@ -179,10 +187,10 @@ def _stillness_at(tokens: list[str], i: int) -> bool:
     """Whether ``tokens[i]`` says that what comes before it stays still: a negated motion verb ("do
     not move") or a stillness word after a verb of being or staying ("stay still", "is motionless")."""
     tok = tokens[i]
-    if _lemma_in(tok, MOTION, "VERB") and "not" in tokens[max(i - 3, 0):i] and "only" not in tokens[i - 1:i]:
+    if _lemma_in(tok, MOTION, "VERB") and "not" in tokens[max(i - STILL_REACH, 0):i] and "only" not in tokens[i - 1:i]:
         return True
     if tok in STILLNESS:
-        before = tokens[max(i - 3, 0):i]
+        before = tokens[max(i - STILL_REACH, 0):i]
         after = tokens[i + 1] if i + 1 < len(tokens) else ""
         return any(_lemma_in(b, STAY, "VERB") for b in before) and not _lemma_in(after, MOTION, "VERB")
     return False
@@ -191,12 +199,12 @@ def _stillness_at(tokens: list[str], i: int) -> bool:
 def _all_still_at(tokens: list[str], i: int) -> bool:
     """Whether ``tokens[i]`` starts a stillness of the whole scene: "nothing" or "none" before a motion
     verb ("nothing moves", "nothing is moving"), a negation before a mover ("no wind", "without any breeze")."""
-    tok, after = tokens[i], tokens[i + 1:i + 4]
+    tok, after = tokens[i], tokens[i + 1:i + 1 + ALL_STILL_REACH]
     if tok in ("nothing", "none"):
         return any(_lemma_in(t, MOTION, "VERB") for t in after)
     if tok == "windless":
         return True
-    return tok in NEGATIONS and any(_lemma_in(t, MOVERS, "NOUN") for t in after[:2])
+    return tok in NEGATIONS and any(_lemma_in(t, MOVERS, "NOUN") for t in after[:MOVER_REACH])
 
 
 def _term_at(tokens: list[str], i: int) -> tuple[tuple[str, ...], int, str, bool]:
@@ -240,10 +248,10 @@ def prompt_kinds(prompt: str | None) -> PromptKinds:
         if _all_still_at(tokens, i):  # "nothing moves", "no wind": the whole scene stays still
             everything_still = True
         if tok in NEGATIONS and tokens[i + 1:i + 2] != ["only"]:
-            neg_left, i = 4, i + 1
+            neg_left, i = NEGATION_REACH, i + 1
             continue
         if tok in ARTIFICIAL:
-            art_left, i = 3, i + 1
+            art_left, i = MADE_REACH, i + 1
             continue
         if _lemma_in(tok, DEPICTIONS, "NOUN") or (tok == "still" and tokens[i + 1:i + 2] == ["life"]):
             step = 2 if tok == "still" else 1

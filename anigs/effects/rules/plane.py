@@ -28,6 +28,7 @@ from anigs.effects.rules.base import Candidate, Context, Verdict
 
 MIN_POINTS = 10  # no plane is fitted to fewer points
 OUTSIDE_BAND = 2.0  # a plane's outside band: from one to this many tolerances off it
+EXTENT_STDS = 4  # a plane's in-plane extent spans this many standard deviations of its second axis (2 either side)
 
 
 @dataclass(frozen=True)
@@ -96,7 +97,7 @@ class Plane:
                                   "lawn does not move")
 
 
-def fit_plane(points: np.ndarray, tol: float, rng: np.random.Generator, iters: int = 150) -> tuple[np.ndarray, float]:
+def fit_plane(points: np.ndarray, tol: float, rng: np.random.Generator, iters: int) -> tuple[np.ndarray, float]:
     """RANSAC plane (unit normal [3], offset) of ``points`` [M,3] with the most inliers within ``tol``."""
     best, best_n = (np.array([0.0, 0, 1]), 0.0), -1
     m = len(points)
@@ -127,4 +128,4 @@ def in_plane_extent(points: np.ndarray, normal: np.ndarray) -> float:
     p = points - points.mean(0)
     p = p - np.outer(p @ normal, normal)
     ev = np.linalg.eigvalsh(np.cov(p.T))
-    return float(4 * np.sqrt(max(ev[1], 0.0)))
+    return float(EXTENT_STDS * np.sqrt(max(ev[1], 0.0)))
