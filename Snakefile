@@ -3,6 +3,7 @@ import os
 
 from snakemake.utils import min_version, validate
 
+from anigs.config import check_workflow_config
 from anigs.registry import STAGES
 
 min_version("8.0")
@@ -12,6 +13,8 @@ min_version("8.0")
 configfile: os.path.join(workflow.basedir, "config", "config.yaml")
 
 
+# a key moved or renamed since (static.seed: now the top-level seed) fails naming where it is set now
+check_workflow_config(config, os.path.join(workflow.basedir, "workflow", "schemas", "config.schema.yaml"))
 validate(config, "workflow/schemas/config.schema.yaml")
 
 

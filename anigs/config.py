@@ -18,10 +18,19 @@ from anigs.registry import sections as _stage_sections
 STAGE_SECTIONS = _stage_sections()  # from the stage registry (anigs/registry.py)
 SCENE_KEYS = {"name", "source", "synthetic", "photos", "images", "sparse", "splat", "effects", "prompt", "background",
               *STAGE_SECTIONS}
-# Where a scene's `background` (the sky colour every rendering stage composites onto) goes: the
-# stage sections with a `background` key (tests check this against the schema), the multiview
-# fits of eval, and the synthetic capture.
-BACKGROUND_SECTIONS = ("static", "masks", "render_clip", "update", "final", "view", "views", "fvd_gt")
+#: the settings read once and handed to every section (and nested section) whose config class lists them in
+#: ``HANDED`` (the schema's ``x-handed``): the run's ``seed``, ``device`` and playback ``fps`` from the workflow
+#: config's top level,
+#: the sky colour ``background`` from the scene file's (unset: each stage's own default: the fit trains on random
+#: colours, the views show grey). A section in a config file, scene file or variant that sets one fails naming
+#: where it is set now (the text here).
+HANDED: dict[str, str] = {
+    "seed": "seed, set once at the top level of the workflow config (config.yaml, or --config seed=N)",
+    "device": "device, set once at the top level of the workflow config (config.yaml, or --config device=cuda)",
+    "background": "background, set once at the top level of the scene file (the sky colour, [r, g, b] in [0, 1])",
+    "fps": "fps, set once at the top level of the workflow config (the playback rate of the videos, the export and "
+           "the viewer)",
+}
 SOURCES = ("synthetic", "photos", "colmap")
 _ENV_REF = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
 
@@ -68,13 +77,48 @@ def check_sections(d: dict, schema: dict | None, where: str) -> None:
         value = d[name]
         if value is None:
             continue
+        moved = renamed_keys(value, props[name], name)
+        if moved:  # keys a section renamed or moved out (the schema's x-renamed): name where each is set now
+            raise ValueError(f"{where}: " + "; ".join(f"{k} is now {new}" for k, new in moved) + " (CHANGELOG.md)")
         for err in sorted(jsonschema.Draft202012Validator(props[name]).iter_errors(value), key=lambda e: list(e.path)):
             key = ".".join([name, *map(str, err.path)])
-            moved = [k for k in (value if isinstance(value, dict) else {}) if k in props[name].get("x-renamed", {})]
-            if moved:  # a key a section renamed (the schema's x-renamed: old key -> new key): name its new key
-                raise ValueError(f"{where}: " + "; ".join(f"{name}.{k} is now {name}.{props[name]['x-renamed'][k]}"
-                                                          for k in moved) + " (CHANGELOG.md)")
             raise ValueError(f"{where}: {key}: {err.message}")
+
+
+def check_workflow_config(config: dict, schema_path: str | Path) -> None:
+    """The workflow config's stage sections checked before the schema's own validation, so that a key moved or
+    renamed since (``static.seed``: the top-level ``seed`` now) fails naming where it is set now."""
+    schema = yaml.safe_load(Path(schema_path).read_text())
+    check_sections(config, schema, "config")
+
+
+def renamed_keys(value: Any, node: dict, path: str) -> list[tuple[str, str]]:
+    """(old key's path, where it is set now) for every key of the mapping ``value`` (at config ``path``, schema
+    ``node``) and of its nested sections that the schema marks ``x-renamed``."""
+    if not isinstance(value, dict):
+        return []
+    renamed = node.get("x-renamed", {})
+    out = [(f"{path}.{k}", renamed[k]) for k in value if k in renamed]
+    for k, v in value.items():
+        sub = node.get("properties", {}).get(k)
+        if sub is not None and sub.get("type") == "object":
+            out += renamed_keys(v, sub, f"{path}.{k}")
+    return out
+
+
+def handed(d: dict, node: dict, values: dict[str, Any]) -> dict:
+    """The section ``d`` with the ``values`` (:data:`HANDED`: seed, device, the scene's background when it sets one)
+    filled in wherever the schema ``node`` and its nested sections take them (``x-handed``)."""
+    out = dict(d)
+    out.update({k: copy.deepcopy(values[k]) for k in node.get("x-handed", ()) if k in values})
+    for k, sub in node.get("properties", {}).items():
+        if _takes_handed(sub):
+            out[k] = handed(out.get(k) or {}, sub, values)
+    return out
+
+
+def _takes_handed(node: dict) -> bool:
+    return bool(node.get("x-handed")) or any(_takes_handed(s) for s in node.get("properties", {}).values())
 
 
 def _with_effects_section(scene: dict) -> dict:
@@ -163,21 +207,19 @@ def _check_colmap(scene: dict, path: Path) -> None:
     scene["sparse"] = str(model)
 
 
-def section(config: dict, scene: dict, variant: str, name: str) -> dict[str, Any]:
-    """Effective config section ``name`` for (scene, variant)."""
+def section(config: dict, scene: dict, variant: str, name: str, schema: dict) -> dict[str, Any]:
+    """Effective config section ``name`` for (scene, variant), with the settings read once (:data:`HANDED`)
+    handed in where the ``schema`` says the section takes them."""
     if name not in STAGE_SECTIONS:
         raise KeyError(f"unknown config section {name!r}")
     variants = config.get("variant_overrides", {})
     if variant not in variants:
         raise KeyError(f"variant {variant!r} is not defined under variant_overrides (have {sorted(variants)})")
-    base = config.get(name, {})
-    if "background" in scene:  # the scene's sky colour, unless its own section sets one
-        if name in BACKGROUND_SECTIONS:
-            base = deep_merge(base, {"background": scene["background"]})
-        elif name == "eval":
-            base = deep_merge(base, {"multiview_fit": {"background": scene["background"]}})
-    merged = deep_merge(base, scene.get(name))
-    return deep_merge(merged, variants[variant].get(name))
+    merged = deep_merge(deep_merge(config.get(name, {}), scene.get(name)), variants[variant].get(name))
+    values = {"seed": config.get("seed", 0), "device": config.get("device", "auto"), "fps": config.get("fps", 12)}
+    if "background" in scene:
+        values["background"] = scene["background"]
+    return handed(merged, schema["properties"][name], values)
 
 
 def workflow_scenes(config: dict, schema: dict, basedir: str | Path, reserved: str) -> dict[str, dict]:
@@ -199,17 +241,6 @@ def workflow_scenes(config: dict, schema: dict, basedir: str | Path, reserved: s
             raise ValueError(f"config: variant {v!r} is not defined under variant_overrides "
                              f"(defined: {sorted(config['variant_overrides'])})")
     return scenes
-
-
-def with_globals(section_dict: dict, globals_: dict) -> dict:
-    """The section with the workflow's global settings (device, seed, ...) filled in. A section's own
-    explicit device (anything but auto) wins over the global one, so ``static: {device: cpu}`` in a
-    scene file is kept rather than silently replaced."""
-    out = {**section_dict, **globals_}
-    own = section_dict.get("device")
-    if "device" in globals_ and own not in (None, "auto"):
-        out["device"] = own
-    return out
 
 
 def scene_pattern(scenes: dict[str, dict], source: str) -> str:

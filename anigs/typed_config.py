@@ -45,20 +45,35 @@ def from_dict(cls: type, d: Mapping[str, Any] | None, where: str, error: type[Ex
 
 
 class Section:
-    """Mixin of a config-section dataclass: ``from_dict`` builds it (unknown keys raise ``ERROR`` naming
-    ``WHERE``) and then runs ``validate`` (a subclass's value checks; none by default)."""
+    """Mixin of every config-section dataclass, the one config mechanism: ``from_dict`` builds the section from
+    a mapping (a key in ``RENAMED`` raises naming its new key, an unknown key raises ``ERROR`` naming ``WHERE``
+    and the allowed keys, a nested section is parsed by its own class), and every construction, from a mapping
+    or in code, runs ``validate``. ``CHECK_TYPES``: values are also checked against their defaults' types."""
 
     WHERE: ClassVar[str] = "config"
     ERROR: ClassVar[type[Exception]] = ValueError
+    CHECK_TYPES: ClassVar[bool] = False
+    #: an old key of this section -> where it is set now (a path from the config's root, or a phrase)
+    RENAMED: ClassVar[Mapping[str, str]] = {}
+    #: fields the workflow hands in from one setting read once (``seed``, ``device``: the workflow config's top
+    #: level; ``background``: the scene file's; :data:`anigs.config.HANDED`): library arguments, not keys of this
+    #: section in a config file (the schema leaves them out, and a config file that sets one fails naming the setting)
+    HANDED: ClassVar[tuple[str, ...]] = ()
+
+    def __post_init__(self) -> None:
+        self.validate()
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None):
-        cfg = from_dict(cls, d, cls.WHERE, cls.ERROR)
-        cfg.validate()
-        return cfg
+        if isinstance(d, cls):
+            return d
+        old = [k for k in (d if isinstance(d, Mapping) else ()) if k in cls.RENAMED]
+        if old:
+            raise cls.ERROR(f"{cls.WHERE}: " + "; ".join(f"{k} is now {cls.RENAMED[k]}" for k in old))
+        return from_dict(cls, d, cls.WHERE, cls.ERROR, cls.CHECK_TYPES)
 
     def validate(self) -> None:
-        """Check the values (raise ``ValueError`` naming the key)."""
+        """Check the values (raise ``ValueError`` naming the key); may normalise them (lists to tuples)."""
 
 
 def nested_sections(cls: type) -> dict[str, type]:
@@ -72,9 +87,10 @@ def _nested(sub: type, value: Any, where: str, error: type[Exception]):
     ``sub.from_dict`` where it has one (its own validation), else built here."""
     if value is not None and not isinstance(value, Mapping):
         raise error(f"{where}: expected a mapping, got {type(value).__name__}")
+    if issubclass(sub, Section):
+        return sub.from_dict(value)
     reject_unknown_keys(sub, value or {}, where, error)
-    own = getattr(sub, "from_dict", None)
-    return own(value) if own is not None else from_dict(sub, value, where, error)
+    return from_dict(sub, value, where, error)
 
 
 def _typed(ref: Any, value: Any, where: str) -> Any:

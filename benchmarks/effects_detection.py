@@ -15,7 +15,7 @@ import numpy as np, torch
 torch.set_num_threads(1)
 logging.basicConfig(level=logging.INFO, format="%(message)s")
 from anigs.images import find_image, load_image
-from anigs.effects import detect_effects, Config, save_overview, REGIONS
+from anigs.effects import detect_effects, EffectsConfig, save_overview, REGIONS
 from anigs.io import write_json
 from anigs.sfm.align import align_cameras
 from anigs.render.labels import appearance_labels, render_label_map
@@ -26,7 +26,7 @@ over = json.loads(sys.argv[3]) if len(sys.argv) > 3 else {}
 run_effects = effects.Outputs(root / "effects")
 cfgd = run_effects.report()["config"] if run_effects.exists("effects") else {}
 cfgd.update(over)
-cfg = Config.from_dict(cfgd)
+cfg = EffectsConfig.from_dict(cfgd)
 g = static.Outputs(root / "static").canonical()
 run_sfm = sfm.Outputs(root / "sfm")
 cams = run_sfm.cameras()

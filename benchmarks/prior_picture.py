@@ -67,14 +67,14 @@ def main() -> None:
     from anigs.refine.compose import ComposeConfig, compose, composed_v2v, dilate_masks, soft_mask
     from anigs.refine.prior import get_prior
     from anigs.refine.prior.base import union_mask
-    from anigs.synth import CaptureConfig, MotionParams, SceneConfig, build_scene, camera_path, gt_clip_offsets
+    from anigs.synth import CameraPathConfig, MotionParams, SceneConfig, build_scene, camera_path, gt_clip_offsets
     from anigs.synth.scene import SKY
     from anigs.video import save_png, write_mp4
 
     out = Path(args.out)
     T = args.frames
     g = build_scene(SceneConfig(num_gaussians=args.gaussians), seed=args.seed)
-    cam = camera_path(CaptureConfig(width=args.width, height=args.height), seed=args.seed)[args.camera]
+    cam = camera_path(CameraPathConfig(width=args.width, height=args.height), seed=args.seed)[args.camera]
     motion = MotionParams(frames=T)
     gt = gt_clip_offsets(motion, g.means, g.extras["anchor"], g.extras["label"], T)
     drift = torch.randn(T, g.means.shape[0], 3, generator=torch.Generator().manual_seed(1)) * 0.004

@@ -29,7 +29,7 @@ share of the pixel's colour that comes from moving Gaussians); a pixel moves whe
   once per capture from Snakemake's benchmark TSVs.
 
 ``--seeds 0 1 2`` fits every capture once per seed, from SfM on: seed K runs in ``--cache/seed-K`` with
-``sfm.seed: K`` in the scene copies and the workflow's ``seed=K`` (which the static fit takes). The rows
+the workflow's ``seed=K`` (which SfM and the static fit take). The rows
 name their seed, and the table ends with each phrasing over the seeds: each seed's held-out PSNR,
 recall as the worst seed (the median in brackets), the worst still mark and its seed, and the verdict of
 the worst seed (a phrasing is ok only when every seed is). A verdict that holds on one fit and fails on
@@ -125,13 +125,13 @@ CODE = _code_hash()  # the effects code this run imports (an edit during a run d
 
 def run_effects(capture: str, cache: Path, prompt: str, overrides: dict) -> tuple[Path, float, float, bool]:
     """The effects stage on the cached fit with ``prompt``; (its folder, wall s, CPU s, from the cache)."""
-    from anigs.effects.config import Config
+    from anigs.effects.config import EffectsConfig
     from anigs.stages import effects as stage
     from anigs.stages.static import Outputs as StaticOutputs
 
     scene = cache / capture
     ply = scene / "static" / "canonical.ply"
-    cfg = Config.from_dict({**overrides, "prompt": prompt, "requested": "auto"})
+    cfg = EffectsConfig.from_dict({**overrides, "prompt": prompt, "requested": "auto"})
     key = hashlib.sha256(json.dumps([prompt, cfg.to_dict(), ply.stat().st_size, ply.stat().st_mtime_ns,
                                      CODE], sort_keys=True).encode()).hexdigest()[:16]
     folder = scene / "phrasings" / key
@@ -316,22 +316,20 @@ def nested(flat: dict) -> dict:
     return out
 
 
-def scene_copies(folder: Path, static: dict, sections: dict | None = None) -> Path:
+def scene_copies(folder: Path, static: dict) -> Path:
     """The benchmark's scene files written to ``folder`` with ``static`` (dotted keys nest:
-    ``densify.max_gaussians``) merged into each one's ``static:`` section, and ``sections`` (section ->
-    {key: value}, e.g. ``{"sfm": {"seed": 1}}``) into theirs; returns ``folder``."""
+    ``densify.max_gaussians``) merged into each one's ``static:`` section; returns ``folder``."""
     import yaml
 
     folder.mkdir(parents=True, exist_ok=True)
     for src in sorted(SCENES.glob("*.yaml")):
         scene = yaml.safe_load(src.read_text())
-        for section, values in {"static": static, **(sections or {})}.items():
-            for key, value in values.items():
-                node = scene.setdefault(section, {})
-                *path, last = key.split(".")
-                for part in path:
-                    node = node.setdefault(part, {})
-                node[last] = value
+        for key, value in static.items():
+            node = scene.setdefault("static", {})
+            *path, last = key.split(".")
+            for part in path:
+                node = node.setdefault(part, {})
+            node[last] = value
         (folder / src.name).write_text(yaml.safe_dump(scene, sort_keys=False))
     return folder
 
@@ -430,8 +428,8 @@ def main() -> None:
                     "(e.g. holdout_every=0 budget=quality densify.max_gaussians=100000): written into copies of the "
                     "scene files under CACHE/_scenes, passed as scene_dir")
     ap.add_argument("--seeds", nargs="*", type=int, default=None,
-                    help="fit every capture once per seed, from SfM on (sfm.seed and the workflow seed, which the "
-                         "static fit takes), each in CACHE/seed-K; the table then ends with each phrasing over the "
+                    help="fit every capture once per seed, from SfM on (the workflow seed, which SfM and the "
+                         "static fit take), each in CACHE/seed-K; the table then ends with each phrasing over the "
                          "seeds: the worst seed and the median")
     ap.add_argument("--sheets", type=Path, default=None)
     ap.add_argument("--json", type=Path, default=None)
@@ -448,8 +446,8 @@ def main() -> None:
     for seed in (a.seeds if a.seeds else [None]):
         cache = a.cache if seed is None else a.cache / f"seed-{seed}"
         config = list(a.config) + ([] if seed is None else [f"seed={seed}"])
-        if a.static or seed is not None:
-            folder = scene_copies(cache / "_scenes", parse_kv(a.static), None if seed is None else {"sfm": {"seed": seed}})
+        if a.static:
+            folder = scene_copies(cache / "_scenes", parse_kv(a.static))
             config.append(f"scene_dir={folder.resolve()}")
         runs.append((seed, cache, config))
     records = []

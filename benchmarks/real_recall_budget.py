@@ -84,7 +84,7 @@ def stage_steps(g, photos, cams, cfg, requested) -> tuple:
 def budget(capture: str, captures: Path, cache: Path, kind: str, overrides: dict, sheets: Path | None = None) -> dict:
     """The figures of one capture (see module docstring)."""
     from anigs.cameras import load_cameras
-    from anigs.effects.config import EFFECT_REGION, REGIONS, Config
+    from anigs.effects.config import EFFECT_REGION, REGIONS, EffectsConfig
     from anigs.gaussians import load_ply
     from anigs.stages.effects import analysed_photos
 
@@ -93,7 +93,7 @@ def budget(capture: str, captures: Path, cache: Path, kind: str, overrides: dict
     ph = next(p for p in rc.phrasings(capture) if p["kind"] == kind)
     g = load_ply(scene / "static" / "canonical.ply")
     all_cams = load_cameras(scene / "sfm" / "cameras.json")
-    cfg = Config.from_dict({**overrides, "prompt": ph["prompt"], "requested": "auto"})
+    cfg = EffectsConfig.from_dict({**overrides, "prompt": ph["prompt"], "requested": "auto"})
     photos, picked = analysed_photos(scene / "sfm" / "images", all_cams, cfg)
     decision, lifted, masks = stage_steps(g, photos, picked, cfg, "auto")
     report = decision.report

@@ -113,7 +113,7 @@ def demo_sections(scene_name: str = "demo") -> tuple[dict, dict, callable]:
     with open(ROOT / "workflow" / "schemas" / "config.schema.yaml") as f:
         schema = yaml.safe_load(f)
     scene = load_scene(ROOT / config["scene_dir"], scene_name, schema)
-    return config, scene, lambda name: section(config, scene, "full", name)
+    return config, scene, lambda name: section(config, scene, "full", name, schema)
 
 
 def anigs_cmd(threads: int, stage: str, *args: str) -> list[str]:
@@ -146,7 +146,7 @@ def photo_point(axis: str, value: int, args, work: Path) -> dict[str, dict]:
     out["sfm"] = measure(anigs_cmd(args.threads, "sfm", "--images", str(capture.path("images")), "--out",
                                    str(sfm_out.root), "--gt-cameras", str(capture.path("gt_cameras")),
                                    "--params", json.dumps(sfm)), d / "sfm.log")
-    static = {**sec("static"), "device": config["device"], "seed": config["seed"]}
+    static = sec("static")  # the run's device and seed handed in
     if args.static_iterations:
         static["iterations"] = args.static_iterations
     out["static"] = measure(anigs_cmd(args.threads, "static", "--images", str(sfm_out.path("images")),

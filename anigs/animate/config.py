@@ -12,12 +12,15 @@ from typing import Any, ClassVar
 from anigs.effects.labels import effect_label_ids
 from anigs.animate.method_config import LiftingConfig, PhysicsConfig
 from anigs.animate.plan import RoundPlan
-from anigs.typed_config import Section, from_dict
+from anigs.typed_config import Section
 
 
 @dataclass(frozen=True)
-class AnimateConfig:
+class AnimateConfig(Section):
     """``animate`` config section: how the dataset-model loop unrolls."""
+
+    WHERE = "animate"
+    ERROR = KeyError
 
     frames: int = 25  # T: frames per clip and of the DCT motion period
     views_per_round: int = 3  # views added to the dataset per round (paper: 1)
@@ -28,12 +31,9 @@ class AnimateConfig:
     lifting: LiftingConfig = field(default_factory=LiftingConfig)  # the lifting baseline (method: lifting)
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)  # the physics baseline (method: physics)
 
-    @staticmethod
-    def from_dict(d: dict | None) -> "AnimateConfig":
-        cfg = from_dict(AnimateConfig, d, "animate", KeyError)
-        if cfg.method not in METHODS:
-            raise ValueError(f"animate.method must be one of {list(METHODS)}, got {cfg.method!r}")
-        return cfg
+    def validate(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"animate.method must be one of {list(METHODS)}, got {self.method!r}")
 
     def plan(self, num_views: int) -> RoundPlan:
         """The rounds of this config. A baseline fits once: one round, every view in it, each
@@ -51,6 +51,8 @@ METHODS: dict[str, str] = {"anigs": "Ours", "lifting": "Gaussians2Life", "physic
 @dataclass
 class RenderClipConfig(Section):
     """The ``render_clip`` config section."""
+
+    HANDED = ('device', 'background')  # set once for the whole run (anigs.config.HANDED), not in this section
 
     num_frames: int = 25  # frames per clip (the workflow passes animate.frames)
     background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])  # background colour (RGB in [0,1])
@@ -71,8 +73,13 @@ PARAM_GROUPS = ("deformation+positions", "deformation", "all")
 
 
 @dataclass
-class UpdateConfig:
+class UpdateConfig(Section):
     """Hyper-parameters of one model update (the ``update`` config section)."""
+
+    HANDED = ('seed', 'device', 'background')  # set once for the whole run (anigs.config.HANDED), not in this section
+
+    WHERE = "update config"
+    ERROR = KeyError
 
     steps: int = 600  # optimisation steps per round
     views_per_step: int = 2  # (view, t) samples per step for the animation loss
@@ -126,12 +133,6 @@ class UpdateConfig:
     #: pixels ComposedV2V pastes back from frame 0) or every
     contain_rounds: str = "final"
 
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "UpdateConfig":
-        cfg = from_dict(UpdateConfig, d, "update config", KeyError)
-        cfg.validate()
-        return cfg
-
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         if not d["effect_num_bases"]:  # opt-in key: unused, the recorded config is the one before it existed
@@ -184,6 +185,8 @@ class UpdateConfig:
 @dataclass
 class FinalConfig(Section):
     """``final`` config section."""
+
+    HANDED = ('device', 'background', 'fps')  # set once for the whole run (anigs.config.HANDED), not in this section
 
     frames: int = 0  # frames per video (0 = the model's T); fractional times loop the DCT period
     fps: int = 12  # frames per second of the written videos / sidecar

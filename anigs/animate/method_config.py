@@ -6,18 +6,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 from anigs.flow import PRESETS
 
 INTEGRATORS = ("midpoint", "euler")  # the mass-spring integrators (anigs.baselines.springs)
 
 
 @dataclass
-class CommonConfig:
-    """The keys both baselines' configs share, and their ``from_dict`` (unknown keys rejected),
-    ``to_dict`` and checks."""
+class CommonConfig(Section):
+    """The keys both baselines' configs share, their ``to_dict`` and checks."""
+
+    HANDED = ('seed', 'device', 'background')  # set once for the whole run (anigs.config.HANDED), not in this section
+
+    ERROR = KeyError
 
     num_bases: int = 16            # DCT K of the output model (clamped to T-1)
     flow_preset: str = "medium"    # OpenCV DIS preset of the 2D motion: ultrafast | fast | medium
@@ -28,12 +31,6 @@ class CommonConfig:
     backend: str = "auto"          # rasterizer backend of the visibility renders
     device: str = "auto"           # torch device of the visibility renders
     seed: int = 0                  # random seed (the fits are deterministic; kept for uniformity)
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any] | None):
-        cfg = from_dict(cls, d, f"{cls.__name__}", KeyError)
-        cfg.validate()
-        return cfg
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -53,6 +50,8 @@ class CommonConfig:
 class LiftingConfig(CommonConfig):
     """The lifting baseline's config (its workflow config section)."""
 
+    WHERE = "animate.lifting"
+
     ridge: float = 1e-3          # Tikhonov weight relative to the mean squared Jacobian gain (px^2 per unit^2)
     fill_neighbors: int = 8      # Gaussians seen by no view: IDW mean of this many observed neighbours (0 = still)
 
@@ -67,6 +66,8 @@ class LiftingConfig(CommonConfig):
 @dataclass
 class PhysicsConfig(CommonConfig):
     """The physics baseline's config (its workflow config section)."""
+
+    WHERE = "animate.physics"
 
     fps: float = 24.0                    # frame rate of the clips (the procedural prior's default)
     substeps: int = 4                    # integrator steps per frame

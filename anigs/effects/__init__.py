@@ -6,9 +6,9 @@ multi-view consistency; no downloaded weights; optionally a semantic segmenter w
 weights, :mod:`anigs.effects.segmenter`). ``EffectsResult.to_json()`` is the
 ``effects.json`` object, ``save_overview`` writes the overview PNG.
 """
-from anigs.effects.config import EFFECT_REGION, EFFECTS, REGION_EFFECTS, REGIONS, Config
+from anigs.effects.config import EFFECT_REGION, EFFECTS, REGION_EFFECTS, REGIONS, EffectsConfig
 from anigs.effects.detect import EffectResult, EffectsResult, detect_effects
 from anigs.effects.overview import save_overview
 
-__all__ = ["Config", "EFFECTS", "EFFECT_REGION", "REGIONS", "REGION_EFFECTS", "EffectResult", "EffectsResult",
+__all__ = ["EffectsConfig", "EFFECTS", "EFFECT_REGION", "REGIONS", "REGION_EFFECTS", "EffectResult", "EffectsResult",
            "detect_effects", "save_overview"]

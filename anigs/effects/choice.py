@@ -17,7 +17,7 @@ from typing import Sequence
 
 import numpy as np
 
-from anigs.effects.config import EFFECTS, REGION_EFFECTS, Config
+from anigs.effects.config import EFFECTS, REGION_EFFECTS, EffectsConfig
 from anigs.effects.corrections import appearance_key, apply_corrections
 from anigs.effects.detect import EffectsResult, detect_effects
 from anigs.effects.vocabulary import prompt_kinds
@@ -99,7 +99,7 @@ class Decision:
     report: dict
 
 
-def decide_effects(photos: Sequence[np.ndarray], cams: Sequence, g, cfg: Config,
+def decide_effects(photos: Sequence[np.ndarray], cams: Sequence, g, cfg: EffectsConfig,
                    requested: Sequence[str] | str | None) -> Decision:
     """Detect the effects in ``photos`` [H,W,3] seen by ``cams`` with the canonical model ``g``, apply
     the user's corrections (``cfg.drop``, ``force``, ``boxes``, ``selections``) and choose."""

@@ -13,23 +13,27 @@ of anigs 0.13 and earlier fails naming its new key (:data:`RENAMED`).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import Any, ClassVar, Mapping
+from typing import Any
 
 from anigs.effects.kinds import EFFECT_REGION, EFFECTS, PLANTS, REGION_EFFECTS, REGIONS
 from anigs.effects.rules import RulesConfig
 from anigs.effects.rules.base import Bands
-from anigs.typed_config import Section, from_dict
+from anigs.typed_config import Section
 
-__all__ = ["Config", "CuesConfig", "DecideConfig", "EFFECTS", "EFFECT_REGION", "LiftConfig", "PLANTS", "PhotosConfig",
-           "REGIONS", "REGION_EFFECTS", "RENAMED", "RegionsConfig", "RulesConfig", "SegmenterConfig", "check_renamed"]
+__all__ = ["CuesConfig", "DecideConfig", "EFFECTS", "EFFECT_REGION", "LiftConfig", "PLANTS", "PhotosConfig",
+           "EffectsConfig", "REGIONS", "REGION_EFFECTS", "RENAMED", "RegionsConfig", "RulesConfig", "SegmenterConfig"]
 
 SEGMENTER_BACKENDS: tuple[str, ...] = ("none", "segformer")
 SEGMENTER_MODES: tuple[str, ...] = ("gate", "replace")
 
 
 @dataclass
-class SegmenterConfig:
+class SegmenterConfig(Section):
     """Optional learned segmentation (config section ``effects.segmenter``; :mod:`anigs.effects.segmenter`)."""
+
+    HANDED = ('device',)  # set once for the whole run (anigs.config.HANDED), not in this section
+
+    WHERE = "effects.segmenter config"
 
     #: none (the weight-free cues alone: the default) or segformer (a transformers semantic segmenter, e.g. SegFormer
     #: fine-tuned on ADE20K, from the local folder ``weights``)
@@ -46,7 +50,7 @@ class SegmenterConfig:
     classes: dict = field(default_factory=dict)
     device: str = "auto"             # the segmenter's torch device: auto, cpu or cuda[:N]
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         if self.backend not in SEGMENTER_BACKENDS:
             raise ValueError(f"effects.segmenter.backend must be one of {list(SEGMENTER_BACKENDS)}, got {self.backend!r}")
         if self.mode not in SEGMENTER_MODES:
@@ -57,11 +61,6 @@ class SegmenterConfig:
         if bad:
             raise ValueError(f"effects.segmenter.classes: {bad} map to no kind; each label name maps to one of "
                              f"{[*REGIONS, 'still']}")
-
-    @staticmethod
-    def from_dict(d: dict | None) -> "SegmenterConfig":
-        """Build from ``effects.segmenter``; unknown keys are an error naming them."""
-        return from_dict(SegmenterConfig, d, "effects.segmenter config", ValueError)
 
 
 @dataclass
@@ -74,7 +73,7 @@ class PhotosConfig(Section):
     max_side: int = 400              # photos are downscaled to this longest side (px)
     min_alpha: float = 0.5           # pixels where the fitted model is thinner than this are empty (sky)
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         if self.max_photos < 1 or self.max_side < 16:
             raise ValueError(f"effects.photos: max_photos ({self.max_photos}) must be >= 1 and max_side "
                              f"({self.max_side}) >= 16")
@@ -100,7 +99,7 @@ class CuesConfig(Section):
     ground_min_support: float = 0.03  # the ground plane counts when this fraction of Gaussians lies on it
     ground_max_below: float = 0.1    # ... and at most this fraction lies clearly under it
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         if self.up not in ("z", "auto"):
             raise ValueError(f"effects.cues.up must be 'z' or 'auto', got {self.up!r}")
         if not 0 < self.ground_seen_quantile < 1:
@@ -151,7 +150,7 @@ class RegionsConfig(Section):
     #: components smaller than this share of the photo are dropped (and a photo shows a region from this share on)
     min_component_frac: float = 0.0004
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         for name in ("green_hue", "flower_green_hue", "water_hue"):
             v = tuple(float(x) for x in getattr(self, name))
             if len(v) != 2 or not 0 <= v[0] < v[1] <= 360:
@@ -182,7 +181,7 @@ class LiftConfig(Section):
     footprint_reach_px: int = 2      # ... counting pixels within this of the region's (a splat's soft edge)
     propagate_k: int = 8             # Gaussians seen by no photo take the majority of their k neighbours
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         if not 0 <= self.footprint_share <= 1 or self.footprint_reach_px < 0:
             raise ValueError(f"effects.lift.footprint_share must be in [0, 1] and effects.lift.footprint_reach_px "
                              f">= 0, got {self.footprint_share} and {self.footprint_reach_px}")
@@ -203,9 +202,11 @@ class DecideConfig(Section):
 
 
 @dataclass
-class Config:
+class EffectsConfig(Section):
     """Parameters of :func:`anigs.effects.detect_effects` (config section ``effects``): one nested section
     per step (module docstring), the user's corrections and the scene's choice."""
+
+    WHERE = "effects config"
 
     #: effects to simulate: auto (the detected kinds the prompt names; every detected one without a prompt) or a list
     #: of effect names, which overrides the prompt; a listed effect the scene lacks is reported and skipped
@@ -239,22 +240,14 @@ class Config:
     #: optional learned segmentation of the photos with local weights (default backend none: the weight-free cues)
     segmenter: SegmenterConfig = field(default_factory=SegmenterConfig)
 
-    RENAMED: ClassVar[dict[str, str]] = {}  # set below: the old flat keys (the schema's x-renamed)
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         if isinstance(self.requested, str) and self.requested != "auto":
             raise ValueError(f"effects.requested must be 'auto' or a list of effect names, got {self.requested!r}")
         if not isinstance(self.requested, str):
             unknown = [e for e in self.requested if e not in EFFECTS]
             if unknown:
                 raise ValueError(f"effects.requested: unknown effect(s) {unknown}; the valid effects are {list(EFFECTS)}")
-
-    @staticmethod
-    def from_dict(d: dict | None) -> "Config":
-        """Build from a config section; unknown keys are an error naming them, a key of the old flat section
-        an error naming its new key."""
-        check_renamed(d or {}, "effects config")
-        return from_dict(Config, d, "effects config", ValueError)
 
     def to_dict(self) -> dict:
         """The section as plain values; ``segmenter`` only when a backend is set (a weight-free run records what
@@ -302,15 +295,6 @@ def _moves() -> dict[str, str]:
     return {**photos, **cues, **regions, **lift, **decide, **rules}
 
 
-#: a key of the flat ``effects`` section (anigs 0.13 and earlier) -> its key now, under ``effects.``
-RENAMED: dict[str, str] = _moves()
-Config.RENAMED = RENAMED
-
-
-def check_renamed(d: Mapping[str, Any], where: str) -> None:
-    """A ``ValueError`` naming the new key of every old flat key of the ``effects`` section ``d``."""
-    old = [k for k in d if k in RENAMED]
-    if old:
-        moves = "; ".join(f"effects.{k} is now effects.{RENAMED[k]}" for k in old)
-        raise ValueError(f"{where}: the effects section is nested by step and rule (CHANGELOG.md, config/README.md): "
-                         f"{moves}")
+#: a key of the flat ``effects`` section (anigs 0.13 and earlier) -> its key now
+RENAMED: dict[str, str] = {old: f"effects.{new}" for old, new in _moves().items()}
+EffectsConfig.RENAMED = RENAMED

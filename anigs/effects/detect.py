@@ -46,7 +46,7 @@ import numpy as np
 
 from anigs.cameras import Camera
 from anigs.effects.analysed import prepare_photos
-from anigs.effects.config import EFFECTS, REGION_EFFECTS, REGIONS, Config
+from anigs.effects.config import EFFECTS, REGION_EFFECTS, REGIONS, EffectsConfig
 from anigs.effects.geometry import SHOWN, Ground, render_features
 from anigs.effects.lift import lift
 from anigs.effects.reasons import UNLIFTED_NOTE, reason, unlifted_note
@@ -105,7 +105,7 @@ class EffectsResult:
     cameras: list[Camera]
     region_of: np.ndarray
     ground: Ground
-    cfg: Config
+    cfg: EffectsConfig
     candidates: list[Candidate] = field(default_factory=list)  # numbered 3D candidates, kept or not
     #: per photo: int8 [H,W], 1 + region of a rejected candidate's pixel, 0 none
     rejected_masks: list[np.ndarray] = field(default_factory=list)
@@ -150,7 +150,7 @@ class Ruled:
     rejected_masks: list[np.ndarray]
 
 
-def photo_regions(cues: Cues, cfg: Config, looked_for: Sequence[str]) -> tuple[list[PhotoRegions], dict | None]:
+def photo_regions(cues: Cues, cfg: EffectsConfig, looked_for: Sequence[str]) -> tuple[list[PhotoRegions], dict | None]:
     """Step ``photo regions``: each photo's region masks (and the learned segmenter's, when one is set), only
     the regions ``looked_for`` kept; (the masks, the segmenter's record or None)."""
     regions = [classify_photo(p, cues.ground, cfg.regions, cfg.cues, cfg.photos.min_alpha) for p in cues.maps]
@@ -164,7 +164,7 @@ def photo_regions(cues: Cues, cfg: Config, looked_for: Sequence[str]) -> tuple[l
     return regions, seg_record
 
 
-def apply_rules(g: Gaussians, cues: Cues, region_of: np.ndarray, regions: Sequence[PhotoRegions], cfg: Config,
+def apply_rules(g: Gaussians, cues: Cues, region_of: np.ndarray, regions: Sequence[PhotoRegions], cfg: EffectsConfig,
                 blossoms_of: str | None = None) -> Ruled:
     """Step ``rules``: the geometry rules (:mod:`anigs.effects.rules`) on the lifted regions; the photos' masks
     lose the pixels of rejected candidates and small parts (and sunlit leaves move from flowers to foliage)."""
@@ -249,7 +249,7 @@ def unlifted_share(g: Gaussians, region_of: np.ndarray, cams: Sequence[Camera], 
     return out
 
 
-def decide(g: Gaussians, cues: Cues, regions: Sequence[PhotoRegions], ruled: Ruled, share: np.ndarray, cfg: Config,
+def decide(g: Gaussians, cues: Cues, regions: Sequence[PhotoRegions], ruled: Ruled, share: np.ndarray, cfg: EffectsConfig,
            kinds: Sequence[str], blossoms_of: str | None, seg_record: dict | None) -> dict[str, EffectResult]:
     """Step ``decide``: per region, is it there (``effects.decide``), with its masks, Gaussians, confidence
     and the reason in words; one :class:`EffectResult` per effect."""
@@ -297,7 +297,7 @@ def decide(g: Gaussians, cues: Cues, regions: Sequence[PhotoRegions], ruled: Rul
     return effects
 
 
-def looked_for(kinds: Sequence[str] | None, cfg: Config) -> tuple[list[str], str | None, list[str]]:
+def looked_for(kinds: Sequence[str] | None, cfg: EffectsConfig) -> tuple[list[str], str | None, list[str]]:
     """(the kinds to localise, the region whose plants' blossoms the flowers are or None, the regions looked
     for): a prompt that names plants (foliage) but no flowers has the flowers looked for as their blossoms."""
     kinds = list(REGIONS) if kinds is None else list(kinds)
@@ -309,19 +309,19 @@ def looked_for(kinds: Sequence[str] | None, cfg: Config) -> tuple[list[str], str
 
 
 def detect_effects(images: Sequence[np.ndarray], cameras: Sequence[Camera], gaussians: Gaussians,
-                   cfg: Config | None = None, kinds: Sequence[str] | None = None) -> EffectsResult:
+                   cfg: EffectsConfig | None = None, kinds: Sequence[str] | None = None) -> EffectsResult:
     """Detect foliage, grass, flowers and water in a scene (see module docstring).
 
     Args:
         images: capture photos, RGB [H,W,3] (float in [0,1] or uint8), one per camera.
         cameras: their cameras (any resolution of the same aspect ratio).
         gaussians: the fitted static model.
-        cfg: :class:`Config` (defaults documented there).
+        cfg: :class:`EffectsConfig` (defaults documented there).
         kinds: the regions to localise (those the prompt names); None = all of ``REGIONS``. The
             others get empty masks and no Gaussians, with the reason.
     Returns an :class:`EffectsResult` with one :class:`EffectResult` per effect of ``EFFECTS``.
     """
-    cfg = cfg or Config()
+    cfg = cfg or EffectsConfig()
     kinds, blossoms_of, wanted = looked_for(kinds, cfg)
     photos, cams = prepare_photos(images, cameras, cfg.photos)
     g = gaussians.detach()

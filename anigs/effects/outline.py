@@ -37,6 +37,7 @@ from anigs.effects.geometry import SHOWN, render_features
 from anigs.effects.kinds import REGIONS
 from anigs.effects.photo_maps import PhotoMaps
 from anigs.gaussians import Gaussians
+from anigs.typed_config import Section
 
 if TYPE_CHECKING:
     from anigs.effects.rules.base import Candidate
@@ -50,8 +51,10 @@ MIN_PIXELS = 20
 
 
 @dataclass(frozen=True)
-class SmearedSheet:
+class SmearedSheet(Section):
     """Rule ``smeared_sheet``: foliage the plane rule set aside moves after all when its sheet is a smeared crown."""
+
+    WHERE = "effects.rules.smeared_sheet"
 
     NAME = "smeared_sheet"
 

@@ -11,6 +11,8 @@ from anigs.typed_config import Section
 class ExportConfig(Section):
     """``export`` config section."""
 
+    HANDED = ('fps',)  # set once for the whole run (anigs.config.HANDED), not in this section
+
     frames: bool = False  # also write the per-frame PLY sequence (scene.anigs holds every frame exactly)
     frame_step: int = 1  # every n-th frame of 0..T-1
     fps: float = 12.0  # frames per second of the written videos / sidecar

@@ -16,6 +16,8 @@ from anigs.typed_config import Section
 class MasksConfig(Section):
     """Config section ``masks``."""
 
+    HANDED = ('background',)  # set once for the whole run (anigs.config.HANDED), not in this section
+
     backend: str = "effects"                   # effects (the effects stage's regions) | vegetation | labels | sam2
     background: list = field(default_factory=lambda: [0.5, 0.5, 0.5])  # render background (RGB; as final.background)
     vegetation: VegetationConfig = field(default_factory=VegetationConfig)  # the vegetation backend

@@ -22,12 +22,15 @@ from anigs.masks.frame import Frame
 from anigs.render.labels import effect_indicators, label_masks, labels_for
 from anigs.sfm.align import Similarity, align_cameras
 from anigs.synth.truth import dynamic_label_ids, effects_from_motion
+from anigs.typed_config import Section
 
 
 @dataclass
-class LabelsConfig:
+class LabelsConfig(Section):
     """Parameters of the labels backend (config section ``masks.labels``): the keywords of
     :class:`LabelsBackend` after its first three arguments."""
+
+    WHERE = "masks.labels config"
 
     threshold: float = 0.5  # an effect's pixel: its blending weight is at least this fraction of the pixel's alpha
     min_alpha: float = 0.3  # a pixel is in no mask below this rendered alpha (sky, empty)

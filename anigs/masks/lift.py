@@ -11,15 +11,17 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 from anigs.gaussians import Gaussians
 from anigs.geometry.propagate import propagate_labels
 from anigs.render.visibility import VisibilityConfig, as_means, blend_weights, check_mask, project_to_pixels, visibility
 
 
 @dataclass
-class LiftConfig:
+class LiftConfig(Section):
     """Parameters of the 2D-to-3D mask lifting (config key ``lift``)."""
+
+    WHERE = "lift config"
 
     min_views: int = 1            # min views in which a Gaussian is visible to be dynamic
     vote_threshold: float = 0.5   # min fraction of those views whose mask covers it
@@ -33,7 +35,7 @@ class LiftConfig:
     weighted_votes: bool = True   # weight visibility: votes weighted by blending weight
     ground_cut: float = 0.5       # with a ground plane: static below this fraction of its min_height
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         if self.ground_cut < 0:
             raise ValueError(f"lift.ground_cut must be >= 0, got {self.ground_cut}")
         if self.propagate_k < 0:
@@ -44,9 +46,6 @@ class LiftConfig:
             raise ValueError(f"lift.vote_threshold must be in (0, 1], got {self.vote_threshold}")
         self.visibility_config()
 
-    @staticmethod
-    def from_dict(d: dict | None) -> "LiftConfig":
-        return from_dict(LiftConfig, d, "lift config", ValueError)
 
     def visibility_config(self) -> "VisibilityConfig":
         return VisibilityConfig(mode=self.visibility, rel_tol=self.rel_tol, scale_tol=self.scale_tol,

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 from anigs.device import get_device
 from anigs.masks.frame import Frame
 from anigs.masks.vegetation import VegetationConfig, vegetation_mask
@@ -32,8 +32,12 @@ INSTALL_HINT = ("install the 'sam2' extra: SAM2_BUILD_CUDA=0 pip install --no-bu
 
 
 @dataclass
-class Sam2Config:
+class Sam2Config(Section):
     """Parameters of the SAM2 backend (config section ``masks.sam2``)."""
+
+    HANDED = ('device',)  # set once for the whole run (anigs.config.HANDED), not in this section
+
+    WHERE = "masks.sam2 config"
 
     checkpoint: str | None = None            # local SAM2 checkpoint (.pt)
     model_config: str = "configs/sam2.1/sam2.1_hiera_t.yaml"  # config name inside the sam2 package
@@ -44,15 +48,12 @@ class Sam2Config:
     device: str = "auto"                      # auto | cpu | cuda
     random_weights: bool = False              # tests only: allow checkpoint null
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         if self.mode not in ("auto", "points"):
             raise ValueError(f"sam2.mode must be 'auto' or 'points', got {self.mode!r}")
         if self.mode == "points" and not self.points:
             raise ValueError("sam2.mode 'points' needs sam2.points [[x, y], ...]")
 
-    @staticmethod
-    def from_dict(d: dict | None) -> "Sam2Config":
-        return from_dict(Sam2Config, d, "masks.sam2 config")
 
 
 def import_sam2():

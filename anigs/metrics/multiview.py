@@ -24,7 +24,6 @@ import numpy as np
 import torch
 
 from anigs.cameras import Camera
-from anigs.typed_config import from_dict
 from anigs.metrics.image import mean_finite, psnr, ssim
 from anigs.render import render_gaussians
 from anigs.static.fit import StaticConfig, fit_static
@@ -39,6 +38,8 @@ class MultiviewFitConfig(StaticConfig):
     """The protocol's fresh static fit (config section ``eval.multiview_fit``): the ``static``
     section's keys, with the defaults of an instrument where they differ from the static stage's."""
 
+    WHERE = "eval.multiview_fit"
+
     budget: str | float = "fast"  # the protocol's fit stays the size it was measured at (30,000 Gaussians)
     background: tuple[float, float, float] | str = (0.0, 0.0, 0.0)  # a fixed background (the static stage's: random)
     far_share: float = 0.0  # no far points: the figures stay comparable with the earlier tables
@@ -52,13 +53,6 @@ class MultiviewFitConfig(StaticConfig):
     #: figures stay comparable (`regularize: {enabled: true}` turns it on)
     regularize: RegularizeConfig = field(default_factory=lambda: RegularizeConfig(enabled=False))
 
-    @classmethod
-    def from_dict(cls, d: dict[str, Any] | None) -> "MultiviewFitConfig":
-        cfg = from_dict(cls, d, "eval.multiview_fit", ValueError)
-        if not isinstance(cfg.background, str):
-            cfg.background = tuple(float(x) for x in cfg.background)
-        cfg.validate()
-        return cfg
 
 PAPER_T_NOVEL = 21
 PAPER_NUM_FRAMES = 121

@@ -4,16 +4,20 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar
 
 from anigs.refine.prior.ltx import LTXConfig
 from anigs.refine.prior.procedural import ProceduralConfig
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 
 
 @dataclass
-class RefineConfig:
+class RefineConfig(Section):
     """The ``refine`` stage's config section."""
+
+    HANDED = ('seed',)  # set once for the whole run (anigs.config.HANDED), not in this section
+
+    WHERE = "refine params"
 
     prior: str = "procedural"        # procedural (offline, CPU) | ltx (LTX-Video, local weights, GPU)
     strength: float = 0.5            # 0 = keep the clip's motion, 1 = new motion (LTX: starting sigma)
@@ -30,16 +34,15 @@ class RefineConfig:
     procedural: ProceduralConfig = field(default_factory=ProceduralConfig)
     ltx: LTXConfig = field(default_factory=LTXConfig)  # the LTX-Video prior (its steps: this section's)
 
-    # Keys of the nested sections that the stage sets from this section's top level (not user keys).
+    # Keys of the nested sections that the stage sets from this section's top level (not user keys: one that
+    # differs from its default fails).
     DERIVED: ClassVar[dict[str, tuple[str, ...]]] = {"procedural": ("effects",), "ltx": ("steps",)}
 
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any] | None) -> "RefineConfig":
-        for sub, keys in cls.DERIVED.items():
+    def validate(self) -> None:
+        for sub, keys in self.DERIVED.items():
             for key in keys:
-                if isinstance(d, Mapping) and key in (d.get(sub) or {}):
+                if getattr(getattr(self, sub), key) != getattr(type(getattr(self, sub))(), key):
                     raise ValueError(f"set `{key}` at the top level of the refine params, not in `{sub}`")
-        return from_dict(cls, d, "refine params", ValueError)
 
     def with_effects(self, chosen: list[str] | None) -> "RefineConfig":
         """With the effects stage's chosen effects instead of the listed ones (``chosen``: None keeps them)."""

@@ -17,6 +17,8 @@ MILD_DISTORTION_MODELS = ("SIMPLE_RADIAL", "RADIAL")
 class SfmConfig(Section):
     """Parameters of the ``sfm`` stage (config section ``sfm``)."""
 
+    HANDED = ('seed', 'device')  # set once for the whole run (anigs.config.HANDED), not in this section
+
     camera_model: str = "SIMPLE_RADIAL"  # COLMAP camera model; SIMPLE_PINHOLE/PINHOLE for synthetic renders
     single_camera: bool = True  # all images share one camera (one device, fixed zoom)
     camera_params: Optional[list[float]] = None  # known intrinsics in COLMAP's order for camera_model
@@ -120,8 +122,8 @@ class SfmConfig(Section):
             raise ValueError(f"sfm.matcher {self.matcher!r} not in {MATCHERS}")
         if self.mapper not in MAPPERS:
             raise ValueError(f"sfm.mapper {self.mapper!r} not in {MAPPERS}")
-        if self.device not in ("auto", "cpu", "cuda"):
-            raise ValueError(f"sfm.device {self.device!r} not in ('auto', 'cpu', 'cuda')")
+        if self.device not in ("auto", "cpu") and not self.device.startswith("cuda"):
+            raise ValueError(f"sfm.device {self.device!r} is not auto, cpu or cuda[:N] (the run's device)")
         if not 0 < self.min_registered_fraction <= 1:
             raise ValueError(f"sfm.min_registered_fraction must be in (0, 1], got {self.min_registered_fraction}")
         if not 0 < self.partial_min_fraction <= 1:

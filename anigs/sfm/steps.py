@@ -32,8 +32,9 @@ def colmap_device(cfg: SfmConfig):
     import pycolmap
 
     has_cuda = bool(pycolmap.has_cuda)
-    if cfg.device == "cuda" and not has_cuda:
-        raise RuntimeError("sfm.device is 'cuda' but this pycolmap build has no CUDA support")
+    if cfg.device.startswith("cuda") and not has_cuda:  # the run's device: torch's stages use the GPU, SIFT cannot
+        log.warning("device is %r but this pycolmap build has no CUDA support: SIFT runs on the CPU (a CUDA build of "
+                    "pycolmap runs it on the GPU)", cfg.device)
     return pycolmap.Device.cuda if (cfg.device != "cpu" and has_cuda) else pycolmap.Device.cpu
 
 

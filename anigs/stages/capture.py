@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anigs.capture.config import PhotosConfig, capture_config
+from anigs.capture.config import CaptureConfig, capture_config
 from anigs.stages.command import parse_params
 from anigs.io import write_json
 from anigs import contract
@@ -26,7 +26,7 @@ from anigs.photos import import_photos
 log = logging.getLogger("anigs.capture")
 
 
-Config = PhotosConfig  # the `capture` config section
+Config = CaptureConfig  # the `capture` config section
 
 
 class Outputs(contract.Outputs):
@@ -114,7 +114,7 @@ class Inputs(contract.Inputs):
 
 def run(inputs: Inputs, cfg) -> Outputs:
     """Write ``images/`` (and ``gt/`` for the synthetic scene) and ``capture.json``. ``cfg``: a
-    :class:`PhotosConfig` (photos) or the scene's :class:`~anigs.synth.capture.SynthConfig`."""
+    :class:`CaptureConfig` (photos) or the scene's :class:`~anigs.synth.capture.SynthConfig`."""
     out, source, photos = inputs.out, inputs.source, inputs.photos
     if source == "photos":
         if photos is None:

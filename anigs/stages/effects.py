@@ -26,7 +26,7 @@ import numpy as np
 
 from anigs.effects.choice import decide_effects
 from anigs.effects.analysed import photo_indices
-from anigs.effects.config import Config
+from anigs.effects.config import EffectsConfig
 from anigs import contract
 from anigs.contract import File
 from anigs.stages.static import Outputs as StaticOutputs
@@ -37,6 +37,8 @@ from anigs.effects import save_overview
 from anigs.gaussians import load_ply
 from anigs.images import find_image, load_image
 from anigs.io import write_json
+
+Config = EffectsConfig  # the `effects` config section
 
 log = logging.getLogger("anigs.effects")
 
@@ -86,14 +88,14 @@ class Inputs(CanonicalInputs):
                 "(omitted: no warning)"})
 
 
-def analysed_photos(images: Path, cams: list, cfg: Config) -> tuple[list[np.ndarray], list]:
+def analysed_photos(images: Path, cams: list, cfg: EffectsConfig) -> tuple[list[np.ndarray], list]:
     """(photos, cameras) the detection analyses: the evenly spaced ``effects.photos.max_photos`` of the capture's
     cameras, and only those photos read from the folder ``images``."""
     cams = [cams[i] for i in photo_indices(len(cams), cfg.photos.max_photos)]
     return [load_image(find_image(images, c.name)) for c in cams], cams
 
 
-def run(inputs: Inputs, cfg: Config) -> Outputs:
+def run(inputs: Inputs, cfg: EffectsConfig) -> Outputs:
     """Detect the scene's effects and write the stage's outputs (``inputs.requested`` and
     ``inputs.prompt``, when given, replace the section's)."""
     if inputs.prompt is not None:  # a new section: the caller's stays as it was

@@ -2,12 +2,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import ClassVar
 
 from anigs.static.budget import parse_budget
 from anigs.static.densify import DensifyConfig
 from anigs.static.regularize import RegularizeConfig
-from anigs.typed_config import Section, reject_unknown_keys
+from anigs.typed_config import Section
 
 #: the frames an imported splat may be read in (``static.imported.frame``; :mod:`anigs.static.imported`)
 IMPORT_FRAMES = ("auto", "cameras", "sfm", "colmap", "opensplat", "nerfstudio", "gsplat")
@@ -16,6 +16,8 @@ IMPORT_FRAMES = ("auto", "cameras", "sfm", "colmap", "opensplat", "nerfstudio", 
 @dataclass
 class ImportConfig(Section):
     """A splat trained elsewhere (the scene's ``splat:``), imported instead of fitted (config ``static.imported``)."""
+
+    HANDED = ('background',)  # set once for the whole run (anigs.config.HANDED), not in this section
 
     #: the splat's frame: auto (the trainer's files beside the splat first: its cameras.json, nerfstudio's
     #: dataparser_transforms.json; then the known trainers' conventions, each checked by rendering the photos);
@@ -63,7 +65,10 @@ class SparseConfig(Section):
     #: triangulation); photos only (a synthetic scene, with a fixed background, starts from its SfM points)
     pair_points: bool = False
     pair_neighbours: int = 5  # each training photo is paired with this many nearest photos (by camera centre)
-    #: at most this share of the plan's Gaussian budget starts at pair points (an even subsample): the rest is
+    #: start from the SfM points plus the training photos' plane-sweep stereo depth where neighbouring photos
+    #: agree (:mod:`anigs.static.stereo_points`); photos only, as pair_points (their share: pair_share)
+    stereo_points: bool = False
+    #: at most this share of the plan's Gaussian budget starts at pair (or stereo) points (an even subsample): the rest is
     #: left to densification (the castle's 9 photos give 30,000 points, its whole auto budget)
     pair_share: float = 0.5
 
@@ -87,8 +92,12 @@ class SparseConfig(Section):
 
 
 @dataclass
-class StaticConfig:
+class StaticConfig(Section):
     """Static fit hyperparameters (the ``static`` config section)."""
+
+    HANDED = ('seed', 'device', 'background')  # set once for the whole run (anigs.config.HANDED), not in this section
+
+    WHERE = "static config"
 
     #: the one dial: a level (fast, auto, quality: steps and Gaussians follow the capture's photos and pixels)
     #: or minutes on this machine; the plan and its estimated time are logged before the fit starts
@@ -141,25 +150,9 @@ class StaticConfig:
     #: weight-free help for sparse captures: DropGaussian, a denser start from photo pairs
     sparse: SparseConfig = field(default_factory=SparseConfig)
 
-    @staticmethod
-    def from_dict(d: dict[str, Any] | None) -> "StaticConfig":
-        d = dict(d or {})
-        reject_unknown_keys(StaticConfig, d, "static config", ValueError)
-        if "densify" in d and not isinstance(d["densify"], DensifyConfig):
-            d["densify"] = DensifyConfig.from_dict(d["densify"])
-        if "regularize" in d and not isinstance(d["regularize"], RegularizeConfig):
-            d["regularize"] = RegularizeConfig.from_dict(d["regularize"])
-        if "imported" in d and not isinstance(d["imported"], ImportConfig):
-            d["imported"] = ImportConfig.from_dict(d["imported"])
-        if "sparse" in d and not isinstance(d["sparse"], SparseConfig):
-            d["sparse"] = SparseConfig.from_dict(d["sparse"])
-        if "background" in d and not isinstance(d["background"], str):
-            d["background"] = tuple(float(x) for x in d["background"])
-        cfg = StaticConfig(**d)
-        cfg.validate()
-        return cfg
-
     def validate(self) -> None:
+        if not isinstance(self.background, str):
+            self.background = tuple(float(x) for x in self.background)
         parse_budget(self.budget)
         if self.iterations is not None and self.iterations < 0:
             raise ValueError(f"static.iterations must be >= 0, got {self.iterations}")

@@ -54,7 +54,7 @@ CAPTURE_ROLLS = ("none", "portrait", "mixed")
 
 
 @dataclass
-class CaptureConfig:
+class CameraPathConfig:
     """Camera path and image parameters (config section ``synthetic.capture``)."""
 
     num_images: int = 48  # photos in the capture
@@ -87,8 +87,8 @@ class CaptureConfig:
             raise ValueError(f"capture.background must be 3 values in [0,1], got {self.background}")
 
     @staticmethod
-    def from_dict(d: dict | None) -> "CaptureConfig":
-        return from_dict(CaptureConfig, d, "synthetic.capture", check_types=True)
+    def from_dict(d: dict | None) -> "CameraPathConfig":
+        return from_dict(CameraPathConfig, d, "synthetic.capture", check_types=True)
 
 
 @dataclass
@@ -97,7 +97,7 @@ class SynthConfig:
 
     seed: int = 0
     scene: SceneConfig = field(default_factory=SceneConfig)
-    capture: CaptureConfig = field(default_factory=CaptureConfig)
+    capture: CameraPathConfig = field(default_factory=CameraPathConfig)
     motion: MotionParams = field(default_factory=MotionParams)
 
     @staticmethod
@@ -111,7 +111,7 @@ class SynthConfig:
         seed = d.get("seed", 0)
         if not isinstance(seed, int) or isinstance(seed, bool):
             raise ValueError(f"synthetic.seed: expected an int, got {seed!r}")
-        return SynthConfig(seed, SceneConfig.from_dict(d.get("scene")), CaptureConfig.from_dict(d.get("capture")),
+        return SynthConfig(seed, SceneConfig.from_dict(d.get("scene")), CameraPathConfig.from_dict(d.get("capture")),
                            MotionParams.from_dict(d.get("motion")))
 
     def to_dict(self) -> dict:
@@ -123,7 +123,7 @@ class SynthConfig:
         return {"seed": self.seed, "scene": asdict(self.scene), "capture": cap, "motion": self.motion.to_dict()}
 
 
-def _camera(eye: np.ndarray, yaw: float, pitch: float, roll: float, K: np.ndarray, cfg: CaptureConfig,
+def _camera(eye: np.ndarray, yaw: float, pitch: float, roll: float, K: np.ndarray, cfg: CameraPathConfig,
             name: str) -> Camera:
     fwd = np.array([math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw), math.sin(pitch)])
     V = look_at(eye, eye + fwd)
@@ -134,9 +134,9 @@ def _camera(eye: np.ndarray, yaw: float, pitch: float, roll: float, K: np.ndarra
     return Camera(K, V, cfg.width, cfg.height, name)
 
 
-def camera_path(cfg: CaptureConfig | None = None, seed: int = 0) -> list[Camera]:
+def camera_path(cfg: CameraPathConfig | None = None, seed: int = 0) -> list[Camera]:
     """The capture cameras of ``cfg.layout`` (deterministic for ``seed``), rolled by ``cfg.roll``."""
-    cfg = cfg or CaptureConfig()
+    cfg = cfg or CameraPathConfig()
     if cfg.layout == "walk":
         cams = walk_path(cfg, seed)
     else:
@@ -157,7 +157,7 @@ def roll_camera(cam: Camera, deg: float) -> Camera:
     return Camera(cam.K.copy(), V, cam.width, cam.height, cam.name)
 
 
-def _jittered(rng: np.random.Generator, cfg: CaptureConfig, eye: np.ndarray, target: np.ndarray, K: np.ndarray,
+def _jittered(rng: np.random.Generator, cfg: CameraPathConfig, eye: np.ndarray, target: np.ndarray, K: np.ndarray,
               name: str) -> Camera:
     """Hand-held camera at ``eye`` (+ position noise) looking at ``target`` (+ orientation noise)."""
     eye = eye + rng.normal(0, 1, 3) * np.array([cfg.pos_jitter, cfg.pos_jitter, 0.5 * cfg.pos_jitter])
@@ -168,7 +168,7 @@ def _jittered(rng: np.random.Generator, cfg: CaptureConfig, eye: np.ndarray, tar
     return _camera(eye, yaw, pitch, rng.normal(0, jr), K, cfg, name)
 
 
-def forward_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
+def forward_path(cfg: CameraPathConfig, seed: int = 0) -> list[Camera]:
     """Forward-facing close-up of the west flower bed: a 2-row grid of positions 1 m in front of
     it, 0.9-1.2 m high, all looking north at the bed (about 25 degrees down)."""
     rng = np.random.default_rng(int(seed) + 104729)
@@ -188,7 +188,7 @@ def forward_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
 ORBIT_TREE = TREE_SITES[1]
 
 
-def orbit_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
+def orbit_path(cfg: CameraPathConfig, seed: int = 0) -> list[Camera]:
     """Inward orbit around the east tree (ellipse 1.75 x 2.4 m, inside the fence), 1.3 m high,
     every camera looking at the crown base (1.9 m)."""
     rng = np.random.default_rng(int(seed) + 1299709)
@@ -202,7 +202,7 @@ def orbit_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
     return cams
 
 
-def facade_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
+def facade_path(cfg: CameraPathConfig, seed: int = 0) -> list[Camera]:
     """A walk along the building looking up at it: 1.5-3 m in front of the facade, eye height,
     pitched 25-45 degrees up, headings within +-30 degrees of the facade normal."""
     rng = np.random.default_rng(int(seed) + 15485863)
@@ -220,7 +220,7 @@ def facade_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
     return cams
 
 
-def walk_path(cfg: CaptureConfig, seed: int = 0) -> list[Camera]:
+def walk_path(cfg: CameraPathConfig, seed: int = 0) -> list[Camera]:
     """The default hand-held path (deterministic for ``seed``): a loop, then a walk up the path."""
     rng = np.random.default_rng(int(seed) + 7919)
     K = intrinsics_from_fov(cfg.fov_deg, cfg.width, cfg.height)

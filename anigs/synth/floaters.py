@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from anigs.gaussians import Gaussians
-from anigs.synth.capture import CaptureConfig, SynthConfig
+from anigs.synth.capture import CameraPathConfig, SynthConfig
 from anigs.synth.scene import SceneConfig
 
 
@@ -89,5 +89,5 @@ def sparse_capture_config(seed: int = 0, num_images: int = 11, num_gaussians: in
     facade of the bare courtyard (walls and paving, sky above)."""
 
     return SynthConfig(seed=seed, scene=SceneConfig(num_gaussians=num_gaussians, layout="courtyard"),
-                       capture=CaptureConfig(num_images=num_images, width=width, height=height, layout="facade",
+                       capture=CameraPathConfig(num_images=num_images, width=width, height=height, layout="facade",
                                              pos_jitter=0.03, rot_jitter_deg=1.0))

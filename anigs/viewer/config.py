@@ -12,6 +12,8 @@ from anigs.typed_config import Section
 class ViewConfig(Section):
     """The ``view`` config section."""
 
+    HANDED = ('background', 'fps')  # set once for the whole run (anigs.config.HANDED), not in this section
+
     background: list = field(default_factory=lambda: [0.5, 0.5, 0.5])  # RGB behind the splats (as final.background)
     fps: float = 12.0  # frames per second of the animation at speed 1x
     embed: bool = True  # also write scene.js, so index.html opens straight from the file system

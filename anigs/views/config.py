@@ -4,10 +4,8 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 
-
-
 from anigs import geometry
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 from anigs.render.visibility import VisibilityConfig
 from anigs.views.content import ContentRule
 
@@ -15,8 +13,12 @@ log = logging.getLogger("anigs.views")
 
 
 @dataclass
-class ViewsConfig:
+class ViewsConfig(Section):
     """Parameters of the view queue (config section ``views``)."""
+
+    HANDED = ('seed', 'background')  # set once for the whole run (anigs.config.HANDED), not in this section
+
+    WHERE = "views config"
 
     num_locations: int = 4            # N camera locations
     directions: list = field(default_factory=lambda: [0.0, 90.0, -90.0])  # yaw order per location (deg)
@@ -81,7 +83,7 @@ class ViewsConfig:
     #: render background of the edge figure (the scene's sky colour)
     background: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         if self.layout not in ("auto",) + geometry.LAYOUTS:
             raise ValueError(f"views.layout must be 'auto' or one of {geometry.LAYOUTS}, got {self.layout!r}")
         if not 0.0 <= self.min_coverage <= 1.0 or not 0.0 < self.coverage_alpha <= 1.0:
@@ -128,10 +130,6 @@ class ViewsConfig:
         if len(self.background) != 3 or not all(0.0 <= float(x) <= 1.0 for x in self.background):
             raise ValueError(f"views.background must be 3 values in [0, 1], got {self.background}")
         self.background = [float(x) for x in self.background]
-
-    @staticmethod
-    def from_dict(d: dict | None) -> "ViewsConfig":
-        return from_dict(ViewsConfig, d, "views config")
 
     def content_rule(self):
         """The sharp-Gaussian test and content figure (:class:`anigs.views.content.ContentRule`)."""

@@ -55,21 +55,24 @@ EDGE_THRESHOLD = 6.0   # |Laplacian| of the grey image (0-255) that marks an edg
 EDGE_RADIUS = 4        # a pixel is near an edge within this many pixels
 
 
+FOOTPRINT_NEIGHBOURS = 16  # a Gaussian's footprint is compared with the median of this many nearest neighbours'
+
+
 @dataclass
 class ContentRule:
-    """Parameters of the sharp-Gaussian test and the content figure (from :class:`ViewsConfig`)."""
+    """Parameters of the sharp-Gaussian test and the content figure, derived from :class:`ViewsConfig`
+    (``ViewsConfig.content_rule()``: the defaults live there alone)."""
 
-    min_content: float = 0.5          # a view is kept when >= this share of its pixels shows sharp content
-    sharp_fraction: float = 0.05      # a photo resolves a Gaussian when its largest std dev spans <= this x its width
-    min_sharp_observations: int = 2   # ... in at least this many photos
-    footprint_ratio: float = 6.0      # largest scale <= this x the median of its neighbours'
-    neighbours: int = 16              # neighbours for that median
-    near_points: float = 3.0          # centre within this x the local SfM point spacing of a point (no points: skipped)
-    alpha: float = 0.5                # a content pixel has accumulated alpha >= this
-    min_weight: float = 0.05          # visibility in a photo: blending weight >= this (pixels)
-    max_sampling_ratio: float = 1.0   # a Gaussian counts for a view when its best photo's pixel footprint <= this x the view's (0: off)
-    min_motion_sharpness: float = 0.0  # the moving region's band sharpness >= this x the best photo's (0: recorded only)
-    max_unobserved: float = 1.0        # share of pixels of alpha < 0.5 a view may show (1: recorded only)
+    min_content: float                # a view is kept when >= this share of its pixels shows sharp content
+    sharp_fraction: float             # a photo resolves a Gaussian when its largest std dev spans <= this x its width
+    min_sharp_observations: int       # ... in at least this many photos
+    footprint_ratio: float            # largest scale <= this x the median of its FOOTPRINT_NEIGHBOURS neighbours'
+    near_points: float                # centre within this x the local SfM point spacing of a point (no points: skipped)
+    alpha: float                      # a content pixel has accumulated alpha >= this
+    min_weight: float                 # visibility in a photo: blending weight >= this (pixels)
+    max_sampling_ratio: float         # a Gaussian counts for a view when its best photo's pixel footprint <= this x the view's (0: off)
+    min_motion_sharpness: float       # the moving region's band sharpness >= this x the best photo's (0: recorded only)
+    max_unobserved: float             # share of pixels of alpha < 0.5 a view may show (1: recorded only)
 
 
 @dataclass
@@ -167,7 +170,7 @@ def sharp_gaussians(g: Gaussians, cameras: Sequence[Camera], rule: ContentRule,
                     points: np.ndarray | None = None) -> SharpSet:
     """The Gaussians that reconstructed content is made of (see the module docstring)."""
     obs, sobs, finest = observation_and_sharp_counts(g, cameras, rule.sharp_fraction, rule.min_weight)
-    ratio = footprint_ratio(g, rule.neighbours)
+    ratio = footprint_ratio(g, FOOTPRINT_NEIGHBOURS)
     foot = ratio <= rule.footprint_ratio
     near = near_points_mask(g, points, rule.near_points)
     resolved = sobs >= rule.min_sharp_observations
@@ -306,7 +309,7 @@ class ContentCheck:
         r = self.rule
         return {"min_content": r.min_content, "min_edge_share": self.min_edge_share, "sharp_fraction": r.sharp_fraction,
                 "min_sharp_observations": r.min_sharp_observations, "footprint_ratio": r.footprint_ratio,
-                "neighbours": r.neighbours, "near_points": r.near_points, "alpha": r.alpha,
+                "neighbours": FOOTPRINT_NEIGHBOURS, "near_points": r.near_points, "alpha": r.alpha,
                 "max_sampling_ratio": r.max_sampling_ratio, "min_motion_sharpness": r.min_motion_sharpness,
                 "max_unobserved": r.max_unobserved, "motion": None if self.motion is None else self.motion.to_json(),
                 "edge": {"threshold": EDGE_THRESHOLD, "radius_px": EDGE_RADIUS, "background": self.background},

@@ -13,7 +13,7 @@ import yaml
 from anigs.cameras import load_cameras
 from anigs.gaussians import load_ply
 from anigs.render import render_gaussians
-from anigs.synth import (EFFECT_TYPES, LABEL_EFFECTS, LABEL_IDS, LABELS, WATER_LABEL, CaptureConfig, MotionParams,
+from anigs.synth import (EFFECT_TYPES, LABEL_EFFECTS, LABEL_IDS, LABELS, WATER_LABEL, CameraPathConfig, MotionParams,
                          SceneConfig, SynthConfig, build_scene, camera_path, gt_clip_offsets, gt_offsets,
                          motion_tables, render_image, write_capture)
 
@@ -170,7 +170,7 @@ def test_demo_yaml_matches_synth_config():
 
 # ---- capture ------------------------------------------------------------------------
 def test_camera_path_is_casual_walkable_and_overlapping(scene):
-    cams = camera_path(CaptureConfig(), seed=0)
+    cams = camera_path(CameraPathConfig(), seed=0)
     assert len(cams) == 48 and len({c.name for c in cams}) == 48
     centers = np.array([c.center for c in cams])
     assert (np.abs(centers[:, 0]) < 5.5).all() and (centers[:, 1] > -5.0).all() and (centers[:, 1] < 4.0).all()
@@ -186,14 +186,14 @@ def test_camera_path_is_casual_walkable_and_overlapping(scene):
 
     dist, _ = cKDTree(scene.means.numpy()).query(centers)
     assert dist.min() > 0.5  # no Gaussian right in front of the lens (no blown-up splats)
-    again = camera_path(CaptureConfig(), seed=0)
+    again = camera_path(CameraPathConfig(), seed=0)
     assert all(np.array_equal(a.viewmat, b.viewmat) for a, b in zip(cams, again))
 
 
 def test_capture_images_are_textured_and_without_holes(scene):
     import cv2
 
-    cams = camera_path(CaptureConfig(), seed=0)
+    cams = camera_path(CameraPathConfig(), seed=0)
     sift = cv2.SIFT_create()
     for cam in (cams[0], cams[16], cams[24], cams[40]):
         img = render_image(scene, cam)
@@ -327,7 +327,7 @@ def test_courtyard_is_bare_and_still():
     assert 0.85 * 6000 <= a.num <= 1.2 * 6000
     off = gt_clip_offsets(MotionParams(), a.means, a.extras["anchor"], labels)
     assert float(off.abs().max()) == 0.0
-    cam = camera_path(CaptureConfig(num_images=4, width=64, height=48), 4)[0]
+    cam = camera_path(CameraPathConfig(num_images=4, width=64, height=48), 4)[0]
     assert render_image(a, cam).std() > 0.02
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from anigs.effects import Config, detect_effects
+from anigs.effects import EffectsConfig, detect_effects
 from anigs.effects.config import REGIONS
 from anigs.effects.rules import check_candidates
 from anigs.synth import render_image
@@ -26,7 +26,7 @@ def test_a_shrubs_blossom_sways_with_it_when_the_prompt_names_only_plants():
     g, cams, imgs = bush_with_a_blossom()
     labels = g.extras["label"].numpy()
     blossom, leaf = labels == 2, labels == 1
-    res = detect_effects(imgs, cams, g, Config(), kinds=["foliage"])
+    res = detect_effects(imgs, cams, g, EffectsConfig(), kinds=["foliage"])
     foliage = _chosen(res, "foliage_sway")
     print(f"blossom in foliage {foliage[blossom].mean():.3f}, leaves {foliage[leaf].mean():.3f}")
     assert not res.effects["flower_bob"].detected
@@ -38,7 +38,7 @@ def test_a_shrubs_blossom_sways_with_it_when_the_prompt_names_only_plants():
     # the photos' foliage masks take the blossom's pixels
     assert not any(m.any() for m in res.effects["flower_bob"].masks)
     # switched off, the blossom stays still
-    off = detect_effects(imgs, cams, g, Config.from_dict({"rules": {"blossoms": {"with_plants": False}}}), kinds=["foliage"])
+    off = detect_effects(imgs, cams, g, EffectsConfig.from_dict({"rules": {"blossoms": {"with_plants": False}}}), kinds=["foliage"])
     assert _chosen(off, "foliage_sway")[blossom].mean() <= 0.1
     assert not [c for c in off.candidates if c.region == "flowers"]
     assert "not looked for, the prompt does not name it" in off.effects["flower_bob"].reason
@@ -63,13 +63,13 @@ def test_only_blossoms_the_named_plants_hold_join_them():
     colours = np.vstack([np.tile(GREEN, (600, 1)), np.tile(RED, (60, 1)), np.tile(GREEN, (400, 1)),
                          np.tile(RED, (80, 1))])
     height = means[:, 2]
-    out, cands, _ = check_candidates(means, colours, region, height, 1.6, 0.25, Config(), None, blossoms_of="foliage")
+    out, cands, _ = check_candidates(means, colours, region, height, 1.6, 0.25, EffectsConfig(), None, blossoms_of="foliage")
     assert (out[600:660] == FOLIAGE).all()
     assert (out[1060:] == -1).all()
     flowers = [c for c in cands if c.region == "flowers"]
     assert len(flowers) == 1 and flowers[0].moved_to == "foliage" and flowers[0].rule == "blossoms"
     assert flowers[0].figures["on_plants"] >= 0.9
-    plain, cands, _ = check_candidates(means, colours, region, height, 1.6, 0.25, Config(), None)
+    plain, cands, _ = check_candidates(means, colours, region, height, 1.6, 0.25, EffectsConfig(), None)
     assert (plain[600:660] == FLOWERS).all() and (plain[1060:] == FLOWERS).all()
     assert not [c for c in cands if c.rule == "blossoms"]
 
@@ -78,7 +78,7 @@ def test_a_bush_without_blossoms_says_none_were_found():
     g, cams, _ = bush_with_a_blossom()
     bare = g.subset(torch.from_numpy(np.flatnonzero(g.extras["label"].numpy() != 2)))
     imgs = [render_image(bare, c, SKY) for c in cams]
-    res = detect_effects(imgs, cams, bare, Config(), kinds=["foliage"])
+    res = detect_effects(imgs, cams, bare, EffectsConfig(), kinds=["foliage"])
     assert res.effects["foliage_sway"].detected
     assert not [c for c in res.candidates if c.rule == "blossoms"]
     assert "the prompt names none; no blossoms were found on the foliage it names" in res.effects["flower_bob"].reason

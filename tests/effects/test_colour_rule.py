@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.effects.config import REGIONS, Config
+from anigs.effects.config import REGIONS, EffectsConfig
 from anigs.effects.rules import check_candidates
 
 RADIUS = 0.2
@@ -30,7 +30,7 @@ def _clump(colour_of, n: int = 80, centre=(0.0, 0.0, 1.0), seed: int = 0):
 
 
 def _verdict(means, colours, region, above=None):
-    _, cands, _ = check_candidates(means, colours, region, None, 1.6, RADIUS, Config(), None,
+    _, cands, _ = check_candidates(means, colours, region, None, 1.6, RADIUS, EffectsConfig(), None,
                                    above_cameras=above)
     flowers = [c for c in cands if c.region == "flowers"]
     assert len(flowers) == 1

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.effects import EFFECTS, Config, detect_effects
+from anigs.effects import EFFECTS, EffectsConfig, detect_effects
 from anigs.synth import LABEL_IDS, render_image
 from anigs.synth.decoys import ALLOWED, DECOY_PARTS, DECOYS, build_decoy
 
@@ -22,7 +22,7 @@ REGION_LABEL = {"foliage_sway": "foliage", "leaf_flutter": "foliage", "grass_wav
 def decoy(request):
     d = build_decoy(request.param)
     imgs = [render_image(d.gaussians, c) for c in d.cameras]
-    return d, detect_effects(imgs, d.cameras, d.gaussians, Config())
+    return d, detect_effects(imgs, d.cameras, d.gaussians, EffectsConfig())
 
 
 def _chosen(res, effect) -> np.ndarray:

@@ -14,12 +14,12 @@ import pytest
 import torch
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
-from anigs.effects import EFFECTS, REGIONS, Config, detect_effects, save_overview
+from anigs.effects import EFFECTS, REGIONS, EffectsConfig, detect_effects, save_overview
 from anigs.effects import cues
 from anigs.gaussians import Gaussians, rgb_to_sh0
 from anigs.images import load_image as read_rgb_png
 from anigs.render.labels import render_label_map
-from anigs.synth import LABEL_IDS, CaptureConfig, SceneConfig, build_scene, camera_path, render_image
+from anigs.synth import LABEL_IDS, CameraPathConfig, SceneConfig, build_scene, camera_path, render_image
 from anigs.synth.scene import frame_from_normal, quat_from_matrix
 from anigs.stages.effects import Outputs as EffectsOutputs
 from anigs.synth.scene import SKY
@@ -30,7 +30,7 @@ TRUTH = {"foliage_sway": "foliage", "leaf_flutter": "foliage", "grass_wave": "gr
 
 def _capture(scene_cfg: SceneConfig, images: int = 12, width: int = 160):
     g = build_scene(scene_cfg, 0)
-    cams = camera_path(CaptureConfig(num_images=images, width=width, height=width * 3 // 4), 0)
+    cams = camera_path(CameraPathConfig(num_images=images, width=width, height=width * 3 // 4), 0)
     return g, cams, [render_image(g, c) for c in cams]
 
 
@@ -59,13 +59,13 @@ def _pixel_iou(res, g, effect: str) -> float:
 @pytest.fixture(scope="module")
 def garden():
     g, cams, imgs = _capture(SceneConfig(num_gaussians=12000))
-    return g, detect_effects(imgs, cams, g, Config())
+    return g, detect_effects(imgs, cams, g, EffectsConfig())
 
 
 @pytest.fixture(scope="module")
 def pond():
     g, cams, imgs = _capture(SceneConfig(num_gaussians=12000, pond=True))
-    return g, detect_effects(imgs, cams, g, Config())
+    return g, detect_effects(imgs, cams, g, EffectsConfig())
 
 
 def test_garden_detects_its_four_effects(garden):
@@ -96,9 +96,9 @@ def test_pond_water_region_matches_the_labels(pond):
 
 def test_bare_courtyard_has_no_effects(tmp_path):
     g, cams, imgs = _capture(SceneConfig(num_gaussians=12000, layout="courtyard"))
-    res = detect_effects(imgs, cams, g, Config())
+    res = detect_effects(imgs, cams, g, EffectsConfig())
     assert res.detected == [] and not res.dynamic().any()
-    assert all(r.pixel_fraction < Config().decide.min_pixel_fraction for r in res.effects.values())
+    assert all(r.pixel_fraction < EffectsConfig().decide.min_pixel_fraction for r in res.effects.values())
     doc = json.loads(json.dumps(res.to_json()))  # the detection part of the stage's report
     assert set(doc["effects"]) == set(EFFECTS)
     for e in EFFECTS:
@@ -121,10 +121,10 @@ def test_ground_scatter_hidden_under_the_lawn_leaves_grass_and_flowers(garden):
     buried.means[:, 2] -= torch.from_numpy(rng.uniform(0.02, 0.45, len(pick))).float()
     buried.log_scales.sub_(math.log(2.0))  # smaller than the ground splats they hang under
     fitted = Gaussians.concat([g, buried])
-    res = detect_effects(imgs, cams, fitted, Config())  # the photos are the scene's: the tail is hidden
+    res = detect_effects(imgs, cams, fitted, EffectsConfig())  # the photos are the scene's: the tail is hidden
     plane = res.ground.plane
     assert plane is not None and plane.cut_height() > 0.2 * plane.camera_height  # the centres' layer is thick
-    assert res.ground.cut_height() < 0.5 * Config().regions.grass_max_height * plane.camera_height
+    assert res.ground.cut_height() < 0.5 * EffectsConfig().regions.grass_max_height * plane.camera_height
     assert res.detected == ["foliage_sway", "leaf_flutter", "grass_wave", "flower_bob"]
     pr, pr0 = _precision_recall(res, fitted), _precision_recall(base, g0)
     print("with a buried ground tail:", {e: tuple(round(v, 3) for v in pr[e]) for e in EFFECTS})
@@ -191,7 +191,7 @@ def bush_with_a_blossom():
 
 def test_red_flower_next_to_leaves_is_a_flower_not_foliage():
     g, cams, imgs = bush_with_a_blossom()
-    res = detect_effects(imgs, cams, g, Config())
+    res = detect_effects(imgs, cams, g, EffectsConfig())
     labels = g.extras["label"].numpy()
     flowers = np.isin(np.arange(g.num), res.effects["flower_bob"].indices)
     foliage = np.isin(np.arange(g.num), res.effects["foliage_sway"].indices)
@@ -219,7 +219,7 @@ def test_green_picture_on_a_wall_is_not_foliage():
     g = _gaussians(*[np.concatenate([floor[k], wall_parts[k]]) for k in range(4)], opacity=0.98, labels=labels)
     cams = _ring_cameras((0.2, 2.0, 1.3), 3.0, 1.5, 6, arc=math.pi / 3, start=-math.pi / 2 - math.pi / 6)
     imgs = [render_image(g, c, SKY) for c in cams]
-    cfg = Config()
+    cfg = EffectsConfig()
     # the picture is green by colour in every photo: only geometry can tell it from a plant
     pic_px = [render_label_map(g, labels, c) == 1 for c in cams]
     assert all(cues.green(im, cfg.regions.green_hue, cfg.regions.green_min_saturation, cfg.regions.min_value)[m].mean() > 0.5

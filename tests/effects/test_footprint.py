@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from anigs.effects import REGIONS, Config, detect_effects
+from anigs.effects import REGIONS, EffectsConfig, detect_effects
 from anigs.effects import cues
 from anigs.gaussians import Gaussians
 from anigs.synth import SceneConfig
@@ -28,7 +28,7 @@ def smeared():
     the foliage Gaussian farthest out from the foliage's middle, 40 x its size: what a blurry fit puts
     over a bush's edge and the wall or the lawn beside it."""
     g, cams, imgs = _capture(SceneConfig(), images=8, width=128)
-    res = detect_effects(imgs, cams, g, Config.from_dict({"photos": {"max_photos": 8}}))
+    res = detect_effects(imgs, cams, g, EffectsConfig.from_dict({"photos": {"max_photos": 8}}))
     fol = np.flatnonzero(res.region_of == FOLIAGE)
     centre = g.means[fol].median(0).values
     near = fol[int(torch.linalg.norm(g.means[fol] - centre, dim=1).argmax())]
@@ -40,9 +40,9 @@ def smeared():
 
 def test_a_smear_centred_on_a_bush_stays_still_while_the_bush_sways(smeared):
     g, cams, imgs, before = smeared
-    off = detect_effects(imgs, cams, g, Config.from_dict({"photos": {"max_photos": 8}, "lift": {"footprint_share": 0.0}}))
+    off = detect_effects(imgs, cams, g, EffectsConfig.from_dict({"photos": {"max_photos": 8}, "lift": {"footprint_share": 0.0}}))
     assert off.region_of[-1] == FOLIAGE  # its centre votes foliage: without the footprint it would move
-    on = detect_effects(imgs, cams, g, Config.from_dict({"photos": {"max_photos": 8}}))
+    on = detect_effects(imgs, cams, g, EffectsConfig.from_dict({"photos": {"max_photos": 8}}))
     assert on.region_of[-1] == -1
     kept = (on.region_of[:-1] == FOLIAGE) & (before.region_of == FOLIAGE)
     assert kept.sum() >= 0.9 * (before.region_of == FOLIAGE).sum()  # the bush's own Gaussians still sway
@@ -53,7 +53,7 @@ def test_dark_pixels_with_a_faint_green_cast_are_no_vegetation():
     stone = [0.10, 0.12, 0.09]  # chroma 0.03: a mossy stone in shadow (hue green, saturation 0.25)
     leaf = [0.05, 0.15, 0.04]   # chroma 0.11: a shaded leaf
     img = np.array([[stone, leaf]], np.float32)
-    cfg = Config()
+    cfg = EffectsConfig()
     args = (img, cfg.regions.green_hue, cfg.regions.green_min_saturation, cfg.regions.min_value)
     assert cues.green(*args, 0.0).tolist() == [[True, True]]
     assert cues.green(*args, cfg.regions.green_min_chroma).tolist() == [[False, True]]
@@ -61,6 +61,6 @@ def test_dark_pixels_with_a_faint_green_cast_are_no_vegetation():
 
 def test_footprint_and_chroma_settings_are_checked():
     with pytest.raises(ValueError, match="footprint_share"):
-        Config.from_dict({"lift": {"footprint_share": 1.5}})
+        EffectsConfig.from_dict({"lift": {"footprint_share": 1.5}})
     with pytest.raises(ValueError, match="footprint_reach_px"):
-        Config.from_dict({"lift": {"footprint_reach_px": -1}})
+        EffectsConfig.from_dict({"lift": {"footprint_reach_px": -1}})

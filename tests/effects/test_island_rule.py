@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.effects.config import REGIONS, Config
+from anigs.effects.config import REGIONS, EffectsConfig
 from anigs.effects.rules import check_candidates, drop_islands
 
 FOLIAGE = REGIONS.index("foliage")
@@ -47,12 +47,12 @@ def test_green_specks_on_a_stone_do_not_move_and_the_bush_does(seed):
 def test_the_rule_is_off_by_default_and_runs_inside_check_candidates():
     means, region, specks, bush = _scene()
     colours = np.tile([0.2, 0.6, 0.2], (len(means), 1))
-    assert Config().rules.islands.min_share == 0
-    on, _, fragments = check_candidates(means, colours, region, None, 1.0, 0.1, Config.from_dict({"rules": {"islands": {"min_share": 0.35}}}), None)
+    assert EffectsConfig().rules.islands.min_share == 0
+    on, _, fragments = check_candidates(means, colours, region, None, 1.0, 0.1, EffectsConfig.from_dict({"rules": {"islands": {"min_share": 0.35}}}), None)
     assert (on[specks] == -1).all() and (on[bush] == FOLIAGE).mean() >= 0.95
     assert fragments.get("foliage", 0) >= len(specks)
 
 
 def test_a_bad_share_is_refused():
     with pytest.raises(ValueError, match="islands.min_share"):
-        Config.from_dict({"rules": {"islands": {"min_share": 1.5}}})
+        EffectsConfig.from_dict({"rules": {"islands": {"min_share": 1.5}}})

@@ -21,7 +21,7 @@ from functools import lru_cache
 
 import pytest
 
-from anigs.effects import Config
+from anigs.effects import EffectsConfig
 from anigs.effects.choice import decide_effects
 from anigs.synth import LABEL_IDS, render_image
 from anigs.synth.decoys import DECOY_PARTS, MADE_DECOYS, build_decoy
@@ -36,7 +36,7 @@ def _staged(name: str, seed: int):
     """The decoy and the effects stage's decision on it (once per scene and seed)."""
     d = build_decoy(name, seed=seed)
     imgs = [render_image(d.gaussians, c) for c in d.cameras]
-    return d, decide_effects(imgs, d.cameras, d.gaussians, Config(prompt=d.prompt), "auto")
+    return d, decide_effects(imgs, d.cameras, d.gaussians, EffectsConfig(prompt=d.prompt), "auto")
 
 
 def _report(d, dec) -> dict[str, tuple[int, int, str]]:

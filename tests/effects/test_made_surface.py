@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.effects.config import Config
+from anigs.effects.config import EffectsConfig
 from anigs.effects.detect import flattest_axes
 from anigs.effects.geometry import scene_ground
 from anigs.effects.kinds import REGIONS
@@ -31,7 +31,7 @@ def _paint(p: np.ndarray) -> np.ndarray:
 
 def _ctx(means: np.ndarray, flattest: np.ndarray, region: int = FOLIAGE) -> Context:
     return Context(means, np.full((len(means), 3), 0.4), np.full(len(means), region), None, 1.0, 0.3, 0.3,
-                   Config().regions.bands(), flattest=flattest)
+                   EffectsConfig().regions.bands(), flattest=flattest)
 
 
 def _verdict(means: np.ndarray, flattest: np.ndarray):
@@ -95,7 +95,7 @@ def test_blossoms_attach_only_to_foliage_every_rule_kept():
     flattest = np.concatenate([bin_flat, np.tile([0.0, 1.0, 0.0], (40, 1))])
     region = np.concatenate([np.full(len(bin_means), FOLIAGE), np.full(40, FLOWERS)])
     colours = np.concatenate([np.tile([0.1, 0.45, 0.12], (len(bin_means), 1)), np.tile([0.85, 0.1, 0.1], (40, 1))])
-    out = check_candidates(means, colours, region, None, 1.0, 0.3, Config(), blossoms_of="foliage",
+    out = check_candidates(means, colours, region, None, 1.0, 0.3, EffectsConfig(), blossoms_of="foliage",
                            flattest=flattest)
     assert (out.region_of == -1).all(), np.unique(out.region_of, return_counts=True)
     rules = {c.region: c.rule for c in out.candidates}

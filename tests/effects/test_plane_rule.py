@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.effects.config import REGIONS, Config
+from anigs.effects.config import REGIONS, EffectsConfig
 from anigs.effects.rules import check_candidates
 
 RADIUS = 0.4167  # the garden's neighbourhood radius: plane tolerance 0.10, link 0.42, least plane extent 0.83
@@ -37,7 +37,7 @@ def _bed(seed: int, head_height: float, head_spread: float):
 
 
 def _flowers(means, colours, region, height, seed=0):
-    _, cands, _ = check_candidates(means, colours, region, height, 1.6, RADIUS, Config(), None, seed=seed)
+    _, cands, _ = check_candidates(means, colours, region, height, 1.6, RADIUS, EffectsConfig(), None, seed=seed)
     return [c for c in cands if c.region == "flowers"]
 
 

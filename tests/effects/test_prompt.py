@@ -132,11 +132,11 @@ def garden_stage(tmp_path_factory):
     """A small garden capture written as the effects stage's inputs."""
     from anigs.cameras import save_cameras
     from anigs.images import write_rgb_png
-    from anigs.synth import CaptureConfig, SceneConfig, build_scene, camera_path, render_image
+    from anigs.synth import CameraPathConfig, SceneConfig, build_scene, camera_path, render_image
 
     tmp = tmp_path_factory.mktemp("garden")
     g = build_scene(SceneConfig(num_gaussians=6000), 0)
-    cams = camera_path(CaptureConfig(num_images=8, width=128, height=96), 0)
+    cams = camera_path(CameraPathConfig(num_images=8, width=128, height=96), 0)
     g.save_ply(tmp / "canonical.ply")
     save_cameras(tmp / "cameras.json", cams)
     for cam in cams:

@@ -18,7 +18,7 @@ import yaml
 
 from anigs.config import check_sections, load_scene
 from anigs.effects import rules as table
-from anigs.effects.config import RENAMED, Config
+from anigs.effects.config import RENAMED, EffectsConfig
 from anigs.effects.rules import BEFORE, TABLE, AFTER, Candidate, Verdict, rule_classes
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -31,12 +31,12 @@ def _schema() -> dict:
 @pytest.mark.parametrize("old", sorted(RENAMED))
 def test_an_old_flat_key_fails_naming_its_new_key(old):
     new = re.escape(RENAMED[old].split(" and ")[0])
-    with pytest.raises(ValueError, match=rf"effects\.{old} is now effects\.{new}"):
-        Config.from_dict({old: 1})
+    with pytest.raises(ValueError, match=rf"effects config: {old} is now {new}"):
+        EffectsConfig.from_dict({old: 1})
 
 
 def test_every_new_key_exists():
-    cfg = Config()
+    cfg = EffectsConfig()
     for old, new in RENAMED.items():
         for path in new.replace("effects.", "").split(" and "):
             node = cfg
@@ -56,18 +56,18 @@ def test_an_old_key_in_a_scene_file_or_a_variant_names_its_new_key(tmp_path):
 
 
 def test_a_rules_knobs_are_its_own_section():
-    cfg = Config.from_dict({"rules": {"plane": {"max_share": 0.5}, "held": {"min_share": 0.2}}})
+    cfg = EffectsConfig.from_dict({"rules": {"plane": {"max_share": 0.5}, "held": {"min_share": 0.2}}})
     assert cfg.rules.plane.max_share == 0.5 and cfg.rules.held.min_share == 0.2
     assert cfg.rules.blossoms.min_share == 0.3  # the knob min_attached was, now each rule's own
     with pytest.raises(ValueError, match=r"effects\.rules.*plane.*maxshare"):
-        Config.from_dict({"rules": {"plane": {"maxshare": 0.5}}})
+        EffectsConfig.from_dict({"rules": {"plane": {"maxshare": 0.5}}})
     assert cfg.to_dict()["rules"]["plane"]["max_share"] == 0.5
 
 
 def test_every_rule_is_a_unit_with_its_purpose_motivation_and_test():
     names = [r.NAME for r in rule_classes()]
     assert len(names) == len(set(names))
-    assert names == [f.name for f in dataclasses.fields(Config().rules)][2:]  # the config follows the table
+    assert names == [f.name for f in dataclasses.fields(EffectsConfig().rules)][2:]  # the config follows the table
     for cls in rule_classes():
         assert dataclasses.is_dataclass(cls) and cls.__dataclass_params__.frozen, cls
         doc = inspect.getmodule(cls).__doc__
@@ -103,7 +103,7 @@ def test_a_row_runs_in_order_until_a_rule_decides(monkeypatch):
     monkeypatch.setitem(TABLE, "grass", (Probe("first"), Probe("second"), Probe("third")))
     means = np.array([[0.0, 0, 0], [0.05, 0, 0], [0.1, 0, 0]])
     ctx = table.Context(means, np.full((3, 3), 0.5), np.array([1, 1, 1]), None, 1.0, 1.0, 0.2,
-                        Config().regions.bands())
+                        EffectsConfig().regions.bands())
     out = table.run_table(ctx, Rules())
     assert calls == ["first", "second"]  # the third is never asked
     assert out.region_of.tolist() == [-1, -1, -1]

@@ -18,7 +18,7 @@ from tests.effects.test_effects import bush_with_a_blossom
 
 pytest.importorskip("transformers", reason="transformers not installed (extra: anigs[ltx])")
 
-from anigs.effects import REGIONS, Config, detect_effects  # noqa: E402
+from anigs.effects import REGIONS, EffectsConfig, detect_effects  # noqa: E402
 from anigs.effects.segmenter import Segmenter, check_weights, class_regions, combine  # noqa: E402
 from anigs.effects.segmenter_tiny import save_random_segformer  # noqa: E402
 
@@ -38,9 +38,9 @@ def bush():
     return bush_with_a_blossom()
 
 
-def _cfg(weights=None, **seg) -> Config:
+def _cfg(weights=None, **seg) -> EffectsConfig:
     section = {"backend": "segformer", "weights": str(weights), "device": "cpu", **seg} if weights else {}
-    return Config.from_dict({"segmenter": section} if section else {})
+    return EffectsConfig.from_dict({"segmenter": section} if section else {})
 
 
 def _share(res, labels, part: int, region: str) -> float:
@@ -133,7 +133,7 @@ def test_missing_or_broken_weights_are_named(tmp_path, bush):
                        ({"classes": {"tree": "trees"}}, "map to no kind"), ({"min_prob": 0}, "min_prob"),
                        ({"weight": "x"}, r"unknown keys \['weight'\]")):
         with pytest.raises(ValueError, match=match):
-            Config.from_dict({"segmenter": bad})
+            EffectsConfig.from_dict({"segmenter": bad})
 
 
 def test_nan_weights_and_labels_naming_no_plant_are_refused(tmp_path):

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at
-from anigs.effects.config import REGIONS, Config
+from anigs.effects.config import REGIONS, EffectsConfig
 from anigs.effects.geometry import render_features
 from anigs.effects.outline import SmearedSheet, longest_axis, release_smeared, sheet_signs
 from anigs.effects.photo_maps import PhotoMaps
@@ -49,7 +49,7 @@ def _street():
 
 def test_a_smeared_crown_runs_along_the_rays_and_stands_free_a_picture_does_neither():
     g, pic, crown, maps = _street()
-    s_crown, s_pic = sheet_signs(g, [crown, pic], maps, Config().photos.min_alpha)
+    s_crown, s_pic = sheet_signs(g, [crown, pic], maps, EffectsConfig().photos.min_alpha)
     print(s_crown, s_pic)
     assert s_crown.photos == 5 and s_pic.photos == 5
     assert s_crown.along_rays >= 0.9 and s_crown.free_outline >= 0.5
@@ -63,7 +63,7 @@ def test_release_keeps_the_crown_and_leaves_the_picture_rejected():
     cands = []
     for k, idx in enumerate((crown, pic)):
         cands.append(Candidate(k + 1, "foliage", idx, means[idx].mean(0), 1.0, kept=False, rule="plane", reason="plane"))
-    release_smeared(g, cands, region, maps, Config().rules.smeared_sheet, 0.5)
+    release_smeared(g, cands, region, maps, EffectsConfig().rules.smeared_sheet, 0.5)
     assert cands[0].kept and cands[0].rule == "" and "smeared in depth" in cands[0].reason
     assert (region[crown] == REGIONS.index("foliage")).all()
     assert not cands[1].kept and cands[1].rule == "plane" and (region[pic] == -1).all()

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from anigs.effects import REGIONS, Config, detect_effects
+from anigs.effects import REGIONS, EffectsConfig, detect_effects
 from anigs.effects import detect as detect_module
 from anigs.synth import SceneConfig
 
@@ -20,7 +20,7 @@ from test_effects import _capture
 @pytest.fixture(scope="module")
 def garden():
     g, cams, imgs = _capture(SceneConfig(), images=8, width=128)
-    return g, detect_effects(imgs, cams, g, Config.from_dict({"photos": {"max_photos": 8}})), (cams, imgs)
+    return g, detect_effects(imgs, cams, g, EffectsConfig.from_dict({"photos": {"max_photos": 8}})), (cams, imgs)
 
 
 def test_the_garden_lifts_its_foliage_pixels(garden):
@@ -47,7 +47,7 @@ def test_the_share_follows_the_gaussians_taken_out(garden):
 def test_the_reason_says_why_pixels_stay_still(garden, monkeypatch):
     g, _, (cams, imgs) = garden
     monkeypatch.setattr(detect_module, "unlifted_share", lambda *a, **k: {r: 0.6 for r in REGIONS})
-    res = detect_effects(imgs, cams, g, Config.from_dict({"photos": {"max_photos": 8}}))
+    res = detect_effects(imgs, cams, g, EffectsConfig.from_dict({"photos": {"max_photos": 8}}))
     e = res.effects["foliage_sway"]
     assert e.detected and e.unlifted == pytest.approx(0.6)
     assert "60% of the pixels the photos show as foliage have none of the model's foliage" in e.reason

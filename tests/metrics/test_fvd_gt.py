@@ -24,10 +24,10 @@ SMALL = {"num_views": 6, "width": 64, "height": 48, "bootstrap": 20, "frames": 8
 @pytest.fixture(scope="module")
 def gt_dir(tmp_path_factory):
     """A small synthetic garden's capture and ground truth (6 photos at 64x48, 3000 Gaussians)."""
-    from anigs.synth import CaptureConfig, SceneConfig, SynthConfig, write_capture
+    from anigs.synth import CameraPathConfig, SceneConfig, SynthConfig, write_capture
 
     out = tmp_path_factory.mktemp("capture")
-    cfg = SynthConfig(0, SceneConfig(num_gaussians=3000), CaptureConfig(num_images=6, width=64, height=48))
+    cfg = SynthConfig(0, SceneConfig(num_gaussians=3000), CameraPathConfig(num_images=6, width=64, height=48))
     write_capture(cfg, CaptureOutputs(out))
     return out / "gt"
 

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from anigs.cameras import Camera, intrinsics_from_fov, look_at, save_cameras
-from anigs.effects.config import Config
+from anigs.effects.config import EffectsConfig
 from anigs.stages import effects
 from anigs.stages.static import Outputs as StaticOutputs
 from tests.masks.test_lift import toy_scene
@@ -43,7 +43,7 @@ def test_the_effects_stage_takes_the_warning_from_its_declared_static_folder(tmp
     for name, folder in (("declared", static), ("omitted", None)):
         out = effects.run(effects.Inputs(canonical=static.path("canonical"), cameras=tmp_path / "cameras.json",
                                          images=tmp_path / "images", out=effects.Outputs(tmp_path / name),
-                                         static=folder), Config())
+                                         static=folder), EffectsConfig())
         seen.append(out.report().get("static_fit_warning"))
     # beside --canonical lies a warning, but only the declared folder is read
     assert seen == [["the static fit is too blurry"], "the static fit is too blurry", [], None]

@@ -14,7 +14,7 @@ import pytest
 
 from anigs import geometry
 from anigs.geometry import angle_deg, classify_layout, estimate_ground, estimate_up, observed_points
-from anigs.synth.capture import CaptureConfig, camera_path
+from anigs.synth.capture import CameraPathConfig, camera_path
 from anigs.synth.build import build_scene
 from anigs.synth.scene import LABEL_IDS, SceneConfig
 
@@ -28,7 +28,7 @@ def garden():
 
 
 def capture(layout: str, roll: str = "none", n: int = 20):
-    return camera_path(CaptureConfig(layout=layout, roll=roll, num_images=n), 0)
+    return camera_path(CameraPathConfig(layout=layout, roll=roll, num_images=n), 0)
 
 
 def seen(points: np.ndarray, cams) -> np.ndarray:

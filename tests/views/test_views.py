@@ -212,9 +212,9 @@ def garden_gs():
 
 
 def _layout_cams(layout: str, n: int = 10, roll: str = "none"):
-    from anigs.synth.capture import CaptureConfig, camera_path
+    from anigs.synth.capture import CameraPathConfig, camera_path
 
-    cams = camera_path(CaptureConfig(layout=layout, num_images=n, roll=roll), 0)
+    cams = camera_path(CameraPathConfig(layout=layout, num_images=n, roll=roll), 0)
     return [c.scaled(80, 60) for c in cams]
 
 

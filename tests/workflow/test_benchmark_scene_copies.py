@@ -38,11 +38,10 @@ def test_static_overrides_reach_the_fit_command(tmp_path):
 
 
 def test_a_seed_reaches_sfm_and_the_fit(tmp_path):
-    """--seeds K: the scene copies carry sfm.seed K and the workflow seed K reaches the static fit."""
-    folder = scene_copies(tmp_path / "scenes", {}, {"sfm": {"seed": 2}})
+    """--seeds K: the workflow seed K reaches SfM and the static fit (one seed, handed to both)."""
+    folder = scene_copies(tmp_path / "scenes", {})
     castle = yaml.safe_load((folder / "sceaux-castle.yaml").read_text())
-    original = yaml.safe_load((SCENES / "sceaux-castle.yaml").read_text())
-    assert castle == {**original, "sfm": {**original.get("sfm", {}), "seed": 2}}
+    assert castle == yaml.safe_load((SCENES / "sceaux-castle.yaml").read_text())
     photos = tmp_path / "photos" / "sceaux-castle"
     photos.mkdir(parents=True)
     (photos / "a.jpg").write_bytes(b"")

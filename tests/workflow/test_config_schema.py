@@ -49,8 +49,10 @@ def test_scene_files_and_merging(tmp_path):
     assert scene["source"] == "synthetic" and scene["effects"]
     cfg = {"update": {"steps": 5, "lr_means": 1.0}, "variant_overrides": {"full": {}, "x": {"update": {"steps": 9}}}}
     scene = {"source": "synthetic", "update": {"lr_means": 2.0}}
-    assert section(cfg, scene, "full", "update") == {"steps": 5, "lr_means": 2.0}
-    assert section(cfg, scene, "x", "update") == {"steps": 9, "lr_means": 2.0}
+    cfg.update(seed=3, device="cpu")
+    handed = {"seed": 3, "device": "cpu"}
+    assert section(cfg, scene, "full", "update", _schema()) == {"steps": 5, "lr_means": 2.0, **handed}
+    assert section(cfg, scene, "x", "update", _schema()) == {"steps": 9, "lr_means": 2.0, **handed}
     (tmp_path / "bad.yaml").write_text("source: photos\nphotos: /nonexistent/folder\n")
     with pytest.raises(FileNotFoundError, match="/nonexistent/folder"):
         load_scene(tmp_path, "bad")
@@ -174,20 +176,31 @@ def test_old_command_names_fail_naming_the_new_one(capsys):
     assert "now called 'render_clip'" in capsys.readouterr().err
 
 
-def test_a_scene_sections_own_device_is_kept(tmp_path):
-    """The workflow fills in the global device, but an explicit device in a stage section wins."""
+def test_the_runs_device_reaches_every_stage_and_a_section_may_not_set_its_own(tmp_path):
+    """The workflow's one device (and seed) reaches SfM and the fit alike; a scene file's stage section that
+    sets its own fails when the workflow is parsed, naming the top-level key; so does the workflow config's."""
     scenes = tmp_path / "scenes"
     scenes.mkdir()
-    (scenes / "dev.yaml").write_text("source: synthetic\nsynthetic: {}\nstatic: {device: cpu}\n")
+    (scenes / "dev.yaml").write_text("source: synthetic\nsynthetic: {}\n")
+    (scenes / "old.yaml").write_text("source: synthetic\nsynthetic: {}\nstatic: {device: cpu}\n")
     exe = Path(sys.executable).with_name("snakemake")
-    res = subprocess.run([str(exe), "-n", "-p", "--cores", "1", "--config", f"scene_dir={scenes}", "scenes=[dev]",
-                          "device=auto", f"results={tmp_path / 'results'}", "--", f"{tmp_path}/results/dev/static/canonical.ply"],
-                         cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+    def dry(scene: str, *config: str) -> subprocess.CompletedProcess:
+        return subprocess.run([str(exe), "-n", "-p", "--cores", "1", "--config", f"scene_dir={scenes}",
+                               f"scenes=[{scene}]", f"results={tmp_path / 'results'}", *config, "--",
+                               f"{tmp_path}/results/{scene}/static/canonical.ply"],
+                              cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+    res = dry("dev", "device=cpu", "seed=4")
     assert res.returncode == 0, res.stderr[-3000:]
-    static_cmd = next(line for line in res.stdout.splitlines() if " static --images" in line)
-    assert '"device": "cpu"' in static_cmd, static_cmd
-    sfm_cmd = next(line for line in res.stdout.splitlines() if " sfm --images" in line)
-    assert '"device": "auto"' in sfm_cmd
+    for stage in ("sfm", "static"):
+        cmd = next(line for line in res.stdout.splitlines() if f" {stage} --images" in line)
+        assert '"device": "cpu"' in cmd and '"seed": 4' in cmd, cmd
+    res = dry("old")
+    assert res.returncode != 0 and "static.device is now device, set once at the top level of the workflow config" \
+        in res.stdout + res.stderr, (res.stdout + res.stderr)[-3000:]
+    res = dry("dev", "static={seed: 3}")
+    assert res.returncode != 0 and "static.seed is now seed" in res.stdout + res.stderr, (res.stdout + res.stderr)[-3000:]
 
 
 def test_photo_scenes_pair_the_sfm_cameras_with_the_undistorted_images(tmp_path):
@@ -229,27 +242,20 @@ def test_photo_scenes_pair_the_sfm_cameras_with_the_undistorted_images(tmp_path)
 
 
 def test_one_scene_background_reaches_every_rendering_stage(tmp_path):
-    """A scene's `background` sets the sky colour of every section with a background key (the list
-    is checked against the schema), eval's multiview fits and the synthetic capture; a section's
-    own value wins."""
-    from anigs.config import BACKGROUND_SECTIONS
-
-    schema = _schema()["properties"]
-    with_bg = {name for name, sec in schema.items() if isinstance(sec, dict) and "background" in sec.get("properties", {})}
-    assert set(BACKGROUND_SECTIONS) == with_bg
-    (tmp_path / "s.yaml").write_text("source: synthetic\nsynthetic: {}\nbackground: [0.1, 0.2, 0.3]\n"
-                                     "final: {background: [1, 1, 1]}\n")
-    scene = load_scene(tmp_path, "s", _schema())
-    cfg = {name: {} for name in schema if isinstance(schema[name], dict) and "properties" in schema[name]}
-    cfg["variant_overrides"] = {"full": {}}
-    for name in BACKGROUND_SECTIONS:
-        want = [1, 1, 1] if name == "final" else [0.1, 0.2, 0.3]
-        assert section(cfg, scene, "full", name)["background"] == want, name
-    assert section(cfg, scene, "full", "eval")["multiview_fit"]["background"] == [0.1, 0.2, 0.3]
+    """A scene's `background` sets the sky colour of every section that renders (the schema's x-handed:
+    static, views, masks, render_clip, update, final, view, fvd_gt, eval's multiview fit, the baselines)
+    and of the synthetic capture (tests/workflow/test_handed.py: every handed path)."""
+    schema = _schema()
+    (tmp_path / "s.yaml").write_text("source: synthetic\nsynthetic: {}\nbackground: [0.1, 0.2, 0.3]\n")
+    scene = load_scene(tmp_path, "s", schema)
+    cfg = {"seed": 0, "device": "auto", "variant_overrides": {"full": {}}}
+    for name in ("static", "masks", "render_clip", "update", "final", "view", "views", "fvd_gt"):
+        assert section(cfg, scene, "full", name, schema)["background"] == [0.1, 0.2, 0.3], name
+    assert section(cfg, scene, "full", "eval", schema)["multiview_fit"]["background"] == [0.1, 0.2, 0.3]
     assert scene["synthetic"]["capture"]["background"] == [0.1, 0.2, 0.3]
     (tmp_path / "bad.yaml").write_text("source: synthetic\nbackground: [0.1, 0.2]\n")
     with pytest.raises(ValueError, match="background"):
-        load_scene(tmp_path, "bad", _schema())
+        load_scene(tmp_path, "bad", schema)
 
 
 def test_workflow_scenes_checks_the_scenes_and_variants_the_config_runs(tmp_path):

@@ -120,11 +120,13 @@ def _keys(node: dict) -> dict:
 
 def test_the_schema_is_the_types():
     """Every section's key tree (nested sections included) is its dataclass's field tree, with the
-    fields' defaults; a nested section is a closed object."""
+    fields' defaults, less the fields the workflow hands in (``HANDED``: seed, device, background, fps);
+    a nested section is a closed object."""
     schema = _schema()["properties"]
 
     def tree(cls, skip=()):
         hints, derived = typing.get_type_hints(cls), getattr(cls, "DERIVED", {})
+        skip = (*skip, *getattr(cls, "HANDED", ()))
         return {f.name: tree(hints[f.name], derived.get(f.name, ())) if dataclasses.is_dataclass(hints[f.name]) else {}
                 for f in dataclasses.fields(cls) if f.name not in skip}
 

@@ -5,17 +5,11 @@ from __future__ import annotations
 import json
 import re
 
-from anigs.config import scene_pattern, with_globals
+from anigs.config import scene_pattern
 from anigs.stages.targets import FINAL_FILES, final_targets, stage_outputs
 from anigs.reports.tradeoff import points_json, workflow_sweep
 from anigs.stages.eval import Outputs as EvalOutputs, merge_halves
 from anigs.stages.shared_inputs import GroundTruthInputs, ground_truth
-
-
-def test_a_sections_own_device_wins_over_the_global_one():
-    assert with_globals({"device": "cpu", "a": 1}, {"device": "cuda", "seed": 3}) == {"device": "cpu", "a": 1, "seed": 3}
-    assert with_globals({"device": "auto"}, {"device": "cuda"}) == {"device": "cuda"}
-    assert with_globals({"a": 1}, {"seed": 3}) == {"a": 1, "seed": 3}
 
 
 def test_scene_pattern_matches_exactly_the_scenes_of_one_source():

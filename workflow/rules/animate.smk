@@ -191,14 +191,14 @@ rule still:
     params:
         cmd=lambda wc, output: stage_command(
             "update",
-            jparams("update", with_device_seed)(wc),
+            jparams("update")(wc),
             static=stage_dir(wc.scene, "static"),
             out=os.path.dirname(output[0]),
             still=_still_reason(wc),
             frames=sec(wc.scene, "animate", wc.variant)["frames"],
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
-        p=jparams("update", with_device_seed),
+        p=jparams("update"),
         frames=lambda wc: sec(wc.scene, "animate", wc.variant)["frames"],
         reason=_still_reason,
         version=ANIGS_VERSION,

@@ -5,7 +5,7 @@ import os
 import anigs
 import yaml
 
-from anigs.config import scene_pattern, section, with_globals, workflow_scenes
+from anigs.config import scene_pattern, section, workflow_scenes
 from anigs.stages.targets import final_targets, queued_view_count, stage_outputs
 from anigs.stages.command import stage_command
 from anigs.stages.eval import merge_halves, table_row
@@ -24,7 +24,8 @@ R = config["results"]
 # the scenes config names, their files and the variants checked against the schema when the workflow
 # is parsed (anigs.config.workflow_scenes), so a typo fails before any job runs
 with open(os.path.join(workflow.basedir, "workflow", "schemas", "config.schema.yaml")) as _f:
-    SCENES = workflow_scenes(config, yaml.safe_load(_f), workflow.basedir, DERIVED_SEP)
+    SCHEMA = yaml.safe_load(_f)
+SCENES = workflow_scenes(config, SCHEMA, workflow.basedir, DERIVED_SEP)
 ALL_SCENES = dict(SCENES)  # and the accuracy-versus-time sweep's derived scenes (added below)
 
 
@@ -42,13 +43,8 @@ wildcard_constraints:
 
 
 def sec(scene, name, variant="full"):
-    """Effective config section for (scene, variant)."""
-    return section(config, ALL_SCENES[scene], variant, name)
-
-
-def with_device_seed(wc):
-    """The global device and seed (what most stages' sections take from the workflow)."""
-    return {"device": config["device"], "seed": config["seed"]}
+    """Effective config section for (scene, variant), the run's seed, device and the scene's background handed in."""
+    return section(config, ALL_SCENES[scene], variant, name, SCHEMA)
 
 
 def jparams(name, extra=None):
@@ -57,7 +53,7 @@ def jparams(name, extra=None):
     def fn(wc):
         d = sec(wc.scene, name, getattr(wc, "variant", "full"))
         if extra is not None:
-            d = with_globals(d, extra(wc))
+            d = {**d, **extra(wc)}
         return json.dumps(d, sort_keys=True)
 
     return fn
@@ -117,7 +113,7 @@ VARIANT_DIR = f"{R}/{{scene}}/{{variant}}"
 
 
 def _frames(wc):
-    return {"num_frames": sec(wc.scene, "animate", wc.variant)["frames"], "device": config["device"]}
+    return {"num_frames": sec(wc.scene, "animate", wc.variant)["frames"]}
 
 
 def _gt_effects(scene):
@@ -130,7 +126,7 @@ def _refine_extra(wc):
     """The scene's prompt and effects: a synthetic scene's listed effects, else the effects stage's
     choice, read at run time (--effects)."""
     s = ALL_SCENES[wc.scene]
-    return {"prompt": s.get("prompt", ""), "effects": _gt_effects(wc.scene) or [], "seed": config["seed"]}
+    return {"prompt": s.get("prompt", ""), "effects": _gt_effects(wc.scene) or []}
 
 
 def _effects_prompt(wc):
@@ -160,7 +156,7 @@ def round_files(name):
 
 
 def _update_extra(wc):
-    return {"device": config["device"], "seed": round_seed(config["seed"], int(wc.round))}
+    return {"seed": round_seed(config["seed"], int(wc.round))}  # the run's seed, one per round
 
 
 # ---- stage commands: built from each stage's Inputs (anigs/stages/<name>.py: Inputs.argv), so a
@@ -227,7 +223,7 @@ def _table_row(wc):
 
 
 def eval_command(wc, part, **inputs):
-    params = jparams("eval", with_device_seed)(wc)
+    params = jparams("eval")(wc)
     return stage_command("eval", params, out=job_out("eval", wc), scene=wc.scene, part=part, **_table_row(wc), **inputs)
 
 

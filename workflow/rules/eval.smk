@@ -34,7 +34,7 @@ rule eval_model:
             capture=stage_dir(wc.scene, "capture") if is_synthetic(wc.scene) else None,
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
-        p=jparams("eval", with_device_seed),
+        p=jparams("eval"),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"

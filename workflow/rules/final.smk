@@ -39,7 +39,7 @@ rule final:
         # the final clips' metrics (the eval stage's clips half) in the same process: one start-up less
         cmd=lambda wc, input: stage_command(
             "final",
-            jparams("final", lambda wc: {"device": config["device"]})(wc),
+            jparams("final")(wc),
             static=stage_dir(wc.scene, "static"),
             views=stage_dir(wc.scene, "views"),
             out=job_out("final", wc),
@@ -58,8 +58,8 @@ rule final:
             sfm=stage_dir(wc.scene, "sfm"),
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
-        p=jparams("final", lambda wc: {"device": config["device"]}),
-        ep=jparams("eval", with_device_seed),
+        p=jparams("final"),
+        ep=jparams("eval"),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"

@@ -27,7 +27,7 @@ rule fvd_gt_reference:
     params:
         cmd=lambda wc: stage_command(
             "fvd_gt",
-            jparams("fvd_gt", lambda wc: {"seed": config["seed"]})(wc),
+            jparams("fvd_gt")(wc),
             **_fvd_gt_scene(wc),
             out=job_out("fvd_gt", wc, kind="ReferenceOutputs"),
             reference=True,
@@ -62,7 +62,7 @@ rule fvd_gt:
     params:
         cmd=lambda wc, input: stage_command(
             "fvd_gt",
-            jparams("fvd_gt", lambda wc: {"seed": config["seed"]})(wc),
+            jparams("fvd_gt")(wc),
             **_fvd_gt_scene(wc),
             out=job_out("fvd_gt", wc),
             reference_dir=stage_out("fvd_gt", kind="ReferenceOutputs", scene=wc.scene),
@@ -71,8 +71,8 @@ rule fvd_gt:
             **_table_row(wc),
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
-        p=jparams("fvd_gt", lambda wc: {"seed": config["seed"]}),
-        ep=jparams("eval", with_device_seed),
+        p=jparams("fvd_gt"),
+        ep=jparams("eval"),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"

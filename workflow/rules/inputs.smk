@@ -40,7 +40,7 @@ def _fvd_gt_scene(wc):
         "capture": stage_dir(wc.scene, "capture"),
         "sfm": stage_dir(wc.scene, "sfm"),
         "static": stage_dir(wc.scene, "static"),
-        "eval_params": jparams("eval", with_device_seed)(wc),
+        "eval_params": jparams("eval")(wc),
     }
 
 

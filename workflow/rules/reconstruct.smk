@@ -109,7 +109,7 @@ rule static:
     params:
         cmd=lambda wc, input: stage_command(
             "static",
-            jparams("static", with_device_seed)(wc),
+            jparams("static")(wc),
             images=input.images,
             cameras=input.cameras,
             points=input.points,
@@ -120,7 +120,7 @@ rule static:
             report=stage_file_of(wc.scene, "sfm", "report") if splat_of(wc.scene) else None,
         ),
         # the config the command uses, as wildcard-only params: Snakemake records these (not the input-dependent cmd)
-        p=jparams("static", with_device_seed),
+        p=jparams("static"),
         version=ANIGS_VERSION,
     shell:
         "anigs --threads {threads} {params.cmd} > {log} 2>&1"

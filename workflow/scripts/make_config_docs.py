@@ -37,12 +37,15 @@ Each scene is a file `config/scenes/NAME.yaml` listed under `scenes:`. Keys:
 | `synthetic` | parameters of the synthetic generator (see `config/scenes/demo.yaml`) |
 | `photos` | folder of JPEG/PNG photos (for `source: photos`); `${NAME}` is replaced by the environment variable NAME when the scene is loaded (unset: an error naming it), so `config/scenes/photos.yaml` (`photos: ${ANIGS_PHOTOS}`) takes the folder at run time |
 | `effects` | `auto` (the default: the effects the `effects` stage finds among the kinds the `prompt` names, see the vocabulary below; every effect it finds when the scene has no prompt) or a list of `foliage_sway`, `leaf_flutter`, `grass_wave`, `flower_bob`, `water_ripple` (only those, where found, whatever the prompt says; a listed effect the scene lacks is reported and skipped); a misspelt name fails when the workflow is parsed; nothing else moves. Shorthand of `effects: {requested: ...}` |
-| `background` | `[r, g, b]` in [0, 1]: a synthetic scene's sky colour, which its capture is rendered onto and every rendering stage composites onto (static, masks, render_clip, update, final, view, views (its edge figure), eval's multiview fits); a stage's own `background` wins. Leave it out for photos: the static fit then trains on random backgrounds (what no photo covered stays transparent) and the final videos and the viewer show a neutral grey there (`final.background`) |
+| `background` | `[r, g, b]` in [0, 1]: a synthetic scene's sky colour, which its capture is rendered onto and every rendering stage composites onto (static, masks, render_clip, update, final, view, views (its edge figure), eval's multiview fits, the baselines' visibility renders, an imported splat's check); the one background key: a stage section that sets its own fails naming this one. Leave it out for photos: the static fit then trains on random backgrounds (what no photo covered stays transparent) and the final videos and the viewer show a neutral grey there |
 | `prompt` | text prompt for the video prior; with `effects: auto` it also names the kinds that may move (a prompt that names none gives a still scene) |
 | any stage section | overrides of that section for this scene (e.g. `static: {iterations: 7000}`) |
 
 The effective section a stage receives is: `config.yaml` section <- scene override <- variant
-override (`variant_overrides`), merged key by key. `config/scenes/custom_example.yaml` shows a
+override (`variant_overrides`), merged key by key, with four settings handed in that are set once for the
+whole run: `seed`, `device` and `fps` (the workflow config's top level) and the scene's `background`. A stage
+section that sets one of them (`static: {seed: 3}`, `final: {background: ...}`) fails when the workflow is
+parsed, naming where it is set now. `config/scenes/custom_example.yaml` shows a
 user's photo folder with LTX-Video weights on a GPU.
 """
 

@@ -28,6 +28,7 @@ ROOT = Path(__file__).resolve().parents[2]
 SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
 sys.path.insert(0, str(ROOT))
 
+from anigs.config import HANDED  # noqa: E402
 from anigs.stages import sections_of  # noqa: E402
 from anigs.reports.tradeoff import SCENE_STAGES, VARIANT_SECTIONS  # noqa: E402
 
@@ -128,6 +129,8 @@ def dataclass_schema(cls, path: tuple[str, ...], skip: tuple[str, ...] = (), def
     ``DERIVED`` class attribute, nested section -> keys). ``defaults``: the instance whose values
     are the defaults (a nested section's default in its parent may differ from its class's)."""
     defaults = cls() if defaults is None else defaults
+    handed = tuple(getattr(cls, "HANDED", ()))
+    skip = tuple(skip) + handed
     docs = field_docs(cls)
     hints = typing.get_type_hints(cls)
     derived = getattr(cls, "DERIVED", {})
@@ -150,7 +153,13 @@ def dataclass_schema(cls, path: tuple[str, ...], skip: tuple[str, ...] = (), def
             value = list(value) if isinstance(value, tuple) else value
             p = {"type": _type(value, hints[f.name]), "description": desc, "default": value, **special.get(key, {})}
         props[f.name] = p
-    return {"type": "object", "additionalProperties": False, "properties": props}
+    out = {"type": "object", "additionalProperties": False, "properties": props}
+    if handed:  # set once, at the workflow's or the scene's top level (anigs.config.HANDED), and handed in
+        out["x-handed"] = list(handed)
+        out["x-renamed"] = {k: HANDED[k] for k in handed}
+    if getattr(cls, "RENAMED", None):  # old key -> new key: the config check names the new key
+        out["x-renamed"] = {**out.get("x-renamed", {}), **cls.RENAMED}
+    return out
 
 
 MISSING: list[str] = []
@@ -162,6 +171,10 @@ TOP = {
     "device": {"type": "string", "default": "auto", "pattern": "^(auto|cpu|cuda(:[0-9]+)?)$",
                "description": "torch device of every stage: auto picks CUDA when present; cuda on a machine "
                               "without a GPU is an error before any job starts"},
+    "fps": {"type": "number", "exclusiveMinimum": 0, "default": 12,
+            "description": "frames per second at which the animation plays: the final videos, the export's sidecar "
+                           "and the viewer (the video prior generates its motion at its own rate: "
+                           "refine.procedural.fps)"},
     "round_jobs": {"type": "string", "enum": ["auto", "round", "view"], "default": "auto",
                    "description": "how a round's work is split into jobs: round = one job per round (render, refine "
                                   "and update: one Python start-up, models loaded once), view = one render_clip and one "
@@ -210,8 +223,6 @@ def build() -> dict:
         s = dataclass_schema(cls, (name,))
         s["description"] = desc
         s["default"] = {}
-        if getattr(cls, "RENAMED", None):  # old key -> new key: the config check names the new key
-            s["x-renamed"] = dict(cls.RENAMED)
         schema["properties"][name] = s
     return schema
 

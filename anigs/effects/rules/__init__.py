@@ -199,7 +199,7 @@ def check_candidates(means: np.ndarray, colours: np.ndarray, region_of: np.ndarr
         region_of: region id [N] (index into ``REGIONS``, -1 none).
         height: height above the ground plane [N] (None: no plane); cam_height: the cameras' height.
         radius: the neighbourhood radius of the local shape (world units).
-        cfg: the effects :class:`~anigs.effects.config.Config` (its ``rules`` and the colour bands of ``regions``).
+        cfg: the effects :class:`~anigs.effects.config.EffectsConfig` (its ``rules`` and the colour bands of ``regions``).
         flat: bool [N], Gaussians whose neighbourhood is planar: flat and other Gaussians form separate
             candidates (a lawn bank under a tree, a facade behind it are not the crown).
         above_cameras: bool [N], Gaussians higher (along up) than every camera (None: not checked).

@@ -20,11 +20,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from anigs.effects.rules.base import Candidate, Context, Verdict
+from anigs.typed_config import Section
 
 
 @dataclass(frozen=True)
-class Blossoms:
+class Blossoms(Section):
     """Rule ``blossoms``: the blossoms the named plants hold sway with them; other flowers stay still."""
+
+    WHERE = "effects.rules.blossoms"
 
     NAME = "blossoms"
 

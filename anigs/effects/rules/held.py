@@ -16,11 +16,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from anigs.effects.rules.base import Candidate, Context, Verdict
+from anigs.typed_config import Section
 
 
 @dataclass(frozen=True)
-class Held:
+class Held(Section):
     """Rule ``held``: flowers no plant holds are still."""
+
+    WHERE = "effects.rules.held"
 
     NAME = "held"
 

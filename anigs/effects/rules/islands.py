@@ -23,11 +23,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from anigs.effects.kinds import PLANTS, REGIONS
+from anigs.typed_config import Section
 
 
 @dataclass(frozen=True)
-class Islands:
+class Islands(Section):
     """Rule ``islands``: plant Gaussians with too few plant neighbours do not move (off by default)."""
+
+    WHERE = "effects.rules.islands"
 
     NAME = "islands"
 
@@ -37,7 +40,7 @@ class Islands:
     min_share: float = 0.0
     neighbours: int = 16             # ... among this many nearest Gaussians
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         if not 0 <= self.min_share <= 1 or self.neighbours < 1:
             raise ValueError(f"effects.rules.islands.min_share must be in [0, 1] (got {self.min_share}) and "
                              f"effects.rules.islands.neighbours >= 1 (got {self.neighbours})")

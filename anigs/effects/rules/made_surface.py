@@ -38,13 +38,16 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from anigs.effects.rules.base import Candidate, Context, Verdict
+from anigs.typed_config import Section
 
 MIN_GAUSSIANS = 20  # fewer Gaussians cannot show a surface
 
 
 @dataclass(frozen=True)
-class MadeSurface:
+class MadeSurface(Section):
     """Rule ``made_surface``: smooth surfaces that close around a volume are made things, whatever their colour."""
+
+    WHERE = "effects.rules.made_surface"
 
     NAME = "made_surface"
 

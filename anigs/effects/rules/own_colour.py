@@ -28,11 +28,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from anigs.effects.rules.base import Candidate, Context, Verdict, hue, saturation
+from anigs.typed_config import Section
 
 
 @dataclass(frozen=True)
-class OwnColour:
+class OwnColour(Section):
     """Rule ``own_colour``: flowers need a blossom's own colour (coloured or white petals)."""
+
+    WHERE = "effects.rules.own_colour"
 
     NAME = "own_colour"
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from anigs.effects.kinds import REGIONS
 from anigs.effects.rules.base import Candidate, Context, Verdict
+from anigs.typed_config import Section
 
 MIN_POINTS = 10  # no plane is fitted to fewer points
 OUTSIDE_BAND = 2.0  # a plane's outside band: from one to this many tolerances off it
@@ -32,8 +33,10 @@ EXTENT_STDS = 4  # a plane's in-plane extent spans this many standard deviations
 
 
 @dataclass(frozen=True)
-class Plane:
+class Plane(Section):
     """Rule ``plane``: candidates lying on large flat surfaces are still."""
+
+    WHERE = "effects.rules.plane"
 
     NAME = "plane"
 

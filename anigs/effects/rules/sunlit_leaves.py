@@ -17,11 +17,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from anigs.effects.rules.base import Candidate, Context, Verdict, hue
+from anigs.typed_config import Section
 
 
 @dataclass(frozen=True)
-class SunlitLeaves:
+class SunlitLeaves(Section):
     """Rule ``sunlit_leaves``: yellow-green flowers high in a crown move to foliage."""
+
+    WHERE = "effects.rules.sunlit_leaves"
 
     NAME = "sunlit_leaves"
 

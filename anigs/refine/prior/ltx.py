@@ -40,7 +40,7 @@ from typing import Any, Mapping
 import numpy as np
 import torch
 
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 from anigs.device import get_device
 from anigs.refine.prior.base import MaskLike, VideoPrior, check_strength
 from anigs.video import check_clip
@@ -56,8 +56,12 @@ LAYOUT_HELP = ("expected a local diffusers LTX-Video folder: model_index.json pl
 
 
 @dataclass
-class LTXConfig:
+class LTXConfig(Section):
     """Config of the LTX-Video prior (section ``ltx`` of the refine stage)."""
+
+    HANDED = ('device',)  # set once for the whole run (anigs.config.HANDED), not in this section
+
+    WHERE = "ltx prior config"
 
     model_path: str = ""                  # local diffusers folder (see LAYOUT_HELP)
     steps: int = 8                        # Euler steps from sigma=strength to 0 (linear in sigma)
@@ -77,9 +81,8 @@ class LTXConfig:
     sds_tau_max: float = 0.98  # largest diffusion time sampled by the SDS loss
     sds_weighting: str = "uniform"        # uniform: w=1 | x0: w=tau^2 (loss on the predicted clean latent)
 
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any] | None) -> "LTXConfig":
-        cfg = from_dict(cls, d, "ltx prior config", ValueError)
+    def validate(self) -> None:
+        cfg = self
         if cfg.steps < 1:
             raise ValueError(f"ltx.steps must be >= 1, got {cfg.steps}")
         if not (0.0 <= cfg.sds_tau_min <= cfg.sds_tau_max <= 1.0):
@@ -90,7 +93,6 @@ class LTXConfig:
             raise ValueError(f"ltx.dtype {cfg.dtype!r} is not auto | bfloat16 | float32 (float16 gives NaN with LTX)")
         if cfg.sigmas is not None and any(not (0.0 <= s <= 1.0) for s in cfg.sigmas):
             raise ValueError(f"ltx.sigmas must lie in [0, 1], got {cfg.sigmas}")
-        return cfg
 
 
 def sigma_schedule(strength: float, steps: int, sigmas: list[float] | None = None) -> list[float]:

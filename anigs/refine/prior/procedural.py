@@ -49,7 +49,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from anigs.typed_config import from_dict
+from anigs.typed_config import Section
 from anigs.flow import clip_backward_flow, identity_grid, warp
 from anigs.refine.prior.base import MaskLike, VideoPrior, check_prior_mask, check_strength
 from anigs.refine.prior.spectral import (EFFECTS, MotionField, effect_spec, effects_from_prompt, prompt_gain, smooth_noise,
@@ -60,8 +60,10 @@ log = logging.getLogger(__name__)
 
 
 @dataclass
-class ProceduralConfig:
+class ProceduralConfig(Section):
     """Config of the procedural prior (section ``procedural`` of the refine stage)."""
+
+    WHERE = "procedural prior config"
 
     effects: list[str] = field(default_factory=lambda: ["foliage_sway", "leaf_flutter"])  # effect types to synthesise
     fps: float = 24.0                 # frames per second of the clips (frequencies are in Hz)
@@ -79,9 +81,8 @@ class ProceduralConfig:
     static_shimmer: float = 0.0       # std of per-frame intensity noise in static pixels ([0,1] units)
     shimmer_corr_px: float = 1.5      # spatial correlation length of the shimmer (px)
 
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any] | None) -> "ProceduralConfig":
-        cfg = from_dict(cls, d, "procedural prior config", ValueError)
+    def validate(self) -> None:
+        cfg = self
         cfg.effects = list(cfg.effects)
         for name in cfg.effects:
             effect_spec(name, cfg.effect_params.get(name))  # validates names and overrides
@@ -96,7 +97,6 @@ class ProceduralConfig:
                 raise ValueError(f"{k} must be a finite number >= 0, got {getattr(cfg, k)!r}")
         if cfg.shimmer_corr_px <= 0:
             raise ValueError(f"shimmer_corr_px must be > 0, got {cfg.shimmer_corr_px}")
-        return cfg
 
     @property
     def flaws_on(self) -> bool:
