@@ -179,6 +179,19 @@ def layer_of(pkg: str) -> int | None:
     return None
 
 
+def back_arrows(root: Path, type_checking: bool = False) -> list[tuple[str, str, bool]]:
+    """(importing module, imported module, every import inside a function) for each import of ``root``
+    (anigs) that runs back up to a higher layer (:data:`LAYERS`); ``type_checking``: those under
+    ``if TYPE_CHECKING:`` count too."""
+    top = root.name
+    out = []
+    for (a, b), flags in sorted(scan(root, type_checking)[1].items()):
+        la, lb = layer_of(package_of(a, top)), layer_of(package_of(b, top))
+        if la is not None and lb is not None and lb > la:
+            out.append((a, b, all(flags)))
+    return out
+
+
 def report(root: Path) -> None:
     top = root.name
     modules, edges = scan(root)
@@ -210,15 +223,12 @@ def report(root: Path) -> None:
         if unknown:
             print(f"not in a layer: {' '.join(unknown)}")
         print("\n## Arrows that run back up (package -> higher package: importing modules)")
-        back = 0
-        for (a, b), flags in sorted(edges.items()):
-            pa, pb = package_of(a, top), package_of(b, top)
-            la, lb = layer_of(pa), layer_of(pb)
-            if la is not None and lb is not None and lb > la:
-                back += 1
-                where = "in function" if all(flags) else "module level"
-                print(f"{pa} -> {pb}: {a} -> {b} ({where})")
-        print(f"back arrows: {back} module pairs")
+        back = back_arrows(root)
+        for a, b, in_func in back:
+            print(f"{package_of(a, top)} -> {package_of(b, top)}: {a} -> {b} "
+                  f"({'in function' if in_func else 'module level'})")
+        print(f"back arrows: {len(back)} module pairs; counting imports under if TYPE_CHECKING: too: "
+              f"{len(back_arrows(root, type_checking=True))}")
         hub = Counter(package_of(a, top) for (a, b) in edges
                       if package_of(b, top) == "masks" and package_of(a, top) != "masks")
         print(f"packages importing masks: {dict(sorted(hub.items()))}")

@@ -23,7 +23,7 @@ from anigs.render.rasterize import rasterize
 from anigs.render.visibility import frustum_subset, render_inputs
 
 if TYPE_CHECKING:
-    from anigs.sfm.align import Similarity
+    from anigs.geometry.similarity import Similarity
 
 
 def effect_indicators(labels: np.ndarray, effects: dict[str, Sequence[int]]) -> np.ndarray:

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import anigs
-from benchmarks.import_graph import all_cycles
+from benchmarks.import_graph import all_cycles, back_arrows
 
 ROOT = Path(anigs.__file__).parent
 
@@ -43,3 +43,10 @@ def test_the_check_finds_type_only_and_hidden_cycles(tmp_path):
     # no circle: e imports the package pkg.sub (its __init__), which imports nothing back
     (pkg / "e.py").write_text("from pkg.sub import c\nimport typing\n")
     assert all_cycles(pkg) == [["pkg.a", "pkg.b"], ["pkg.sub.c", "pkg.sub.d"]]
+
+
+def test_no_import_runs_back_up_a_layer():
+    """No package imports one of a higher layer (benchmarks/import_graph.py LAYERS: base, kernels, scene sources,
+    analysis, masks, animation, evaluation, reports, stages, command line), not even for types only."""
+    back = [f"{a} -> {b}" for a, b, _ in back_arrows(ROOT, type_checking=True)]
+    assert back == [], f"imports that run back up a layer: {back}"
