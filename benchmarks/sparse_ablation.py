@@ -14,7 +14,9 @@ every-8th photo held out) plus the row's switches:
 - ``drop``: DropGaussian (``sparse.drop_rate: 0.2``);
 - ``pair``: the denser start from photo pairs (``sparse.pair_points: true``);
 - ``both``: both;
-- ``warp``: the warp loss alone (``sparse.warp_weight: 1``).
+- ``warp``: the warp loss alone (``sparse.warp_weight: 1``);
+- ``stereo``: the dense start from plane-sweep stereo (``sparse.stereo_points: true``);
+- ``stereo_drop``: that and DropGaussian.
 
 Prints one row per capture and row: held-out PSNR (the median over the seeds, and max - min), train
 PSNR, wall seconds of the fit (median) and the points the start had. The rows are the README's
@@ -40,6 +42,8 @@ ROWS = {
     "pair": {"drop_rate": 0.0, "pair_points": True},
     "both": {"drop_rate": 0.2, "pair_points": True},
     "warp": {"warp_weight": 1.0},
+    "stereo": {"drop_rate": 0.0, "stereo_points": True},
+    "stereo_drop": {"drop_rate": 0.2, "stereo_points": True},
 }
 
 

@@ -12,6 +12,7 @@ import torch
 from anigs.cameras import Camera
 from anigs.static.far import far_points
 from anigs.static.pair_points import PairPoints, pair_points
+from anigs.static.stereo_points import stereo_points
 
 if TYPE_CHECKING:
     from anigs.static.config import StaticConfig
@@ -28,9 +29,12 @@ def added_points(cfg: "StaticConfig", pts: np.ndarray, cols: np.ndarray, train_i
     the pair points' record or None; the number of far points)."""
     photos = [im.cpu().numpy() for im in train_imgs]
     paired = None
+    budget = int(cfg.sparse.pair_share * cfg.densify.max_gaussians)
     if cfg.sparse.pair_points and random_bg:  # photos only, as the far points
-        paired = pair_points(photos, train_cams, cfg.sparse.pair_neighbours,
-                             within=pts, max_points=int(cfg.sparse.pair_share * cfg.densify.max_gaussians))
+        paired = pair_points(photos, train_cams, cfg.sparse.pair_neighbours, within=pts, max_points=budget)
+    elif cfg.sparse.stereo_points and random_bg:
+        paired = stereo_points(photos, train_cams, within=pts, max_points=budget)
+    if paired is not None:
         pts, cols = np.concatenate([pts, paired.xyz]), np.concatenate([cols, paired.rgb])
     # far points are for photos (random backgrounds); a fixed background is the far field itself (a
     # synthetic scene's sky: far points behind its sparsely triangulated tree crowns cost the demo 0.3-0.5 dB)
