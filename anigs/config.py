@@ -20,10 +20,9 @@ SCENE_KEYS = {"name", "source", "synthetic", "photos", "images", "sparse", "spla
               *STAGE_SECTIONS}
 #: the settings read once and handed to every section (and nested section) whose config class lists them in
 #: ``HANDED`` (the schema's ``x-handed``): the run's ``seed``, ``device`` and playback ``fps`` from the workflow
-#: config's top level,
-#: the sky colour ``background`` from the scene file's (unset: each stage's own default: the fit trains on random
-#: colours, the views show grey). A section in a config file, scene file or variant that sets one fails naming
-#: where it is set now (the text here).
+#: config's top level, the sky colour ``background`` from the scene file's (unset: each stage's own default: the
+#: fit trains on random colours, the views show grey). A section in a config file, scene file or variant that
+#: sets one fails naming where it is set now (the text here).
 HANDED: dict[str, str] = {
     "seed": "seed, set once at the top level of the workflow config (config.yaml, or --config seed=N)",
     "device": "device, set once at the top level of the workflow config (config.yaml, or --config device=cuda)",

@@ -55,9 +55,9 @@ class Section:
     CHECK_TYPES: ClassVar[bool] = False
     #: an old key of this section -> where it is set now (a path from the config's root, or a phrase)
     RENAMED: ClassVar[Mapping[str, str]] = {}
-    #: fields the workflow hands in from one setting read once (``seed``, ``device``: the workflow config's top
-    #: level; ``background``: the scene file's; :data:`anigs.config.HANDED`): library arguments, not keys of this
-    #: section in a config file (the schema leaves them out, and a config file that sets one fails naming the setting)
+    #: fields the workflow hands in from one setting read once (``seed``, ``device``, ``fps``: the workflow config's
+    #: top level; ``background``: the scene file's; :data:`anigs.config.HANDED`): library arguments, not keys of
+    #: this section in a config file (the schema leaves them out, and a config file that sets one fails naming it)
     HANDED: ClassVar[tuple[str, ...]] = ()
 
     def __post_init__(self) -> None:
