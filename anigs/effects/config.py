@@ -17,7 +17,8 @@ from typing import Any
 
 from anigs.effects.kinds import EFFECT_REGION, EFFECTS, PLANTS, REGION_EFFECTS, REGIONS
 from anigs.effects.rules import RulesConfig
-from anigs.effects.rules.base import Bands
+from anigs.effects.rules.base import MIN_ATTACHED, Bands, fixed
+from anigs.effects.rules.own_colour import MIN_WHITE_SHARE
 from anigs.typed_config import Section
 
 __all__ = ["CuesConfig", "DecideConfig", "EFFECTS", "EFFECT_REGION", "LiftConfig", "PLANTS", "PhotosConfig",
@@ -264,6 +265,13 @@ def _plain(x: Any) -> Any:
     return list(x) if isinstance(x, tuple) else x
 
 
+#: old flat keys whose knob is a constant now (issue 49: it moved no figure)
+FIXED: dict[str, str] = {
+    "min_attached": fixed("MIN_ATTACHED", MIN_ATTACHED, "anigs/effects/rules/base.py"),
+    "flower_own_min_white_share": fixed("MIN_WHITE_SHARE", MIN_WHITE_SHARE, "anigs/effects/rules/own_colour.py"),
+}
+
+
 def _moves() -> dict[str, str]:
     photos = {k: f"photos.{k}" for k in ("max_photos", "max_side", "min_alpha")}
     cues = {k: f"cues.{k}" for k in ("up", "neighbour_radius", "neighbours", "wall_max_variation", "wall_max_upness",
@@ -284,17 +292,17 @@ def _moves() -> dict[str, str]:
              "plane_smear_min_cos": "rules.smeared_sheet.min_cos",
              "plane_free_outline": "rules.smeared_sheet.free_outline",
              "island_min_share": "rules.islands.min_share", "island_neighbours": "rules.islands.neighbours",
-             "min_attached": "rules.held.min_share and effects.rules.blossoms.min_share",
+             "min_attached": FIXED["min_attached"],
              "blossoms_with_plants": "rules.blossoms.with_plants",
              "leaf_hue_margin": "rules.sunlit_leaves.hue_margin",
              "crown_min_height": "rules.sunlit_leaves.crown_min_height",
              "flower_own_min_share": "rules.own_colour.min_share",
              "flower_own_min_saturation": "rules.own_colour.min_saturation",
              "flower_own_min_value": "rules.own_colour.min_value",
-             "flower_own_min_white_share": "rules.own_colour.min_white_share"}
+             "flower_own_min_white_share": FIXED["flower_own_min_white_share"]}
     return {**photos, **cues, **regions, **lift, **decide, **rules}
 
 
 #: a key of the flat ``effects`` section (anigs 0.13 and earlier) -> its key now
-RENAMED: dict[str, str] = {old: f"effects.{new}" for old, new in _moves().items()}
+RENAMED: dict[str, str] = {old: new if new in FIXED.values() else f"effects.{new}" for old, new in _moves().items()}
 EffectsConfig.RENAMED = RENAMED

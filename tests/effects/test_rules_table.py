@@ -38,6 +38,8 @@ def test_an_old_flat_key_fails_naming_its_new_key(old):
 def test_every_new_key_exists():
     cfg = EffectsConfig()
     for old, new in RENAMED.items():
+        if new.startswith("the constant "):  # a knob that moved no figure: a constant now (FIXED)
+            continue
         for path in new.replace("effects.", "").split(" and "):
             node = cfg
             for part in path.split("."):
@@ -56,12 +58,30 @@ def test_an_old_key_in_a_scene_file_or_a_variant_names_its_new_key(tmp_path):
 
 
 def test_a_rules_knobs_are_its_own_section():
-    cfg = EffectsConfig.from_dict({"rules": {"plane": {"max_share": 0.5}, "held": {"min_share": 0.2}}})
-    assert cfg.rules.plane.max_share == 0.5 and cfg.rules.held.min_share == 0.2
-    assert cfg.rules.blossoms.min_share == 0.3  # the knob min_attached was, now each rule's own
+    cfg = EffectsConfig.from_dict({"rules": {"plane": {"max_share": 0.5}, "own_colour": {"min_share": 0.2}}})
+    assert cfg.rules.plane.max_share == 0.5 and cfg.rules.own_colour.min_share == 0.2
     with pytest.raises(ValueError, match=r"effects\.rules.*plane.*maxshare"):
         EffectsConfig.from_dict({"rules": {"plane": {"maxshare": 0.5}}})
     assert cfg.to_dict()["rules"]["plane"]["max_share"] == 0.5
+
+
+KNOBS_FIXED = [("plane", "sample", "SAMPLE"), ("plane", "max_points", "MAX_POINTS"), ("held", "min_share", "MIN_ATTACHED"),
+               ("blossoms", "min_share", "MIN_ATTACHED"), ("own_colour", "min_white_share", "MIN_WHITE_SHARE"),
+               ("own_colour", "white_max_saturation", "WHITE_MAX_SATURATION"),
+               ("own_colour", "white_min_value", "WHITE_MIN_VALUE"), ("own_colour", "light_min_above", "LIGHT_MIN_ABOVE"),
+               ("sunlit_leaves", "min_in_crown", "MIN_IN_CROWN"), ("made_surface", "min_turning", "MIN_TURNING")]
+
+
+@pytest.mark.parametrize("rule,key,const", KNOBS_FIXED, ids=[f"{r}.{k}" for r, k, _ in KNOBS_FIXED])
+def test_a_knob_that_moved_no_figure_is_a_constant_and_its_key_says_so(rule, key, const, tmp_path):
+    """Issue 49, item 4: the knobs that moved no figure of the labelled benchmark or the decoys at half and 1.5
+    times their value (benchmarks/knob_sensitivity.py) are constants of their rule's module; the old key fails
+    naming the constant, in code and in a scene file."""
+    with pytest.raises(ValueError, match=rf"{key} is now the constant {const} = "):
+        EffectsConfig.from_dict({"rules": {rule: {key: 1}}})
+    (tmp_path / "old.yaml").write_text(f"source: synthetic\neffects: {{rules: {{{rule}: {{{key}: 1}}}}}}\n")
+    with pytest.raises(ValueError, match=rf"effects\.rules\.{rule}\.{key} is now the constant {const}"):
+        load_scene(tmp_path, "old", _schema())
 
 
 def test_every_rule_is_a_unit_with_its_purpose_motivation_and_test():

@@ -11,6 +11,17 @@ from scipy.spatial import cKDTree
 
 from anigs.effects.kinds import PLANTS, REGIONS
 
+#: a blossom is held by (``held``), or sways with (``blossoms``), the plants when this share of its Gaussians lies
+#: within the candidate link of theirs (the two rules' ``min_share`` knobs until 0.13, the one ``min_attached``
+#: before: at 0.15 and 0.45 they moved no figure of the labelled benchmark or the decoys)
+MIN_ATTACHED = 0.3
+
+
+def fixed(name: str, value: float, module: str) -> str:
+    """What a config error says of a knob that is a constant now (issue 49: it moved no figure)."""
+    return (f"the constant {name} = {value:g} of {module} (at half and 1.5 times its value it moved no figure of "
+            "the labelled benchmark or the decoys: benchmarks/knob_sensitivity.py, CHANGELOG.md)")
+
 
 @dataclass
 class Candidate:

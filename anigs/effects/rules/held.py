@@ -1,6 +1,6 @@
 """Rule ``held`` (flowers; verdict ``not_held``): a blossom grows on a plant.
 
-Fewer than ``min_share`` of the candidate's Gaussians have a foliage or grass Gaussian, or a Gaussian of
+Fewer than :data:`~anigs.effects.rules.base.MIN_ATTACHED` of the candidate's Gaussians have a foliage or grass Gaussian, or a Gaussian of
 vegetation-green own colour (a stem), within the candidate link (a green Gaussian holds itself): a lamp,
 a window surround or paint seen next to leaves.
 
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from anigs.effects.rules.base import Candidate, Context, Verdict
+from anigs.effects.rules.base import MIN_ATTACHED, Candidate, Context, Verdict, fixed
 from anigs.typed_config import Section
 
 
@@ -26,9 +26,7 @@ class Held(Section):
     WHERE = "effects.rules.held"
 
     NAME = "held"
-
-    #: flowers: this share of a candidate must lie within the link of leaves or stems (held by a plant)
-    min_share: float = 0.3
+    RENAMED = {"min_share": fixed("MIN_ATTACHED", MIN_ATTACHED, "anigs/effects/rules/base.py")}
 
     def check(self, cand: Candidate, ctx: Context) -> Verdict | None:
         if ctx.holder_tree is None:
@@ -39,7 +37,7 @@ class Held(Section):
             own = np.isin(cand.indices, ctx.holders)
             share = float((np.isfinite(d[:, 1]) | (np.isfinite(d[:, 0]) & ~own)).mean())
         cand.figures["held"] = share
-        if share >= self.min_share:
+        if share >= MIN_ATTACHED:
             return None
         return Verdict("not_held", f"is not held by a plant (only {share:.0%} of its Gaussians lie within {ctx.link:.3g} "
                                    "of leaves or stems): a blossom grows on a plant, this is a lamp, a window surround "

@@ -11,8 +11,8 @@ Gaussians (each with its ``neighbours`` nearest Gaussians of the candidate and i
 - ``turning``: how far that surface turns, the second eigenvalue of the scatter of those Gaussians' normals (0 for
   one flat sheet, 0.5 for a cylinder, about 1/3 for a box seen from three sides).
 
-The candidate is still when ``smooth`` >= ``min_smooth`` and ``turning`` >= ``min_turning``: a surface that closes
-around a volume. One flat sheet (``turning`` under ``min_turning``) is left to rule ``plane`` (a wall, a picture).
+The candidate is still when ``smooth`` >= ``min_smooth`` and ``turning`` >= ``MIN_TURNING``: a surface that closes
+around a volume. One flat sheet (``turning`` under ``MIN_TURNING``) is left to rule ``plane`` (a wall, a picture).
 No ground plane is needed. The figures go on the candidate (``smooth``, ``turning``) and into its reason.
 
 On the real captures' fits (0.13 defaults) no plant candidate passes: their splats face the cameras alike, but
@@ -37,10 +37,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from anigs.effects.rules.base import Candidate, Context, Verdict
+from anigs.effects.rules.base import Candidate, Context, Verdict, fixed
 from anigs.typed_config import Section
 
 MIN_GAUSSIANS = 20  # fewer Gaussians cannot show a surface
+MIN_TURNING = 0.1  # a closed surface turns this much at least (second eigenvalue of its normals' scatter)
 
 
 @dataclass(frozen=True)
@@ -50,13 +51,13 @@ class MadeSurface(Section):
     WHERE = "effects.rules.made_surface"
 
     NAME = "made_surface"
+    RENAMED = {"min_turning": fixed("MIN_TURNING", MIN_TURNING, "anigs/effects/rules/made_surface.py")}
 
     neighbours: int = 8              # a Gaussian's surface: its this many nearest Gaussians of the candidate ...
     max_bend_deg: float = 60.0       # ... continue its splat: their normals bend by at most this ...
     tol_deg: float = 10.0            # ... and each lies off the other's plane by half the bend, within this ...
     min_agree: float = 0.5           # ... for at least this share of them
-    min_smooth: float = 0.55         # still: this share of the candidate's Gaussians on smooth surfaces ...
-    min_turning: float = 0.1         # ... that turn this much (second eigenvalue of their normals' scatter)
+    min_smooth: float = 0.55         # still: this share of the candidate's Gaussians on smooth surfaces that turn
 
     def check(self, cand: Candidate, ctx: Context) -> Verdict | None:
         if len(cand.indices) < MIN_GAUSSIANS or ctx.flattest is None:
@@ -64,7 +65,7 @@ class MadeSurface(Section):
         smooth, turning = surface_figures(ctx.means[cand.indices], ctx.flattest[cand.indices], self.neighbours,
                                           self.max_bend_deg, self.tol_deg, self.min_agree)
         cand.figures.update(smooth=smooth, turning=turning)
-        if smooth < self.min_smooth or turning < self.min_turning:
+        if smooth < self.min_smooth or turning < MIN_TURNING:
             return None
         return Verdict(self.NAME, f"a smooth closed surface, not leaves: {smooth:.0%} of its Gaussians continue their "
                                   f"neighbours' surface, which turns around a volume (turning {turning:.2f}), where "
