@@ -65,7 +65,7 @@ def test_a_rules_knobs_are_its_own_section():
     assert cfg.to_dict()["rules"]["plane"]["max_share"] == 0.5
 
 
-KNOBS_FIXED = [("plane", "sample", "SAMPLE"), ("plane", "max_points", "MAX_POINTS"), ("held", "min_share", "MIN_ATTACHED"),
+KNOBS_FIXED = [("plane", "sample", "SAMPLE"), ("held", "min_share", "MIN_ATTACHED"),
                ("blossoms", "min_share", "MIN_ATTACHED"), ("own_colour", "min_white_share", "MIN_WHITE_SHARE"),
                ("own_colour", "white_max_saturation", "WHITE_MAX_SATURATION"),
                ("own_colour", "white_min_value", "WHITE_MIN_VALUE"), ("own_colour", "light_min_above", "LIGHT_MIN_ABOVE"),

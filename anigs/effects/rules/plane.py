@@ -31,7 +31,6 @@ MIN_POINTS = 10  # no plane is fitted to fewer points
 OUTSIDE_BAND = 2.0  # a plane's outside band: from one to this many tolerances off it
 EXTENT_STDS = 4  # a plane's in-plane extent spans this many standard deviations of its second axis (2 either side)
 SAMPLE = 400  # the plane fit's neighbourhood is gathered around at most this many of the candidate's Gaussians
-MAX_POINTS = 6000  # ... and the fit uses at most this many points
 
 
 @dataclass(frozen=True)
@@ -41,8 +40,7 @@ class Plane(Section):
     WHERE = "effects.rules.plane"
 
     NAME = "plane"
-    RENAMED = {"sample": fixed("SAMPLE", SAMPLE, "anigs/effects/rules/plane.py"),
-               "max_points": fixed("MAX_POINTS", MAX_POINTS, "anigs/effects/rules/plane.py")}
+    RENAMED = {"sample": fixed("SAMPLE", SAMPLE, "anigs/effects/rules/plane.py")}
 
     tol: float = 0.25                # a Gaussian within this x neighbour radius of a plane lies on it
     #: foliage / flowers with this share on a large plane lie on a wall, floor, facade, picture, rug or lawn: still
@@ -56,7 +54,8 @@ class Plane(Section):
     max_rising: float = 0.25
     rising_band: float = 3.0         # ... counted within this x tol of the planes
     max_planes: int = 3              # planes fitted in turn (a facade and the lawn at its foot, a wall and a floor)
-    near_radius: float = 2.0         # the non-plant Gaussians within this x neighbour radius join the fit
+    near_radius: float = 2.0         # the non-plant Gaussians within this x neighbour radius join the fit ...
+    max_points: int = 6000           # ... which uses at most this many points
     ransac_iters: int = 150          # RANSAC draws per plane
 
     def check(self, cand: Candidate, ctx: Context) -> Verdict | None:
@@ -69,8 +68,8 @@ class Plane(Section):
         near = np.unique(np.concatenate(ctx.tree_all.query_ball_point(sub, self.near_radius * radius)).astype(np.int64))
         near = near[~ctx.is_plant[near]]
         ids = np.concatenate([cand.indices, near])
-        if len(ids) > MAX_POINTS:
-            ids = ids[rng.choice(len(ids), MAX_POINTS, replace=False)]
+        if len(ids) > self.max_points:
+            ids = ids[rng.choice(len(ids), self.max_points, replace=False)]
         on = np.zeros(len(p), bool)
         near_off = np.zeros(len(p), bool)
         extents = []
