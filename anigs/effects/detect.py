@@ -266,12 +266,14 @@ def decide(g: Gaussians, cues: Cues, regions: Sequence[PhotoRegions], ruled: Rul
         fracs = np.array([m.mean() for m in masks])
         pf = float(fracs.mean())
         idx = np.flatnonzero(region_of == k)
+        # the blossoms the rules moved onto this region's plants sway with them, but do not make them be there
+        own = len(idx) - sum(len(c.indices) for c in ruled.candidates if c.rule == "blossoms" and c.moved_to == name)
         gf = len(idx) / max(len(cues.means), 1)
         with_region = int((fracs >= cfg.regions.min_component_frac).sum())
         photo_frac = with_region / n_photos
         agreement = float(share[idx].mean()) if len(idx) else 0.0
-        ok = (pf >= dc.min_pixel_fraction and gf >= dc.min_gaussian_fraction and len(idx) >= dc.min_gaussians
-              and with_region >= min_photos)
+        ok = (pf >= dc.min_pixel_fraction and own / max(len(cues.means), 1) >= dc.min_gaussian_fraction
+              and own >= dc.min_gaussians and with_region >= min_photos)
         if ok:
             score = np.mean([min(1.0, pf / (STRONG * dc.min_pixel_fraction)),
                              min(1.0, gf / (STRONG * dc.min_gaussian_fraction)), photo_frac, agreement])
