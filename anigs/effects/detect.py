@@ -282,7 +282,12 @@ def decide(g: Gaussians, cues: Cues, regions: Sequence[PhotoRegions], ruled: Rul
             weak = min(1.0, max(pf / dc.min_pixel_fraction, gf / dc.min_gaussian_fraction))
             conf = 1.0 - (1.0 - MIN_CONFIDENCE) * weak
         rejected = sum(r.rejected_wall_green for r in regions) / max(sum(m.size for m in masks), 1)
-        text = reason(name, ok, pf, gf, with_region, n_photos, dc, cues.ground, rejected)
+        carried = len(idx) - own
+        text = reason(name, ok, pf, gf if ok or not carried else own / max(len(cues.means), 1), with_region, n_photos,
+                      dc, cues.ground, rejected)
+        if carried and not ok:
+            text += (f" Not counted: the {carried} Gaussians of blossoms moved onto it (blossoms sway with a plant that "
+                     "is there, but do not make it be there).")
         if ok and name == "foliage" and unlifted[name] >= UNLIFTED_NOTE:  # the others' masks grow past them
             text += unlifted_note(name, unlifted[name])
         text += region_note(seg_record, name)
@@ -290,8 +295,11 @@ def decide(g: Gaussians, cues: Cues, regions: Sequence[PhotoRegions], ruled: Rul
             text = f"No {name} ({' and '.join(REGION_EFFECTS[name])} skipped): not looked for, the prompt does not name it."
             if name == "flowers" and blossoms_of:
                 joined = sum(len(c.indices) for c in ruled.candidates if c.rule == "blossoms" and c.moved_to)
+                there = any(e.detected for e in effects.values() if e.region == blossoms_of)
                 text = ("No flowers (flower_bob skipped): the prompt names none; " +
-                        (f"blossoms on the {blossoms_of} it names sway with it ({joined} Gaussians)." if joined else
+                        (f"blossoms on the {blossoms_of} it names sway with it ({joined} Gaussians)." if joined and there
+                         else f"blossoms were found on the {blossoms_of} it names ({joined} Gaussians), which is not "
+                              "there, so they stay still." if joined else
                          f"no blossoms were found on the {blossoms_of} it names."))
         for eff in REGION_EFFECTS[name]:
             effects[eff] = EffectResult(eff, name, ok, pf, gf, conf, text, masks, idx, photo_frac, agreement,

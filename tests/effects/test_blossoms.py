@@ -99,3 +99,6 @@ def test_blossoms_do_not_make_their_plant_be_there():
     short = detect_effects(imgs, cams, g, EffectsConfig.from_dict(between), kinds=["foliage"])
     assert not short.effects["foliage_sway"].detected
     assert not _chosen(short, "foliage_sway").any()
+    assert f"Not counted: the {carried} Gaussians of blossoms moved onto it" in short.effects["foliage_sway"].reason
+    assert f"blossoms were found on the foliage it names ({carried} Gaussians), which is not there, so they stay still" \
+        in short.effects["flower_bob"].reason
