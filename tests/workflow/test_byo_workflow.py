@@ -49,8 +49,7 @@ def test_a_colmap_project_and_its_splat_animate_without_sfm_or_fit(tmp_path):
         f"source: colmap\nimages: {tiny / 'sfm' / 'images'}\nsparse: {tiny / 'sfm' / 'sparse'}\n"
         f"splat: {run / 'point_cloud.ply'}\nbackground: {BG}\n"
         "effects: [foliage_sway, leaf_flutter, grass_wave, flower_bob]\n"
-        "prompt: a garden with trees, bushes, grass and flowers swaying gently in the wind\n"
-        f"static:\n  imported:\n    background: {BG}\n")
+        "prompt: a garden with trees, bushes, grass and flowers swaying gently in the wind\n")
     results = tmp_path / "results"
     res = _snakemake(results, "--config", f"results={results}", f"scene_dir={scenes}", "scenes=[proj]")
     ran = _jobs(res)

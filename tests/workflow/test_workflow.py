@@ -142,7 +142,7 @@ def test_second_run_has_nothing_to_do(run):
 
 def test_changing_one_key_reruns_only_affected_jobs(run, tmp_path):
     override = tmp_path / "override.yaml"
-    override.write_text("final:\n  fps: 7\n")
+    override.write_text("final:\n  slice_upsample: 3\n")
     res = _snakemake(run, "-n", "--configfile", "config/test.yaml", str(override), "--config", f"results={run}")
     out = res.stdout + res.stderr
     assert res.returncode == 0, out
