@@ -267,13 +267,13 @@ def decide(g: Gaussians, cues: Cues, regions: Sequence[PhotoRegions], ruled: Rul
         pf = float(fracs.mean())
         idx = np.flatnonzero(region_of == k)
         # the blossoms the rules moved onto this region's plants sway with them, but do not make them be there
-        own = len(idx) - sum(len(c.indices) for c in ruled.candidates if c.rule == "blossoms" and c.moved_to == name)
-        gf = len(idx) / max(len(cues.means), 1)
+        carried = sum(len(c.indices) for c in ruled.candidates if c.rule == "blossoms" and c.moved_to == name)
+        gf, own_gf = len(idx) / max(len(cues.means), 1), (len(idx) - carried) / max(len(cues.means), 1)
         with_region = int((fracs >= cfg.regions.min_component_frac).sum())
         photo_frac = with_region / n_photos
         agreement = float(share[idx].mean()) if len(idx) else 0.0
-        ok = (pf >= dc.min_pixel_fraction and own / max(len(cues.means), 1) >= dc.min_gaussian_fraction
-              and own >= dc.min_gaussians and with_region >= min_photos)
+        ok = (pf >= dc.min_pixel_fraction and own_gf >= dc.min_gaussian_fraction
+              and len(idx) - carried >= dc.min_gaussians and with_region >= min_photos)
         if ok:
             score = np.mean([min(1.0, pf / (STRONG * dc.min_pixel_fraction)),
                              min(1.0, gf / (STRONG * dc.min_gaussian_fraction)), photo_frac, agreement])
@@ -282,9 +282,7 @@ def decide(g: Gaussians, cues: Cues, regions: Sequence[PhotoRegions], ruled: Rul
             weak = min(1.0, max(pf / dc.min_pixel_fraction, gf / dc.min_gaussian_fraction))
             conf = 1.0 - (1.0 - MIN_CONFIDENCE) * weak
         rejected = sum(r.rejected_wall_green for r in regions) / max(sum(m.size for m in masks), 1)
-        carried = len(idx) - own
-        text = reason(name, ok, pf, gf if ok or not carried else own / max(len(cues.means), 1), with_region, n_photos,
-                      dc, cues.ground, rejected)
+        text = reason(name, ok, pf, gf if ok or not carried else own_gf, with_region, n_photos, dc, cues.ground, rejected)
         if carried and not ok:
             text += (f" Not counted: the {carried} Gaussians of blossoms moved onto it (blossoms sway with a plant that "
                      "is there, but do not make it be there).")
