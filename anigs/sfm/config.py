@@ -58,6 +58,10 @@ class SfmConfig(Section):
     #: too few registered: add loop and look-alike pairs, then match every pair, then try the original photos of a
     #: downscaled capture, then the lower angle (false: only the lower angle)
     escalate: bool = True
+    #: still below min_registered_fraction after the ladder: map the best matches again with up to this many other
+    #: mapper seeds (seed + 1, seed + 2, ...: deterministic for a run's seed) and keep the model registering the most
+    #: photos (anigs.sfm.escalate, rung restart); 0: off
+    mapper_restarts: int = 4
     #: below min_registered_fraction after escalating, continue with the largest model when it holds at least this
     #: fraction (the run is marked partial and the photos left out listed); below it, an error naming the likely cause
     partial_min_fraction: float = 0.5
@@ -126,6 +130,9 @@ class SfmConfig(Section):
             raise ValueError(f"sfm.device {self.device!r} is not auto, cpu or cuda[:N] (the run's device)")
         if not 0 < self.min_registered_fraction <= 1:
             raise ValueError(f"sfm.min_registered_fraction must be in (0, 1], got {self.min_registered_fraction}")
+        if isinstance(self.mapper_restarts, bool) or not isinstance(self.mapper_restarts, int) \
+                or not 0 <= self.mapper_restarts <= 64:
+            raise ValueError(f"sfm.mapper_restarts must be an integer in [0, 64], got {self.mapper_restarts!r}")
         if not 0 < self.partial_min_fraction <= 1:
             raise ValueError(f"sfm.partial_min_fraction must be in (0, 1], got {self.partial_min_fraction}")
         if self.camera_height is not None and not self.camera_height > 0:

@@ -11,7 +11,13 @@ the ladder runs (with ``sfm.escalate: true``; each step adds to what the earlier
 4. ``original_resolution``: when the capture was downscaled from photos still on disk, features
    and exhaustive matching on the originals (the model is scaled back to the capture's size);
 5. ``lower_angle``: the best step's matches mapped again with ``retry_init_min_tri_angle``
-   (when below that step's angle; the only retry with ``escalate: false``).
+   (when below that step's angle; the only retry with ``escalate: false``);
+6. ``restart``: the best step's matches mapped again with the mapper seeded ``seed + 1``, ``seed + 2``, ...
+   (``mapper_restarts`` times at most, stopping at the first that registers enough). The incremental
+   mapper's choice of initial pair and its RANSACs follow its seed, and on a walk one seed can stall
+   where another goes on: on the street capture, seed 1's every rung registered 21 of 29 photos where
+   seeds 0 and 2 reached 27. Each restart maps the same matches (seconds, no matching); the seeds
+   follow from the run's, so a run stays deterministic.
 
 Each mapping is an :class:`Attempt` (registered/total, models, seconds) in ``report.json``'s
 ``mapping.attempts``. The best attempt (most photos registered) is kept. Below
@@ -48,12 +54,13 @@ class SfmError(RuntimeError):
 class Attempt:
     """One mapping of the ladder and what it gave."""
 
-    step: str  # first | loops | exhaustive | original_resolution | lower_angle
+    step: str  # first | loops | exhaustive | original_resolution | lower_angle | restart
     matcher: str  # the matching the database holds by then
     resolution: str  # capture | original
     mapper: str
     init_min_tri_angle: Optional[float]
     total: int
+    seed: Optional[int] = None  # the mapper's seed (the run's, or the run's + k for a restart)
     registered: int = 0
     models: list[int] = field(default_factory=list)  # registered photos per model, largest first
     shared_with_largest: list[int] = field(default_factory=list)  # photos each other model shares with the largest
@@ -97,7 +104,7 @@ def _map(src: Source, step: str, work: Path, cfg: SfmConfig, names: list[str], m
          angle: float, k: int, match_s: float) -> tuple[Attempt, Any]:
     t0, c0 = time.perf_counter(), steps.cpu_seconds()
     a = Attempt(step, src.matcher, src.resolution, mapper, angle if mapper == "incremental" else None, len(names),
-                match_seconds=match_s, **{k_: v for k_, v in _stats(src.database).items()})
+                seed=cfg.seed, match_seconds=match_s, **{k_: v for k_, v in _stats(src.database).items()})
     try:
         models, error = steps.run_mapper(src.database, src.image_dir, work / f"mapping{k}", cfg, names, mapper, angle), None
     except Exception as exc:  # COLMAP raises RuntimeError / ValueError on failures
@@ -108,8 +115,8 @@ def _map(src: Source, step: str, work: Path, cfg: SfmConfig, names: list[str], m
     a.seconds = match_s + time.perf_counter() - t0
     a.cpu_seconds = steps.cpu_seconds() - c0
     a.result = error or ("no model" if not sizes else f"registered {a.registered}/{len(names)}")
-    log.info("sfm attempt %d (%s: %s matches, %s resolution, init_min_tri_angle=%s): %s, models %s, %.1f s",
-             k + 1, step, a.matcher, a.resolution, a.init_min_tri_angle, a.result, sizes, a.seconds)
+    log.info("sfm attempt %d (%s: %s matches, %s resolution, init_min_tri_angle=%s, seed %d): %s, models %s, %.1f s",
+             k + 1, step, a.matcher, a.resolution, a.init_min_tri_angle, cfg.seed, a.result, sizes, a.seconds)
     return a, chosen
 
 
@@ -145,9 +152,10 @@ def map_escalating(first: Source, work: Path, cfg: SfmConfig, names: list[str], 
     kept: dict[int, tuple[Any, Source]] = {}  # only the best model is held
     best_k = -1
 
-    def run(src: Source, step: str, mapper: str, angle: float, match_s: float = 0.0) -> bool:
+    def run(src: Source, step: str, mapper: str, angle: float, match_s: float = 0.0, seed_offset: int = 0) -> bool:
         nonlocal best_k
-        a, chosen = _map(src, step, work, cfg, names, mapper, angle, len(tried), match_s)
+        seeded = dataclasses.replace(cfg, seed=cfg.seed + seed_offset) if seed_offset else cfg
+        a, chosen = _map(src, step, work, seeded, names, mapper, angle, len(tried), match_s)
         tried.append(a)
         if chosen is not None and (best_k < 0 or a.registered > tried[best_k].registered):
             kept.clear()
@@ -179,7 +187,9 @@ def map_escalating(first: Source, work: Path, cfg: SfmConfig, names: list[str], 
         base, base_attempt = (kept[best_k][1], tried[best_k]) if best_k >= 0 else (first, tried[0])
         if base_attempt.mapper != "incremental" or retry < (base_attempt.init_min_tri_angle or 90.0):
             log.warning("retrying mapping with init_min_tri_angle=%g degrees (was %s)", retry, tried[-1].result)
-            run(base, "lower_angle", "incremental", retry)
+            done = run(base, "lower_angle", "incremental", retry)
+    if not done and cfg.escalate and cfg.mapper_restarts and best_k >= 0:
+        done = restart(tried[best_k], kept[best_k][1], cfg, run)
 
     report: dict[str, Any] = {"attempts": [a.as_dict() for a in tried], "retries": len(tried) - 1,
                               "init_min_tri_angle_auto": auto_info, "escalate": cfg.escalate}
@@ -202,6 +212,17 @@ def map_escalating(first: Source, work: Path, cfg: SfmConfig, names: list[str], 
                     "Photos left out (%d): %s", reg, total, cfg.min_registered_fraction, cfg.partial_min_fraction,
                     len(left_out), ", ".join(left_out))
     return Outcome(rec, src, status, report)
+
+
+def restart(best: Attempt, src: Source, cfg: SfmConfig, run) -> bool:
+    """Rung ``restart`` (module docstring): the best attempt's matches, mapper and angle, mapped again with the
+    seeds after the run's until one registers enough; whether one did."""
+    log.warning("sfm: the best mapping registers %d/%d photos; mapping the same matches again with %d other "
+                "mapper seeds (sfm.mapper_restarts)", best.registered, best.total, cfg.mapper_restarts)
+    for k in range(1, cfg.mapper_restarts + 1):
+        if run(src, "restart", best.mapper, best.init_min_tri_angle or 16.0, seed_offset=k):
+            return True
+    return False
 
 
 def failure_message(reg: int, total: int, cfg: SfmConfig, tried: list[Attempt], kept: dict, first: Source) -> str:

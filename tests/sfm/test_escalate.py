@@ -150,3 +150,41 @@ def test_originals_must_be_larger_for_every_photo(split, tmp_path):
     small = {n: (w // 2, h // 2, o) for n, (w, h, o) in headers.items()}
     assert larger_originals(split["images"], small) == split["images"]
     assert larger_originals(tmp_path / "missing", small) is None
+
+
+def test_a_stalled_mapping_restarts_with_the_next_seeds(split, tmp_path, monkeypatch, caplog):
+    """The run's seed stalls the mapper (here: it maps 12 of the 20 photos on every rung, as seed 1 of the
+    street capture stopped at 21 of 29 on every rung while seeds 0 and 2 reached 27): rung ``restart`` maps
+    the same matches with seed + 1, + 2, ... and keeps the first that registers enough; without restarts the
+    run is partial."""
+    from anigs.sfm import steps
+
+    real = steps.run_mapper
+    seen = []
+
+    def stall(database, image_dir, out_dir, cfg, names, mapper, angle):
+        seen.append(cfg.seed)
+        keep = names[:12] if cfg.seed in (7, 8) else names  # the run's seed and the first restart stall
+        return real(database, image_dir, out_dir, cfg, keep, mapper, angle)
+
+    monkeypatch.setattr(steps, "run_mapper", stall)
+    cfg = _cfg(matcher="exhaustive", seed=7, partial_min_fraction=0.5)
+    with caplog.at_level(logging.WARNING, logger="anigs.sfm"):
+        res = run_sfm(split["images"], SfmOutputs(tmp_path / "sfm"), cfg)
+    attempts = res.report["mapping"]["attempts"]
+    restarts = [a for a in attempts if a["step"] == "restart"]
+    assert [a["seed"] for a in restarts] == [8, 9], attempts  # stops at the first seed that registers enough
+    assert restarts[0]["registered"] <= 12 and restarts[1]["registered"] == 20
+    assert all(a["seed"] == 7 for a in attempts if a["step"] != "restart")
+    assert res.report["registered"] == 20 and res.report["status"] == "complete"
+    assert "other mapper seeds (sfm.mapper_restarts)" in caplog.text
+    seen.clear()
+    off = run_sfm(split["images"], SfmOutputs(tmp_path / "off"), _cfg(matcher="exhaustive", seed=7, mapper_restarts=0,
+                                                                       partial_min_fraction=0.5))
+    assert off.report["status"] == "partial" and off.report["registered"] <= 12 and set(seen) == {7}
+
+
+def test_mapper_restarts_is_checked():
+    for bad in (-1, 65, 1.5, True):
+        with pytest.raises(ValueError, match="mapper_restarts"):
+            _cfg(mapper_restarts=bad)
