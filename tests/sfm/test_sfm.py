@@ -306,13 +306,14 @@ def test_too_few_registered_goes_on_partial_or_fails_after_retry(ring, ring_mode
     part = _partial(ring_model, 14)  # 14/20 = 0.7: below 0.8, at least half
     calls = _patch_colmap(monkeypatch, lambda angle: {0: pycolmap.Reconstruction(part)})
     res = run_sfm(ring["out"] / "images", SfmOutputs(tmp_path / "sfm"), SfmConfig(camera_model="PINHOLE"))
-    assert calls == [16.0, 4.0]
+    assert calls == [16.0, 4.0] + [16.0] * 4  # then the best attempt again with 4 other mapper seeds (restart)
+    assert [a["seed"] for a in res.report["mapping"]["attempts"]] == [0, 0, 1, 2, 3, 4]
     assert res.report["status"] == "partial" and res.report["registered"] == 14
     assert len(res.report["unregistered_images"]) == 6 and len(res.cameras) == 14
     # below partial_min_fraction it is an error naming registered/total and both attempts
     calls = _patch_colmap(monkeypatch, lambda angle: {0: pycolmap.Reconstruction(_partial(ring_model, 9))})
     with pytest.raises(SfmError, match=r"registered 9/20 images") as err:
-        run_sfm(ring["out"] / "images", SfmOutputs(tmp_path / "sfm2"), SfmConfig(camera_model="PINHOLE"))
+        run_sfm(ring["out"] / "images", SfmOutputs(tmp_path / "sfm2"), SfmConfig(camera_model="PINHOLE", mapper_restarts=0))
     assert calls == [16.0, 4.0]
     assert "init_min_tri_angle=4.0" in str(err.value) and "Settings to try" in str(err.value)
     assert not (tmp_path / "sfm2" / "cameras.json").exists()
