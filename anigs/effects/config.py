@@ -180,9 +180,19 @@ class LiftConfig(Section):
     #: still); 0: off
     footprint_share: float = 0.3
     footprint_reach_px: int = 2      # ... counting pixels within this of the region's (a splat's soft edge)
+    #: ... and it stays still where, in photo_vetoes of the photos that show it (anigs.effects.lift.PHOTO_MIN_WEIGHT),
+    #: less than this share of its weight there falls on the region's pixels: the photos that show it off the plant
+    #: have a say, not only the majority (splats on the street's bushes in most photos painted a facade in two or more);
+    #: 0: off
+    photo_min_share: float = 0.1
+    #: ... so many photos must show it off the region (1: any one; 2 forgives one photo whose masks missed the plant)
+    photo_vetoes: int = 2
     propagate_k: int = 8             # Gaussians seen by no photo take the majority of their k neighbours
 
     def validate(self) -> None:
+        if not 0 <= self.photo_min_share <= 1 or self.photo_vetoes < 1:
+            raise ValueError(f"effects.lift.photo_min_share must be in [0, 1] and effects.lift.photo_vetoes >= 1, got "
+                             f"{self.photo_min_share} and {self.photo_vetoes}")
         if not 0 <= self.footprint_share <= 1 or self.footprint_reach_px < 0:
             raise ValueError(f"effects.lift.footprint_share must be in [0, 1] and effects.lift.footprint_reach_px "
                              f">= 0, got {self.footprint_share} and {self.footprint_reach_px}")

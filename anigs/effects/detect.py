@@ -12,7 +12,9 @@ Pipeline (no downloaded weights):
 4. ``lift``: every Gaussian votes, over the photos where it is visible (depth test), for the region
    under its centre; it joins the region voted by >= ``vote_threshold`` of them, when at least
    ``footprint_share`` of its blending weight over the photos falls on that region's pixels (its
-   whole footprint: a blurred splat reaching from a bush over a gate stays still). Gaussians no
+   whole footprint: a blurred splat reaching from a bush over a gate stays still), unless ``photo_vetoes``
+   of the photos that show it put less than ``photo_min_share`` of it there (the photos that see it off
+   the plant have a say: a splat on a bush in most photos that paints a facade in two stays still). Gaussians no
    photo sees take the majority of their ``propagate_k`` nearest decided neighbours
    (:func:`anigs.geometry.propagate.propagate_labels`); foliage, grass and flowers stop at the ground;
    a prompt that names plants (foliage) but no flowers has the flowers looked for all the same, as the

@@ -1,4 +1,5 @@
-"""A Gaussian joins a region only where its footprint agrees (``effects.lift.footprint_share``), and vegetation
+"""A Gaussian joins a region only where its footprint agrees, over all the photos (``effects.lift.footprint_share``)
+and in each photo that shows it (``photo_min_share``), and vegetation
 colour needs a chroma above noise (``effects.regions.green_min_chroma``).
 
 On the street walk (a 15 dB fit) blurred splats centred on a bush reached over a green gate and the
@@ -40,10 +41,14 @@ def smeared():
 
 def test_a_smear_centred_on_a_bush_stays_still_while_the_bush_sways(smeared):
     g, cams, imgs, before = smeared
-    off = detect_effects(imgs, cams, g, EffectsConfig.from_dict({"photos": {"max_photos": 8}, "lift": {"footprint_share": 0.0}}))
+    off = detect_effects(imgs, cams, g, EffectsConfig.from_dict({"photos": {"max_photos": 8}, "lift": {
+        "footprint_share": 0.0, "photo_min_share": 0.0}}))
     assert off.region_of[-1] == FOLIAGE  # its centre votes foliage: without the footprint it would move
     on = detect_effects(imgs, cams, g, EffectsConfig.from_dict({"photos": {"max_photos": 8}}))
     assert on.region_of[-1] == -1
+    alone = detect_effects(imgs, cams, g, EffectsConfig.from_dict({"photos": {"max_photos": 8}, "lift": {
+        "photo_min_share": 0.0}}))
+    assert alone.region_of[-1] == -1  # the summed footprint alone keeps it still
     kept = (on.region_of[:-1] == FOLIAGE) & (before.region_of == FOLIAGE)
     assert kept.sum() >= 0.9 * (before.region_of == FOLIAGE).sum()  # the bush's own Gaussians still sway
     assert on.effects["foliage_sway"].detected
@@ -64,3 +69,68 @@ def test_footprint_and_chroma_settings_are_checked():
         EffectsConfig.from_dict({"lift": {"footprint_share": 1.5}})
     with pytest.raises(ValueError, match="footprint_reach_px"):
         EffectsConfig.from_dict({"lift": {"footprint_reach_px": -1}})
+
+
+def _one_splat_photos(mask_on_it: list[bool], size: int = 48):
+    """One splat at the origin seen by cameras around it; each photo's foliage mask covers the splat or the
+    opposite corner (``mask_on_it`` per photo). Returns the splat, the photos' maps and regions."""
+    from types import SimpleNamespace
+
+    from anigs.cameras import Camera, intrinsics_from_fov, look_at
+
+    g = Gaussians.from_points(torch.zeros(1, 3), torch.tensor([[0.2, 0.6, 0.2]]), scales=0.15, opacity=0.9)
+    K = intrinsics_from_fov(60, size, size)
+    maps, regions = [], []
+    for k, on in enumerate(mask_on_it):
+        a = 2 * np.pi * k / len(mask_on_it)
+        cam = Camera(K, look_at([3 * np.cos(a), 3 * np.sin(a), 0.5], [0, 0, 0]), size, size)
+        fol = np.zeros((size, size), bool)
+        if on:
+            fol[size // 4:3 * size // 4, size // 4:3 * size // 4] = True
+        else:
+            fol[:size // 8, :size // 8] = True
+        masks = {name: (fol if name == "foliage" else np.zeros_like(fol)) for name in REGIONS}
+        maps.append(SimpleNamespace(camera=cam))
+        regions.append(SimpleNamespace(masks=masks))
+    return g, maps, regions
+
+
+def test_the_photos_that_show_a_splat_off_its_region_have_a_say():
+    """Four photos see the splat on the plant, two see it off the plant: the summed share (4/6) keeps it, the
+    two photos' shares (0) do not (``effects.lift.photo_min_share``, ``photo_vetoes``: the street's facade was
+    painted by such splats in the photos that show them off the bushes). One photo alone (its masks may have
+    missed the plant) vetoes only with ``photo_vetoes: 1``."""
+    from anigs.effects.config import LiftConfig
+    from anigs.effects.lift import footprint_agrees, footprint_shares
+
+    region = np.array([FOLIAGE])
+    g, maps, regions = _one_splat_photos([True, True, False, True, True, False])
+    foot, least = footprint_shares(g, maps, regions, reach=2, least_k=2)
+    assert foot[0, FOLIAGE] == pytest.approx(4 / 6, abs=0.01)
+    assert least[0, FOLIAGE].tolist() == pytest.approx([0.0, 0.0], abs=0.01)
+    assert not footprint_agrees(foot, least, region, LiftConfig())[0]
+    assert footprint_agrees(foot, least, region, LiftConfig(photo_min_share=0.0))[0]
+    g, maps, regions = _one_splat_photos([True, True, True, False])
+    foot, least = footprint_shares(g, maps, regions, reach=2, least_k=2)
+    assert least[0, FOLIAGE, 0] == pytest.approx(0.0, abs=0.01) and least[0, FOLIAGE, 1] > 0.95
+    assert footprint_agrees(foot, least, region, LiftConfig())[0]  # one photo's say is not enough by default
+    assert not footprint_agrees(foot, least, region, LiftConfig(photo_vetoes=1))[0]
+    g, maps, regions = _one_splat_photos([True] * 4)
+    foot, least = footprint_shares(g, maps, regions, reach=2, least_k=2)
+    assert (least[0, FOLIAGE] > 0.95).all() and footprint_agrees(foot, least, region, LiftConfig())[0]
+
+
+def test_a_photo_where_the_splat_barely_shows_has_no_say():
+    """A photo where the splat carries less than PHOTO_MIN_WEIGHT px of weight does not count."""
+    from anigs.effects.lift import footprint_shares
+
+    g, maps, regions = _one_splat_photos([True, True, True, False])
+    foot, least = footprint_shares(g, maps, regions, reach=2, min_weight=1e9, least_k=2)
+    assert (least[0, FOLIAGE] == 1.0).all()
+
+
+def test_photo_min_share_is_checked():
+    with pytest.raises(ValueError, match="photo_min_share"):
+        EffectsConfig.from_dict({"lift": {"photo_min_share": -0.1}})
+    with pytest.raises(ValueError, match="photo_vetoes"):
+        EffectsConfig.from_dict({"lift": {"photo_vetoes": 0}})
