@@ -50,5 +50,5 @@ def unlifted_note(region: str, share: float) -> str:
             "them, so they stay still: parts seen in too few photos to be placed in 3D, or placed where the other "
             "photos see something else such as sky (more photos of them, from nearby, would let them move), "
             f"colours the photos' votes did not take for {region}, or blurred splats reaching mostly past the "
-            "plant, or past it in one of the photos (effects.lift.footprint_share and photo_min_share: a sharper "
-            "fit lets them move).")
+            "plant, or past it in some of the photos that show them (effects.lift.footprint_share, photo_min_share "
+            "and photo_vetoes: a sharper fit lets them move).")
