@@ -219,8 +219,9 @@ def restart(best: Attempt, src: Source, cfg: SfmConfig, run) -> bool:
     seeds after the run's until one registers enough; whether one did."""
     log.warning("sfm: the best mapping registers %d/%d photos; mapping the same matches again with %d other "
                 "mapper seeds (sfm.mapper_restarts)", best.registered, best.total, cfg.mapper_restarts)
+    angle = best.init_min_tri_angle if best.init_min_tri_angle is not None else _angle(src, cfg)[0]  # global: unused
     for k in range(1, cfg.mapper_restarts + 1):
-        if run(src, "restart", best.mapper, best.init_min_tri_angle or 16.0, seed_offset=k):
+        if run(src, "restart", best.mapper, angle, seed_offset=k):
             return True
     return False
 
