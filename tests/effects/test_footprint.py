@@ -1,5 +1,5 @@
 """A Gaussian joins a region only where its footprint agrees, over all the photos (``effects.lift.footprint_share``)
-and in each photo that shows it (``photo_min_share``), and vegetation
+and in the photos that show it (``photo_min_share``, ``photo_vetoes``), and vegetation
 colour needs a chroma above noise (``effects.regions.green_min_chroma``).
 
 On the street walk (a 15 dB fit) blurred splats centred on a bush reached over a green gate and the
