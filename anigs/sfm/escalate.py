@@ -12,12 +12,17 @@ the ladder runs (with ``sfm.escalate: true``; each step adds to what the earlier
    and exhaustive matching on the originals (the model is scaled back to the capture's size);
 5. ``lower_angle``: the best step's matches mapped again with ``retry_init_min_tri_angle``
    (when below that step's angle; the only retry with ``escalate: false``);
-6. ``restart``: the best step's matches mapped again with the mapper seeded ``seed + 1``, ``seed + 2``, ...
-   (``mapper_restarts`` times at most, stopping at the first that registers enough). The incremental
-   mapper's choice of initial pair and its RANSACs follow its seed, and on a walk one seed can stall
-   where another goes on: on the street capture, seed 1's every rung registered 21 of 29 photos where
-   seeds 0 and 2 reached 27. Each restart maps the same matches (seconds, no matching); the seeds
-   follow from the run's, so a run stays deterministic.
+6. ``restart``: for k = 1, 2, ... (``mapper_restarts`` times at most, stopping at the first that
+   registers enough): the best step's matches mapped again with the mapper seeded ``seed + k``, then,
+   when that falls short too and those matches are every pair's, the pairs verified again with
+   ``seed + k`` (a copy of the database with its keypoints, exhaustive matching whose geometric
+   verification RANSACs follow the seed) and mapped with it (step ``reverify``). The incremental
+   mapper's choice of initial pair and its RANSACs follow its seed, and so do the verification's: on
+   the street capture, seed 1's every rung registered 21 of 29 photos where seeds 0 and 2 reached 27;
+   on one machine the mapper's next seed registered 27, on another every mapper seed stayed at 21 or
+   fewer, and the pairs verified with seed 2, 3 or 4 registered 27 with any mapper seed (the verified
+   pairs are what parts them). A mapping takes seconds, a verification of every pair about as long as
+   the exhaustive rung's matching; the seeds follow from the run's, so a run stays deterministic.
 
 Each mapping is an :class:`Attempt` (registered/total, models, seconds) in ``report.json``'s
 ``mapping.attempts``. The best attempt (most photos registered) is kept. Below
@@ -29,6 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,13 +60,13 @@ class SfmError(RuntimeError):
 class Attempt:
     """One mapping of the ladder and what it gave."""
 
-    step: str  # first | loops | exhaustive | original_resolution | lower_angle | restart
+    step: str  # first | loops | exhaustive | original_resolution | lower_angle | restart | reverify
     matcher: str  # the matching the database holds by then
     resolution: str  # capture | original
     mapper: str
     init_min_tri_angle: Optional[float]
     total: int
-    seed: Optional[int] = None  # the mapper's seed (the run's, or the run's + k for a restart)
+    seed: Optional[int] = None  # the mapper's seed (the run's, or the run's + k for a restart / reverify)
     registered: int = 0
     models: list[int] = field(default_factory=list)  # registered photos per model, largest first
     shared_with_largest: list[int] = field(default_factory=list)  # photos each other model shares with the largest
@@ -189,7 +195,7 @@ def map_escalating(first: Source, work: Path, cfg: SfmConfig, names: list[str], 
             log.warning("retrying mapping with init_min_tri_angle=%g degrees (was %s)", retry, tried[-1].result)
             done = run(base, "lower_angle", "incremental", retry)
     if not done and cfg.escalate and cfg.mapper_restarts and best_k >= 0:
-        done = restart(tried[best_k], kept[best_k][1], cfg, run)
+        done = restart(tried[best_k], kept[best_k][1], cfg, run, work, device)
 
     report: dict[str, Any] = {"attempts": [a.as_dict() for a in tried], "retries": len(tried) - 1,
                               "init_min_tri_angle_auto": auto_info, "escalate": cfg.escalate}
@@ -214,16 +220,41 @@ def map_escalating(first: Source, work: Path, cfg: SfmConfig, names: list[str], 
     return Outcome(rec, src, status, report)
 
 
-def restart(best: Attempt, src: Source, cfg: SfmConfig, run) -> bool:
+def restart(best: Attempt, src: Source, cfg: SfmConfig, run, work: Path, device=None) -> bool:
     """Rung ``restart`` (module docstring): the best attempt's matches, mapper and angle, mapped again with the
-    seeds after the run's until one registers enough; whether one did."""
+    seeds after the run's, each followed (every pair's matches only) by the pairs verified again with that seed and
+    mapped with it, until one registers enough; whether one did."""
     log.warning("sfm: the best mapping registers %d/%d photos; mapping the same matches again with %d other "
-                "mapper seeds (sfm.mapper_restarts)", best.registered, best.total, cfg.mapper_restarts)
+                "mapper seeds (sfm.mapper_restarts)%s", best.registered, best.total, cfg.mapper_restarts,
+                ", each followed by every pair verified again with that seed" if src.matcher == "exhaustive" else "")
     angle = best.init_min_tri_angle if best.init_min_tri_angle is not None else _angle(src, cfg)[0]  # global: unused
     for k in range(1, cfg.mapper_restarts + 1):
         if run(src, "restart", best.mapper, angle, seed_offset=k):
             return True
+        if src.matcher == "exhaustive":
+            again, match_s = reverified(src, work / f"reverify{k}", dataclasses.replace(cfg, seed=cfg.seed + k), device)
+            if run(again, "reverify", best.mapper, angle, match_s, seed_offset=k):
+                return True
     return False
+
+
+def reverified(src: Source, folder: Path, cfg: SfmConfig, device=None) -> tuple[Source, float]:
+    """A copy of ``src``'s database in ``folder`` with its keypoints and descriptors, every pair matched and
+    verified again under ``cfg.seed`` (the verification's RANSACs follow it); (its source, the matching's wall s)."""
+    import sqlite3
+
+    folder.mkdir(parents=True, exist_ok=True)
+    db = folder / "database.db"
+    shutil.copyfile(src.database, db)
+    con = sqlite3.connect(db)
+    try:
+        con.execute("DELETE FROM matches")
+        con.execute("DELETE FROM two_view_geometries")
+        con.commit()
+    finally:
+        con.close()
+    info = rematch.match_every_pair(db, cfg, device)
+    return Source(db, src.image_dir, src.resolution, "exhaustive"), info["match_s"]
 
 
 def failure_message(reg: int, total: int, cfg: SfmConfig, tried: list[Attempt], kept: dict, first: Source) -> str:
