@@ -59,8 +59,9 @@ class SfmConfig(Section):
     #: downscaled capture, then the lower angle (false: only the lower angle)
     escalate: bool = True
     #: still below min_registered_fraction after the ladder: map the best matches again with up to this many other
-    #: mapper seeds (seed + 1, seed + 2, ...: deterministic for a run's seed) and keep the model registering the most
-    #: photos (anigs.sfm.escalate, rung restart); 0: off
+    #: mapper seeds (seed + 1, seed + 2, ...: deterministic for a run's seed), each followed (every pair's matches)
+    #: by every pair verified again with that seed and mapped; keep the model registering the most photos
+    #: (anigs.sfm.escalate, rungs restart and reverify); 0: off
     mapper_restarts: int = 4
     #: below min_registered_fraction after escalating, continue with the largest model when it holds at least this
     #: fraction (the run is marked partial and the photos left out listed); below it, an error naming the likely cause
