@@ -241,18 +241,17 @@ def restart(best: Attempt, src: Source, cfg: SfmConfig, run, work: Path, device=
 def reverified(src: Source, folder: Path, cfg: SfmConfig, device=None) -> tuple[Source, float]:
     """A copy of ``src``'s database in ``folder`` with its keypoints and descriptors, every pair matched and
     verified again under ``cfg.seed`` (the verification's RANSACs follow it); (its source, the matching's wall s)."""
-    import sqlite3
+    import pycolmap
 
     folder.mkdir(parents=True, exist_ok=True)
     db = folder / "database.db"
     shutil.copyfile(src.database, db)
-    con = sqlite3.connect(db)
+    copy = pycolmap.Database.open(str(db))
     try:
-        con.execute("DELETE FROM matches")
-        con.execute("DELETE FROM two_view_geometries")
-        con.commit()
+        copy.clear_matches()
+        copy.clear_two_view_geometries()
     finally:
-        con.close()
+        copy.close()
     info = rematch.match_every_pair(db, cfg, device)
     return Source(db, src.image_dir, src.resolution, "exhaustive"), info["match_s"]
 

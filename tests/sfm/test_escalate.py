@@ -202,11 +202,20 @@ def test_a_restart_verifies_every_pair_again_with_its_seed(split, tmp_path, monk
         keep = names if "reverify" in str(database) else names[:12]
         return real(database, image_dir, out_dir, cfg, keep, mapper, angle)
 
+    real_match = rematch.match_every_pair
+    before = []  # (database, verified pairs it holds when every pair is matched, the seed)
+
+    def spy(database, cfg, device):
+        before.append((Path(database), rematch.database_stats(database)["verified_pairs"], cfg.seed))
+        return real_match(database, cfg, device)
+
     monkeypatch.setattr(steps, "run_mapper", stall)
+    monkeypatch.setattr(rematch, "match_every_pair", spy)
     res = run_sfm(split["images"], SfmOutputs(tmp_path / "sfm"), _cfg(matcher="exhaustive", seed=7,
                                                                       partial_min_fraction=0.5))
     attempts = res.report["mapping"]["attempts"]
     assert [(a["step"], a["seed"]) for a in attempts][-2:] == [("restart", 8), ("reverify", 8)], attempts
+    assert before[-1][0].parent.name == "reverify1" and before[-1][1:] == (0, 8)  # the copy's pairs cleared, seed 8
     first, again = attempts[-2], attempts[-1]
     assert first["registered"] <= 12 and again["registered"] == 20
     assert again["verified_pairs"] > 0 and again["match_seconds"] > 0
