@@ -240,7 +240,8 @@ def restart(best: Attempt, src: Source, cfg: SfmConfig, run, work: Path, device=
 
 def reverified(src: Source, folder: Path, cfg: SfmConfig, device=None) -> tuple[Source, float]:
     """A copy of ``src``'s database in ``folder`` with its keypoints and descriptors, every pair matched and
-    verified again under ``cfg.seed`` (the verification's RANSACs follow it); (its source, the matching's wall s)."""
+    verified again under ``cfg.seed`` (the verification's RANSACs follow it) on ``device`` (None: the config's);
+    (its source, the matching's wall s)."""
     import pycolmap
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -252,7 +253,7 @@ def reverified(src: Source, folder: Path, cfg: SfmConfig, device=None) -> tuple[
         copy.clear_two_view_geometries()
     finally:
         copy.close()
-    info = rematch.match_every_pair(db, cfg, device)
+    info = rematch.match_every_pair(db, cfg, device if device is not None else steps.colmap_device(cfg))
     return Source(db, src.image_dir, src.resolution, "exhaustive"), info["match_s"]
 
 
