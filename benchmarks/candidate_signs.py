@@ -35,7 +35,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from real.labels import load_labels, read_photo  # noqa: E402
+from real.labels import load_labels  # noqa: E402
 
 MIN_PIXELS = 20  # a photo shows a candidate where it carries the render on this many pixels
 LUMA = np.array([0.299, 0.587, 0.114], np.float32)
@@ -120,23 +120,22 @@ def signs(g, cues, cand, spread: np.ndarray, tracks: dict, full: dict) -> dict:
             **{k: float(v) for k, v in cand.figures.items() if k in ("smooth", "turning", "on_plane")}}
 
 
-def on_labels(g, cand, labels, cams: dict, captures: Path, capture: str) -> tuple[int, int]:
-    """Pixels where ``cand`` carries the render (half or more) on the must-move and must-stay-still marks."""
-    from anigs.effects.geometry import render_features
+def on_labels(g, cand, labels, cams: dict, sizes: dict) -> tuple[int, int]:
+    """Pixels where ``cand`` moves the render as the benchmark scores it (:func:`real_captures.moving_of`) on the
+    must-move and must-stay-still marks; ``sizes``: the labelled photos' sizes (:func:`real_captures.photo_sizes`)."""
+    import real_captures as rc
 
-    ind = np.zeros((g.num, 1), np.float32)
-    ind[cand.indices] = 1.0
+    own = np.zeros(g.num, bool)
+    own[cand.indices] = True
+    moving = rc.moving_of(g, own, np.zeros(g.num, np.int64), cams, [pl.name for pl in labels.photos])
     move = still = 0
     for pl in labels.photos:
-        cam = cams.get(Path(pl.name).stem)
-        if cam is None:
+        if pl.name not in moving:
             continue
-        f, a, _ = render_features(g, ind, cam)
-        own = (f[..., 0] >= 0.5) & (a >= 0.5)
-        img = read_photo(captures / capture / pl.name)
-        m, s = pl.masks(cam.height, cam.width, (img.shape[1], img.shape[0]))
-        move += int((own & m).sum())
-        still += int((own & s).sum())
+        m = moving[pl.name] > 0
+        mv, st = pl.masks(m.shape[0], m.shape[1], sizes[pl.name])
+        move += int((m & mv).sum())
+        still += int((m & st).sum())
     return move, still
 
 
@@ -159,12 +158,15 @@ def run(cache: Path, capture: str, prompt: str, captures: Path, staged: Staged) 
     spread = colour_spread(g, [p.image for p in cues.maps], [p.camera for p in cues.maps], [p.depth for p in cues.maps])
     full = {Path(c.name).stem: c for c in load_cameras(scene / "sfm" / "cameras.json")}
     tracks = {Path(k).stem: v for k, v in load_tracks(scene / "sfm" / "tracks.npz").items()}
+    import real_captures as rc
+
     labels = load_labels(capture)
+    sizes = rc.photo_sizes(captures, capture, labels)  # read once, not per candidate
     rows = []
     for c in ruled.candidates:
         if c.region not in PLANTS:
             continue
-        move, still = on_labels(g, c, labels, full, captures, capture)
+        move, still = on_labels(g, c, labels, full, sizes)
         rows.append({"capture": capture, "number": c.number, "region": c.region, "gaussians": len(c.indices),
                      "rule": c.rule if (not c.kept or c.moved_to) else "", "moved_to": c.moved_to,
                      "on_move_px": move, "on_still_px": still, **signs(g, cues, c, spread, tracks, full)})
